@@ -1,0 +1,272 @@
+"""One validating YAML loader for every parameter file of mavreg and firmware_sim.
+
+A schema is a frozen dataclass. Each field's type says what the YAML value must be,
+and the field's ``metadata`` may add a range and a unit conversion:
+
+- ``float``, ``int``, ``bool``, ``str``;
+- ``tuple[float, ...]`` with ``metadata["length"]`` for a fixed-length vector;
+- a nested schema (another dataclass), or ``tuple[Schema, ...]`` for a list of them;
+- ``Optional[T]`` (``T | None``): the key may be left out or be ``null``;
+- a field with a default may be left out; one without is required;
+- ``metadata["min"]``, ``["max"]``, ``["min_exclusive"]`` bound numbers (each element of a vector);
+- ``metadata["choices"]`` restricts strings;
+- ``metadata["deg"] = True`` on a field named ``X_rad`` reads the YAML key ``X_deg``
+  and converts degrees to radians (the SI-inside, degrees-in-YAML rule of the conventions);
+- ``metadata["union"] = {"line": LineSpec, ...}`` on a field annotated ``object``: the
+  value is a mapping with exactly one of those keys, whose value is loaded as that schema.
+
+Every error is a :class:`ConfigError` whose message names the file, the line, the key
+path and what was expected, in one line.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import types
+import typing
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+__all__ = ["ConfigError", "load_file", "load_text", "load_node", "schema_keys"]
+
+
+class ConfigError(ValueError):
+    """A parameter file that does not match its schema.
+
+    ``str(err)`` is one line: ``FILE:LINE: KEY: MESSAGE``.
+    """
+
+    def __init__(self, source: str, line: int | None, key: str, message: str):
+        self.source = source
+        self.line = line
+        self.key = key
+        self.message = message
+        where = f"{source}:{line}" if line is not None else source
+        super().__init__(f"{where}: {key or '<top>'}: {message}" if key else f"{where}: {message}")
+
+
+def _line(node: yaml.Node | None) -> int | None:
+    return None if node is None else node.start_mark.line + 1
+
+
+def _yaml_key(f: dataclasses.Field) -> str:
+    if f.metadata.get("deg"):
+        if not f.name.endswith("_rad"):
+            raise TypeError(f"field {f.name}: deg=True needs a name ending in _rad")
+        return f.name[: -len("_rad")] + "_deg"
+    return f.name
+
+
+def schema_keys(schema: type) -> list[str]:
+    """The YAML keys a schema accepts, in declaration order."""
+    return [_yaml_key(f) for f in dataclasses.fields(schema)]
+
+
+class _Ctx:
+    def __init__(self, source: str):
+        self.source = source
+
+    def fail(self, node: yaml.Node | None, key: str, message: str) -> typing.NoReturn:
+        raise ConfigError(self.source, _line(node), key, message)
+
+
+def _scalar(node: yaml.Node) -> Any:
+    """Resolve a scalar node with PyYAML's safe constructor."""
+    return _CONSTRUCTOR.construct_object(node, deep=True)
+
+
+_CONSTRUCTOR = yaml.SafeLoader("")
+
+
+def _describe(node: yaml.Node) -> str:
+    if isinstance(node, yaml.MappingNode):
+        return "a mapping"
+    if isinstance(node, yaml.SequenceNode):
+        return "a list"
+    value = _scalar(node)
+    return "null" if value is None else f"{type(value).__name__} {value!r}"
+
+
+def _check_range(ctx: _Ctx, node, key: str, value: float, meta: dict) -> None:
+    lo, hi = meta.get("min"), meta.get("max")
+    lo_x = meta.get("min_exclusive")
+    if lo_x is not None and not value > lo_x:
+        ctx.fail(node, key, f"expected a value > {lo_x}, got {value!r}")
+    if lo is not None and value < lo:
+        ctx.fail(node, key, f"expected a value >= {lo}, got {value!r}")
+    if hi is not None and value > hi:
+        ctx.fail(node, key, f"expected a value <= {hi}, got {value!r}")
+
+
+def _load_number(ctx: _Ctx, node, key: str, tp: type, meta: dict) -> float | int:
+    if not isinstance(node, yaml.ScalarNode):
+        ctx.fail(node, key, f"expected a number, got {_describe(node)}")
+    value = _scalar(node)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        ctx.fail(node, key, f"expected {'an integer' if tp is int else 'a number'}, got {_describe(node)}")
+    if tp is int and not isinstance(value, int):
+        ctx.fail(node, key, f"expected an integer, got {value!r}")
+    if not math.isfinite(value):
+        ctx.fail(node, key, f"expected a finite number, got {value!r}")
+    _check_range(ctx, node, key, value, meta)
+    if meta.get("deg"):
+        return math.radians(value)
+    return float(value) if tp is float else value
+
+
+def _unwrap_optional(tp: Any) -> tuple[Any, bool]:
+    origin = typing.get_origin(tp)
+    if origin in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        if len(args) == 1 and len(typing.get_args(tp)) == 2:
+            return args[0], True
+    return tp, False
+
+
+def _load_value(ctx: _Ctx, node: yaml.Node, key: str, tp: Any, meta: dict) -> Any:
+    tp, optional = _unwrap_optional(tp)
+    if optional and isinstance(node, yaml.ScalarNode) and _scalar(node) is None:
+        return None
+    if "union" in meta:
+        return _load_union(ctx, node, key, meta["union"])
+    if dataclasses.is_dataclass(tp):
+        return _load_schema(ctx, node, tp, key)
+    if tp in (float, int):
+        return _load_number(ctx, node, key, tp, meta)
+    if tp is bool:
+        value = _scalar(node) if isinstance(node, yaml.ScalarNode) else None
+        if not isinstance(value, bool):
+            ctx.fail(node, key, f"expected true or false, got {_describe(node)}")
+        return value
+    if tp is str:
+        value = _scalar(node) if isinstance(node, yaml.ScalarNode) else None
+        if not isinstance(value, str):
+            ctx.fail(node, key, f"expected a string, got {_describe(node)}")
+        choices = meta.get("choices")
+        if choices is not None and value not in choices:
+            ctx.fail(node, key, f"expected one of {', '.join(map(str, choices))}, got {value!r}")
+        return value
+    if typing.get_origin(tp) is tuple:
+        return _load_tuple(ctx, node, key, tp, meta)
+    raise TypeError(f"unsupported schema type {tp!r} for {key}")
+
+
+def _load_tuple(ctx: _Ctx, node, key: str, tp: Any, meta: dict) -> tuple:
+    (elem_tp, *rest) = typing.get_args(tp)
+    if not isinstance(node, yaml.SequenceNode):
+        ctx.fail(node, key, f"expected a list, got {_describe(node)}")
+    n = meta.get("length")
+    if n is not None and len(node.value) != n:
+        ctx.fail(node, key, f"expected a list of {n} values, got {len(node.value)}")
+    lo = meta.get("min_items", 0)
+    if len(node.value) < lo:
+        ctx.fail(node, key, f"expected at least {lo} items, got {len(node.value)}")
+    elem_meta = {k: v for k, v in meta.items() if k not in ("length", "min_items")}
+    return tuple(
+        _load_value(ctx, item, f"{key}[{i}]", elem_tp, elem_meta) for i, item in enumerate(node.value)
+    )
+
+
+def _load_union(ctx: _Ctx, node, key: str, kinds: dict[str, type]) -> Any:
+    if not isinstance(node, yaml.MappingNode) or len(node.value) != 1:
+        ctx.fail(node, key, f"expected a mapping with exactly one of: {', '.join(kinds)}")
+    knode, vnode = node.value[0]
+    name = _scalar(knode)
+    if name not in kinds:
+        ctx.fail(knode, f"{key}.{name}", f"unknown kind; expected one of: {', '.join(kinds)}")
+    return _load_schema(ctx, vnode, kinds[name], f"{key}.{name}")
+
+
+def _load_schema(ctx: _Ctx, node: yaml.Node, schema: type, prefix: str = "") -> Any:
+    if not isinstance(node, yaml.MappingNode):
+        ctx.fail(node, prefix, f"expected a mapping, got {_describe(node)}")
+    hints = typing.get_type_hints(schema)
+    fields = {_yaml_key(f): f for f in dataclasses.fields(schema)}
+    seen: dict[str, tuple[yaml.Node, yaml.Node]] = {}
+    for knode, vnode in node.value:
+        name = _scalar(knode)
+        path = f"{prefix}.{name}" if prefix else str(name)
+        if not isinstance(name, str) or name not in fields:
+            ctx.fail(knode, path, f"unknown key; expected one of: {', '.join(fields)}")
+        if name in seen:
+            ctx.fail(knode, path, "duplicate key")
+        seen[name] = (knode, vnode)
+    values = {}
+    for yk, f in fields.items():
+        path = f"{prefix}.{yk}" if prefix else yk
+        if yk not in seen:
+            has_default = f.default is not dataclasses.MISSING or f.default_factory is not dataclasses.MISSING
+            if not has_default:
+                ctx.fail(node, path, "missing required key")
+            continue
+        values[f.name] = _load_value(ctx, seen[yk][1], path, hints[f.name], dict(f.metadata))
+    try:
+        obj = schema(**values)
+    except ValueError as exc:  # cross-field checks in __post_init__
+        ctx.fail(node, prefix, str(exc))
+    return obj
+
+
+def load_node(node: yaml.Node, schema: type, source: str) -> Any:
+    """Load an already-composed YAML node against ``schema``."""
+    return _load_schema(_Ctx(source), node, schema)
+
+
+def load_text(text: str, schema: type, source: str = "<string>", kind: str | None = None) -> Any:
+    """Parse YAML ``text`` and load it as ``schema``.
+
+    If ``kind`` is given, the document must carry ``kind: <kind>`` and ``version: 1``;
+    both keys are checked and removed before the schema sees the mapping.
+    """
+    try:
+        node = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        line = mark.line + 1 if mark is not None else None
+        raise ConfigError(source, line, "", f"not valid YAML: {exc.problem or exc}") from None
+    except yaml.YAMLError as exc:
+        raise ConfigError(source, None, "", f"not valid YAML: {exc}") from None
+    if node is None:
+        raise ConfigError(source, None, "", "empty file")
+    ctx = _Ctx(source)
+    if kind is not None:
+        node = _check_header(ctx, node, kind)
+    return _load_schema(ctx, node, schema)
+
+
+def _check_header(ctx: _Ctx, node: yaml.Node, kind: str) -> yaml.MappingNode:
+    if not isinstance(node, yaml.MappingNode):
+        ctx.fail(node, "", f"expected a mapping starting with 'kind: {kind}'")
+    header = {}
+    rest = []
+    for knode, vnode in node.value:
+        name = _scalar(knode)
+        if name in ("kind", "version"):
+            header[name] = (knode, vnode)
+        else:
+            rest.append((knode, vnode))
+    if "kind" not in header:
+        ctx.fail(node, "kind", f"missing required key (expected 'kind: {kind}')")
+    got = _scalar(header["kind"][1])
+    if got != kind:
+        ctx.fail(header["kind"][1], "kind", f"expected {kind!r}, got {got!r}")
+    if "version" not in header:
+        ctx.fail(node, "version", "missing required key (expected 'version: 1')")
+    ver = _scalar(header["version"][1])
+    if ver != 1 or isinstance(ver, bool):
+        ctx.fail(header["version"][1], "version", f"expected 1, got {ver!r}")
+    return yaml.MappingNode(node.tag, rest, node.start_mark, node.end_mark, node.flow_style)
+
+
+def load_file(path: str | Path, schema: type, kind: str | None = None) -> Any:
+    """Read and load a YAML parameter file. Errors name ``path`` as given."""
+    source = str(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(source, None, "", f"cannot read file: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise ConfigError(source, None, "", "not a UTF-8 text file") from None
+    return load_text(text, schema, source, kind)

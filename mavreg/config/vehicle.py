@@ -1,0 +1,77 @@
+"""Vehicle parameters: what the controller is designed on, and what only the emulator knows."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .loader import load_file
+
+__all__ = ["EmulatorParams", "VehicleParams", "load_vehicle", "G"]
+
+G = 9.81
+"""Gravity (m/s^2), along +z (down) of NED."""
+
+_POS = {"min_exclusive": 0.0}
+
+
+@dataclass(frozen=True)
+class EmulatorParams:
+    """Physics that only firmware_sim models; the controller is never designed on it."""
+
+    rotor_time_constant_s: float = field(default=0.02, metadata={"min": 0.0, "max": 1.0})
+    """First-order motor lag of each rotor's thrust (0: ideal actuators)."""
+    rotor_noise_sd_n: float = field(default=0.0, metadata={"min": 0.0})
+    """Standard deviation of the Gaussian noise on each rotor's thrust."""
+    linear_drag_n_s_per_m: tuple[float, ...] = field(
+        default=(0.0, 0.0, 0.0), metadata={"length": 3, "min": 0.0}
+    )
+    """Body-frame linear drag coefficients (force = -c * v_air_body, per axis)."""
+    inertia_offdiag_kg_m2: tuple[float, ...] = field(default=(0.0, 0.0, 0.0), metadata={"length": 3})
+    """Products of inertia (Jxy, Jxz, Jyz) the design model neglects."""
+    crash_speed_m_s: float = field(default=3.0, metadata=_POS)
+    """Touching the ground faster than this is a crash."""
+
+
+@dataclass(frozen=True)
+class VehicleParams:
+    """The design model's parameters (paper eqs 6-17 and 34), SI units."""
+
+    name: str
+    mass_kg: float = field(metadata=_POS)
+    inertia_kg_m2: tuple[float, ...] = field(metadata={"length": 3, "min_exclusive": 0.0})
+    """Diagonal of J: (jx, jy, jz)."""
+    arm_length_m: float = field(metadata=_POS)
+    drag_torque_ratio_m: float = field(metadata=_POS)
+    """k of eq 34: rotor drag torque per unit thrust."""
+    max_rotor_thrust_n: float = field(metadata=_POS)
+    emulator: EmulatorParams = field(default_factory=EmulatorParams)
+
+    def __post_init__(self):
+        jx, jy, jz = self.inertia_kg_m2
+        # A rigid body's principal moments obey the triangle inequality.
+        if jx + jy < jz or jx + jz < jy or jy + jz < jx:
+            raise ValueError(
+                f"inertia_kg_m2 {self.inertia_kg_m2} violates the triangle inequality "
+                "(each moment must be at most the sum of the other two)"
+            )
+        if self.max_rotor_thrust_n * 4 <= self.mass_kg * G:
+            raise ValueError(
+                f"max_rotor_thrust_n {self.max_rotor_thrust_n} N cannot hover "
+                f"{self.mass_kg} kg (needs more than {self.mass_kg * G / 4:.3f} N per rotor)"
+            )
+
+    @property
+    def inertia(self) -> np.ndarray:
+        """Diagonal inertia matrix J (kg m^2)."""
+        return np.diag(self.inertia_kg_m2)
+
+    @property
+    def hover_thrust_n(self) -> float:
+        return self.mass_kg * G
+
+
+def load_vehicle(path: str | Path) -> VehicleParams:
+    """Load ``params/vehicles/*.yaml`` (``kind: vehicle``)."""
+    return load_file(path, VehicleParams, kind="vehicle")

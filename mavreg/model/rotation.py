@@ -1,0 +1,78 @@
+"""Attitude: roll-pitch-yaw (ZYX) rotation matrices, quaternions, angle wrapping.
+
+R maps body (FRD) vectors to inertial (NED) vectors, R = Rz(psi) Ry(theta) Rx(phi).
+This is the paper's eq 5 with its two slips fixed: entries (1,2) and (2,2) read
+``-s(psi) c(phi) + c(psi) s(theta) s(phi)`` and ``c(psi) c(phi) + s(psi) s(theta) s(phi)``
+(the paper prints c(theta) for c(phi) in both). Every function here works on complex
+arguments too, so that the linearization can use complex-step differentiation.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["rpy_to_matrix", "matrix_to_rpy", "rpy_to_quat", "quat_to_matrix", "quat_to_rpy",
+           "wrap_angle", "euler_rates_matrix"]
+
+
+def rpy_to_matrix(phi, theta, psi) -> np.ndarray:
+    """Rotation matrix R = Rz(psi) Ry(theta) Rx(phi) (body to inertial)."""
+    cf, sf = np.cos(phi), np.sin(phi)
+    ct, st = np.cos(theta), np.sin(theta)
+    cp, sp = np.cos(psi), np.sin(psi)
+    return np.array([
+        [cp * ct, -sp * cf + cp * st * sf, sp * sf + cp * st * cf],
+        [sp * ct, cp * cf + sp * st * sf, -cp * sf + sp * st * cf],
+        [-st, ct * sf, ct * cf],
+    ])
+
+
+def matrix_to_rpy(R: np.ndarray) -> np.ndarray:
+    """Roll, pitch, yaw of a rotation matrix, pitch in [-pi/2, pi/2]."""
+    theta = -np.arcsin(np.clip(R[2, 0], -1.0, 1.0))
+    phi = np.arctan2(R[2, 1], R[2, 2])
+    psi = np.arctan2(R[1, 0], R[0, 0])
+    return np.array([phi, theta, psi])
+
+
+def rpy_to_quat(phi, theta, psi) -> np.ndarray:
+    """Quaternion (w, x, y, z), scalar first, of R = Rz(psi) Ry(theta) Rx(phi)."""
+    cf, sf = np.cos(phi / 2), np.sin(phi / 2)
+    ct, st = np.cos(theta / 2), np.sin(theta / 2)
+    cp, sp = np.cos(psi / 2), np.sin(psi / 2)
+    return np.array([
+        cp * ct * cf + sp * st * sf,
+        cp * ct * sf - sp * st * cf,
+        cp * st * cf + sp * ct * sf,
+        sp * ct * cf - cp * st * sf,
+    ])
+
+
+def quat_to_matrix(q) -> np.ndarray:
+    """Rotation matrix of a unit quaternion (w, x, y, z)."""
+    w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def quat_to_rpy(q) -> np.ndarray:
+    """Roll, pitch, yaw of a unit quaternion (w, x, y, z)."""
+    return matrix_to_rpy(quat_to_matrix(q))
+
+
+def wrap_angle(a):
+    """Wrap angles to (-pi, pi]."""
+    return np.pi - np.mod(np.pi - a, 2 * np.pi)
+
+
+def euler_rates_matrix(phi, theta) -> np.ndarray:
+    """W such that (phi, theta, psi)' = W (p, q, r): paper eqs 9-11."""
+    cf, sf = np.cos(phi), np.sin(phi)
+    ct, tt = np.cos(theta), np.tan(theta)
+    return np.array([
+        [1.0 + 0 * cf, sf * tt, cf * tt],
+        [0.0 * cf, cf, -sf],
+        [0.0 * cf, sf / ct, cf / ct],
+    ])
