@@ -1,0 +1,16 @@
+"""Errors a user can cause: the CLI prints their message on one line and exits 2."""
+from __future__ import annotations
+
+from .config.loader import ConfigError
+
+__all__ = ["UserError", "ConfigError", "ManeuverError"]
+
+UserError = ValueError
+"""Base of every user-facing error (ConfigError and ManeuverError are ValueErrors)."""
+
+
+class ManeuverError(ValueError):
+    """A maneuver that loads but cannot be flown: infeasible, or ill-formed geometry.
+
+    The message is one line and says where (segment, arc length) and by how much.
+    """
