@@ -1,0 +1,221 @@
+r"""Point-stabilizing LQR at hover, and smooth reference ramps for take-off, hold and landing.
+
+The gain comes from the same design model as the maneuver regulator
+(:class:`mavreg.model.quadrotor.QuadrotorModel`, paper eqs 6-17), linearized at a level
+hover with the target yaw:
+
+.. math::
+    u = u_{ref} - K (x - x_{ref}),\qquad K = R^{-1} B^T P,\qquad
+    A^T P + P A - P B R^{-1} B^T P + Q = 0,
+
+with the yaw error wrapped to (-pi, pi]. The reference ``x_ref`` is either a fixed hover
+point or a point of a :class:`Ramp`: a quintic in time per axis (position and yaw)
+joining (p0, v0, a0) to (p1, v1, a1), so position, velocity and acceleration are
+continuous (C^2) at both ends. The ramp's acceleration is fed forward as small-angle
+roll/pitch references and a thrust correction, so the hover LQR tracks it closely.
+Its duration is the shortest that keeps speed and acceleration inside the limits of
+:class:`HoverParams`, which keeps every rotor well away from saturation.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.linalg import solve_continuous_are
+
+from ..config.vehicle import G, VehicleParams
+from ..model.linearize import model_jacobians
+from ..model.mixer import Mixer
+from ..model.quadrotor import NX, QuadrotorModel
+from ..model.rotation import wrap_angle
+
+__all__ = ["HoverParams", "HoverController", "HoverOutput", "Ramp", "plan_ramp", "hold_ramp"]
+
+
+@dataclass(frozen=True)
+class HoverParams:
+    """Weights and reference limits of the hover controller (SI units)."""
+
+    q: tuple[float, ...] = (20.0, 20.0, 30.0, 4.0, 4.0, 4.0, 6.0, 6.0, 8.0, 0.5, 0.5, 0.5)
+    """Diagonal of Q over x = (p, roll pitch yaw, v_body, w_body)."""
+    r: tuple[float, ...] = (0.1, 1.0, 1.0, 1.0)
+    """Diagonal of R over u = (f, g1, g2, g3)."""
+    max_speed_m_s: float = 1.5
+    """Largest reference speed of a take-off, transfer or landing ramp."""
+    max_accel_m_s2: float = 1.0
+    """Largest reference acceleration of a ramp (keeps rotors far from saturation)."""
+    max_yaw_rate_rad_s: float = 0.8
+    """Largest reference yaw rate of a ramp."""
+
+    def __post_init__(self):
+        if len(self.q) != NX or len(self.r) != 4:
+            raise ValueError("HoverParams: q needs 12 weights and r needs 4")
+        if min(self.q) < 0 or min(self.r) <= 0:
+            raise ValueError("HoverParams: q must be >= 0 and r > 0")
+
+
+@dataclass(frozen=True)
+class HoverOutput:
+    """One step of the hover controller."""
+
+    u: np.ndarray
+    """(f, g1, g2, g3) commanded wrench."""
+    rotor_forces_n: np.ndarray
+    """Rotor forces f1..f4 of ``u`` (unclipped)."""
+    error: np.ndarray
+    """x - x_ref, yaw wrapped (12,)."""
+
+
+def _quintic(y0: float, v0: float, a0: float, y1: float, v1: float, a1: float, T: float) -> np.ndarray:
+    """Coefficients c0..c5 of y(t) = sum c_k t^k meeting the boundary values at 0 and T."""
+    c0, c1, c2 = y0, v0, a0 / 2.0
+    M = np.array([[T**3, T**4, T**5], [3 * T**2, 4 * T**3, 5 * T**4], [6 * T, 12 * T**2, 20 * T**3]])
+    rhs = np.array([y1 - (c0 + c1 * T + c2 * T**2), v1 - (c1 + 2 * c2 * T), a1 - 2 * c2])
+    c3, c4, c5 = np.linalg.solve(M, rhs)
+    return np.array([c0, c1, c2, c3, c4, c5])
+
+
+def _poly_eval(c: np.ndarray, t: float) -> tuple[float, float, float, float]:
+    """Value and first three derivatives of the polynomial with coefficients ``c``."""
+    pos = sum(c[k] * t**k for k in range(6))
+    vel = sum(k * c[k] * t ** (k - 1) for k in range(1, 6))
+    acc = sum(k * (k - 1) * c[k] * t ** (k - 2) for k in range(2, 6))
+    jerk = sum(k * (k - 1) * (k - 2) * c[k] * t ** (k - 3) for k in range(3, 6))
+    return pos, vel, acc, jerk
+
+
+@dataclass(frozen=True)
+class Ramp:
+    """A C^2 reference from (p0, v0, a0, yaw0) to (p1, v1, a1, yaw1) over ``duration_s``.
+
+    Before t=0 it holds the start, after ``duration_s`` it continues at the end velocity
+    (a hold when ``v1`` is zero).
+    """
+
+    coeffs: np.ndarray
+    """(4, 6): x, y, z and yaw polynomials."""
+    duration_s: float
+    end_position_m: np.ndarray
+    end_velocity_m_s: np.ndarray
+    end_yaw_rad: float
+
+    def sample(self, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
+        """(position, velocity, acceleration) NED, yaw and yaw rate at ramp time ``t_s``."""
+        p, v, a, _, yaw, yaw_rate = self.sample_with_jerk(t_s)
+        return p, v, a, yaw, yaw_rate
+
+    def sample_with_jerk(self, t_s: float):
+        """(position, velocity, acceleration, jerk) NED, yaw and yaw rate at ramp time ``t_s``."""
+        if t_s >= self.duration_s:
+            dt = t_s - self.duration_s
+            return (self.end_position_m + self.end_velocity_m_s * dt, self.end_velocity_m_s.copy(),
+                    np.zeros(3), np.zeros(3), self.end_yaw_rad, 0.0)
+        t = max(t_s, 0.0)
+        vals = np.array([_poly_eval(self.coeffs[i], t) for i in range(4)])
+        return (vals[:3, 0], vals[:3, 1], vals[:3, 2], vals[:3, 3], float(vals[3, 0]),
+                float(vals[3, 1]))
+
+    def finished(self, t_s: float) -> bool:
+        return t_s >= self.duration_s
+
+
+def plan_ramp(p0, v0, yaw0: float, p1, v1, yaw1: float, params: HoverParams,
+              a0=None, a1=None, min_duration_s: float = 0.5) -> Ramp:
+    """Shortest quintic ramp that respects the speed, acceleration and yaw-rate limits.
+
+    The yaw goes the short way round. The duration is searched on a geometric grid
+    (5% steps), checking the limits on 60 samples, and never shorter than ``min_duration_s``.
+    Durations whose velocity reverses against the direction of travel are skipped so
+    that a ramp with a moving end never backs up.
+    """
+    p0, v0, p1, v1 = (np.asarray(a, dtype=float) for a in (p0, v0, p1, v1))
+    a0 = np.zeros(3) if a0 is None else np.asarray(a0, dtype=float)
+    a1 = np.zeros(3) if a1 is None else np.asarray(a1, dtype=float)
+    yaw1_unwrapped = yaw0 + float(wrap_angle(yaw1 - yaw0))
+    travel = p1 - p0
+    dist = float(np.linalg.norm(travel))
+    direction = travel / dist if dist > 1e-9 else np.zeros(3)
+    vmax = max(params.max_speed_m_s, float(np.linalg.norm(v0)), float(np.linalg.norm(v1)))
+    T = min_duration_s
+    for _ in range(400):
+        coeffs = np.vstack([_quintic(p0[i], v0[i], a0[i], p1[i], v1[i], a1[i], T) for i in range(3)]
+                           + [_quintic(yaw0, 0.0, 0.0, yaw1_unwrapped, 0.0, 0.0, T)])
+        ts = np.linspace(0.0, T, 60)
+        vals = np.array([[_poly_eval(coeffs[i], t) for i in range(4)] for t in ts])  # (60, 4, 3)
+        speed = np.linalg.norm(vals[:, :3, 1], axis=1)
+        accel = np.linalg.norm(vals[:, :3, 2], axis=1)
+        yaw_rate = np.abs(vals[:, 3, 1])
+        along = vals[:, :3, 1] @ direction
+        ok = (speed.max() <= vmax * 1.001 and accel.max() <= params.max_accel_m_s2
+              and yaw_rate.max() <= params.max_yaw_rate_rad_s and along.min() >= -0.05)
+        if ok:
+            break
+        T *= 1.05
+    else:
+        raise ValueError("plan_ramp: no duration meets the ramp limits")
+    return Ramp(coeffs, T, p1.copy(), v1.copy(), float(wrap_angle(yaw1_unwrapped)))
+
+
+def hold_ramp(position_m, yaw_rad: float) -> Ramp:
+    """A ramp that is a fixed hover point (zero duration)."""
+    p = np.asarray(position_m, dtype=float)
+    coeffs = np.zeros((4, 6))
+    coeffs[:3, 0] = p
+    coeffs[3, 0] = yaw_rad
+    return Ramp(coeffs, 0.0, p.copy(), np.zeros(3), float(yaw_rad))
+
+
+@dataclass
+class HoverController:
+    """LQR about level hover; gains computed once per yaw (K does depend on yaw)."""
+
+    vehicle: VehicleParams
+    params: HoverParams = field(default_factory=HoverParams)
+
+    def __post_init__(self):
+        self.model = QuadrotorModel.from_vehicle(self.vehicle)
+        self.mixer = Mixer(self.vehicle.arm_length_m, self.vehicle.drag_torque_ratio_m)
+        self._gains: dict[float, np.ndarray] = {}
+
+    def gain(self, yaw_rad: float) -> np.ndarray:
+        """K (4, 12) of the LQR linearized at level hover with yaw ``yaw_rad`` (cached per 1e-3 rad)."""
+        key = round(float(wrap_angle(yaw_rad)), 3)
+        K = self._gains.get(key)
+        if K is None:
+            x0 = np.zeros(NX)
+            x0[5] = key
+            A, B = model_jacobians(self.model.f, x0, self.model.hover_input())
+            Q = np.diag(self.params.q)
+            R = np.diag(self.params.r)
+            P = solve_continuous_are(A, B, Q, R)
+            K = np.linalg.solve(R, B.T @ P)
+            self._gains[key] = K
+        return K
+
+    def reference(self, ramp: Ramp, t_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """(x_ref (12,), u_ref (4,)) of a ramp at time ``t_s``, small-angle acceleration and jerk feed-forward."""
+        p, v, a, j, yaw, yaw_rate = ramp.sample_with_jerk(t_s)
+        c, s = np.cos(yaw), np.sin(yaw)
+        # Heading frame: rotate NED by -yaw; level body velocity and acceleration.
+        v_b = np.array([c * v[0] + s * v[1], -s * v[0] + c * v[1], v[2]])
+        a_b = np.array([c * a[0] + s * a[1], -s * a[0] + c * a[1], a[2]])
+        j_b = np.array([c * j[0] + s * j[1], -s * j[0] + c * j[1], j[2]])
+        x_ref = np.zeros(NX)
+        x_ref[0:3] = p
+        x_ref[3] = a_b[1] / G       # roll tilts the thrust to the right (east at yaw 0)
+        x_ref[4] = -a_b[0] / G      # pitch nose-down accelerates forward
+        x_ref[5] = yaw
+        x_ref[6:9] = v_b
+        x_ref[9] = j_b[1] / G       # rates of those small-angle references
+        x_ref[10] = -j_b[0] / G
+        x_ref[11] = yaw_rate
+        u_ref = np.array([self.vehicle.mass_kg * (G - a[2]), 0.0, 0.0, 0.0])
+        return x_ref, u_ref
+
+    def step(self, x: np.ndarray, ramp: Ramp, t_s: float) -> HoverOutput:
+        """Control ``u`` for state ``x`` (12,) following ``ramp`` at ramp time ``t_s``."""
+        x_ref, u_ref = self.reference(ramp, t_s)
+        e = np.asarray(x, dtype=float) - x_ref
+        e[3:6] = wrap_angle(e[3:6])
+        u = u_ref - self.gain(x_ref[5]) @ e
+        return HoverOutput(u=u, rotor_forces_n=self.mixer.to_rotors(u), error=e)
