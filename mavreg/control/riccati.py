@@ -1,0 +1,394 @@
+r"""The s-varying LQR Riccati machinery of the transverse linearization (paper section 3).
+
+The transverse linearization ``w' = A(s) w + B(s) u_w`` (``w`` in R^n, n = 11, ``u_w`` in
+R^m, m = 4, ``'`` = d/ds with the arc length s as independent variable) with the cost
+
+.. math::
+    J = \int \left( w^T Q w + u_w^T R u_w \right) ds
+
+is minimised by ``u_w = -K(s) w`` with ``K = R^{-1} B^T P`` and P the solution of the
+Riccati differential equation in s,
+
+.. math::
+    -P'(s) = A^T P + P A - P S P + Q, \qquad S = B R^{-1} B^T,
+
+integrated *backward* from a terminal condition. Three entry points:
+
+* :func:`care` -- the constant-coefficient (algebraic) solution, a thin wrapper over
+  ``scipy.linalg.solve_continuous_are``; the steady terminal condition of an open maneuver.
+* :func:`sweep_backward` -- classical RK4 backward over a uniform s grid.
+* :func:`periodic_riccati` -- the periodic solution ``P(s) = P(s + L)`` of a maneuver that
+  repeats (laps), by repeated backward sweeps over one period.
+
+Step size
+---------
+Linearised about the solution, an error ``dP`` obeys (in reversed s, ``tau = -s``)
+``dP_tau = A_c^T dP + dP A_c`` with the closed-loop matrix ``A_c = A - B K``: a Lyapunov
+operator with eigenvalues ``mu_ij = lambda_i + lambda_j`` (``lambda`` the eigenvalues of
+``A_c``, all in the open left half-plane for an LQR closed loop). RK4 is stable on the
+mode ``mu`` iff ``|R(h mu)| <= 1`` with ``R(z) = 1 + z + z^2/2 + z^3/6 + z^4/24``; that
+region crosses the negative real axis at 2.785 and contains the whole half-disc of radius
+2.6 in the left half-plane. :func:`max_stable_step` therefore returns
+``safety * 2.5 / max |lambda_i + lambda_j|`` (``<= 2 |lambda_max|``), and
+:func:`sweep_backward` checks the step against it at every node after the sweep.
+
+All functions are pure numpy/scipy: numbers in, numbers out.
+"""
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import scipy.linalg
+
+__all__ = [
+    "RK4_STABILITY_RADIUS",
+    "care",
+    "riccati_rhs",
+    "max_stable_step",
+    "check_step",
+    "sweep_backward",
+    "periodic_riccati",
+]
+
+RK4_STABILITY_RADIUS = 2.5
+"""Radius of a left half-disc inside RK4's absolute stability region (true minimum ~2.6)."""
+
+_BLOWUP_FACTOR = 1e12
+
+
+def _validate_weights(Q, R, n: int, m: int) -> tuple[np.ndarray, np.ndarray]:
+    Q = np.asarray(Q, dtype=float)
+    R = np.asarray(R, dtype=float)
+    if Q.shape != (n, n):
+        raise ValueError(f"Q has shape {Q.shape}, expected ({n}, {n})")
+    if R.shape != (m, m):
+        raise ValueError(f"R has shape {R.shape}, expected ({m}, {m})")
+    if not (np.all(np.isfinite(Q)) and np.all(np.isfinite(R))):
+        raise ValueError("Q and R must be finite")
+    if not np.allclose(Q, Q.T, rtol=1e-12, atol=1e-14 * max(1.0, np.abs(Q).max())):
+        raise ValueError("Q must be symmetric")
+    if np.linalg.eigvalsh(0.5 * (Q + Q.T)).min() < -1e-12 * max(1.0, np.abs(Q).max()):
+        raise ValueError("Q must be positive semidefinite")
+    try:
+        np.linalg.cholesky(0.5 * (R + R.T))
+    except np.linalg.LinAlgError:
+        raise ValueError("R must be symmetric positive definite") from None
+    return 0.5 * (Q + Q.T), 0.5 * (R + R.T)
+
+
+def _uncontrollable_unstable_modes(A: np.ndarray, B: np.ndarray) -> list[complex]:
+    """Eigenvalues with Re >= 0 failing the PBH rank test rank[A - lambda I, B] = n."""
+    n = A.shape[0]
+    scale = max(1.0, np.abs(A).max(), np.abs(B).max())
+    bad = []
+    for lam in np.linalg.eigvals(A):
+        if lam.real < -1e-9 * scale:
+            continue
+        sv = np.linalg.svd(np.hstack([A - lam * np.eye(n), B]), compute_uv=False)
+        if sv[-1] <= 1e-9 * scale:
+            bad.append(complex(lam))
+    return bad
+
+
+def care(A, B, Q, R) -> tuple[np.ndarray, np.ndarray]:
+    r"""Stabilizing solution of the continuous algebraic Riccati equation.
+
+    .. math::
+        A^T P + P A - P B R^{-1} B^T P + Q = 0, \qquad K = R^{-1} B^T P,
+
+    computed by ``scipy.linalg.solve_continuous_are``. ``A - B K`` is Hurwitz.
+
+    Parameters
+    ----------
+    A : (n, n) array_like
+    B : (n, m) array_like
+    Q : (n, n) array_like, symmetric positive semidefinite
+    R : (m, m) array_like, symmetric positive definite
+
+    Returns
+    -------
+    P : (n, n) ndarray, symmetric
+    K : (m, n) ndarray
+
+    Raises
+    ------
+    ValueError
+        If (A, B) is not stabilizable (an eigenvalue with Re >= 0 fails the PBH test), if
+        scipy fails, or if the result is not finite / not stabilizing (e.g. (Q, A) has an
+        unobservable mode on the imaginary axis).
+    """
+    A = np.asarray(A, dtype=float)
+    B = np.asarray(B, dtype=float)
+    n = A.shape[0]
+    if A.shape != (n, n) or B.ndim != 2 or B.shape[0] != n:
+        raise ValueError(f"A {A.shape} and B {B.shape} do not form an (n,n), (n,m) pair")
+    Q, R = _validate_weights(Q, R, n, B.shape[1])
+    bad = _uncontrollable_unstable_modes(A, B)
+    if bad:
+        modes = ", ".join(f"{z.real:.6g}{z.imag:+.6g}j" for z in bad)
+        raise ValueError(f"(A, B) is not stabilizable: uncontrollable modes with Re >= 0: {modes}")
+    try:
+        P = scipy.linalg.solve_continuous_are(A, B, Q, R)
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        raise ValueError(f"the algebraic Riccati equation has no stabilizing solution: {exc}") from exc
+    if not np.all(np.isfinite(P)):
+        raise ValueError("the algebraic Riccati equation returned a non-finite solution")
+    P = 0.5 * (P + P.T)
+    K = np.linalg.solve(R, B.T @ P)
+    lam = np.linalg.eigvals(A - B @ K)
+    if lam.real.max() >= 0.0:
+        raise ValueError(
+            f"the Riccati solution is not stabilizing (closed-loop eigenvalue with real part "
+            f"{lam.real.max():.3g}); check that (Q, A) has no unobservable imaginary-axis mode"
+        )
+    return P, K
+
+
+def riccati_rhs(A: np.ndarray, S: np.ndarray, Q: np.ndarray, P: np.ndarray) -> np.ndarray:
+    r"""``F(P) = A^T P + P A - P S P + Q`` with ``S = B R^{-1} B^T``, so that ``-P' = F``."""
+    AtP = A.T @ P
+    return AtP + AtP.T - P @ S @ P + Q
+
+
+def max_stable_step(A, B, K, safety: float = 0.5) -> float:
+    r"""Largest s step that keeps the RK4 Riccati sweep stable, times ``safety``.
+
+    .. math::
+        h_{max} = \mathrm{safety} \cdot \frac{2.5}{\max_{ij} |\lambda_i + \lambda_j|},
+        \qquad \lambda = \mathrm{eig}(A - B K),
+
+    ``A``, ``B``, ``K`` may be single matrices or stacks ``(N, n, n)``, ``(N, n, m)``,
+    ``(N, m, n)``; the minimum over the stack is returned. ``safety = 1`` is the stability
+    edge; the default 0.5 keeps ``h |lambda_max| <= 0.625`` where RK4 is also accurate.
+    Returns ``inf`` for a zero closed-loop matrix. Note that the transient of a sweep
+    started far from the steady solution (e.g. ``P_terminal = 0``) passes through gains
+    whose closed loop can be faster than the steady one; the post-sweep
+    :func:`check_step` looks at every node.
+    """
+    h_abs = _stable_step_per_node(A, B, K)
+    return float(safety * h_abs.min())
+
+
+def _stable_step_per_node(A, B, K) -> np.ndarray:
+    A = np.asarray(A, dtype=float)
+    Acl = A - np.asarray(B, dtype=float) @ np.asarray(K, dtype=float)
+    if Acl.ndim == 2:
+        Acl = Acl[None]
+    lam = np.linalg.eigvals(Acl)                          # (N, n)
+    mu = np.abs(lam[:, :, None] + lam[:, None, :]).max(axis=(1, 2))
+    with np.errstate(divide="ignore"):
+        return np.where(mu > 0.0, RK4_STABILITY_RADIUS / np.where(mu > 0.0, mu, 1.0), np.inf)
+
+
+def check_step(A_nodes, B_nodes, K_nodes, h: float, safety: float = 0.5,
+               mode: str = "raise") -> None:
+    """Check the step ``h`` against :func:`max_stable_step` at every node.
+
+    Beyond the stability edge (``safety = 1``) the sweep is meaningless: raise
+    ``ValueError`` in ``mode="raise"``, warn in ``mode="warn"``. Between ``safety`` and the
+    edge it is stable but inaccurate on the fastest closed-loop modes: warn
+    (``RuntimeWarning``) in both modes. ``mode="off"`` does nothing.
+    """
+    if mode == "off":
+        return
+    if mode not in ("raise", "warn"):
+        raise ValueError(f"mode must be 'raise', 'warn' or 'off', not {mode!r}")
+    h_edge = _stable_step_per_node(A_nodes, B_nodes, K_nodes)
+    worst = int(np.argmin(h_edge))
+    if h > h_edge[worst]:
+        msg = (f"RK4 Riccati step h = {h:.4g} exceeds the stability limit {h_edge[worst]:.4g} "
+               f"at node {worst} (s = {worst * h:.4g}); use a step below "
+               f"{safety * h_edge.min():.4g}")
+        if mode == "raise":
+            raise ValueError(msg)
+        warnings.warn(msg, RuntimeWarning, stacklevel=3)
+    elif h > safety * h_edge[worst]:
+        warnings.warn(
+            f"RK4 Riccati step h = {h:.4g} is above {safety} of the stability limit "
+            f"{h_edge[worst]:.4g} at node {worst} (s = {worst * h:.4g}): the fastest "
+            "closed-loop modes are resolved poorly", RuntimeWarning, stacklevel=3)
+
+
+def _validate_grid(A_nodes, B_nodes, A_mid, B_mid, h):
+    A_nodes = np.asarray(A_nodes, dtype=float)
+    B_nodes = np.asarray(B_nodes, dtype=float)
+    A_mid = np.asarray(A_mid, dtype=float)
+    B_mid = np.asarray(B_mid, dtype=float)
+    if A_nodes.ndim != 3 or A_nodes.shape[1] != A_nodes.shape[2]:
+        raise ValueError(f"A_nodes must have shape (N, n, n), not {A_nodes.shape}")
+    N, n, _ = A_nodes.shape
+    if N < 2:
+        raise ValueError("the grid needs at least 2 nodes")
+    if B_nodes.ndim != 3 or B_nodes.shape[:2] != (N, n):
+        raise ValueError(f"B_nodes must have shape ({N}, {n}, m), not {B_nodes.shape}")
+    m = B_nodes.shape[2]
+    if A_mid.shape != (N - 1, n, n) or B_mid.shape != (N - 1, n, m):
+        raise ValueError(f"A_mid {A_mid.shape} / B_mid {B_mid.shape} must be "
+                         f"({N - 1}, {n}, {n}) / ({N - 1}, {n}, {m})")
+    for name, arr in (("A_nodes", A_nodes), ("B_nodes", B_nodes), ("A_mid", A_mid),
+                      ("B_mid", B_mid)):
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"{name} is not finite")
+    if not (np.isfinite(h) and h > 0.0):
+        raise ValueError(f"step h must be positive and finite, not {h}")
+    return A_nodes, B_nodes, A_mid, B_mid, N, n, m
+
+
+def sweep_backward(A_nodes, B_nodes, A_mid, B_mid, h: float, Q, R, P_terminal, *,
+                   step_check: str = "raise", safety: float = 0.5
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    r"""Integrate the Riccati differential equation backward in s with classical RK4.
+
+    Grid ``s_k = s_0 + k h``, ``k = 0..N-1``; ``P(s_{N-1}) = P_terminal``. With
+    ``F(s, P) = A^T P + P A - P S P + Q`` and ``P' = -F``, one step from ``s_{k+1}`` to
+    ``s_k`` is
+
+    .. math::
+        k_1 = F(s_{k+1}, P_{k+1}),\;
+        k_2 = F(s_{k+\frac12}, P_{k+1} + \tfrac h2 k_1),\;
+        k_3 = F(s_{k+\frac12}, P_{k+1} + \tfrac h2 k_2),\;
+        k_4 = F(s_k, P_{k+1} + h k_3),\\
+        P_k = P_{k+1} + \tfrac h6 (k_1 + 2 k_2 + 2 k_3 + k_4),
+
+    the two middle stages using the midpoint matrices ``A_mid[k]``, ``B_mid[k]``. P is
+    symmetrized after each step. Global error O(h^4).
+
+    Parameters
+    ----------
+    A_nodes : (N, n, n) array_like, A(s_k)
+    B_nodes : (N, n, m) array_like, B(s_k)
+    A_mid : (N-1, n, n) array_like, A(s_k + h/2)
+    B_mid : (N-1, n, m) array_like, B(s_k + h/2)
+    h : float, grid spacing (> 0, in the unit of s)
+    Q : (n, n) symmetric PSD;  R : (m, m) symmetric PD
+    P_terminal : (n, n) symmetric PSD, P at the last node (e.g. :func:`care` there)
+    step_check : {"raise", "warn", "off"}
+        After the sweep, check ``h`` against the RK4 stability limit at every node with the
+        gains found (see :func:`check_step`).
+    safety : float
+        Fraction of the stability limit above which a warning is issued.
+
+    Returns
+    -------
+    P : (N, n, n) ndarray, P(s_k)
+    K : (N, m, n) ndarray, K(s_k) = R^{-1} B(s_k)^T P(s_k)
+
+    Raises
+    ------
+    ValueError
+        On bad shapes or weights, if P becomes non-finite or blows up (norm beyond 1e12 times
+        the scale of Q and P_terminal; the message gives the node index and s - s_0), or if
+        the step violates the RK4 stability limit and ``step_check="raise"``.
+    """
+    A_nodes, B_nodes, A_mid, B_mid, N, n, m = _validate_grid(A_nodes, B_nodes, A_mid, B_mid, h)
+    Q, R = _validate_weights(Q, R, n, m)
+    P_T = np.asarray(P_terminal, dtype=float)
+    if P_T.shape != (n, n) or not np.all(np.isfinite(P_T)):
+        raise ValueError(f"P_terminal must be a finite ({n}, {n}) matrix")
+    R_cho = scipy.linalg.cho_factor(R)
+    Rinv_Bt_nodes = np.stack([scipy.linalg.cho_solve(R_cho, Bk.T) for Bk in B_nodes])
+    S_nodes = B_nodes @ Rinv_Bt_nodes
+    S_mid = B_mid @ np.stack([scipy.linalg.cho_solve(R_cho, Bk.T) for Bk in B_mid])
+    limit = _BLOWUP_FACTOR * max(1.0, np.abs(Q).max(), np.abs(P_T).max())
+
+    P = np.empty((N, n, n))
+    P[-1] = 0.5 * (P_T + P_T.T)
+    half, sixth = 0.5 * h, h / 6.0
+    for k in range(N - 2, -1, -1):
+        Pk1 = P[k + 1]
+        Am, Sm = A_mid[k], S_mid[k]
+        k1 = riccati_rhs(A_nodes[k + 1], S_nodes[k + 1], Q, Pk1)
+        k2 = riccati_rhs(Am, Sm, Q, Pk1 + half * k1)
+        k3 = riccati_rhs(Am, Sm, Q, Pk1 + half * k2)
+        k4 = riccati_rhs(A_nodes[k], S_nodes[k], Q, Pk1 + h * k3)
+        Pk = Pk1 + sixth * (k1 + 2.0 * (k2 + k3) + k4)
+        Pk = 0.5 * (Pk + Pk.T)
+        peak = np.abs(Pk).max()
+        if not np.isfinite(peak):
+            raise ValueError(f"Riccati sweep became non-finite at node {k} (s - s0 = {k * h:.6g})")
+        if peak > limit:
+            raise ValueError(f"Riccati sweep blew up at node {k} (s - s0 = {k * h:.6g}): "
+                             f"max |P| = {peak:.3g}; reduce the step h = {h:.4g}")
+        P[k] = Pk
+    K = Rinv_Bt_nodes @ P
+    check_step(A_nodes, B_nodes, K, h, safety=safety, mode=step_check)
+    return P, K
+
+
+def periodic_riccati(A_nodes, B_nodes, A_mid, B_mid, h: float, Q, R, tol: float = 1e-10,
+                     max_periods: int = 200, *, step_check: str = "raise",
+                     safety: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    r"""Periodic solution ``P(s) = P(s + L)`` of the Riccati equation over one period.
+
+    The grid covers exactly one period ``L = (N - 1) h``: node ``N-1`` is node 0 again
+    (``A_nodes[0] == A_nodes[-1]``, same for B). Starting from the :func:`care` solution of
+    the period-averaged system (or, if that is not stabilizable, of node 0), sweep backward
+    over the period, restart the next sweep from the ``P(s_0)`` just found, and stop when
+
+    .. math::
+        \frac{\|P(s_0) - P(s_0 + L)\|_F}{\|P(s_0)\|_F} < \mathrm{tol}.
+
+    Why it converges: the one-period backward map ``P(L) -> P(0)`` of a stabilizable,
+    detectable periodic system has the periodic solution as an attracting fixed point.
+    Linearised about it, ``dP(0) = Phi_c^T dP(L) Phi_c`` with ``Phi_c`` the closed-loop
+    monodromy matrix (state transition of ``A - B K`` over one period), whose Floquet
+    multipliers lie inside the unit circle; the residual thus contracts by about
+    ``rho(Phi_c)^2`` per period. The RK4 discretisation has its own fixed point, O(h^4) from
+    the exact one, to which the iteration converges to round-off.
+
+    Parameters
+    ----------
+    A_nodes, B_nodes, A_mid, B_mid, h, Q, R
+        As :func:`sweep_backward`, over one period.
+    tol : float
+        Relative periodicity residual to reach.
+    max_periods : int
+        Most backward sweeps to try.
+    step_check, safety
+        As :func:`sweep_backward` (checked on the final sweep only).
+
+    Returns
+    -------
+    P : (N, n, n) ndarray with ``P[0]`` equal to ``P[-1]`` to ``tol``
+    K : (N, m, n) ndarray
+
+    Raises
+    ------
+    ValueError
+        If the grid is not periodic, if no starting CARE solution exists, if a sweep blows
+        up, or if the residual is still above ``tol`` after ``max_periods`` sweeps (the
+        message gives the residual).
+    """
+    A_nodes, B_nodes, A_mid, B_mid, N, n, m = _validate_grid(A_nodes, B_nodes, A_mid, B_mid, h)
+    for name, arr in (("A_nodes", A_nodes), ("B_nodes", B_nodes)):
+        scale = max(1.0, np.abs(arr).max())
+        if np.abs(arr[0] - arr[-1]).max() > 1e-9 * scale:
+            raise ValueError(f"{name}[0] and {name}[-1] differ by "
+                             f"{np.abs(arr[0] - arr[-1]).max():.3g}: the grid must cover "
+                             "exactly one period")
+    if max_periods < 1:
+        raise ValueError("max_periods must be at least 1")
+    # Period average by the composite trapezoid rule on the nodes.
+    A_avg = A_nodes[:-1].mean(axis=0)
+    B_avg = B_nodes[:-1].mean(axis=0)
+    try:
+        P_end, _ = care(A_avg, B_avg, Q, R)
+    except ValueError:
+        try:
+            P_end, _ = care(A_nodes[-1], B_nodes[-1], Q, R)
+        except ValueError as exc:
+            raise ValueError("periodic Riccati: neither the period-averaged system nor the "
+                             f"system at s0 gives a starting solution: {exc}") from exc
+    residual = np.inf
+    for period in range(1, max_periods + 1):
+        P, K = sweep_backward(A_nodes, B_nodes, A_mid, B_mid, h, Q, R, P_end, step_check="off")
+        residual = np.linalg.norm(P[0] - P_end) / max(np.linalg.norm(P[0]), np.finfo(float).tiny)
+        P_end = P[0]
+        if residual < tol:
+            P[-1] = P[0]
+            K[-1] = K[0]
+            check_step(A_nodes, B_nodes, K, h, safety=safety, mode=step_check)
+            return P, K
+    raise ValueError(f"periodic Riccati did not converge in {max_periods} periods: relative "
+                     f"residual |P(0) - P(L)| / |P(0)| = {residual:.3g} > tol = {tol:.3g}")
