@@ -1,0 +1,10 @@
+"""firmware_sim: a software-in-the-loop quadrotor that speaks MAVLink 2 over UDP.
+
+Its own physics (quaternion rigid body with the full inertia matrix, RK4, rotor lag,
+noise, drag, wind, ground contact), a small sans-I/O autopilot (arming, modes,
+offboard stream, failsafe stabilizer), a UDP link, two clocks (real time and lockstep)
+and a flight recorder. It imports nothing from ``mavreg`` but ``mavreg.config``.
+See ``docs/firmware_sim.md``.
+"""
+__all__ = ["__version__"]
+__version__ = "0.1.0"

@@ -1,0 +1,107 @@
+"""The simulated airframe: rigid body, rotors, wind, ground, limits and recorder together.
+
+No I/O, no clock: :meth:`Simulation.advance` runs the physics steps of one control
+period with the rotor command held.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .ground import Ground, Limits, check_limits
+from .params import SimParams
+from .physics import G, RigidBody
+from .rotors import Rotors, mix
+from .wind import Wind
+
+__all__ = ["Simulation", "GROUND_STATE"]
+
+GROUND_STATE = (0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+"""Resting on the ground at the origin, level, heading north."""
+
+
+class Simulation:
+    """Physics of the vehicle, stepped at ``params.physics_hz``.
+
+    Parameters
+    ----------
+    params : SimParams
+    state : 13-tuple, optional
+        Initial state (see :mod:`firmware_sim.physics`); default on the ground.
+    wind : Wind, optional
+    recorder : Recorder, optional
+        Receives one row per physics step (and the initial state).
+    limits : Limits, optional
+    gravity_m_s2 : float
+        Only tests change it.
+    """
+
+    def __init__(self, params: SimParams, state=None, wind: Wind | None = None,
+                 recorder=None, limits: Limits | None = None, gravity_m_s2: float = G):
+        v = params.vehicle
+        self.params = params
+        self.dt_s = 1.0 / params.physics_hz
+        self.substeps = params.substeps
+        self.rng = np.random.default_rng(params.seed)
+        self.body = RigidBody(v.mass_kg, params.inertia_matrix_kg_m2,
+                              v.emulator.linear_drag_n_s_per_m, gravity_m_s2)
+        self.rotors = Rotors(v.max_rotor_thrust_n, v.emulator.rotor_time_constant_s,
+                             v.emulator.rotor_noise_sd_n, self.dt_s, self.rng)
+        self.ground = Ground(v.emulator.crash_speed_m_s)
+        self.wind = wind if wind is not None else Wind()
+        self.limits = limits if limits is not None else Limits()
+        self.recorder = recorder
+        self.arm_length_m = v.arm_length_m
+        self.k_m = v.drag_torque_ratio_m
+        self.state = tuple(float(x) for x in (state if state is not None else GROUND_STATE))
+        self.step_count = 0
+        self.t_s = 0.0
+        self.applied_n = (0.0, 0.0, 0.0, 0.0)
+        self.state = self.ground.apply(self.state, 0.0) if self.state[2] >= 0 else self.state
+        if state is not None and self.state[2] < 0:
+            # Start in flight with rotors already spinning at hover.
+            hover = v.mass_kg * G / 4
+            self.rotors.lagged_n = [hover] * 4
+            self.applied_n = (hover,) * 4
+
+    @property
+    def on_ground(self) -> bool:
+        """Whether the vehicle rests on the ground."""
+        return self.ground.on_ground
+
+    def record_initial(self, armed: bool, mode: int) -> None:
+        """Write the initial state as the recorder's first row."""
+        if self.recorder is not None:
+            self.recorder.record(self.t_s, self.state, (0.0,) * 4, self.applied_n, armed, mode,
+                                 self.ground.on_ground)
+
+    def advance(self, cmd_n, armed: bool, mode: int) -> None:
+        """Run one control period of physics steps with rotor command ``cmd_n`` held.
+
+        Raises
+        ------
+        SimStop
+            On a crash, a non-finite state or a limit exceeded.
+        """
+        body, rotors, ground, wind, rec = self.body, self.rotors, self.ground, self.wind, self.recorder
+        l, k, dt = self.arm_length_m, self.k_m, self.dt_s
+        s = self.state
+        n0 = self.step_count
+        pdt = self.params.physics_hz
+        for i in range(1, self.substeps + 1):
+            t0 = (n0 + i - 1) / pdt
+            applied = rotors.step(cmd_n, armed)
+            T, tx, ty, tz = mix(applied, l, k)
+            w, f = wind.at(t0)
+            if ground.on_ground and T < 1e-9 and not wind.items:
+                pass       # resting, nothing acts that could lift it
+            else:
+                s = body.rk4_step(s, dt, T, tx, ty, tz, w, f)
+            t1 = (n0 + i) / pdt
+            check_limits(s, t1, self.limits)
+            s = ground.apply(s, t1)
+            self.state = s
+            self.applied_n = applied
+            if rec is not None:
+                rec.record(t1, s, cmd_n, applied, armed, mode, ground.on_ground)
+        self.step_count = n0 + self.substeps
+        self.t_s = self.step_count / pdt
