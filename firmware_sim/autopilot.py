@@ -1,0 +1,314 @@
+"""The emulator's autopilot as a sans-I/O state machine.
+
+Decoded MAVLink messages and the simulation time go in; messages to send (pymavlink
+message objects, packed by the link) and rotor commands come out. No sockets, no wall
+clock: tests drive it directly.
+
+Acceptance rules (documented in docs/firmware_sim.md):
+
+- SET_ACTUATOR_CONTROL_TARGET: source system == ours; ``target_system`` == ours and
+  ``target_component`` 0 or ours; the first component that sends one becomes the
+  offboard peer, others are ``foreign_component``; ``group_mlx`` 0; all 8 controls
+  finite (else ``non_finite``, whole message); controls 0..3 within [0, 1] +- 1e-6
+  (else ``out_of_range``). A valid target keeps the stream alive; it is applied only
+  while armed and in OFFBOARD (else counted ``not_armed_or_not_offboard``).
+- COMMAND_LONG: source system == ours or the GCS system id (default 255), any
+  component; ``target_system`` ours (or 0 broadcast), ``target_component`` ours or 0.
+- HEARTBEAT from anyone is fine. Any other message is ``unsupported``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from pymavlink.dialects.v20 import common as mavlink2
+
+from . import modes
+from .physics import euler_from_quat
+from .stabilizer import Stabilizer
+
+__all__ = ["AutopilotConfig", "Autopilot", "FORCE_DISARM_MAGIC", "DROP_REASONS"]
+
+FORCE_DISARM_MAGIC = 21196.0
+DROP_REASONS = ("malformed", "foreign_system", "foreign_component", "wrong_target", "non_finite",
+                "out_of_range", "not_armed_or_not_offboard", "unsupported")
+
+_SEV_INFO = mavlink2.MAV_SEVERITY_INFO
+_SEV_WARN = mavlink2.MAV_SEVERITY_WARNING
+_SEV_CRIT = mavlink2.MAV_SEVERITY_CRITICAL
+_ACCEPTED = mavlink2.MAV_RESULT_ACCEPTED
+_DENIED = mavlink2.MAV_RESULT_DENIED
+_TEMP_REJECTED = mavlink2.MAV_RESULT_TEMPORARILY_REJECTED
+_UNSUPPORTED = mavlink2.MAV_RESULT_UNSUPPORTED
+
+
+@dataclass(frozen=True)
+class AutopilotConfig:
+    """Identity, timeouts and failsafe behaviour of the autopilot (SI, sim time)."""
+
+    system_id: int = 1
+    component_id: int = 1
+    gcs_system_id: int = 255
+    """Commands are also accepted from this system id (a ground station)."""
+    max_rotor_thrust_n: float = 12.0
+    offboard_loss_timeout_s: float = 0.25
+    failsafe_hold_s: float = 1.5
+    land_descent_m_s: float = 0.8
+    land_disarm_s: float = 0.5
+    """Time on the ground in LAND before the automatic disarm."""
+    stream_min_hz: float = 2.0
+    stream_min_duration_s: float = 0.5
+    heartbeat_period_s: float = 1.0
+    max_arm_tilt_rad: float = math.radians(10.0)
+    range_tolerance: float = 1e-6
+
+
+class Autopilot:
+    """Arming, modes, offboard stream tracking, failsafe and drop counters.
+
+    Parameters
+    ----------
+    config : AutopilotConfig
+    stabilizer : Stabilizer
+        Flies HOLD and LAND.
+    hover_thrust_n : float
+        Per-rotor hover thrust: the held offboard command of an in-flight start until
+        the first target arrives.
+    """
+
+    def __init__(self, config: AutopilotConfig, stabilizer: Stabilizer, hover_thrust_n: float):
+        self.cfg = config
+        self.stab = stabilizer
+        self.armed = False
+        self.mode = modes.HOLD
+        self.failsafe = False
+        self.drops = dict.fromkeys(DROP_REASONS, 0)
+        self.offboard_component: int | None = None
+        self.target_count = 0           # valid targets received (the lockstep loop watches it)
+        self.applied_count = 0
+        self.target_n = (0.0, 0.0, 0.0, 0.0)
+        self.last_target_t = -math.inf
+        self.stream_start_t = math.inf
+        self.mode_since_t = 0.0
+        self.ground_since_t: float | None = None
+        self.next_heartbeat_t = 0.0
+        self._hover_n = (float(hover_thrust_n),) * 4
+        self._out: list = []
+
+    # ---------------------------------------------------------------- state
+    def start_in_flight(self, t_s: float) -> list:
+        """Armed and in OFFBOARD at ``t_s`` (the ``--start`` case); hover held until a target."""
+        self.armed = True
+        self.target_n = self._hover_n
+        self.last_target_t = t_s
+        self.mode = modes.OFFBOARD
+        self.mode_since_t = t_s
+        return [self._statustext(_SEV_INFO, "started in flight: armed, OFFBOARD")]
+
+    def _statustext(self, severity: int, text: str):
+        return mavlink2.MAVLink_statustext_message(severity, text.encode()[:50], 0, 0)
+
+    def heartbeat(self):
+        """HEARTBEAT describing the current mode and armed flag."""
+        return mavlink2.MAVLink_heartbeat_message(
+            mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_GENERIC,
+            modes.base_mode(self.armed), self.mode,
+            mavlink2.MAV_STATE_ACTIVE if self.armed else mavlink2.MAV_STATE_STANDBY, 3)
+
+    def _set_mode(self, mode: int, t_s: float, why: str, state=None, failsafe: bool = False):
+        changed = mode != self.mode
+        if changed and mode in (modes.HOLD, modes.LAND) and state is not None and \
+                self.mode == modes.OFFBOARD:
+            self.stab.reset(state)
+        elif changed and mode == modes.HOLD and state is not None:
+            self.stab.reset(state)
+        self.mode = mode
+        self.mode_since_t = t_s
+        self.failsafe = failsafe
+        sev = _SEV_WARN if failsafe else _SEV_INFO
+        self._out.append(self._statustext(sev, f"mode {modes.MODE_NAMES[mode]}: {why}"))
+        self._out.append(self.heartbeat())
+
+    def _set_armed(self, armed: bool, why: str):
+        self.armed = armed
+        if not armed:
+            self.failsafe = False
+        self._out.append(self._statustext(_SEV_INFO, f"{'armed' if armed else 'disarmed'}: {why}"))
+        self._out.append(self.heartbeat())
+
+    def stream_alive(self, t_s: float) -> bool:
+        """Targets streaming at >= stream_min_hz for >= stream_min_duration_s."""
+        gap = 1.0 / self.cfg.stream_min_hz
+        return (t_s - self.last_target_t <= gap
+                and t_s - self.stream_start_t >= self.cfg.stream_min_duration_s - 1e-9)
+
+    # ---------------------------------------------------------------- input
+    def handle(self, msg, t_s: float, state, on_ground: bool) -> list:
+        """Process one decoded message at sim time ``t_s``; return the replies."""
+        self._out = []
+        mtype = msg.get_type()
+        if mtype == "SET_ACTUATOR_CONTROL_TARGET":
+            self._on_target(msg, t_s)
+        elif mtype == "COMMAND_LONG":
+            self._on_command(msg, t_s, state, on_ground)
+        elif mtype == "BAD_DATA":
+            self.drops["malformed"] += 1
+        elif mtype != "HEARTBEAT":
+            self.drops["unsupported"] += 1
+        return self._out
+
+    def _on_target(self, msg, t_s: float) -> None:
+        cfg = self.cfg
+        if msg.get_srcSystem() != cfg.system_id or msg.target_system != cfg.system_id:
+            self.drops["foreign_system" if msg.get_srcSystem() != cfg.system_id else "wrong_target"] += 1
+            return
+        if msg.target_component not in (0, cfg.component_id):
+            self.drops["wrong_target"] += 1
+            return
+        comp = msg.get_srcComponent()
+        if self.offboard_component is None:
+            self.offboard_component = comp
+        elif comp != self.offboard_component:
+            self.drops["foreign_component"] += 1
+            return
+        if msg.group_mlx != 0:
+            self.drops["unsupported"] += 1
+            return
+        c = msg.controls
+        if not math.isfinite(sum(c)):
+            self.drops["non_finite"] += 1
+            return
+        tol = cfg.range_tolerance
+        c0, c1, c2, c3 = c[0], c[1], c[2], c[3]
+        if min(c0, c1, c2, c3) < -tol or max(c0, c1, c2, c3) > 1.0 + tol:
+            self.drops["out_of_range"] += 1
+            return
+        fmax = cfg.max_rotor_thrust_n
+        self.target_n = tuple(fmax * (0.0 if x < 0.0 else (1.0 if x > 1.0 else x)) for x in (c0, c1, c2, c3))
+        if t_s - self.last_target_t > 1.0 / cfg.stream_min_hz:
+            self.stream_start_t = t_s
+        self.last_target_t = t_s
+        self.target_count += 1
+        if self.armed and self.mode == modes.OFFBOARD:
+            self.applied_count += 1
+        else:
+            self.drops["not_armed_or_not_offboard"] += 1
+
+    def _ack(self, msg, result: int):
+        self._out.append(mavlink2.MAVLink_command_ack_message(
+            msg.command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()))
+
+    def _on_command(self, msg, t_s: float, state, on_ground: bool) -> None:
+        cfg = self.cfg
+        if msg.get_srcSystem() not in (cfg.system_id, cfg.gcs_system_id):
+            self.drops["foreign_system"] += 1
+            return
+        if msg.target_system not in (0, cfg.system_id) or msg.target_component not in (0, cfg.component_id):
+            self.drops["wrong_target"] += 1
+            return
+        if msg.command == mavlink2.MAV_CMD_COMPONENT_ARM_DISARM:
+            self._arm_disarm(msg, t_s, state, on_ground)
+        elif msg.command == mavlink2.MAV_CMD_DO_SET_MODE:
+            self._do_set_mode(msg, t_s, state, on_ground)
+        else:
+            self.drops["unsupported"] += 1
+            self._ack(msg, _UNSUPPORTED)
+
+    def _arm_disarm(self, msg, t_s, state, on_ground) -> None:
+        if msg.param1 == 1.0:
+            if self.armed:
+                self._ack(msg, _ACCEPTED)
+                return
+            tilt = math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (state[4] ** 2 + state[5] ** 2))))
+            if not on_ground or tilt > self.cfg.max_arm_tilt_rad:
+                self._out.append(self._statustext(_SEV_WARN, "arming denied: not landed and level"))
+                self._ack(msg, _DENIED)
+                return
+            self._ack(msg, _ACCEPTED)
+            self._set_armed(True, "by command")
+        elif msg.param1 == 0.0:
+            if not self.armed:
+                self._ack(msg, _ACCEPTED)
+                return
+            if not on_ground and msg.param2 != FORCE_DISARM_MAGIC:
+                self._out.append(self._statustext(_SEV_WARN, "disarm denied: in flight (param2=21196 forces)"))
+                self._ack(msg, _DENIED)
+                return
+            self._ack(msg, _ACCEPTED)
+            self._set_armed(False, "forced in flight" if not on_ground else "by command")
+        else:
+            self._out.append(self._statustext(_SEV_WARN, "arm/disarm denied: param1 must be 0 or 1"))
+            self._ack(msg, _DENIED)
+
+    def _do_set_mode(self, msg, t_s, state, on_ground) -> None:
+        if not (int(msg.param1) & modes.BASE_MODE_CUSTOM):
+            self._out.append(self._statustext(_SEV_WARN, "mode denied: param1 needs custom mode (1)"))
+            self._ack(msg, _DENIED)
+            return
+        main, sub = int(msg.param2), int(msg.param3)
+        if main == modes.MAIN_OFFBOARD:
+            if not self.stream_alive(t_s):
+                self._out.append(self._statustext(_SEV_WARN, "OFFBOARD denied: no actuator target stream"))
+                self._ack(msg, _DENIED)
+                return
+            new = modes.OFFBOARD
+        elif main == modes.MAIN_AUTO and sub == modes.SUB_AUTO_LOITER:
+            new = modes.HOLD
+        elif main == modes.MAIN_AUTO and sub == modes.SUB_AUTO_LAND:
+            new = modes.LAND
+        else:
+            self._out.append(self._statustext(_SEV_WARN, f"mode denied: unsupported mode {main}.{sub}"))
+            self._ack(msg, _DENIED)
+            return
+        self._ack(msg, _ACCEPTED)
+        if new != self.mode:
+            self._set_mode(new, t_s, "by command", state)
+
+    # ---------------------------------------------------------------- periodic
+    def update(self, t_s: float, state, on_ground: bool) -> list:
+        """Timeouts, failsafe phases, landing detection and heartbeat at ``t_s``."""
+        self._out = []
+        cfg = self.cfg
+        if self.mode == modes.OFFBOARD and t_s - self.last_target_t > cfg.offboard_loss_timeout_s + 1e-9:
+            if self.armed and not on_ground:
+                self._set_mode(modes.HOLD, t_s, "offboard lost, failsafe hold", state, failsafe=True)
+            else:
+                self._set_mode(modes.HOLD, t_s, "offboard lost", state)
+        if self.failsafe and self.mode == modes.HOLD and t_s - self.mode_since_t >= cfg.failsafe_hold_s - 1e-9:
+            self._set_mode(modes.LAND, t_s, "failsafe land", state, failsafe=True)
+        if on_ground:
+            if self.ground_since_t is None:
+                self.ground_since_t = t_s
+        else:
+            self.ground_since_t = None
+        if (self.armed and self.mode == modes.LAND and self.ground_since_t is not None
+                and t_s - self.ground_since_t >= cfg.land_disarm_s - 1e-9):
+            self._set_armed(False, "landed")
+            self._set_mode(modes.HOLD, t_s, "landed")
+        if t_s >= self.next_heartbeat_t - 1e-9:
+            self._out.append(self.heartbeat())
+            self.next_heartbeat_t = t_s + cfg.heartbeat_period_s
+        return self._out
+
+    def rotor_command_n(self, state, on_ground: bool):
+        """Rotor thrusts (N) the autopilot commands for the coming control period."""
+        if not self.armed:
+            return (0.0, 0.0, 0.0, 0.0)
+        if self.mode == modes.OFFBOARD:
+            return self.target_n
+        if on_ground:
+            return (0.0, 0.0, 0.0, 0.0)     # idle on the ground in HOLD and LAND
+        if self.mode == modes.LAND:
+            return self.stab.land(state, self.cfg.land_descent_m_s)
+        return self.stab.hold(state)
+
+    def telemetry(self, t_s: float, state) -> list:
+        """ATTITUDE, ATTITUDE_QUATERNION and LOCAL_POSITION_NED with one ``time_boot_ms``."""
+        ms = int(round(t_s * 1000.0))
+        (x, y, z, qw, qx, qy, qz, vx, vy, vz, p, q, r) = state
+        roll, pitch, yaw = euler_from_quat((qw, qx, qy, qz))
+        return [
+            mavlink2.MAVLink_attitude_message(ms, roll, pitch, yaw, p, q, r),
+            mavlink2.MAVLink_attitude_quaternion_message(ms, qw, qx, qy, qz, p, q, r, (0.0, 0.0, 0.0, 0.0)),
+            mavlink2.MAVLink_local_position_ned_message(ms, x, y, z, vx, vy, vz),
+        ]

@@ -1,0 +1,204 @@
+"""``firmware-sim`` / ``python -m firmware_sim``: the emulator on its own."""
+from __future__ import annotations
+
+import argparse
+import math
+import signal
+import sys
+
+from .autopilot import Autopilot, AutopilotConfig
+from .clock import StopRun, run_lockstep, run_realtime
+from .engine import Engine
+from .link import Link
+from .params import START_KEYS, default_vehicle_path, load_sim_params, parse_start
+from .physics import G
+from .recorder import Recorder
+from .sim import Simulation
+from .stabilizer import Stabilizer
+from .status import ExitCode, SimStop
+from .wind import Wind, parse_wind
+
+__all__ = ["main", "build_parser", "build_engine"]
+
+DESCRIPTION = """\
+A software-in-the-loop quadrotor that speaks MAVLink 2 over UDP: quaternion rigid body
+with the full inertia matrix (RK4), rotor lag, noise, saturation, drag, wind, ground
+contact, and a small autopilot (arming, HOLD/LAND/OFFBOARD modes, offboard-loss
+failsafe). SET_ACTUATOR_CONTROL_TARGET group 0 is a pass-through mixer: controls[0..3]
+are rotors 1..4 (front, right, back, left) as a fraction of the maximum rotor thrust.
+
+The first stdout line is 'firmware_sim listening on udpin:HOST:PORT'.
+Exit status: 0 done or signalled, 1 internal error, 2 bad input, 3 crash,
+4 non-finite state, 5 speed or body rate limit. See docs/firmware_sim.md."""
+
+
+def _positive_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text!r}")
+    return v
+
+
+def _nonneg_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(v) and v >= 0):
+        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text!r}")
+    return v
+
+
+def _positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if v <= 0:
+        raise argparse.ArgumentTypeError(f"expected an integer > 0, got {text!r}")
+    return v
+
+
+def _sysid(text: str) -> int:
+    v = _positive_int(text)
+    if v > 255:
+        raise argparse.ArgumentTypeError(f"expected a MAVLink system id 1..255, got {text!r}")
+    return v
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):        # one line, exit 2
+        self.exit(int(ExitCode.USAGE), f"firmware-sim: error: {message}\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="firmware-sim", description=DESCRIPTION,
+                formatter_class=argparse.RawDescriptionHelpFormatter)
+    a = p.add_argument
+    a("--listen", default="udpin:127.0.0.1:14540", metavar="URL",
+      help="UDP address to listen on, udpin:HOST:PORT; port 0 picks a free port "
+           "(default %(default)s)")
+    a("--vehicle", default=None, metavar="YAML",
+      help="vehicle parameter file (default params/vehicles/mk_quadro.yaml of this repository)")
+    a("--rate-hz", type=_positive_int, default=500,
+      help="control and telemetry rate (default %(default)s)")
+    a("--physics-hz", type=_positive_int, default=1000,
+      help="RK4 physics rate, an integer multiple of --rate-hz (default %(default)s)")
+    a("--lockstep", action="store_true",
+      help="advance one control period per SET_ACTUATOR_CONTROL_TARGET (deterministic) "
+           "instead of the wall clock")
+    a("--lockstep-timeout", type=_positive_float, default=0.1, metavar="S",
+      help="wall seconds to wait for a period's command before it counts as lost "
+           "(default %(default)s)")
+    a("--lockstep-stall-speed", type=_nonneg_float, default=1.0, metavar="X",
+      help="while no commands stream in lockstep, run at X times real time; 0 = as fast "
+           "as possible (default %(default)s)")
+    a("--seed", type=int, default=0, help="seed of the rotor noise and perturbations (default 0)")
+    a("--start", default=None, metavar="STATE",
+      help="start in flight, armed and in OFFBOARD, e.g. 'z_m=-5,vy_m_s=8,roll_deg=120'. "
+           f"Keys (missing = 0): {', '.join(START_KEYS)}. Position and velocity NED, "
+           "attitude ZYX, body rates FRD. Default: on the ground, disarmed, HOLD")
+    a("--wind", action="append", default=None, metavar="SPEC",
+      help="repeatable: velocity:VN,VE,VD or force:FN,FE,FD (m/s or N, NED), optionally "
+           "@T0:T1 for a gust window in sim seconds, e.g. force:0,2,0@3:3.5")
+    a("--record", default=None, metavar="FILE.npz",
+      help="write the true state and rotor forces of every physics step to FILE.npz")
+    a("--offboard-loss-timeout", type=_positive_float, default=0.25, metavar="S",
+      help="sim seconds without a valid actuator target before the failsafe (default %(default)s)")
+    a("--failsafe-hold-s", type=_nonneg_float, default=1.5, metavar="S",
+      help="failsafe: seconds of level/hold-altitude before landing (default %(default)s)")
+    a("--system-id", type=_sysid, default=1, help="our MAVLink system id (default 1)")
+    a("--gcs-system-id", type=_sysid, default=255,
+      help="commands are also accepted from this system id (default 255)")
+    a("--mass-kg", type=_positive_float, default=None, help="override the vehicle mass")
+    a("--inertia-kg-m2", type=_positive_float, nargs=3, default=None, metavar=("JX", "JY", "JZ"),
+      help="override the diagonal of the inertia matrix")
+    a("--inertia-scale", type=_positive_float, default=None, help="multiply the inertia diagonal")
+    a("--inertia-perturb-sd-kg-m2", type=_nonneg_float, default=None, metavar="SD",
+      help="add Gaussian noise of this SD to each principal moment (drawn from --seed)")
+    a("--rotor-time-constant-s", type=_nonneg_float, default=None, help="override the motor lag")
+    a("--rotor-noise-sd-n", type=_nonneg_float, default=None, help="override the thrust noise SD")
+    a("--max-rotor-thrust-n", type=_positive_float, default=None, help="override rotor saturation")
+    a("--duration-s", type=_positive_float, default=None, metavar="S",
+      help="stop after this much simulation time (default: run until signalled)")
+    a("--quiet", action="store_true", help="no status line every second")
+    return p
+
+
+def build_engine(args) -> tuple[Engine, Recorder | None]:
+    """Everything the run needs, from parsed arguments. Raises ValueError on bad input."""
+    vehicle_path = args.vehicle if args.vehicle is not None else default_vehicle_path()
+    params = load_sim_params(
+        vehicle_path, rate_hz=args.rate_hz, physics_hz=args.physics_hz, seed=args.seed,
+        mass_kg=args.mass_kg, inertia_kg_m2=args.inertia_kg_m2, inertia_scale=args.inertia_scale,
+        inertia_perturb_sd_kg_m2=args.inertia_perturb_sd_kg_m2,
+        rotor_time_constant_s=args.rotor_time_constant_s, rotor_noise_sd_n=args.rotor_noise_sd_n,
+        max_rotor_thrust_n=args.max_rotor_thrust_n)
+    start = parse_start(args.start) if args.start is not None else None
+    wind = Wind(parse_wind(w) for w in (args.wind or ()))
+    v = params.vehicle
+    if wind.has_velocity and not any(v.emulator.linear_drag_n_s_per_m):
+        print("firmware-sim: warning: --wind velocity has no effect with zero linear drag "
+              "(emulator.linear_drag_n_s_per_m); use force: or a vehicle with drag", file=sys.stderr)
+    recorder = Recorder(args.record) if args.record else None
+    if recorder is not None:
+        recorder.meta.update(vehicle=str(vehicle_path), params=repr(params), seed=args.seed,
+                             rate_hz=args.rate_hz, physics_hz=args.physics_hz,
+                             lockstep=args.lockstep, start=args.start, wind=args.wind)
+    sim = Simulation(params, start, wind, recorder)
+    stab = Stabilizer(v.mass_kg, params.inertia_matrix_kg_m2, v.arm_length_m,
+                      v.drag_torque_ratio_m, v.max_rotor_thrust_n)
+    cfg = AutopilotConfig(system_id=args.system_id, gcs_system_id=args.gcs_system_id,
+                          max_rotor_thrust_n=v.max_rotor_thrust_n,
+                          offboard_loss_timeout_s=args.offboard_loss_timeout,
+                          failsafe_hold_s=args.failsafe_hold_s)
+    ap = Autopilot(cfg, stab, v.mass_kg * G / 4)
+    link = Link(args.listen, args.system_id, cfg.component_id)
+    engine = Engine(sim, ap, link)
+    if start is not None:
+        link.send(ap.start_in_flight(0.0))
+    sim.record_initial(ap.armed, ap.mode)
+    return engine, recorder
+
+
+def _raise_stop(signum, frame):
+    raise StopRun(signal.Signals(signum).name)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point; returns the exit status (see :class:`firmware_sim.status.ExitCode`)."""
+    args = build_parser().parse_args(argv)
+    try:
+        engine, recorder = build_engine(args)
+    except ValueError as exc:            # ConfigError included
+        print(f"firmware-sim: error: {exc}", file=sys.stderr)
+        return int(ExitCode.USAGE)
+    print(f"firmware_sim listening on {engine.link.url}", flush=True)
+    code, reason = ExitCode.OK, "done"
+    old = {s: signal.signal(s, _raise_stop) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        if args.lockstep:
+            run_lockstep(engine, args.lockstep_timeout, args.duration_s, args.quiet,
+                         args.lockstep_stall_speed)
+        else:
+            run_realtime(engine, args.rate_hz, args.duration_s, args.quiet)
+    except StopRun as exc:
+        reason = f"stopped by {exc}"
+    except SimStop as exc:
+        code, reason = exc.code, exc.reason
+        engine.announce_stop(reason)
+        print(f"firmware_sim: {reason}", file=sys.stderr, flush=True)
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+        if recorder is not None:
+            recorder.meta.update(stop_reason=reason, exit_code=int(code),
+                                 drops=engine.ap.drops, counters=engine.counters)
+            recorder.save()
+        engine.link.close()
+    if not args.quiet:
+        print(f"firmware_sim: {reason} at t={engine.sim.t_s:.3f} s; {engine.status_line()}", flush=True)
+    return int(code)

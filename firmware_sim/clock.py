@@ -1,0 +1,121 @@
+"""The two clocks: real time (wall clock) and lockstep.
+
+Real time
+    A control period every ``1/rate_hz`` wall seconds; incoming messages are handled as
+    they arrive; the latest actuator target is held. Overruns (more than 0.1 s behind)
+    are counted and the schedule is reset.
+
+Lockstep
+    Nothing advances until a valid MAVLink message has been heard (time frozen at 0).
+    Then, period k: send HEARTBEAT (when due) and the telemetry of t_k; handle datagrams
+    one at a time until one carries a valid SET_ACTUATOR_CONTROL_TARGET (COMMAND_LONG
+    etc. are handled meanwhile, at time t_k); step the physics to t_{k+1}. Datagrams
+    after that target wait for period k+1, so a client that answers every telemetry
+    with one target gets a deterministic run.
+
+    If no target arrives within ``lockstep_timeout_s`` (wall), the period counts as a
+    lockstep timeout, the last command is held and the loop is *stalled*: it stops
+    waiting per period and runs at ``stall_speed`` times real time (0: as fast as it
+    can) until a target arrives again, which resumes waiting at once. Timeouts of the
+    autopilot (failsafe, OFFBOARD precondition, heartbeat) count in simulation time.
+"""
+from __future__ import annotations
+
+import time
+
+from .engine import Engine
+
+__all__ = ["run_realtime", "run_lockstep", "StopRun"]
+
+
+class StopRun(Exception):
+    """Raised by a signal handler to end the loop cleanly."""
+
+
+class _Status:
+    def __init__(self, engine: Engine, quiet: bool):
+        self.engine = engine
+        self.quiet = quiet
+        self.next_wall = time.monotonic() + 1.0
+
+    def tick(self, now: float) -> None:
+        if now >= self.next_wall:
+            self.next_wall = now + 1.0
+            if not self.quiet:
+                print(self.engine.status_line(), flush=True)
+
+
+def _done(engine: Engine, duration_s: float | None) -> bool:
+    return duration_s is not None and engine.sim.t_s >= duration_s - 1e-9
+
+
+def run_realtime(engine: Engine, rate_hz: int, duration_s: float | None = None,
+                 quiet: bool = False) -> None:
+    """Run against the wall clock until ``duration_s`` of sim time (or forever)."""
+    period = 1.0 / rate_hz
+    status = _Status(engine, quiet)
+    start = time.monotonic()
+    k0 = 0
+    k = 0
+    while not _done(engine, duration_s):
+        engine.poll()
+        engine.begin_period()
+        engine.step()
+        k += 1
+        deadline = start + (k - k0) * period
+        now = time.monotonic()
+        if now > deadline + 0.1:
+            engine.counters["overruns"] += 1
+            start, k0 = now, k
+            deadline = now
+        while now < deadline:
+            if engine.link.wait_readable(deadline - now):
+                engine.poll()
+            now = time.monotonic()
+        status.tick(now)
+
+
+def run_lockstep(engine: Engine, timeout_s: float = 0.1, duration_s: float | None = None,
+                 quiet: bool = False, stall_speed: float = 1.0) -> None:
+    """Run in lockstep (see the module docstring) until ``duration_s`` of sim time."""
+    link, ap = engine.link, engine.ap
+    status = _Status(engine, quiet)
+    while not link.peers:                        # frozen until someone talks
+        if link.wait_readable(1.0):
+            engine.poll()
+        status.tick(time.monotonic())
+    period = 1.0 / engine.sim.params.rate_hz
+    stalled = False
+    stall_wall0 = stall_t0 = 0.0
+    while not _done(engine, duration_s):
+        engine.begin_period()
+        count0 = ap.target_count
+        if stalled:
+            engine.poll()
+            if ap.target_count != count0:
+                stalled = False
+            elif stall_speed > 0:
+                deadline = stall_wall0 + (engine.sim.t_s + period - stall_t0) / stall_speed
+                now = time.monotonic()
+                while now < deadline and ap.target_count == count0:
+                    if link.wait_readable(deadline - now):
+                        engine.process_datagram()
+                    now = time.monotonic()
+                if ap.target_count != count0:
+                    stalled = False
+        else:
+            deadline = None
+            while ap.target_count == count0:
+                if engine.process_datagram():
+                    continue
+                now = time.monotonic()
+                if deadline is None:
+                    deadline = now + timeout_s
+                if now >= deadline or not link.wait_readable(deadline - now):
+                    if ap.target_count == count0 and time.monotonic() >= deadline:
+                        engine.counters["lockstep_timeouts"] += 1
+                        stalled = True
+                        stall_wall0, stall_t0 = time.monotonic(), engine.sim.t_s
+                        break
+        engine.step()
+        status.tick(time.monotonic())
