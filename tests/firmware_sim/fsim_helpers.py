@@ -1,0 +1,128 @@
+"""Helpers of the firmware_sim tests: start the emulator as a process, a plain pymavlink client."""
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from pymavlink.dialects.v20 import common as mavlink2
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+class Emulator:
+    """``python -m firmware_sim`` on a free loopback port; stopped with SIGTERM."""
+
+    def __init__(self, *args: str, record: Path | None = None):
+        cmd = [sys.executable, "-m", "firmware_sim", "--listen", "udpin:127.0.0.1:0", "--quiet", *args]
+        if record is not None:
+            cmd += ["--record", str(record)]
+        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                     cwd=REPO, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+        line = self.proc.stdout.readline()
+        if not line.startswith("firmware_sim listening on udpin:"):
+            self.proc.kill()
+            raise RuntimeError(f"no start line: {line!r} {self.proc.stderr.read()}")
+        self.port = int(line.strip().rsplit(":", 1)[1])
+
+    def stop(self, timeout_s: float = 10.0) -> int:
+        if self.proc.poll() is None:
+            self.proc.terminate()
+        try:
+            self.proc.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+        return self.proc.returncode
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.stop()
+
+
+class Client:
+    """A plain pymavlink codec over a UDP socket (what the daemon does)."""
+
+    def __init__(self, port: int, system_id: int = 1, component_id: int = 191):
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.connect(("127.0.0.1", port))
+        self.mav = mavlink2.MAVLink(None, srcSystem=system_id, srcComponent=component_id)
+        self.mav.robust_parsing = True
+        self.pending: list = []
+
+    def send(self, msg) -> None:
+        self.sock.send(msg.pack(self.mav) if not isinstance(msg, (bytes, bytearray)) else msg)
+
+    def heartbeat(self) -> None:
+        self.send(mavlink2.MAVLink_heartbeat_message(18, 8, 0, 0, 4, 3))
+
+    def target(self, controls, target_system: int = 1, group: int = 0) -> None:
+        c = list(controls) + [0.0] * (8 - len(controls))
+        self.send(mavlink2.MAVLink_set_actuator_control_target_message(0, group, target_system, 1, c))
+
+    def command(self, command: int, *params: float, target_system: int = 1) -> None:
+        p = list(params) + [0.0] * (7 - len(params))
+        self.send(mavlink2.MAVLink_command_long_message(target_system, 1, command, 0, *p))
+
+    def recv(self, timeout_s: float = 2.0):
+        """Next message (or None on timeout)."""
+        if self.pending:
+            return self.pending.pop(0)
+        self.sock.settimeout(timeout_s)
+        try:
+            data = self.sock.recv(65535)
+        except (socket.timeout, ConnectionRefusedError):
+            return None
+        msgs = self.mav.parse_buffer(data) or []
+        if not msgs:
+            return self.recv(timeout_s)
+        self.pending.extend(msgs[1:])
+        return msgs[0]
+
+    def wait_for(self, mtype: str, pred=lambda m: True, timeout_s: float = 5.0, on_msg=None):
+        end = time.monotonic() + timeout_s
+        while time.monotonic() < end:
+            m = self.recv(max(0.01, end - time.monotonic()))
+            if m is None:
+                continue
+            if on_msg is not None:
+                on_msg(m)
+            if m.get_type() == mtype and pred(m):
+                return m
+        raise AssertionError(f"no {mtype} within {timeout_s} s")
+
+    def ack(self, command: int, timeout_s: float = 5.0, on_msg=None) -> int:
+        return self.wait_for("COMMAND_ACK", lambda m: m.command == command, timeout_s, on_msg).result
+
+    def lockstep(self, n: int, controls, texts=None):
+        """Answer ``n`` telemetry periods with ``controls``; return the last LOCAL_POSITION_NED."""
+        last = None
+        for _ in range(n):
+            last = self.wait_for("LOCAL_POSITION_NED", on_msg=_collect(texts))
+            self.target(controls)
+        return last
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+def _collect(texts):
+    if texts is None:
+        return None
+
+    def f(m):
+        if m.get_type() == "STATUSTEXT":
+            texts.append(m.text)
+        elif m.get_type() == "HEARTBEAT":
+            texts.append(("HB", m.base_mode, m.custom_mode))
+    return f
+
+
+ARM = mavlink2.MAV_CMD_COMPONENT_ARM_DISARM
+SET_MODE = mavlink2.MAV_CMD_DO_SET_MODE
