@@ -30,7 +30,9 @@ class SimParams:
 
     vehicle: VehicleParams
     inertia_matrix_kg_m2: tuple
-    """Full symmetric inertia matrix, 3x3 nested tuple (diagonal and off-diagonal)."""
+    """Full symmetric inertia matrix, 3x3 nested tuple: the (possibly overridden or
+    perturbed) diagonal and ``emulator.inertia_offdiag_kg_m2``. This, not
+    ``vehicle.inertia_kg_m2``, is what the physics uses."""
     rate_hz: int = 500
     physics_hz: int = 1000
     seed: int = 0
@@ -61,8 +63,8 @@ def build_sim_params(vehicle: VehicleParams, rate_hz: int = 500, physics_hz: int
         raise ValueError("--rate-hz and --physics-hz must be positive")
     if physics_hz % rate_hz:
         raise ValueError(f"--physics-hz {physics_hz} must be an integer multiple of --rate-hz {rate_hz}")
-    vehicle = apply_overrides(vehicle, seed=seed, **overrides)
-    J = inertia_matrix(vehicle.inertia_kg_m2, vehicle.emulator.inertia_offdiag_kg_m2)
+    vehicle, diag = apply_overrides(vehicle, seed=seed, **overrides)
+    J = inertia_matrix(diag, vehicle.emulator.inertia_offdiag_kg_m2)
     return SimParams(vehicle, J, int(rate_hz), int(physics_hz), int(seed))
 
 
@@ -71,8 +73,14 @@ def apply_overrides(vehicle: VehicleParams, *, seed: int = 0, mass_kg: float | N
                     inertia_perturb_sd_kg_m2: float | None = None,
                     rotor_time_constant_s: float | None = None,
                     rotor_noise_sd_n: float | None = None,
-                    max_rotor_thrust_n: float | None = None) -> VehicleParams:
-    """Return ``vehicle`` with command-line overrides (``None`` keeps the file's value).
+                    max_rotor_thrust_n: float | None = None) -> tuple[VehicleParams, tuple]:
+    """Return ``(vehicle, inertia_diag_kg_m2)`` with command-line overrides applied.
+
+    ``None`` keeps the file's value. The inertia diagonal is returned apart and
+    ``vehicle.inertia_kg_m2`` stays nominal: a perturbed airframe (the paper's Monte
+    Carlo draws each moment independently) may break the triangle inequality that
+    the design-model parameters enforce; the physics only needs a positive-definite
+    matrix.
 
     Inertia: ``inertia_kg_m2`` replaces the diagonal, then ``inertia_scale`` multiplies
     it, then ``inertia_perturb_sd_kg_m2`` adds Gaussian noise per axis drawn from
@@ -102,8 +110,6 @@ def apply_overrides(vehicle: VehicleParams, *, seed: int = 0, mass_kg: float | N
         diag = tuple(float(x + inertia_perturb_sd_kg_m2 * rng.standard_normal()) for x in diag)
         if min(diag) <= 0:
             raise ValueError(f"inertia perturbation gave a non-positive moment {diag}")
-    if diag != tuple(v.inertia_kg_m2):
-        changes["inertia_kg_m2"] = diag
     emu_changes = {}
     if rotor_time_constant_s is not None:
         if not (math.isfinite(rotor_time_constant_s) and 0 <= rotor_time_constant_s <= 1):
@@ -115,9 +121,9 @@ def apply_overrides(vehicle: VehicleParams, *, seed: int = 0, mass_kg: float | N
         emu_changes["rotor_noise_sd_n"] = float(rotor_noise_sd_n)
     if emu_changes:
         changes["emulator"] = dataclasses.replace(emu, **emu_changes)
-    if not changes:
-        return v
-    return dataclasses.replace(v, **changes)   # re-runs the cross-field checks
+    if changes:
+        v = dataclasses.replace(v, **changes)   # re-runs the cross-field checks
+    return v, diag
 
 
 def _positive(name: str, value: float) -> None:

@@ -143,10 +143,11 @@ def test_euler_roundtrip_and_start_parsing():
 
 def test_overrides_and_perturbation():
     p = params(mass_kg=1.0, inertia_kg_m2=(0.02, 0.02, 0.03), inertia_scale=2.0)
-    assert p.vehicle.mass_kg == 1.0 and p.vehicle.inertia_kg_m2 == pytest.approx((0.04, 0.04, 0.06))
-    a = build_sim_params(VEHICLE, 500, 1000, 7, inertia_perturb_sd_kg_m2=0.001).vehicle.inertia_kg_m2
-    b = build_sim_params(VEHICLE, 500, 1000, 7, inertia_perturb_sd_kg_m2=0.001).vehicle.inertia_kg_m2
-    assert a == b and a != VEHICLE.inertia_kg_m2
+    assert p.vehicle.mass_kg == 1.0
+    assert np.diag(p.inertia_matrix_kg_m2) == pytest.approx((0.04, 0.04, 0.06))
+    a = build_sim_params(VEHICLE, 500, 1000, 7, inertia_perturb_sd_kg_m2=0.0034).inertia_matrix_kg_m2
+    b = build_sim_params(VEHICLE, 500, 1000, 7, inertia_perturb_sd_kg_m2=0.0034).inertia_matrix_kg_m2
+    assert a == b and np.diag(a).tolist() != list(VEHICLE.inertia_kg_m2)
     with pytest.raises(ValueError):
         params(max_rotor_thrust_n=1.0)          # cannot hover
     with pytest.raises(ValueError):
