@@ -1,0 +1,143 @@
+"""The sans-I/O autopilot with the simulation, no sockets: modes, arming, failsafe."""
+from __future__ import annotations
+
+import math
+
+import pytest
+from pymavlink.dialects.v20 import common as mavlink2
+
+from mavreg.config.vehicle import load_vehicle
+from firmware_sim import modes
+from firmware_sim.autopilot import Autopilot, AutopilotConfig
+from firmware_sim.params import build_sim_params, default_vehicle_path, parse_start
+from firmware_sim.sim import Simulation
+from firmware_sim.stabilizer import Stabilizer
+
+VEHICLE = load_vehicle(default_vehicle_path())
+HOVER = VEHICLE.mass_kg * 9.81 / 4 / VEHICLE.max_rotor_thrust_n
+_mav = mavlink2.MAVLink(None, 1, 191)
+
+
+def make(start=None):
+    p = build_sim_params(VEHICLE, 500, 1000, 0)
+    sim = Simulation(p, parse_start(start) if start else None)
+    v = p.vehicle
+    stab = Stabilizer(v.mass_kg, p.inertia_matrix_kg_m2, v.arm_length_m, v.drag_torque_ratio_m,
+                      v.max_rotor_thrust_n)
+    ap = Autopilot(AutopilotConfig(max_rotor_thrust_n=v.max_rotor_thrust_n), stab, v.mass_kg * 9.81 / 4)
+    if start:
+        ap.start_in_flight(0.0)
+    return sim, ap
+
+
+def decoded(msg, src=(1, 191)):
+    """Pack and decode, as the link would deliver it."""
+    mav = mavlink2.MAVLink(None, *src)
+    return mavlink2.MAVLink(None).parse_buffer(msg.pack(mav))[0]
+
+
+def target(c, src=(1, 191)):
+    return decoded(mavlink2.MAVLink_set_actuator_control_target_message(0, 0, 1, 1, list(c) + [0.0] * 4), src)
+
+
+def command(cmd, *p, src=(1, 191)):
+    p = list(p) + [0.0] * (7 - len(p))
+    return decoded(mavlink2.MAVLink_command_long_message(1, 1, cmd, 0, *p), src)
+
+
+def run(sim, ap, seconds, controls=None, log=None):
+    """Run periods; send a target every period if ``controls`` is given."""
+    for _ in range(int(round(seconds * 500))):
+        out = ap.update(sim.t_s, sim.state, sim.on_ground)
+        if controls is not None:
+            out += ap.handle(target(controls), sim.t_s, sim.state, sim.on_ground)
+        if log is not None:
+            log.extend((sim.t_s, m.text) for m in out if m.get_type() == "STATUSTEXT")
+        sim.advance(ap.rotor_command_n(sim.state, sim.on_ground), ap.armed, ap.mode)
+
+
+def ack(out):
+    return [m.result for m in out if m.get_type() == "COMMAND_ACK"][0]
+
+
+def test_arm_offboard_takeoff_and_failsafe_landing():
+    sim, ap = make()
+    assert ap.mode == modes.HOLD and not ap.armed
+    assert ack(ap.handle(command(400, 1), 0.0, sim.state, sim.on_ground)) == 0
+    out = ap.handle(command(176, 1, 6), 0.0, sim.state, sim.on_ground)
+    assert ack(out) == mavlink2.MAV_RESULT_DENIED                      # no stream yet
+    run(sim, ap, 0.3, [HOVER] * 4)
+    assert ack(ap.handle(command(176, 1, 6), sim.t_s, sim.state, sim.on_ground)) == mavlink2.MAV_RESULT_DENIED
+    run(sim, ap, 0.3, [HOVER] * 4)                                     # 0.6 s of stream
+    assert ack(ap.handle(command(176, 1, 6), sim.t_s, sim.state, sim.on_ground)) == 0
+    assert ap.mode == modes.OFFBOARD
+    run(sim, ap, 2.0, [HOVER * 1.15] * 4)
+    assert sim.state[2] < -1.0
+    disarm = ap.handle(command(400, 0), sim.t_s, sim.state, sim.on_ground)
+    assert ack(disarm) == mavlink2.MAV_RESULT_DENIED and ap.armed      # in flight
+    log = []
+    t_lost = sim.t_s
+    run(sim, ap, 12.0, None, log)
+    texts = [t for _, t in log]
+    assert texts[:4] == ["mode HOLD: offboard lost, failsafe hold", "mode LAND: failsafe land",
+                         "disarmed: landed", "mode HOLD: landed"]
+    assert log[0][0] - t_lost == pytest.approx(0.25, abs=0.01)
+    assert not ap.armed and sim.on_ground
+
+
+def test_failsafe_recovers_from_inverted_at_speed():
+    sim, ap = make("z_m=-8,vy_m_s=8,roll_deg=120")
+    assert ap.armed and ap.mode == modes.OFFBOARD
+    log = []
+    min_z = 0.0
+    level_by = None
+    for k in range(30 * 500):
+        run(sim, ap, 1 / 500, None, log)
+        s = sim.state
+        tilt = math.degrees(math.acos(max(-1, min(1, 1 - 2 * (s[4] ** 2 + s[5] ** 2)))))
+        if level_by is None and tilt < 10 and sim.t_s > 0.25:
+            level_by = sim.t_s
+        if not ap.armed:
+            break
+    texts = [t for _, t in log]
+    assert "mode HOLD: offboard lost, failsafe hold" in texts and "disarmed: landed" in texts
+    assert level_by is not None and level_by < 1.5
+    assert sim.on_ground and sim.t_s < 25.0
+
+
+def test_arming_refused_in_flight_and_force_disarm():
+    sim, ap = make("z_m=-5")
+    ap.handle(command(400, 0), 0.0, sim.state, sim.on_ground)
+    assert ap.armed
+    out = ap.handle(command(400, 0, 21196), 0.0, sim.state, sim.on_ground)
+    assert ack(out) == 0 and not ap.armed
+    out = ap.handle(command(400, 1), 0.0, sim.state, sim.on_ground)
+    assert ack(out) == mavlink2.MAV_RESULT_DENIED
+    assert any(m.get_type() == "STATUSTEXT" and "not landed" in m.text for m in out)
+
+
+def test_drops_are_counted():
+    sim, ap = make()
+    s, g = sim.state, sim.on_ground
+    ap.handle(target([0.1] * 4, src=(2, 191)), 0.0, s, g)
+    ap.handle(target([0.1] * 4), 0.0, s, g)                     # 191 becomes the offboard peer
+    ap.handle(target([0.1] * 4, src=(1, 190)), 0.0, s, g)
+    ap.handle(target([math.nan, 0, 0, 0]), 0.0, s, g)
+    ap.handle(target([1.5, 0, 0, 0]), 0.0, s, g)
+    out = ap.handle(command(31000, src=(1, 190)), 0.0, s, g)     # unsupported command
+    assert ack(out) == mavlink2.MAV_RESULT_UNSUPPORTED
+    ap.handle(command(400, 1, src=(7, 1)), 0.0, s, g)
+    assert ap.drops == {"malformed": 0, "foreign_system": 2, "foreign_component": 1, "wrong_target": 0,
+                        "non_finite": 1, "out_of_range": 1, "not_armed_or_not_offboard": 1,
+                        "unsupported": 1}
+    out = ap.handle(command(400, 1, src=(255, 190)), 0.0, s, g)  # a GCS may arm
+    assert ack(out) == 0 and ap.armed
+
+
+def test_heartbeat_encodes_mode_and_armed():
+    sim, ap = make()
+    hb = ap.update(0.0, sim.state, sim.on_ground)[0]
+    assert hb.get_type() == "HEARTBEAT" and hb.custom_mode == (4 << 16) | (3 << 24) and hb.base_mode == 1
+    assert ap.update(0.5, sim.state, sim.on_ground) == []
+    assert ap.update(1.0, sim.state, sim.on_ground)[0].get_type() == "HEARTBEAT"
+    assert modes.decode_custom_mode(modes.LAND) == (4, 6) and modes.OFFBOARD == 6 << 16
