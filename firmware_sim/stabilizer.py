@@ -30,7 +30,7 @@ class StabilizerGains:
     kp_z_per_s: float = 1.5
     kv_z_per_s: float = 3.0
     max_climb_m_s: float = 2.0
-    max_accel_xy_m_s2: float = 5.0
+    max_accel_xy_m_s2: float = 7.0
     max_accel_up_m_s2: float = 15.0
     max_accel_down_m_s2: float = 5.0
     kp_att_per_s: float = 8.0
