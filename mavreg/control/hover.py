@@ -9,9 +9,9 @@ hover with the target yaw:
     A^T P + P A - P B R^{-1} B^T P + Q = 0,
 
 with the yaw error wrapped to (-pi, pi]. The reference ``x_ref`` is either a fixed hover
-point or a point of a :class:`Ramp`: a quintic in time per axis (position and yaw)
-joining (p0, v0, a0) to (p1, v1, a1), so position, velocity and acceleration are
-continuous (C^2) at both ends. The ramp's acceleration is fed forward as small-angle
+point or a point of a :class:`Ramp`: a degree-7 polynomial in time per axis (position
+and yaw) joining (p0, v0, a0) to (p1, v1, a1) with zero jerk at both ends, so position,
+velocity, acceleration and jerk are continuous (C^3) across chained ramps. The ramp's acceleration is fed forward as small-angle
 roll/pitch references and a thrust correction, so the hover LQR tracks it closely.
 Its duration is the shortest that keeps speed and acceleration inside the limits of
 :class:`HoverParams`, which keeps every rotor well away from saturation.
@@ -66,34 +66,55 @@ class HoverOutput:
     """x - x_ref, yaw wrapped (12,)."""
 
 
-def _quintic(y0: float, v0: float, a0: float, y1: float, v1: float, a1: float, T: float) -> np.ndarray:
-    """Coefficients c0..c5 of y(t) = sum c_k t^k meeting the boundary values at 0 and T."""
-    c0, c1, c2 = y0, v0, a0 / 2.0
-    M = np.array([[T**3, T**4, T**5], [3 * T**2, 4 * T**3, 5 * T**4], [6 * T, 12 * T**2, 20 * T**3]])
-    rhs = np.array([y1 - (c0 + c1 * T + c2 * T**2), v1 - (c1 + 2 * c2 * T), a1 - 2 * c2])
-    c3, c4, c5 = np.linalg.solve(M, rhs)
-    return np.array([c0, c1, c2, c3, c4, c5])
+_DEG = 7
+
+
+def _septic(y0: float, v0: float, a0: float, y1: float, v1: float, a1: float, T: float) -> np.ndarray:
+    """Coefficients c0..c7 of y(t) = sum c_k t^k with the given value, velocity and
+    acceleration at 0 and T and zero jerk at both ends (so the feed-forward body rates of
+    chained ramps are continuous too)."""
+    c = np.zeros(_DEG + 1)
+    c[0], c[1], c[2], c[3] = y0, v0, a0 / 2.0, 0.0
+    rows, rhs = [], []
+    for order, target in ((0, y1), (1, v1), (2, a1), (3, 0.0)):
+        row = np.zeros(4)
+        known = 0.0
+        for k in range(_DEG + 1):
+            coef = _falling(k, order) * T ** (k - order) if k >= order else 0.0
+            if k < 4:
+                known += coef * c[k]
+            else:
+                row[k - 4] = coef
+        rows.append(row)
+        rhs.append(target - known)
+    c[4:] = np.linalg.solve(np.array(rows), np.array(rhs))
+    return c
+
+
+def _falling(k: int, order: int) -> float:
+    """k (k-1) ... (k-order+1): the factor of the order-th derivative of t^k."""
+    out = 1.0
+    for i in range(order):
+        out *= k - i
+    return out
 
 
 def _poly_eval(c: np.ndarray, t: float) -> tuple[float, float, float, float]:
     """Value and first three derivatives of the polynomial with coefficients ``c``."""
-    pos = sum(c[k] * t**k for k in range(6))
-    vel = sum(k * c[k] * t ** (k - 1) for k in range(1, 6))
-    acc = sum(k * (k - 1) * c[k] * t ** (k - 2) for k in range(2, 6))
-    jerk = sum(k * (k - 1) * (k - 2) * c[k] * t ** (k - 3) for k in range(3, 6))
-    return pos, vel, acc, jerk
+    return tuple(sum(_falling(k, order) * c[k] * t ** (k - order) for k in range(order, len(c)))
+                 for order in range(4))
 
 
 @dataclass(frozen=True)
 class Ramp:
-    """A C^2 reference from (p0, v0, a0, yaw0) to (p1, v1, a1, yaw1) over ``duration_s``.
+    """A C^3 reference from (p0, v0, a0, yaw0) to (p1, v1, a1, yaw1) over ``duration_s``.
 
     Before t=0 it holds the start, after ``duration_s`` it continues at the end velocity
     (a hold when ``v1`` is zero).
     """
 
     coeffs: np.ndarray
-    """(4, 6): x, y, z and yaw polynomials."""
+    """(4, 8): x, y, z and yaw polynomials (degree 7)."""
     duration_s: float
     end_position_m: np.ndarray
     end_velocity_m_s: np.ndarray
@@ -121,7 +142,7 @@ class Ramp:
 
 def plan_ramp(p0, v0, yaw0: float, p1, v1, yaw1: float, params: HoverParams,
               a0=None, a1=None, min_duration_s: float = 0.5) -> Ramp:
-    """Shortest quintic ramp that respects the speed, acceleration and yaw-rate limits.
+    """Shortest degree-7 ramp that respects the speed, acceleration and yaw-rate limits.
 
     The yaw goes the short way round. The duration is searched on a geometric grid
     (5% steps), checking the limits on 60 samples, and never shorter than ``min_duration_s``.
@@ -138,8 +159,8 @@ def plan_ramp(p0, v0, yaw0: float, p1, v1, yaw1: float, params: HoverParams,
     vmax = max(params.max_speed_m_s, float(np.linalg.norm(v0)), float(np.linalg.norm(v1)))
     T = min_duration_s
     for _ in range(400):
-        coeffs = np.vstack([_quintic(p0[i], v0[i], a0[i], p1[i], v1[i], a1[i], T) for i in range(3)]
-                           + [_quintic(yaw0, 0.0, 0.0, yaw1_unwrapped, 0.0, 0.0, T)])
+        coeffs = np.vstack([_septic(p0[i], v0[i], a0[i], p1[i], v1[i], a1[i], T) for i in range(3)]
+                           + [_septic(yaw0, 0.0, 0.0, yaw1_unwrapped, 0.0, 0.0, T)])
         ts = np.linspace(0.0, T, 60)
         vals = np.array([[_poly_eval(coeffs[i], t) for i in range(4)] for t in ts])  # (60, 4, 3)
         speed = np.linalg.norm(vals[:, :3, 1], axis=1)
@@ -159,7 +180,7 @@ def plan_ramp(p0, v0, yaw0: float, p1, v1, yaw1: float, params: HoverParams,
 def hold_ramp(position_m, yaw_rad: float) -> Ramp:
     """A ramp that is a fixed hover point (zero duration)."""
     p = np.asarray(position_m, dtype=float)
-    coeffs = np.zeros((4, 6))
+    coeffs = np.zeros((4, _DEG + 1))
     coeffs[:3, 0] = p
     coeffs[3, 0] = yaw_rad
     return Ramp(coeffs, 0.0, p.copy(), np.zeros(3), float(yaw_rad))

@@ -1,0 +1,93 @@
+"""MAVLink message construction and decoding helpers for the daemon (no I/O).
+
+Messages are pymavlink's generated MAVLink 2 classes of the common dialect; the link
+packs them with its own :class:`MAVLink` instance (system and component id, sequence).
+Flight modes use PX4's custom_mode encoding ``(main << 16) | (sub << 24)``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from pymavlink.dialects.v20 import common as mavlink2
+
+__all__ = ["mavlink2", "PX4_MAIN_OFFBOARD", "PX4_MAIN_AUTO", "PX4_SUB_LOITER", "PX4_SUB_LAND",
+           "VehicleStatus", "decode_heartbeat", "actuator_target", "arm_disarm", "set_offboard",
+           "daemon_heartbeat", "mode_name"]
+
+PX4_MAIN_AUTO = 4
+PX4_MAIN_OFFBOARD = 6
+PX4_SUB_LOITER = 3
+PX4_SUB_LAND = 6
+
+
+@dataclass(frozen=True)
+class VehicleStatus:
+    """What the vehicle's HEARTBEAT says."""
+
+    armed: bool
+    main_mode: int
+    sub_mode: int
+    system_status: int
+
+    @property
+    def offboard(self) -> bool:
+        return self.main_mode == PX4_MAIN_OFFBOARD
+
+    @property
+    def mode(self) -> str:
+        return mode_name(self.main_mode, self.sub_mode)
+
+
+def mode_name(main: int, sub: int) -> str:
+    """PX4-style name of a (main, sub) mode."""
+    if main == PX4_MAIN_OFFBOARD:
+        return "OFFBOARD"
+    if main == PX4_MAIN_AUTO:
+        return {PX4_SUB_LOITER: "AUTO.LOITER", PX4_SUB_LAND: "AUTO.LAND"}.get(sub, f"AUTO.{sub}")
+    return f"MODE({main},{sub})"
+
+
+def decode_heartbeat(msg) -> VehicleStatus:
+    """Armed flag and PX4 mode of a vehicle HEARTBEAT."""
+    cm = int(msg.custom_mode)
+    return VehicleStatus(
+        armed=bool(msg.base_mode & mavlink2.MAV_MODE_FLAG_SAFETY_ARMED),
+        main_mode=(cm >> 16) & 0xFF,
+        sub_mode=(cm >> 24) & 0xFF,
+        system_status=int(msg.system_status),
+    )
+
+
+def actuator_target(time_usec: int, target_system: int, target_component: int, controls4) -> object:
+    """SET_ACTUATOR_CONTROL_TARGET, group 0, controls[0..3] = rotors 1..4 in [0, 1].
+
+    Raises ValueError on a non-finite or out-of-range value: such a message must never
+    be built, let alone sent.
+    """
+    c = [float(v) for v in controls4]
+    if len(c) != 4 or not all(math.isfinite(v) and 0.0 <= v <= 1.0 for v in c):
+        raise ValueError(f"actuator controls must be 4 finite values in [0, 1], got {c}")
+    return mavlink2.MAVLink_set_actuator_control_target_message(
+        int(time_usec), 0, target_system, target_component, c + [0.0, 0.0, 0.0, 0.0])
+
+
+def arm_disarm(target_system: int, target_component: int, arm: bool) -> object:
+    """COMMAND_LONG MAV_CMD_COMPONENT_ARM_DISARM."""
+    return mavlink2.MAVLink_command_long_message(
+        target_system, target_component, mavlink2.MAV_CMD_COMPONENT_ARM_DISARM, 0,
+        1.0 if arm else 0.0, 0, 0, 0, 0, 0, 0)
+
+
+def set_offboard(target_system: int, target_component: int) -> object:
+    """COMMAND_LONG MAV_CMD_DO_SET_MODE to PX4 OFFBOARD (param1 = 1, param2 = 6)."""
+    return mavlink2.MAVLink_command_long_message(
+        target_system, target_component, mavlink2.MAV_CMD_DO_SET_MODE, 0,
+        float(mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED), float(PX4_MAIN_OFFBOARD), 0, 0, 0, 0, 0)
+
+
+def daemon_heartbeat(healthy: bool) -> object:
+    """The daemon's HEARTBEAT: onboard controller, no autopilot."""
+    state = mavlink2.MAV_STATE_ACTIVE if healthy else mavlink2.MAV_STATE_CRITICAL
+    return mavlink2.MAVLink_heartbeat_message(
+        mavlink2.MAV_TYPE_ONBOARD_CONTROLLER, mavlink2.MAV_AUTOPILOT_INVALID, 0, 0, state, 3)

@@ -1,0 +1,127 @@
+"""Supervisor faults: stale state, mixed times, foreign ids, non-finite output, uploads."""
+import numpy as np
+
+from mavreg.daemon.supervisor import Phase
+from test_state import att_q, pos
+from test_supervisor_harness import FakePlan, FakeRegulator, SimVehicle, make_supervisor, run, wire
+from pymavlink.dialects.v20 import common as mavlink2
+
+
+def _actuators(out):
+    return [m for m in out.messages if m.get_type() == "SET_ACTUATOR_CONTROL_TARGET"]
+
+
+def test_stale_state_stops_stream_for_good():
+    sup = make_supervisor(FakePlan(), stale_timeout_s=0.1)
+    veh = SimVehicle()
+    run(sup, veh, 5.0)
+    assert sup.phase == Phase.TAKEOFF
+    now = veh.t_ms / 1000
+    assert sup.tick(now + 0.05).events == []           # within the timeout: still flying
+    out = sup.tick(now + 0.2)
+    assert sup.phase == Phase.ABORTED and "stale" in sup.reason
+    assert any(e.phase == Phase.ABORTED for e in out.events) and out.messages == []
+    # fresh samples afterwards never restart the stream
+    sent = 0
+    for k in range(20):
+        veh.t_ms += 4
+        for m in veh.telemetry():
+            sent += len(_actuators(sup.handle(m, now + 0.2 + k * 0.004)))
+        sup.tick(now + 0.2 + k * 0.004)
+    assert sent == 0
+
+
+def test_no_command_without_a_complete_sample():
+    """Half samples (attitude only) produce nothing: commands are never re-sent blindly."""
+    sup = make_supervisor(FakePlan())
+    veh = SimVehicle()
+    run(sup, veh, 4.0)
+    quiet = 0
+    for k in range(10):
+        veh.t_ms += 4
+        quiet += len(_actuators(sup.handle(veh.telemetry()[0], veh.t_ms / 1000)))
+    assert quiet == 0
+
+
+def test_mixed_time_parts_never_make_a_command():
+    sup = make_supervisor(FakePlan())
+    veh = SimVehicle()
+    run(sup, veh, 4.0)
+    n0 = sup.counters.samples
+    t = veh.t_ms
+    msgs = [att_q(t + 4), pos(t + 8), att_q(t + 12), pos(t + 16)]
+    assert all(_actuators(sup.handle(m, t / 1000)) == [] for m in msgs)
+    assert sup.counters.samples == n0
+
+
+def test_foreign_ids_dropped_and_counted():
+    sup = make_supervisor(FakePlan())
+    veh = SimVehicle()
+    run(sup, veh, 4.0)
+    before = sup.status()
+    x_before = sup.last_sample.x.copy()
+    t = veh.t_ms + 4
+    foreign = [
+        wire(mavlink2.MAVLink_heartbeat_message(2, 0, 0, 0, 4, 3), sysid=42),            # disarmed?
+        wire(mavlink2.MAVLink_attitude_quaternion_message(t, 0, 1, 0, 0, 0, 0, 0), sysid=42),
+        wire(mavlink2.MAVLink_local_position_ned_message(t, 50, 50, 50, 0, 0, 0), sysid=42),
+        wire(mavlink2.MAVLink_set_actuator_control_target_message(0, 0, 1, 1, [1.0] * 8), sysid=42),
+        wire(mavlink2.MAVLink_local_position_ned_message(t, 50, 50, 50, 0, 0, 0), sysid=1, compid=7),
+    ]
+    for m in foreign:
+        out = sup.handle(m, t / 1000)
+        assert out.messages == [] and out.events == []
+    assert sup.counters.foreign_dropped == 5
+    assert sup.phase == before["phase"] and np.array_equal(sup.last_sample.x, x_before)
+
+
+def test_non_finite_controller_output_stops_streaming():
+    plan = FakePlan()
+    sup = make_supervisor(plan, regulator=FakeRegulator(plan, nan_at_s=0.5))
+    veh = SimVehicle()
+    events, _, sent = run(sup, veh, 30.0)
+    assert sup.phase == Phase.ABORTED and "non-finite" in sup.reason
+    assert sup.counters.non_finite == 1
+    last = [m for _, m in sent if m.get_type() == "SET_ACTUATOR_CONTROL_TARGET"][-1]
+    assert all(np.isfinite(last.controls))
+    n = len(sent)
+    for k in range(5):
+        veh.t_ms += 4
+        for m in veh.telemetry():
+            assert sup.handle(m, veh.t_ms / 1000).messages == []
+    assert len(sent) == n
+
+
+def test_upload_mid_maneuver_waits_for_safe_point():
+    sup = make_supervisor(FakePlan(name="first"), land_when_done=False)
+    veh = SimVehicle()
+    started = {}
+
+    def on_step(v, msgs):
+        if sup.phase == Phase.MANEUVER and "t" not in started:
+            started["t"] = v.t_ms
+            assert not sup.at_safe_point()
+            sup.offer_plan(FakePlan(name="second", start=(4.0, 0.5, -2.5)), v.t_ms / 1000)
+            started["active"] = sup.status()["active"]
+        return msgs
+
+    events, _, _ = run(sup, veh, 45.0, on_step)
+    assert started["active"] == "first"
+    begins = [e for e in events if e.kind == "phase" and e.phase == Phase.MANEUVER]
+    assert [b.detail.split("'")[1] for b in begins] == ["first", "second"]
+    # the second began only after a hold that followed the first
+    phases = [e.phase for e in events if e.kind == "phase"]
+    i = phases.index(Phase.MANEUVER)
+    assert phases[i + 1] == Phase.HOLD and Phase.RUN_IN in phases[i + 1:]
+    assert sup.status()["done"] == ["first", "second"] and sup.phase == Phase.HOLD
+
+
+def test_offer_after_flight_over_is_refused():
+    sup = make_supervisor(FakePlan())
+    sup.phase = Phase.ABORTED
+    try:
+        sup.offer_plan(FakePlan(), 0.0)
+    except ValueError as exc:
+        assert "over" in str(exc)
+    else:
+        raise AssertionError("expected ValueError")
