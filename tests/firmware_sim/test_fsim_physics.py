@@ -1,6 +1,7 @@
 """Physics of firmware_sim: hover, free fall, torque-free spin, rotor lag, saturation, ground."""
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -165,3 +166,36 @@ def test_recorder_roundtrip(tmp_path):
     assert d["t_s"].shape == (10001,) and d["t_s"][-1] == pytest.approx(10.0)
     assert d["quaternion_wxyz"].shape == (10001, 4) and d["custom_mode"][5] == 123
     assert d["rotor_applied_n"][-1] == pytest.approx([HOVER_N] * 4)
+
+
+def test_wind_force_gust_and_velocity_through_drag():
+    from firmware_sim.wind import Wind, parse_wind
+    w = Wind([parse_wind("force:0,1.498,0@0.5:1.5"), parse_wind("velocity:2,0,0")])
+    assert w.at(0.0) == ((2.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    assert w.at(1.0) == ((2.0, 0.0, 0.0), (0.0, 1.498, 0.0))
+    sim = Simulation(params(rotor_time_constant_s=0.0), parse_start("z_m=-20"),
+                     wind=Wind([parse_wind("force:0,1.498,0@0.5:1.5")]))
+    for _ in range(1000):                                  # 2 s; gust of 1 s at 2 m/s^2
+        sim.advance((HOVER_N,) * 4, True, 0)
+    assert sim.state[8] == pytest.approx(2.0, abs=1e-6)
+    drag = dataclasses.replace(VEHICLE, emulator=dataclasses.replace(
+        VEHICLE.emulator, linear_drag_n_s_per_m=(0.3, 0.3, 0.3)))
+    sim = Simulation(build_sim_params(drag, 500, 1000, 0), parse_start("z_m=-20"),
+                     wind=Wind([parse_wind("velocity:3,0,0")]))
+    for _ in range(5000):                                  # 10 s: drifts toward the wind speed
+        sim.advance((HOVER_N,) * 4, True, 0)
+    assert sim.state[7] == pytest.approx(3.0 * (1 - math.exp(-10 * 0.3 / VEHICLE.mass_kg)), rel=1e-6)
+    for bad in ("breeze:1,2,3", "force:1,2", "force:1,2,3@2:1", "velocity:1,2,x"):
+        with pytest.raises(ValueError):
+            parse_wind(bad)
+
+
+def test_firmware_sim_imports_only_mavreg_config():
+    import pathlib
+    import re
+    root = pathlib.Path(__file__).resolve().parents[2] / "firmware_sim"
+    for path in root.glob("*.py"):
+        text = path.read_text()
+        for mod in re.findall(r"^\s*(?:from|import)\s+(mavreg[\w.]*)", text, re.M):
+            assert mod.startswith("mavreg.config"), (path.name, mod)
+        assert len(text.splitlines()) < 500, path.name
