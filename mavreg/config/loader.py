@@ -4,7 +4,8 @@ A schema is a frozen dataclass. Each field's type says what the YAML value must 
 and the field's ``metadata`` may add a range and a unit conversion:
 
 - ``float``, ``int``, ``bool``, ``str``;
-- ``tuple[float, ...]`` with ``metadata["length"]`` for a fixed-length vector;
+- ``tuple[float, ...]`` with ``metadata["length"]`` for a fixed-length vector, and
+  ``tuple[tuple[float, ...], ...]`` with ``metadata["item_length"]`` for a list of them;
 - a nested schema (another dataclass), or ``tuple[Schema, ...]`` for a list of them;
 - ``Optional[T]`` (``T | None``): the key may be left out or be ``null``;
 - a field with a default may be left out; one without is required;
@@ -163,7 +164,9 @@ def _load_tuple(ctx: _Ctx, node, key: str, tp: Any, meta: dict) -> tuple:
     lo = meta.get("min_items", 0)
     if len(node.value) < lo:
         ctx.fail(node, key, f"expected at least {lo} items, got {len(node.value)}")
-    elem_meta = {k: v for k, v in meta.items() if k not in ("length", "min_items")}
+    elem_meta = {k: v for k, v in meta.items() if k not in ("length", "min_items", "item_length")}
+    if "item_length" in meta:
+        elem_meta["length"] = meta["item_length"]
     return tuple(
         _load_value(ctx, item, f"{key}[{i}]", elem_tp, elem_meta) for i, item in enumerate(node.value)
     )

@@ -195,19 +195,27 @@ def check_step(A_nodes, B_nodes, K_nodes, h: float, safety: float = 0.5,
     if mode not in ("raise", "warn"):
         raise ValueError(f"mode must be 'raise', 'warn' or 'off', not {mode!r}")
     h_edge = _stable_step_per_node(A_nodes, B_nodes, K_nodes)
-    worst = int(np.argmin(h_edge))
+    steps = _node_steps(h, len(h_edge))
+    worst = int(np.argmax(steps / h_edge))
+    h = float(steps[worst])
     if h > h_edge[worst]:
         msg = (f"RK4 Riccati step h = {h:.4g} exceeds the stability limit {h_edge[worst]:.4g} "
-               f"at node {worst} (s = {worst * h:.4g}); use a step below "
-               f"{safety * h_edge.min():.4g}")
+               f"at node {worst}; use a step below "
+               f"{safety * h_edge[worst]:.4g}")
         if mode == "raise":
             raise ValueError(msg)
         warnings.warn(msg, RuntimeWarning, stacklevel=3)
     elif h > safety * h_edge[worst]:
         warnings.warn(
             f"RK4 Riccati step h = {h:.4g} is above {safety} of the stability limit "
-            f"{h_edge[worst]:.4g} at node {worst} (s = {worst * h:.4g}): the fastest "
+            f"{h_edge[worst]:.4g} at node {worst}: the fastest "
             "closed-loop modes are resolved poorly", RuntimeWarning, stacklevel=3)
+
+
+def _node_steps(h, n_nodes: int) -> np.ndarray:
+    """Step lengths seen by each node: the larger of the intervals on either side."""
+    steps = np.broadcast_to(np.asarray(h, dtype=float), (n_nodes - 1,))
+    return np.maximum(np.concatenate([steps[:1], steps]), np.concatenate([steps, steps[-1:]]))
 
 
 def _validate_grid(A_nodes, B_nodes, A_mid, B_mid, h):
@@ -230,7 +238,10 @@ def _validate_grid(A_nodes, B_nodes, A_mid, B_mid, h):
                       ("B_mid", B_mid)):
         if not np.all(np.isfinite(arr)):
             raise ValueError(f"{name} is not finite")
-    if not (np.isfinite(h) and h > 0.0):
+    h_arr = np.asarray(h, dtype=float)
+    if h_arr.ndim > 1 or (h_arr.ndim == 1 and h_arr.shape != (N - 1,)):
+        raise ValueError(f"h must be a scalar or have shape ({N - 1},), not {h_arr.shape}")
+    if not (np.all(np.isfinite(h_arr)) and np.all(h_arr > 0.0)):
         raise ValueError(f"step h must be positive and finite, not {h}")
     return A_nodes, B_nodes, A_mid, B_mid, N, n, m
 
@@ -260,7 +271,8 @@ def sweep_backward(A_nodes, B_nodes, A_mid, B_mid, h: float, Q, R, P_terminal, *
     B_nodes : (N, n, m) array_like, B(s_k)
     A_mid : (N-1, n, n) array_like, A(s_k + h/2)
     B_mid : (N-1, n, m) array_like, B(s_k + h/2)
-    h : float, grid spacing (> 0, in the unit of s)
+    h : float or (N-1,) array, grid spacing (> 0, in the unit of s); an array gives a
+        non-uniform grid, interval k being [s_k, s_k + h_k]
     Q : (n, n) symmetric PSD;  R : (m, m) symmetric PD
     P_terminal : (n, n) symmetric PSD, P at the last node (e.g. :func:`care` there)
     step_check : {"raise", "warn", "off"}
@@ -294,22 +306,26 @@ def sweep_backward(A_nodes, B_nodes, A_mid, B_mid, h: float, Q, R, P_terminal, *
 
     P = np.empty((N, n, n))
     P[-1] = 0.5 * (P_T + P_T.T)
-    half, sixth = 0.5 * h, h / 6.0
+    steps = np.broadcast_to(np.asarray(h, dtype=float), (N - 1,))
+    offsets = np.concatenate([[0.0], np.cumsum(steps)])
     for k in range(N - 2, -1, -1):
+        hk = steps[k]
+        half, sixth = 0.5 * hk, hk / 6.0
         Pk1 = P[k + 1]
         Am, Sm = A_mid[k], S_mid[k]
         k1 = riccati_rhs(A_nodes[k + 1], S_nodes[k + 1], Q, Pk1)
         k2 = riccati_rhs(Am, Sm, Q, Pk1 + half * k1)
         k3 = riccati_rhs(Am, Sm, Q, Pk1 + half * k2)
-        k4 = riccati_rhs(A_nodes[k], S_nodes[k], Q, Pk1 + h * k3)
+        k4 = riccati_rhs(A_nodes[k], S_nodes[k], Q, Pk1 + hk * k3)
         Pk = Pk1 + sixth * (k1 + 2.0 * (k2 + k3) + k4)
         Pk = 0.5 * (Pk + Pk.T)
         peak = np.abs(Pk).max()
         if not np.isfinite(peak):
-            raise ValueError(f"Riccati sweep became non-finite at node {k} (s - s0 = {k * h:.6g})")
+            raise ValueError(f"Riccati sweep became non-finite at node {k} "
+                             f"(s - s0 = {offsets[k]:.6g})")
         if peak > limit:
-            raise ValueError(f"Riccati sweep blew up at node {k} (s - s0 = {k * h:.6g}): "
-                             f"max |P| = {peak:.3g}; reduce the step h = {h:.4g}")
+            raise ValueError(f"Riccati sweep blew up at node {k} (s - s0 = {offsets[k]:.6g}): "
+                             f"max |P| = {peak:.3g}; reduce the step h = {hk:.4g}")
         P[k] = Pk
     K = Rinv_Bt_nodes @ P
     check_step(A_nodes, B_nodes, K, h, safety=safety, mode=step_check)

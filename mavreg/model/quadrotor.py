@@ -39,14 +39,15 @@ class QuadrotorModel:
         return cls(vehicle.mass_kg, tuple(vehicle.inertia_kg_m2))
 
     def f(self, x, u) -> np.ndarray:
-        """State derivative dx/dt = f(x, u) (eqs 6-17)."""
+        """State derivative dx/dt = f(x, u) (eqs 6-17); x (12,) or (12, N), u (4,) or (4, N)."""
         phi, theta, psi = x[3], x[4], x[5]
         v = x[6:9]
         p, q, r = x[9], x[10], x[11]
         jx, jy, jz = self.inertia_kg_m2
         R = rpy_to_matrix(phi, theta, psi)
-        pdot = R @ v
-        eul = euler_rates_matrix(phi, theta) @ x[9:12]
+        # einsum so that x may also be a batch (12, N) of states.
+        pdot = np.einsum("ij...,j...->i...", R, v)
+        eul = np.einsum("ij...,j...->i...", euler_rates_matrix(phi, theta), x[9:12])
         thrust, g1, g2, g3 = u[0], u[1], u[2], u[3]
         m, g = self.mass_kg, self.g
         v1, v2, v3 = v[0], v[1], v[2]

@@ -71,8 +71,9 @@ def euler_rates_matrix(phi, theta) -> np.ndarray:
     """W such that (phi, theta, psi)' = W (p, q, r): paper eqs 9-11."""
     cf, sf = np.cos(phi), np.sin(phi)
     ct, tt = np.cos(theta), np.tan(theta)
+    one, zero = np.ones_like(cf), np.zeros_like(cf)
     return np.array([
-        [1.0 + 0 * cf, sf * tt, cf * tt],
-        [0.0 * cf, cf, -sf],
-        [0.0 * cf, sf / ct, cf / ct],
+        [one, sf * tt, cf * tt],
+        [zero, cf, -sf],
+        [zero, sf / ct, cf / ct],
     ])

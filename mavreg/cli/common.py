@@ -1,0 +1,24 @@
+"""Options every planning command shares: the vehicle and controller files."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+__all__ = ["PARAMS_DIR", "add_model_arguments", "load_model_params"]
+
+PARAMS_DIR = Path(__file__).resolve().parents[2] / "params"
+DEFAULT_VEHICLE = PARAMS_DIR / "vehicles" / "mk_quadro.yaml"
+DEFAULT_CONTROLLER = PARAMS_DIR / "controller" / "paper_lqr.yaml"
+
+
+def add_model_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--vehicle-params", metavar="YAML", default=str(DEFAULT_VEHICLE),
+                   help="vehicle parameter file (default: %(default)s)")
+    p.add_argument("--controller", metavar="YAML", default=str(DEFAULT_CONTROLLER),
+                   help="LQR weights (default: %(default)s)")
+
+
+def load_model_params(args):
+    from ..config.controller import load_controller
+    from ..config.vehicle import load_vehicle
+    return load_vehicle(args.vehicle_params), load_controller(args.controller)

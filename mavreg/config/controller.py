@@ -1,0 +1,51 @@
+"""LQR weights of the maneuver regulator (paper Section 4) and of the hover controller."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .loader import load_file
+
+__all__ = ["ControllerParams", "load_controller"]
+
+_W = {"min_exclusive": 0.0}
+
+
+@dataclass(frozen=True)
+class ControllerParams:
+    r"""Diagonal LQR weights on the 11 transverse coordinates and the 4 inputs.
+
+    The paper prints Q = diag(100, 100, 9, 9, 9, 9, 10, 10, 10, 3, 3, 3): twelve entries
+    for eleven coordinates. Grouped by meaning, the groups are 2 (normal and binormal
+    position), 3 (angles), 3 (body velocity) and 3 (body rates); the print has four 9s,
+    one too many. We read it as position (100, 100), angles (9, 9, 9), velocity
+    (10, 10, 10), rates (3, 3, 3); docs/transverse.md gives the reasoning and the check.
+    """
+
+    q_position: tuple[float, ...] = field(metadata={"length": 2, **_W})
+    q_attitude: tuple[float, ...] = field(metadata={"length": 3, **_W})
+    q_velocity: tuple[float, ...] = field(metadata={"length": 3, **_W})
+    q_rate: tuple[float, ...] = field(metadata={"length": 3, **_W})
+    r_input: tuple[float, ...] = field(metadata={"length": 4, **_W})
+    """Weights on (f, gamma1, gamma2, gamma3)."""
+    hover_q_position: tuple[float, ...] = field(
+        default=(100.0, 100.0, 100.0), metadata={"length": 3, **_W})
+    """The hover controller's position weights (N, E, D); its other weights are the above."""
+    riccati_step_s: float = field(default=0.001, metadata={"min_exclusive": 0.0, "max": 0.01})
+    """Step of the Riccati sweep, in nominal time (the s-step is speed times this)."""
+
+    @property
+    def q(self) -> np.ndarray:
+        """Q as an (11,) diagonal, in the order of w."""
+        return np.array(self.q_position + self.q_attitude + self.q_velocity + self.q_rate)
+
+    @property
+    def r(self) -> np.ndarray:
+        return np.array(self.r_input)
+
+
+def load_controller(path: str | Path) -> ControllerParams:
+    """Load ``params/controller/*.yaml`` (``kind: controller``)."""
+    return load_file(path, ControllerParams, kind="controller")

@@ -1,0 +1,158 @@
+"""The maneuver file: a path of named segments, a speed profile and a yaw profile along it.
+
+See ``docs/maneuvers.md`` for the format and ``params/maneuvers/barrel_roll.yaml`` for an
+example. Angles are degrees in YAML (``*_deg`` keys) and radians inside.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .loader import load_file, load_text
+
+__all__ = ["ManeuverSpec", "SegmentSpec", "load_maneuver", "load_maneuver_text"]
+
+_POS = {"min_exclusive": 0.0}
+
+
+@dataclass(frozen=True)
+class StartSpec:
+    position_m: tuple[float, ...] = field(metadata={"length": 3})
+    """NED position where the path begins (the maneuver's entry point)."""
+    heading_rad: float = field(metadata={"deg": True, "min": -360.0, "max": 360.0})
+    """Direction of the start tangent, clockwise from north (east = 90 deg)."""
+    climb_rad: float = field(default=0.0, metadata={"deg": True, "min": -89.0, "max": 89.0})
+    """Start tangent above the horizontal."""
+
+
+@dataclass(frozen=True)
+class LineSpec:
+    length_m: float = field(metadata=_POS)
+
+
+@dataclass(frozen=True)
+class ArcSpec:
+    radius_m: float = field(metadata=_POS)
+    angle_rad: float = field(metadata={"deg": True, "min_exclusive": 0.0})
+    bend_rad: float = field(default=0.0, metadata={"deg": True, "min": -360.0, "max": 360.0})
+    """Which way the path turns, about the tangent: 0 up, 90 right, 180 down, -90 left."""
+
+
+@dataclass(frozen=True)
+class HelixSpec:
+    radius_m: float = field(metadata=_POS)
+    pitch_m: float
+    """Rise along the helix axis per full turn (sign gives the handedness)."""
+    angle_rad: float = field(metadata={"deg": True, "min_exclusive": 0.0})
+    bend_rad: float = field(default=0.0, metadata={"deg": True, "min": -360.0, "max": 360.0})
+
+
+@dataclass(frozen=True)
+class WaypointsSpec:
+    points_m: tuple[tuple[float, ...], ...] = field(metadata={"item_length": 3, "min_items": 2})
+    """NED offsets from the segment's start point, in order."""
+
+
+@dataclass(frozen=True)
+class SegmentSpec:
+    name: str
+    line: LineSpec | None = None
+    arc: ArcSpec | None = None
+    helix: HelixSpec | None = None
+    waypoints: WaypointsSpec | None = None
+    blend_m: float = field(default=0.0, metadata={"min": 0.0})
+    """Length of the curvature blend centred on the junction with the previous segment."""
+
+    def __post_init__(self):
+        given = [k for k in ("line", "arc", "helix", "waypoints") if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise ValueError(f"segment {self.name!r} needs exactly one of line, arc, helix, "
+                             f"waypoints (got {', '.join(given) or 'none'})")
+
+    @property
+    def shape(self):
+        return self.line or self.arc or self.helix or self.waypoints
+
+
+@dataclass(frozen=True)
+class SpeedChange:
+    segment: str
+    length_m: float = field(metadata=_POS)
+    to_m_s: float = field(metadata=_POS)
+    offset_m: float = field(default=0.0, metadata={"min": 0.0})
+    """Where the change begins, from the start of ``segment``."""
+
+
+@dataclass(frozen=True)
+class YawChange:
+    segment: str
+    length_m: float = field(metadata=_POS)
+    to_rad: float = field(metadata={"deg": True, "min": -720.0, "max": 720.0})
+    offset_m: float = field(default=0.0, metadata={"min": 0.0})
+
+
+@dataclass(frozen=True)
+class SpeedSpec:
+    initial_m_s: float = field(metadata=_POS)
+    changes: tuple[SpeedChange, ...] = ()
+
+
+@dataclass(frozen=True)
+class YawSpec:
+    initial_rad: float = field(default=0.0, metadata={"deg": True, "min": -360.0, "max": 360.0})
+    changes: tuple[YawChange, ...] = ()
+
+
+@dataclass(frozen=True)
+class LapsSpec:
+    segment: str
+    """The arc or helix that is flown ``count`` times: each lap adds a full 360 deg turn."""
+    count: int = field(default=1, metadata={"min": 1, "max": 100})
+
+
+@dataclass(frozen=True)
+class LimitsSpec:
+    min_speed_m_s: float = field(default=0.2, metadata=_POS)
+    """Maneuver regulation needs ds/dt bounded away from zero (paper Section 2)."""
+    max_tilt_deg: float = field(default=360.0, metadata={"min_exclusive": 0.0, "max": 360.0})
+
+
+@dataclass(frozen=True)
+class ManeuverSpec:
+    name: str
+    start: StartSpec
+    segments: tuple[SegmentSpec, ...] = field(metadata={"min_items": 1})
+    speed: SpeedSpec
+    yaw: YawSpec = field(default_factory=YawSpec)
+    laps: LapsSpec | None = None
+    limits: LimitsSpec = field(default_factory=LimitsSpec)
+    description: str = ""
+
+    def __post_init__(self):
+        names = [s.name for s in self.segments]
+        dup = {n for n in names if names.count(n) > 1}
+        if dup:
+            raise ValueError(f"segment names must be unique: {', '.join(sorted(dup))}")
+        refs = [c.segment for c in self.speed.changes] + [c.segment for c in self.yaw.changes]
+        if self.laps is not None:
+            refs.append(self.laps.segment)
+        for r in refs:
+            if r not in names:
+                raise ValueError(f"no segment named {r!r} (segments: {', '.join(names)})")
+        if self.segments[0].blend_m > 0:
+            raise ValueError(f"the first segment {names[0]!r} has nothing to blend from")
+
+    def with_laps(self, count: int) -> "ManeuverSpec":
+        """The same maneuver with its repeated segment flown ``count`` times."""
+        from dataclasses import replace
+        if self.laps is None:
+            raise ValueError(f"maneuver {self.name!r} has no 'laps' segment to repeat")
+        return replace(self, laps=replace(self.laps, count=count))
+
+
+def load_maneuver(path: str | Path) -> ManeuverSpec:
+    return load_file(path, ManeuverSpec, kind="maneuver")
+
+
+def load_maneuver_text(text: str, source: str = "<upload>") -> ManeuverSpec:
+    return load_text(text, ManeuverSpec, source, kind="maneuver")

@@ -1,0 +1,77 @@
+r"""The maneuver regulator, paper eq 33: :math:`u = \bar u(s) - K(s)\,w`.
+
+Each step projects the position on the path (s), forms the transverse coordinates w at s,
+interpolates the feedforward and the gain tables linearly in s, and maps u to rotor forces
+by the inverse of eq 34. The tables are built once by the planner; a step allocates only
+a few small vectors.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..config.vehicle import VehicleParams
+from ..geometry.projection import Projector
+from ..maneuver.plan import Plan
+from ..model.mixer import Mixer
+from .transverse import transverse_coordinates
+
+__all__ = ["ManeuverRegulator", "RegulatorOutput"]
+
+
+@dataclass(frozen=True)
+class RegulatorOutput:
+    s: float
+    w: np.ndarray
+    """Transverse coordinates (11,)."""
+    u: np.ndarray
+    """(f, g1, g2, g3) commanded."""
+    rotor_forces_n: np.ndarray
+    """Rotor forces by the inverse of eq 34, not clipped."""
+    in_tube: bool
+    finished: bool
+    """s has reached the end of the maneuver."""
+
+
+class ManeuverRegulator:
+    """s-scheduled LQR feedback on a :class:`~mavreg.maneuver.plan.Plan`.
+
+    Parameters
+    ----------
+    plan : Plan
+        Nominal and gains (built with the design vehicle).
+    vehicle : VehicleParams
+        For the mixer (arm length, k).
+    """
+
+    def __init__(self, plan: Plan, vehicle: VehicleParams):
+        self.plan = plan
+        self.mixer_inverse = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m).inverse
+        self.projector = Projector(plan.path)
+        self._s = plan.s
+        self._x, self._u, self._K = plan.x, plan.u, plan.K
+        self._last = len(plan.s) - 2
+        self.s = 0.0
+
+    def reset(self, x, s_guess: float = 0.0) -> None:
+        """Start tracking from state x, with s near ``s_guess``."""
+        self.s = self.projector.reset(np.asarray(x)[:3], s_guess).s
+
+    def step(self, x) -> RegulatorOutput:
+        """One control step for state x (12,)."""
+        x = np.asarray(x, dtype=float)
+        proj = self.projector.update(x[:3])
+        s = proj.s
+        self.s = s
+        pt = self.plan.path.point(s)
+        # Linear interpolation of the tables at s (clamped to the ends).
+        i = min(max(int(np.searchsorted(self._s, s)) - 1, 0), self._last)
+        a = min(max((s - self._s[i]) / (self._s[i + 1] - self._s[i]), 0.0), 1.0)
+        xbar = self._x[i] + a * (self._x[i + 1] - self._x[i])
+        ubar = self._u[i] + a * (self._u[i + 1] - self._u[i])
+        K = self._K[i] + a * (self._K[i + 1] - self._K[i])
+        w = transverse_coordinates(x[:3], pt.frame, pt.position, x, xbar)
+        u = ubar - K @ w
+        return RegulatorOutput(s, w, u, self.mixer_inverse @ u, proj.in_tube,
+                               s >= self.plan.length_m - 1e-6)

@@ -1,0 +1,95 @@
+r"""Arc length of the nearest point on the path: local, warm-started, continuous in time.
+
+:math:`s = \arg\min_\sigma |y - c(\sigma)|^2` (paper eq 21's :math:`\phi_1`) is found by
+Newton's method on :math:`g(\sigma) = t(\sigma)^T (y - c(\sigma)) = 0`, with
+:math:`g' = K^T (y - c) - 1` (K the curvature vector), started from the previous answer.
+Each answer stays within ``window_m`` of the previous one, so on a closed, multi-lap or
+self-approaching path s never jumps to another lap or another branch that happens to
+pass close by: it follows the vehicle along the maneuver. The path goes on straight
+before its start and after its end.
+
+The nearest point is unique (and Newton converges) while the vehicle is inside the tube
+where :math:`1 - K^T d > 0`, d the offset from the path: within the local radius of
+curvature on the inside of a turn. :class:`Projection` says when the vehicle is outside
+(with margin ``tube_margin``), or when the answer hit the window.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .path import Path
+
+__all__ = ["Projector", "Projection"]
+
+
+@dataclass(frozen=True)
+class Projection:
+    s: float
+    """Arc length of the nearest point (may be < 0 or > length: the straight extensions)."""
+    distance_m: float
+    in_tube: bool
+    """False when the nearest point is not locally unique or the search hit its window."""
+
+
+class Projector:
+    """Warm-started nearest-point search on one path.
+
+    Parameters
+    ----------
+    path : Path
+    window_m : float
+        Largest change of s in one update: well under a lap, well over what the vehicle
+        travels between two updates.
+    tube_margin : float
+        ``1 - K.d`` below this is reported outside the tube (0 is the focal point).
+    """
+
+    def __init__(self, path: Path, window_m: float = 2.0, tube_margin: float = 0.25):
+        self.path = path
+        self.window_m = float(window_m)
+        self.tube_margin = float(tube_margin)
+        self.s = 0.0
+
+    def reset(self, position, s_guess: float = 0.0) -> Projection:
+        """Start from a global search, preferring the candidate nearest ``s_guess``.
+
+        Among the path nodes within 5 cm of the closest distance, the one whose arc length
+        is nearest ``s_guess`` wins; Newton then refines it.
+        """
+        y = np.asarray(position, dtype=float)
+        d = np.linalg.norm(self.path.c_nodes - y, axis=1)
+        near = np.flatnonzero(d <= d.min() + 0.05)
+        j = near[np.argmin(np.abs(self.path.s_nodes[near] - s_guess))]
+        self.s = float(self.path.s_nodes[j])
+        return self.update(y)
+
+    def update(self, position) -> Projection:
+        """Project ``position``; the answer becomes the next warm start."""
+        y = np.asarray(position, dtype=float)
+        s0 = self.s
+        lo, hi = s0 - self.window_m, s0 + self.window_m
+        s = s0
+        ok = False
+        for _ in range(12):
+            p = self.path.point(s)
+            d = y - p.position
+            kvec = p.frame[:, 1] * p.k[0] + p.frame[:, 2] * p.k[1]
+            g = p.frame[:, 0] @ d
+            dg = kvec @ d - 1.0
+            if dg > -1e-3:   # at or past the focal point: Newton is not a descent
+                break
+            step = float(np.clip(-g / dg, -0.5, 0.5))
+            s_new = min(max(s + step, lo), hi)
+            if abs(s_new - s) < 1e-9:
+                s = s_new
+                ok = True
+                break
+            s = s_new
+        p = self.path.point(s)
+        d = y - p.position
+        kvec = p.frame[:, 1] * p.k[0] + p.frame[:, 2] * p.k[1]
+        inside = ok and (1.0 - kvec @ d) > self.tube_margin and lo < s < hi
+        self.s = s
+        return Projection(s, float(np.linalg.norm(d)), bool(inside))

@@ -1,0 +1,132 @@
+r"""Nominal state and input along a path by differential flatness.
+
+The flat outputs are position and yaw. Along the path, position is :math:`c(s)` with the
+rotation-minimizing frame :math:`(t, m_1, m_2)` and curvature vector
+:math:`K = k_1 m_1 + k_2 m_2`; time enters through :math:`\dot s = v(s)`. With
+:math:`a = v v'` and :math:`b = v^2` (primes are d/ds),
+
+.. math::
+    \ddot c = a\,t + b\,K,\qquad
+    \dddot c = v\,[\alpha\,t + \beta K + b K_d],\qquad
+    \alpha = a' - b\kappa^2,\ \beta = a + b',\ K_d = k_1' m_1 + k_2' m_2,
+
+and the snap follows by one more derivative (:func:`path_derivatives`). The thrust
+direction is :math:`z_b = (g e_3 - \ddot c)/|g e_3 - \ddot c|` (body z, FRD), the thrust
+:math:`f = m|g e_3 - \ddot c|`; with :math:`x_c = (\cos\psi, \sin\psi, 0)`,
+:math:`y_b = z_b\times x_c/|\cdot|` and :math:`x_b = y_b\times z_b` give
+:math:`R = [x_b\ y_b\ z_b]`, the ZYX attitude of eq 5. Body rates and their derivatives
+come from :math:`\hat\omega = R^T\dot R` and :math:`\dot{\hat\omega} = \mathrm{skew}(R^T\ddot R)`,
+carried as exact second-order jets, which has no singularity at roll :math:`\pm 90°`
+(unlike solving eq 11 for r). Torques are :math:`\gamma = J\dot\omega + \omega\times J\omega`.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..model.quadrotor import QuadrotorModel
+from ..model.rotation import matrix_to_rpy
+
+__all__ = ["path_derivatives", "nominal_from_flat"]
+
+
+def _dot(a, b):
+    return np.sum(a * b, axis=-1)
+
+
+def path_derivatives(F, k, dk, ddk, v4):
+    """World-frame velocity, acceleration, jerk and snap of the nominal, each (N, 3).
+
+    ``F`` (N,3,3) frames (t, m1, m2), ``k, dk, ddk`` (N,2), ``v4`` (4,N) speed and its
+    first three s-derivatives.
+    """
+    t, m1, m2 = F[:, :, 0], F[:, :, 1], F[:, :, 2]
+    v, v1, v2, v3 = (x[:, None] for x in v4)
+    K = k[:, 0:1] * m1 + k[:, 1:2] * m2
+    Kd = dk[:, 0:1] * m1 + dk[:, 1:2] * m2
+    Kdd = ddk[:, 0:1] * m1 + ddk[:, 1:2] * m2
+    kap2 = _dot(k, k)[:, None]
+    kdk = _dot(k, dk)[:, None]
+    a, a1, a2 = v * v1, v1 ** 2 + v * v2, 3 * v1 * v2 + v * v3
+    b, b1, b2 = v ** 2, 2 * v * v1, 2 * v1 ** 2 + 2 * v * v2
+    alpha = a1 - b * kap2
+    beta = a + b1
+    dalpha = a2 - b1 * kap2 - b * 2 * kdk
+    dbeta = a1 + b2
+    vel = v * t
+    acc = a * t + b * K
+    jerk = v * (alpha * t + beta * K + b * Kd)
+    snap = v * (v1 * (alpha * t + beta * K + b * Kd)
+                + v * ((dalpha - beta * kap2 - b * kdk) * t + (alpha + dbeta) * K
+                       + (beta + b1) * Kd + b * Kdd))
+    return vel, acc, jerk, snap
+
+
+# ---- second-order jets: (value, d/dt, d2/dt2), vectors (N,3), scalars (N,)
+def _jdot(a, b):
+    return (_dot(a[0], b[0]), _dot(a[1], b[0]) + _dot(a[0], b[1]),
+            _dot(a[2], b[0]) + 2 * _dot(a[1], b[1]) + _dot(a[0], b[2]))
+
+
+def _jcross(a, b):
+    return (np.cross(a[0], b[0]), np.cross(a[1], b[0]) + np.cross(a[0], b[1]),
+            np.cross(a[2], b[0]) + 2 * np.cross(a[1], b[1]) + np.cross(a[0], b[2]))
+
+
+def _jnorm(a):
+    q = _jdot(a, a)
+    n0 = np.sqrt(q[0])
+    n1 = q[1] / (2 * n0)
+    n2 = q[2] / (2 * n0) - q[1] ** 2 / (4 * n0 ** 3)
+    return n0, n1, n2
+
+
+def _jnormalize(a):
+    n0, n1, n2 = _jnorm(a)
+    i0, i1, i2 = 1 / n0, -n1 / n0 ** 2, -n2 / n0 ** 2 + 2 * n1 ** 2 / n0 ** 3
+    i0, i1, i2 = i0[:, None], i1[:, None], i2[:, None]
+    return (a[0] * i0, a[1] * i0 + a[0] * i1, a[2] * i0 + 2 * a[1] * i1 + a[0] * i2)
+
+
+def _vee(M):
+    return np.stack([M[:, 2, 1] - M[:, 1, 2], M[:, 0, 2] - M[:, 2, 0],
+                     M[:, 1, 0] - M[:, 0, 1]], axis=1) / 2
+
+
+def nominal_from_flat(model: QuadrotorModel, F, k, dk, ddk, c, v4, yaw4):
+    """Nominal states (N,12) and inputs (N,4) at path samples.
+
+    ``yaw4`` (4,N) is yaw and its s-derivatives. Roll, pitch and yaw are unwrapped along
+    the samples, which must be in increasing s. Raises ValueError where the thrust would
+    vanish (free fall: the attitude is not defined by the path).
+    """
+    vel, acc, jerk, snap = path_derivatives(F, k, dk, ddk, v4)
+    g = model.g
+    T = (g * np.array([0.0, 0.0, 1.0]) - acc, -jerk, -snap)
+    tn = np.linalg.norm(T[0], axis=1)
+    if np.min(tn) < 1e-6:
+        i = int(np.argmin(tn))
+        raise ValueError(f"thrust vanishes at sample {i}: the attitude is undefined there")
+    zb = _jnormalize(T)
+    v, v1 = v4[0], v4[1]
+    psi, dpsi, ddpsi = yaw4[0], v * yaw4[1], v * (v1 * yaw4[1] + v * yaw4[2])
+    cps, sps = np.cos(psi), np.sin(psi)
+    zero = np.zeros_like(psi)
+    xc = (np.stack([cps, sps, zero], axis=1),
+          dpsi[:, None] * np.stack([-sps, cps, zero], axis=1),
+          ddpsi[:, None] * np.stack([-sps, cps, zero], axis=1)
+          - (dpsi ** 2)[:, None] * np.stack([cps, sps, zero], axis=1))
+    yb = _jnormalize(_jcross(zb, xc))
+    xb = _jcross(yb, zb)
+    R, dR, ddR = (np.stack([x, y, z], axis=2) for x, y, z in zip(xb, yb, zb))
+    Rt = np.transpose(R, (0, 2, 1))
+    omega = _vee(Rt @ dR)
+    domega = _vee(Rt @ ddR)  # vee of the skew part of R^T R'' = omega-dot
+    J = np.array(model.inertia_kg_m2)
+    torque = J * domega + np.cross(omega, J * omega)
+    thrust = model.mass_kg * tn
+    rpy = np.array([matrix_to_rpy(Ri) for Ri in R])
+    rpy = np.unwrap(rpy, axis=0)
+    vbody = np.einsum("nji,nj->ni", R, vel)
+    x = np.concatenate([c, rpy, vbody, omega], axis=1)
+    u = np.concatenate([thrust[:, None], torque], axis=1)
+    return x, u

@@ -1,0 +1,230 @@
+"""Everything a flight needs, built off the control loop: path, nominal, feasibility, gains.
+
+The nominal and the gain table share one grid of arc length whose nodes are evenly spaced
+in *nominal time* (``riccati_step_s`` apart): the s-domain Riccati equation is as stiff as
+the closed loop is fast divided by the speed, so steps in s proportional to the speed keep
+RK4 equally accurate at 0.5 m/s and at 8 m/s.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path as FilePath
+
+import numpy as np
+
+from ..config.controller import ControllerParams
+from ..config.maneuver import ManeuverSpec, load_maneuver, load_maneuver_text
+from ..config.vehicle import VehicleParams
+from ..control.riccati import care, periodic_riccati, sweep_backward
+from ..control.transverse import transverse_jacobians
+from ..errors import ManeuverError
+from ..geometry.build import build_path
+from ..geometry.path import Path
+from ..model.mixer import Mixer
+from ..model.quadrotor import QuadrotorModel
+from .feasibility import Feasibility, check_feasibility
+from .flatness import nominal_from_flat
+from .profiles import Profile
+
+__all__ = ["Plan", "plan_spec", "plan_file", "plan_text", "segment_starts"]
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A planned maneuver: nominal x(s), u(s), gains K(s) on a common grid of s.
+
+    ``dx`` is dx/ds = f(x, u)/v, used for Hermite interpolation of the nominal.
+    """
+
+    name: str
+    path: Path
+    vehicle: VehicleParams
+    s: np.ndarray
+    x: np.ndarray
+    dx: np.ndarray
+    u: np.ndarray
+    K: np.ndarray
+    speed_m_s: np.ndarray
+    feasibility: Feasibility
+    terminal: str
+    laps: int
+    laps_segment: str | None
+
+    @property
+    def length_m(self) -> float:
+        return self.path.length_m
+
+    @property
+    def segments(self) -> tuple[tuple[str, float, float], ...]:
+        return tuple((sp.name, sp.s_start_m, sp.s_end_m) for sp in self.path.spans)
+
+    @property
+    def entry_state(self) -> np.ndarray:
+        return self.x[0].copy()
+
+    @property
+    def exit_state(self) -> np.ndarray:
+        return self.x[-1].copy()
+
+    def nominal_state(self, s: float) -> np.ndarray:
+        """x(s), cubic Hermite between grid nodes (clamped to the ends)."""
+        s = float(np.clip(s, self.s[0], self.s[-1]))
+        i = int(np.clip(np.searchsorted(self.s, s) - 1, 0, len(self.s) - 2))
+        h = self.s[i + 1] - self.s[i]
+        u = (s - self.s[i]) / h
+        h00, h10 = 2 * u ** 3 - 3 * u ** 2 + 1, u ** 3 - 2 * u ** 2 + u
+        h01, h11 = -2 * u ** 3 + 3 * u ** 2, u ** 3 - u ** 2
+        return (h00 * self.x[i] + h10 * h * self.dx[i] + h01 * self.x[i + 1]
+                + h11 * h * self.dx[i + 1])
+
+    def _top_of_loop_thrust(self) -> dict:
+        """Thrust where the laps segment (else the whole path) is highest: a loop's top."""
+        span = next((sp for sp in self.path.spans if sp.name == self.laps_segment), None)
+        sel = (self.s >= span.s_start_m) & (self.s <= span.s_end_m) if span else slice(None)
+        s_sel = self.s[sel]
+        z = self.path.evaluate(s_sel)[0][:, 2]
+        i = int(np.argmin(z))
+        return {"at_highest_point": float(self.u[sel][i, 0]), "highest_point_s_m": float(s_sel[i])}
+
+    def summary(self) -> dict:
+        """JSON-ready summary (``mavreg plan --json``)."""
+        f = self.feasibility
+        top = self._top_of_loop_thrust()
+        return {
+            "name": self.name,
+            "feasible": f.feasible,
+            "violations": list(f.violations),
+            "length_m": self.length_m,
+            "duration_s": float(np.sum(np.diff(self.s) * 2 / (self.speed_m_s[1:] + self.speed_m_s[:-1]))),
+            "laps": self.laps,
+            "speed_m_s": {"min": f.speed_m_s[0], "max": f.speed_m_s[1]},
+            "thrust_n": {"min": f.thrust_n[0], "max": f.thrust_n[1], **top},
+            "rotor_force_n": {"min": f.rotor_force_n[0], "max": f.rotor_force_n[1],
+                              "limit": self.vehicle.max_rotor_thrust_n},
+            "torque_nm": {"max_abs": list(f.torque_max_abs_nm)},
+            "gain_schedule": {"nodes": int(len(self.s)), "terminal": self.terminal,
+                              "max_abs_gain": float(np.abs(self.K).max())},
+            "segments": [{"name": n, "s_start_m": a, "s_end_m": b} for n, a, b in self.segments],
+        }
+
+
+def segment_starts(path: Path) -> dict[str, float]:
+    """Arc length where each named segment begins (the middle of its blend, if any)."""
+    starts = {}
+    for i, sp in enumerate(path.spans):
+        if sp.kind == "blend":
+            continue
+        prev = path.spans[i - 1] if i > 0 else None
+        starts[sp.name] = ((prev.s_start_m + prev.s_end_m) / 2
+                           if prev is not None and prev.kind == "blend" else sp.s_start_m)
+    return starts
+
+
+def _profile(initial, changes, starts, what) -> Profile:
+    steps = tuple((starts[c.segment] + c.offset_m, c.length_m,
+                   c.to_m_s if what == "speed" else c.to_rad) for c in changes)
+    try:
+        return Profile(initial, tuple(sorted(steps)))
+    except ValueError as exc:
+        raise ManeuverError(f"{what}: {exc}") from None
+
+
+def _time_grid(path: Path, speed: Profile, step_s: float) -> np.ndarray:
+    """Arc lengths evenly spaced in nominal time, step_s apart (last node at the end)."""
+    s_fine = path.s_nodes
+    v = speed.evaluate(s_fine)[0]
+    if np.min(v) <= 0:
+        raise ManeuverError(f"speed profile reaches {np.min(v):.3f} m/s: it must stay positive")
+    t_fine = np.concatenate([[0.0], np.cumsum(np.diff(s_fine) * (1 / v[1:] + 1 / v[:-1]) / 2)])
+    n = max(2, int(np.ceil(t_fine[-1] / step_s)) + 1)
+    return np.interp(np.linspace(0.0, t_fine[-1], n), t_fine, s_fine)
+
+
+def _nominal(model, path, speed, yaw, s):
+    c, F, k, dk, ddk = path.evaluate(s)
+    v4 = speed.evaluate(s)
+    try:
+        x, u = nominal_from_flat(model, F, k, dk, ddk, c, v4, yaw.evaluate(s))
+    except ValueError as exc:
+        raise ManeuverError(f"nominal: {exc}") from None
+    dx = model.f(x.T, u.T).T / v4[0][:, None]
+    return F, k, x, u, dx, v4[0]
+
+
+def plan_spec(spec: ManeuverSpec, vehicle: VehicleParams, controller: ControllerParams,
+              strict: bool = True) -> Plan:
+    """Plan a loaded maneuver.
+
+    With ``strict``, an infeasible nominal raises :class:`ManeuverError` naming where and
+    by how much; otherwise the plan is returned with ``feasibility.feasible`` False (and
+    no gains are computed for an infeasible plan: ``K`` is zeros).
+    """
+    model = QuadrotorModel.from_vehicle(vehicle)
+    mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
+    path = build_path(spec)
+    starts = segment_starts(path)
+    speed = _profile(spec.speed.initial_m_s, spec.speed.changes, starts, "speed")
+    yaw = _profile(spec.yaw.initial_rad, spec.yaw.changes, starts, "yaw")
+    s = _time_grid(path, speed, controller.riccati_step_s)
+    F, k, x, u, dx, v = _nominal(model, path, speed, yaw, s)
+    rotors = u @ mixer.inverse.T
+    feas = check_feasibility(s, u, rotors, v, vehicle.max_rotor_thrust_n,
+                             spec.limits.min_speed_m_s, lambda q: path.segment_at(q).name)
+    laps = spec.laps.count if spec.laps is not None else 1
+    laps_seg = spec.laps.segment if spec.laps is not None else None
+    if not feas.feasible:
+        if strict:
+            raise ManeuverError(f"maneuver {spec.name!r} is infeasible: " + "; ".join(feas.violations))
+        return Plan(spec.name, path, vehicle, s, x, dx, u, np.zeros((len(s), 4, 11)), v, feas,
+                    "none (infeasible)", laps, laps_seg)
+    K, terminal = _gains(model, path, speed, yaw, s, F, k, x, u, dx, controller, spec)
+    return Plan(spec.name, path, vehicle, s, x, dx, u, K, v, feas, terminal, laps, laps_seg)
+
+
+def _gains(model, path, speed, yaw, s, F, k, x, u, dx, controller, spec):
+    Q, R = np.diag(controller.q), np.diag(controller.r)
+    A, B = transverse_jacobians(model, F, k, x, u, dx)
+    s_mid = (s[:-1] + s[1:]) / 2
+    Fm, km, xm, um, dxm, _ = _nominal(model, path, speed, yaw, s_mid)
+    Am, Bm = transverse_jacobians(model, Fm, km, xm, um, dxm)
+    h = np.diff(s)
+    last = spec.segments[-1].name
+    try:
+        if spec.laps is not None and spec.laps.segment == last:
+            # The maneuver ends going round: the terminal condition is the periodic solution.
+            lap = 2 * np.pi * spec.segments[-1].shape.radius_m if spec.segments[-1].arc else None
+            terminal, P_T = "periodic", _periodic_terminal(A, B, Am, Bm, s, lap, Q, R)
+        else:
+            terminal = "steady (CARE at the end)"
+            P_T, _ = care(A[-1], B[-1], Q, R)
+        _, K = sweep_backward(A, B, Am, Bm, h, Q, R, P_T, step_check="warn")
+    except ValueError as exc:
+        raise ManeuverError(f"gain schedule: {exc}") from None
+    return K, terminal
+
+
+def _periodic_terminal(A, B, Am, Bm, s, lap_m, Q, R):
+    """P at the end of a path whose last lap repeats: the periodic solution over that lap."""
+    if lap_m is None:
+        raise ValueError("a periodic terminal condition needs an arc as the last segment")
+    i0 = int(np.searchsorted(s, s[-1] - lap_m))
+    # Resample one lap onto the grid tail; A, B are lap-periodic there up to grid alignment.
+    A1, B1, Am1, Bm1 = A[i0:].copy(), B[i0:].copy(), Am[i0:], Bm[i0:]
+    A1[0], B1[0] = A1[-1], B1[-1]
+    P, _ = periodic_riccati(A1, B1, Am1, Bm1, np.diff(s[i0:]), Q, R, step_check="warn")
+    return P[-1]
+
+
+def plan_file(path: str | FilePath, vehicle: VehicleParams, controller: ControllerParams,
+              laps: int | None = None, strict: bool = True) -> Plan:
+    """Load and plan a maneuver YAML file."""
+    spec = load_maneuver(path)
+    if laps is not None:
+        spec = spec.with_laps(laps)
+    return plan_spec(spec, vehicle, controller, strict)
+
+
+def plan_text(text: str, source: str, vehicle: VehicleParams, controller: ControllerParams,
+              strict: bool = True) -> Plan:
+    """Load and plan maneuver YAML text (an upload); errors name ``source``."""
+    return plan_spec(load_maneuver_text(text, source), vehicle, controller, strict)
