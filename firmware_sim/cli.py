@@ -191,6 +191,10 @@ def main(argv: list[str] | None = None) -> int:
         code, reason = exc.code, exc.reason
         engine.announce_stop(reason)
         print(f"firmware_sim: {reason}", file=sys.stderr, flush=True)
+    except Exception as exc:             # a bug: keep the recording, report, exit 1
+        import traceback
+        traceback.print_exc()
+        code, reason = ExitCode.INTERNAL, f"internal error: {exc!r}"
     finally:
         for s, h in old.items():
             signal.signal(s, h)

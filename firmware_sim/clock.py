@@ -28,7 +28,7 @@ from .engine import Engine
 __all__ = ["run_realtime", "run_lockstep", "StopRun"]
 
 
-class StopRun(Exception):
+class StopRun(BaseException):
     """Raised by a signal handler to end the loop cleanly."""
 
 
