@@ -64,7 +64,7 @@ class ManeuverRegulator:
         proj = self.projector.update(x[:3])
         s = proj.s
         self.s = s
-        pt = self.plan.path.point(s)
+        pt = proj.point
         # Linear interpolation of the tables at s (clamped to the ends).
         i = min(max(int(np.searchsorted(self._s, s)) - 1, 0), self._last)
         a = min(max((s - self._s[i]) / (self._s[i + 1] - self._s[i]), 0.0), 1.0)

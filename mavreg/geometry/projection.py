@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .path import Path
+from .path import Path, PathPoint
 
 __all__ = ["Projector", "Projection"]
 
@@ -31,6 +31,8 @@ class Projection:
     distance_m: float
     in_tube: bool
     """False when the nearest point is not locally unique or the search hit its window."""
+    point: PathPoint
+    """The path's geometry at s."""
 
 
 class Projector:
@@ -72,8 +74,8 @@ class Projector:
         lo, hi = s0 - self.window_m, s0 + self.window_m
         s = s0
         ok = False
+        p = self.path.point(s)
         for _ in range(12):
-            p = self.path.point(s)
             d = y - p.position
             kvec = p.frame[:, 1] * p.k[0] + p.frame[:, 2] * p.k[1]
             g = p.frame[:, 0] @ d
@@ -82,14 +84,14 @@ class Projector:
                 break
             step = float(np.clip(-g / dg, -0.5, 0.5))
             s_new = min(max(s + step, lo), hi)
-            if abs(s_new - s) < 1e-9:
-                s = s_new
+            converged = abs(s_new - s) < 1e-9
+            s = s_new
+            p = self.path.point(s)
+            if converged:
                 ok = True
                 break
-            s = s_new
-        p = self.path.point(s)
         d = y - p.position
         kvec = p.frame[:, 1] * p.k[0] + p.frame[:, 2] * p.k[1]
         inside = ok and (1.0 - kvec @ d) > self.tube_margin and lo < s < hi
         self.s = s
-        return Projection(s, float(np.linalg.norm(d)), bool(inside))
+        return Projection(s, float(np.linalg.norm(d)), bool(inside), p)
