@@ -99,10 +99,19 @@ def _falling(k: int, order: int) -> float:
     return out
 
 
-def _poly_eval(c: np.ndarray, t: float) -> tuple[float, float, float, float]:
-    """Value and first three derivatives of the polynomial with coefficients ``c``."""
-    return tuple(sum(_falling(k, order) * c[k] * t ** (k - order) for k in range(order, len(c)))
-                 for order in range(4))
+_DERIV = np.array([[[_falling(k, order) if k >= order else 0.0 for k in range(_DEG + 1)]
+                    for order in range(4)]])
+"""(1, 4, 8): factor of t^(k-order) in the order-th derivative of c_k t^k."""
+_SHIFT = np.array([[k - order if k >= order else 0 for k in range(_DEG + 1)] for order in range(4)])
+
+
+def _poly_eval_many(c: np.ndarray, ts: np.ndarray) -> np.ndarray:
+    """(len(ts), rows of c, 4): value and first three derivatives of each polynomial row of
+    ``c`` (shape (rows, 8)) at each time."""
+    ts = np.asarray(ts, dtype=float)
+    powers = ts[:, None, None] ** _SHIFT[None]                     # (T, 4, 8)
+    terms = _DERIV[None] * powers[:, None, :, :] * c[None, :, None, :]   # (T, rows, 4, 8)
+    return terms.sum(axis=-1)
 
 
 @dataclass(frozen=True)
@@ -131,8 +140,7 @@ class Ramp:
             dt = t_s - self.duration_s
             return (self.end_position_m + self.end_velocity_m_s * dt, self.end_velocity_m_s.copy(),
                     np.zeros(3), np.zeros(3), self.end_yaw_rad, 0.0)
-        t = max(t_s, 0.0)
-        vals = np.array([_poly_eval(self.coeffs[i], t) for i in range(4)])
+        vals = _poly_eval_many(self.coeffs, np.array([max(t_s, 0.0)]))[0]   # (4 rows, 4 derivs)
         return (vals[:3, 0], vals[:3, 1], vals[:3, 2], vals[:3, 3], float(vals[3, 0]),
                 float(vals[3, 1]))
 
@@ -162,7 +170,7 @@ def plan_ramp(p0, v0, yaw0: float, p1, v1, yaw1: float, params: HoverParams,
         coeffs = np.vstack([_septic(p0[i], v0[i], a0[i], p1[i], v1[i], a1[i], T) for i in range(3)]
                            + [_septic(yaw0, 0.0, 0.0, yaw1_unwrapped, 0.0, 0.0, T)])
         ts = np.linspace(0.0, T, 60)
-        vals = np.array([[_poly_eval(coeffs[i], t) for i in range(4)] for t in ts])  # (60, 4, 3)
+        vals = _poly_eval_many(coeffs, ts)   # (60, 4 rows, 4 derivatives)
         speed = np.linalg.norm(vals[:, :3, 1], axis=1)
         accel = np.linalg.norm(vals[:, :3, 2], axis=1)
         yaw_rate = np.abs(vals[:, 3, 1])

@@ -71,6 +71,7 @@ class SupervisorParams:
     stale_timeout_s: float = 0.1
     """No complete sample for this long (injected clock) while armed: stop the stream."""
     command_retry_s: float = 0.5
+    """Vehicle time between repeats of an unanswered ARM / DO_SET_MODE / DISARM."""
     offboard_stream_min_s: float = 0.7
     """Vehicle time the idle stream runs before OFFBOARD is requested (vehicle needs 0.5 s)."""
     spool_s: float = 1.0
@@ -166,7 +167,8 @@ class Supervisor:
         self.last_sample: StateSample | None = None
         self._last_sample_now: float | None = None
         self._stream_start_t: float | None = None
-        self._last_cmd_now = -math.inf
+        self._last_cmd_t = -math.inf
+        self._last_tick_now: float | None = None
         self._pending: list = []        # (plan, regulator) not yet flown
         self._active = None             # (plan, regulator) in run_in / maneuver
         self._maneuvers_done: list[str] = []
@@ -247,12 +249,16 @@ class Supervisor:
         return out
 
     def tick(self, now_s: float) -> Output:
-        """Periodic check (call at >= 20 Hz): stale state and command retries."""
+        """Periodic check, called every ``stale_timeout_s / 4`` or more often: stale state."""
         out = Output()
         if self.finished:
             return out
+        # A tick that comes late means this process was stalled (not the link): samples may
+        # be waiting unread, so staleness is judged only by ticks of a running loop.
+        stalled = self._last_tick_now is not None and now_s - self._last_tick_now > self.params.stale_timeout_s / 2
+        self._last_tick_now = now_s
         armed = self.vehicle_status is not None and self.vehicle_status.armed
-        if (armed and self._last_sample_now is not None
+        if (armed and not stalled and self._last_sample_now is not None
                 and now_s - self._last_sample_now > self.params.stale_timeout_s):
             self._abort(out, f"stale state: no complete sample for {now_s - self._last_sample_now:.3f} s "
                         f"(limit {self.params.stale_timeout_s} s); command stream stopped")
@@ -285,10 +291,12 @@ class Supervisor:
             self._abort(out, f"vehicle left OFFBOARD control (armed={st.armed}, mode {st.mode}); "
                         "its failsafe is in charge")
 
-    def _command(self, now_s: float, out: Output, msg) -> None:
-        if now_s - self._last_cmd_now >= self.params.command_retry_s:
+    def _command(self, out: Output, msg) -> None:
+        """Send a command, at most once per ``command_retry_s`` of vehicle time (retries)."""
+        t = self.last_sample.time_s
+        if t - self._last_cmd_t >= self.params.command_retry_s or t < self._last_cmd_t:
             out.messages.append(msg)
-            self._last_cmd_now = now_s
+            self._last_cmd_t = t
             self.counters.commands_sent += 1
 
     def _on_sample(self, sample: StateSample, now_s: float, out: Output) -> None:
@@ -306,10 +314,10 @@ class Supervisor:
                 return
             st = self.vehicle_status
             if not st.armed:
-                self._command(now_s, out, mm.arm_disarm(sysid, compid, True))
+                self._command(out, mm.arm_disarm(sysid, compid, True))
             elif not st.offboard:
                 if t - self._stream_start_t >= self.params.offboard_stream_min_s:
-                    self._command(now_s, out, mm.set_offboard(sysid, compid))
+                    self._command(out, mm.set_offboard(sysid, compid))
             else:
                 self._start_takeoff(sample, out)
             return
@@ -440,6 +448,6 @@ class Supervisor:
         if blend <= 0.0:
             st = self.vehicle_status
             if st is not None and st.armed:
-                self._command(self._last_sample_now, out, mm.arm_disarm(
+                self._command(out, mm.arm_disarm(
                     self.params.vehicle_system_id, self.params.vehicle_component_id, False))
         return rotors * blend

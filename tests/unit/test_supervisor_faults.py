@@ -17,18 +17,35 @@ def test_stale_state_stops_stream_for_good():
     run(sup, veh, 5.0)
     assert sup.phase == Phase.TAKEOFF
     now = veh.t_ms / 1000
-    assert sup.tick(now + 0.05).events == []           # within the timeout: still flying
-    out = sup.tick(now + 0.2)
+    for k in range(1, 5):                                # ticks every 20 ms: still fresh
+        assert sup.tick(now + 0.02 * k).events == []
+    for k in range(5, 10):
+        out = sup.tick(now + 0.02 * k)
+        if out.events:
+            break
     assert sup.phase == Phase.ABORTED and "stale" in sup.reason
     assert any(e.phase == Phase.ABORTED for e in out.events) and out.messages == []
+    assert 0.1 < 0.02 * k + veh.dt <= 0.13   # the last sample came one period before `now`
     # fresh samples afterwards never restart the stream
     sent = 0
     for k in range(20):
         veh.t_ms += 4
         for m in veh.telemetry():
-            sent += len(_actuators(sup.handle(m, now + 0.2 + k * 0.004)))
-        sup.tick(now + 0.2 + k * 0.004)
+            sent += len(_actuators(sup.handle(m, now + 0.3 + k * 0.004)))
+        sup.tick(now + 0.3 + k * 0.004)
     assert sent == 0
+
+
+def test_a_stalled_process_is_not_mistaken_for_a_stale_link():
+    sup = make_supervisor(FakePlan(), stale_timeout_s=0.1)
+    veh = SimVehicle()
+    run(sup, veh, 5.0)
+    now = veh.t_ms / 1000
+    sup.tick(now)
+    assert sup.tick(now + 0.5).events == []     # the loop itself was late: not judged
+    assert sup.phase == Phase.TAKEOFF
+    assert sup.tick(now + 0.52).events != []    # a running loop that still sees nothing: stale
+    assert sup.phase == Phase.ABORTED
 
 
 def test_no_command_without_a_complete_sample():

@@ -1,0 +1,73 @@
+"""``mavreg fly``: the main job, one maneuver from the ground back to the ground."""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from .common import add_model_arguments
+
+HELP = "fly a maneuver YAML on a vehicle (default: the bundled firmware_sim) and report"
+DESCRIPTION = """\
+Plan the maneuver (in a worker process), connect to the vehicle over MAVLink 2, stream the
+idle setpoint, arm, switch to OFFBOARD, take off to the hold point before the maneuver's
+entry, fly it with the maneuver regulator, stop and hold at the exit, land and disarm.
+Hold, take-off and landing use a hover LQR from the same design model.
+
+With no --vehicle, the bundled emulator (firmware_sim) is started on a free loopback port
+as a child process (real time; --lockstep for a deterministic faster-than-real-time run)
+and its ground-truth recording is used for the true tracking error.
+
+Outputs go to --out DIR (default: flights/<YYYYmmdd-HHMMSS>/): summary.json, flight.png
+(path in the maneuver's plane, errors against arc length), flight.tlog (every MAVLink
+message in and out; mavlogdump.py and MAVProxy read it), control.npz (s, w, u, rotor
+commands and phase per control step), groundtruth.npz (bundled emulator only). A
+per-segment summary is printed: max and RMS transverse error, max attitude error, peak
+rotor commands, time saturated.
+
+Rotor commands are SET_ACTUATOR_CONTROL_TARGET group 0 with a pass-through mixer
+(controls[0..3] = rotors 1..4 front, right, back, left, as a fraction of the maximum rotor
+thrust): this is not PX4 v1.13's default attitude mixer.
+
+Exit status: 0 the flight succeeded (maneuver flown, landed, disarmed); 1 the flight failed
+(abort, vehicle failsafe, timeout, emulator crash); 2 bad file or arguments.
+"""
+
+
+def add_arguments(p):
+    p.add_argument("maneuver", metavar="FILE", help="maneuver YAML (kind: maneuver)")
+    p.add_argument("--vehicle", metavar="URL", default=None,
+                   help="vehicle connection, udpout:HOST:PORT or udpin:HOST:PORT "
+                   "(default: start the bundled firmware_sim on a free loopback port)")
+    p.add_argument("--out", metavar="DIR", default=None,
+                   help="output directory (default: flights/<timestamp>/)")
+    p.add_argument("--socket", metavar="PATH", default=None,
+                   help="also accept uploads on this Unix socket during the flight (default: none)")
+    p.add_argument("--timeout-s", type=float, default=300.0, metavar="S",
+                   help="give up (exit 1) after this many wall seconds (default: %(default)s)")
+    p.add_argument("--lockstep", action="store_true",
+                   help="bundled emulator only: run it in lockstep (faster than real time)")
+    p.add_argument("--emulator-arg", action="append", default=[], metavar="ARG",
+                   help="bundled emulator only: extra firmware_sim argument (repeatable), "
+                   "e.g. --emulator-arg=--rotor-time-constant-s=0")
+    add_model_arguments(p)
+
+
+def run(args) -> int:
+    from ..config.vehicle import load_vehicle
+    from ..daemon.fly import FlyOptions, fly
+    from ..daemon.link import parse_url
+    maneuver = Path(args.maneuver)
+    if not maneuver.is_file():
+        raise ValueError(f"{maneuver}: no such file")
+    if args.vehicle is not None:
+        parse_url(args.vehicle)
+        if args.lockstep or args.emulator_arg:
+            raise ValueError("--lockstep and --emulator-arg apply only to the bundled emulator (no --vehicle)")
+    if args.timeout_s <= 0:
+        raise ValueError(f"--timeout-s must be positive, got {args.timeout_s}")
+    load_vehicle(args.vehicle_params)   # a bad vehicle file is a user error before anything starts
+    out = Path(args.out) if args.out else Path("flights") / time.strftime("%Y%m%d-%H%M%S")
+    opts = FlyOptions(maneuver, args.vehicle, Path(args.vehicle_params), Path(args.controller), out,
+                      Path(args.socket) if args.socket else None, args.timeout_s, args.lockstep,
+                      tuple(args.emulator_arg))
+    return fly(opts)

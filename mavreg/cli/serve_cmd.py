@@ -1,0 +1,69 @@
+"""``mavreg serve``: the long-running daemon that flies uploaded maneuvers."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from .common import add_model_arguments
+
+HELP = "run the offboard daemon: fly maneuvers uploaded on the control endpoint"
+DESCRIPTION = """\
+Connect to the vehicle over MAVLink 2 (heartbeat as MAV_TYPE_ONBOARD_CONTROLLER, component
+191, same system id as the vehicle), then wait for maneuvers on the control endpoint, a
+Unix domain socket of mode 0600. Default location: $MAVREG_SOCKET, else
+$XDG_RUNTIME_DIR/mavreg.sock, else /tmp/mavreg-$UID/mavreg.sock.
+
+The first accepted upload arms the vehicle, takes off to the hold point before its entry
+and flies it; afterwards the daemon holds at the exit and flies later uploads from there.
+Uploads are planned in a worker process (the control loop keeps its rate) and start only at
+a safe point (hold); a rejected upload changes nothing. `mavreg upload --land` lands and
+disarms; the daemon then exits.
+
+SIGINT/SIGTERM: the first lands (when airborne) and then exits; a second one exits at once,
+which stops the command stream so that the vehicle's own failsafe lands it.
+
+Writes a .tlog of every MAVLink message (--tlog, default none) and the controller log
+(--control-log, default none).
+
+Exit status: 0 landed and disarmed or stopped on request; 1 the flight was aborted (stale
+state, non-finite output, the vehicle left OFFBOARD); 2 bad arguments.
+"""
+
+
+def add_arguments(p):
+    p.add_argument("--vehicle", metavar="URL", default="udpout:127.0.0.1:14540",
+                   help="vehicle connection, udpout:HOST:PORT or udpin:HOST:PORT (default: %(default)s)")
+    p.add_argument("--socket", metavar="PATH", default=None,
+                   help="control endpoint (default: $MAVREG_SOCKET, $XDG_RUNTIME_DIR/mavreg.sock "
+                   "or /tmp/mavreg-$UID/mavreg.sock)")
+    p.add_argument("--tlog", metavar="FILE", default=None, help="write a MAVLink .tlog here")
+    p.add_argument("--control-log", metavar="FILE.npz", default=None,
+                   help="write the controller log (s, w, u, phase) here on exit")
+    p.add_argument("--stale-timeout-s", type=float, default=0.1, metavar="S",
+                   help="stop streaming when no complete state arrives for S seconds (default: %(default)s)")
+    add_model_arguments(p)
+
+
+def run(args) -> int:
+    import asyncio
+
+    from ..config.vehicle import load_vehicle
+    from ..control.regulator import ManeuverRegulator
+    from ..daemon.app import Daemon, DaemonConfig
+    from ..daemon.endpoint import default_socket_path
+    from ..daemon.link import parse_url
+    from ..daemon.supervisor import Phase, SupervisorParams
+    parse_url(args.vehicle)
+    if args.stale_timeout_s <= 0:
+        raise ValueError(f"--stale-timeout-s must be positive, got {args.stale_timeout_s}")
+    vehicle = load_vehicle(args.vehicle_params)
+    from ..config.controller import load_controller
+    load_controller(args.controller)
+    config = DaemonConfig(args.vehicle, Path(args.vehicle_params), Path(args.controller),
+                          Path(args.socket) if args.socket else default_socket_path(),
+                          Path(args.tlog) if args.tlog else None,
+                          SupervisorParams(land_when_done=False, stale_timeout_s=args.stale_timeout_s))
+    daemon = Daemon(config, vehicle, lambda plan: ManeuverRegulator(plan, vehicle))
+    asyncio.run(daemon.run())
+    if args.control_log:
+        daemon.ctrl_log.save(args.control_log)
+    return 1 if daemon.supervisor.phase == Phase.ABORTED else 0

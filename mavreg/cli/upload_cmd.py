@@ -1,0 +1,67 @@
+"""``mavreg upload``: hand a maneuver to a running daemon and print the verdict."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+HELP = "upload a maneuver YAML to a running `mavreg serve` (or ask it to land / report)"
+DESCRIPTION = """\
+Send FILE to the daemon's control endpoint and print its verdict: "accepted" (the maneuver
+was planned and is queued; it starts at the next safe point, a hold) or "rejected" with the
+loader's or the feasibility check's reasons. Planning takes a few seconds; the daemon keeps
+flying meanwhile. --land asks the daemon to land and disarm at the next safe point;
+--status prints its status as JSON.
+
+Endpoint: --socket, else $MAVREG_SOCKET, else $XDG_RUNTIME_DIR/mavreg.sock, else
+/tmp/mavreg-$UID/mavreg.sock.
+
+Exit status: 0 accepted (or --land/--status answered); 1 rejected or refused by the
+daemon; 2 bad arguments, unreadable file, or no daemon listening.
+"""
+
+_MAX_FILE_BYTES = 200 * 1024
+
+
+def add_arguments(p):
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("maneuver", metavar="FILE", nargs="?", help="maneuver YAML (kind: maneuver)")
+    g.add_argument("--land", action="store_true", help="ask the daemon to land and disarm")
+    g.add_argument("--status", action="store_true", help="print the daemon's status as JSON")
+    p.add_argument("--socket", metavar="PATH", default=None, help="control endpoint (default: see above)")
+    p.add_argument("--timeout-s", type=float, default=120.0, metavar="S",
+                   help="wait this long for the verdict (default: %(default)s)")
+
+
+def run(args) -> int:
+    from ..daemon.endpoint import default_socket_path, request
+    path = Path(args.socket) if args.socket else default_socket_path()
+    if args.land:
+        req = {"op": "land"}
+    elif args.status:
+        req = {"op": "status"}
+    else:
+        f = Path(args.maneuver)
+        if not f.is_file():
+            raise ValueError(f"{f}: no such file")
+        if f.stat().st_size > _MAX_FILE_BYTES:
+            raise ValueError(f"{f}: {f.stat().st_size} bytes; a maneuver file is at most {_MAX_FILE_BYTES}")
+        try:
+            text = f.read_text(encoding="utf-8")
+        except UnicodeDecodeError:
+            raise ValueError(f"{f}: not UTF-8 text") from None
+        req = {"op": "upload", "name": str(f), "yaml": text}
+    try:
+        resp = request(path, req, args.timeout_s)
+    except (OSError, TimeoutError) as exc:
+        raise ValueError(f"no daemon answering on {path} ({exc.__class__.__name__}: {exc})") from None
+    if args.status:
+        print(json.dumps(resp.get("status", resp), indent=1))
+        return 0 if resp.get("ok") else 1
+    if args.land:
+        print(resp.get("detail") or resp.get("reason"))
+        return 0 if resp.get("ok") else 1
+    if resp.get("ok"):
+        print(f"accepted: {resp['detail']}")
+        return 0
+    print(f"{resp.get('verdict', 'rejected')}: {resp.get('reason')}")
+    return 1

@@ -1,0 +1,214 @@
+"""The asyncio daemon: wires the supervisor to the UDP link, the endpoint and the planner.
+
+It owns every task it creates (heartbeat, tick, endpoint) and keeps their references;
+:meth:`Daemon.run` returns when the flight is over or a stop is requested, then shuts
+down in order: tasks cancelled and awaited, endpoint closed (socket removed), UDP closed,
+``.tlog`` flushed, planner worker stopped. SIGINT/SIGTERM: the first asks the supervisor
+to land (when airborne) and the second stops at once (the vehicle's failsafe then lands).
+"""
+from __future__ import annotations
+
+import asyncio
+import collections
+import signal
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+from ..config.vehicle import VehicleParams
+from .ctrllog import ControlLog
+from .endpoint import EndpointServer
+from .link import MavlinkLink, open_link
+from .planner_pool import PlannerPool
+from .supervisor import Output, Phase, Supervisor, SupervisorParams
+from .tlog import TlogWriter
+
+__all__ = ["DaemonConfig", "Daemon"]
+
+TICK_S = 0.02
+HEARTBEAT_S = 1.0
+
+
+@dataclass(frozen=True)
+class DaemonConfig:
+    vehicle_url: str
+    vehicle_path: Path
+    controller_path: Path
+    socket_path: Path | None
+    tlog_path: Path | None
+    supervisor: SupervisorParams
+
+
+class Daemon:
+    """One vehicle, one supervisor, optional control endpoint."""
+
+    def __init__(self, config: DaemonConfig, vehicle: VehicleParams, regulator_factory: Callable,
+                 log: Callable[[str], None] | None = None, clock_s: Callable[[], float] = time.monotonic):
+        self.config = config
+        self.vehicle = vehicle
+        self.clock_s = clock_s
+        self.supervisor = Supervisor(vehicle, config.supervisor, regulator_factory)
+        self.ctrl_log = ControlLog()
+        self.log = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
+        self.latency_ns: collections.deque = collections.deque(maxlen=200_000)
+        self.uploads = {"accepted": 0, "rejected": 0}
+        self.plans: list = []
+        self.pool: PlannerPool | None = None
+        self.link: MavlinkLink | None = None
+        self.endpoint: EndpointServer | None = None
+        self._tlog: TlogWriter | None = None
+        self._tasks: list[asyncio.Task] = []
+        self._stop = asyncio.Event()
+        self._signals = 0
+
+    # ------------------------------------------------------------------ wiring
+    def _emit(self, out: Output) -> bool:
+        sent_actuator = False
+        for msg in out.messages:
+            if self.link is not None and self.link.send(msg):
+                sent_actuator |= msg.get_type() == "SET_ACTUATOR_CONTROL_TARGET"
+        for ev in out.events:
+            self.ctrl_log.events.append(ev)
+            self.log(ev.line())
+        if out.log is not None:
+            self.ctrl_log.append(out.log)
+        if self.supervisor.finished:
+            self._stop.set()
+        return sent_actuator
+
+    def _on_message(self, msg, t_recv_ns: int) -> None:
+        if self._emit(self.supervisor.handle(msg, self.clock_s())):
+            self.latency_ns.append(time.perf_counter_ns() - t_recv_ns)
+
+    async def _heartbeat_task(self) -> None:
+        while True:
+            if self.link is not None:
+                self.link.send(self.supervisor.heartbeat())
+            await asyncio.sleep(HEARTBEAT_S)
+
+    async def _tick_task(self) -> None:
+        while True:
+            await asyncio.sleep(TICK_S)
+            self._emit(self.supervisor.tick(self.clock_s()))
+
+    # ---------------------------------------------------------------- requests
+    async def offer_text(self, yaml_text: str, source: str) -> dict:
+        """Plan an upload in the worker and queue it; a rejection changes nothing."""
+        if self.supervisor.finished:
+            return {"ok": False, "verdict": "rejected", "reason": f"the flight is over ({self.supervisor.phase})"}
+        result = await self.pool.plan(yaml_text, source)
+        if not result.accepted:
+            self.uploads["rejected"] += 1
+            self.log(f"upload {source!r} rejected: {result.reason}")
+            return {"ok": False, "verdict": "rejected", "reason": result.reason}
+        try:
+            self._emit(self.supervisor.offer_plan(result.plan, self.clock_s()))
+        except ValueError as exc:
+            return {"ok": False, "verdict": "rejected", "reason": str(exc)}
+        self.uploads["accepted"] += 1
+        self.plans.append(result.plan)
+        where = "now (at a safe point)" if self.supervisor.at_safe_point() else "at the next safe point (hold)"
+        return {"ok": True, "verdict": "accepted", "plan": _jsonable(result.plan.summary()),
+                "detail": f"{result.plan.name!r} queued; it starts {where}"}
+
+    async def handle_request(self, req: dict) -> dict:
+        op = req["op"]
+        if op == "upload":
+            return await self.offer_text(req["yaml"], req["name"])
+        if op == "land":
+            self._emit(self.supervisor.request_land(self.clock_s()))
+            return {"ok": True, "detail": "landing at the next safe point"}
+        return {"ok": True, "status": self.status()}
+
+    def status(self) -> dict:
+        st = self.supervisor.status()
+        if self.link is not None:
+            st["link"] = dict(self.link.counters.__dict__)
+        st["uploads"] = dict(self.uploads)
+        st["planning"] = 0 if self.pool is None else self.pool.busy
+        return st
+
+    def request_stop(self) -> None:
+        """Signal handler: first land (if airborne), then stop at once."""
+        self._signals += 1
+        airborne = self.supervisor.phase in (Phase.TAKEOFF, Phase.HOLD, Phase.RUN_IN, Phase.MANEUVER)
+        if self._signals == 1 and airborne:
+            self.log("signal: landing at the next safe point (signal again to stop at once; "
+                     "the vehicle's failsafe then lands)")
+            self._emit(self.supervisor.request_land(self.clock_s()))
+        else:
+            self.log("signal: stopping")
+            self._stop.set()
+
+    # --------------------------------------------------------------------- run
+    async def run(self, initial: list[tuple[str, str]] | None = None, timeout_s: float | None = None,
+                  install_signals: bool = True) -> None:
+        """Fly until the supervisor finishes, a stop is requested or ``timeout_s`` passes.
+
+        ``initial`` is a list of (yaml_text, source) uploads planned before anything flies.
+        """
+        loop = asyncio.get_running_loop()
+        if install_signals:
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                loop.add_signal_handler(sig, self.request_stop)
+        self.pool = PlannerPool(self.config.vehicle_path, self.config.controller_path)
+        try:
+            await self.pool.warm_up()
+            for text, source in initial or []:
+                verdict = await self.offer_text(text, source)
+                if not verdict["ok"]:
+                    raise _InitialRejected(verdict["reason"])
+            if self.config.tlog_path is not None:
+                self._tlog = TlogWriter(self.config.tlog_path)
+            self.link = await open_link(self.config.vehicle_url, self.config.supervisor.vehicle_system_id,
+                                        self.config.supervisor.vehicle_component_id, self._on_message, self._tlog)
+            self._tasks.append(asyncio.create_task(self._heartbeat_task(), name="heartbeat"))
+            self._tasks.append(asyncio.create_task(self._tick_task(), name="tick"))
+            if self.config.socket_path is not None:
+                self.endpoint = EndpointServer(self.config.socket_path, self.handle_request)
+                await self.endpoint.start()
+                self.log(f"control endpoint: {self.config.socket_path}")
+            self.log(f"link: {self.config.vehicle_url}")
+            try:
+                await asyncio.wait_for(self._stop.wait(), timeout_s)
+            except asyncio.TimeoutError:
+                self.log(f"timeout after {timeout_s:g} s in phase {self.supervisor.phase}")
+        finally:
+            await self._shutdown(loop, install_signals)
+
+    async def _shutdown(self, loop, signals_installed: bool) -> None:
+        for task in self._tasks:
+            task.cancel()
+        await asyncio.gather(*self._tasks, return_exceptions=True)
+        self._tasks.clear()
+        if self.endpoint is not None:
+            await self.endpoint.close()
+        if self.link is not None:
+            self.link.close()
+        if self._tlog is not None:
+            self._tlog.close()
+        if self.pool is not None:
+            self.pool.shutdown()
+        if signals_installed:
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                loop.remove_signal_handler(sig)
+
+
+class _InitialRejected(ValueError):
+    """The maneuver given on the command line does not plan (a user error)."""
+
+
+def _jsonable(obj):
+    """Plan summaries may hold numpy scalars and arrays."""
+    import numpy as np
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    return obj

@@ -1,0 +1,71 @@
+"""Controller internals per control step (t, phase, s, w, u, rotor commands, state) in a compact npz.
+
+Arrays of ``control.npz`` (N control steps, float32 unless said):
+
+================  ========  ==============================================================
+``t_s``           (N,)      vehicle time (time_boot_ms / 1000), float64
+``phase``         (N,)      int8 code; ``phase_names`` (JSON list) gives the names
+``s_m``           (N,)      arc length (NaN outside the maneuver)
+``w``             (N, 11)   transverse coordinates (NaN outside the maneuver)
+``u``             (N, 4)    commanded (f, g1, g2, g3), N and N m
+``rotor_cmd_n``   (N, 4)    rotor forces asked by the controller, before clipping
+``x``             (N, 12)   state used by the controller
+``events_json``   ()        JSON list of the supervisor's events (time, kind, phase, s, detail)
+================  ========  ==============================================================
+"""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .supervisor import PHASE_CODES, LogRecord
+
+__all__ = ["ControlLog", "load_control_log"]
+
+
+class ControlLog:
+    """Accumulates :class:`LogRecord` rows in memory (about 130 bytes per step)."""
+
+    def __init__(self):
+        self._rows: list[np.ndarray] = []
+        self._phase: list[int] = []
+        self._t: list[float] = []
+        self.events: list = []
+
+    def __len__(self) -> int:
+        return len(self._t)
+
+    def append(self, rec: LogRecord) -> None:
+        self._t.append(rec.time_s)
+        self._phase.append(PHASE_CODES[rec.phase])
+        self._rows.append(np.concatenate([[rec.s_m], rec.w, rec.u, rec.rotor_cmd_n, rec.x]).astype(np.float32))
+
+    def arrays(self) -> dict:
+        rows = np.array(self._rows, dtype=np.float32).reshape(-1, 1 + 11 + 4 + 4 + 12)
+        return {
+            "t_s": np.array(self._t, dtype=np.float64),
+            "phase": np.array(self._phase, dtype=np.int8),
+            "phase_names": np.array(json.dumps(list(PHASE_CODES))),
+            "s_m": rows[:, 0], "w": rows[:, 1:12], "u": rows[:, 12:16],
+            "rotor_cmd_n": rows[:, 16:20], "x": rows[:, 20:32],
+            "events_json": np.array(json.dumps([
+                {"time_s": None if math.isnan(e.time_s) else e.time_s, "kind": e.kind, "phase": e.phase,
+                 "s_m": None if math.isnan(e.s_m) else e.s_m, "detail": e.detail} for e in self.events])),
+        }
+
+    def save(self, path: str | Path) -> Path:
+        path = Path(path)
+        np.savez_compressed(path, **self.arrays())
+        return path
+
+
+def load_control_log(path: str | Path) -> dict:
+    """The arrays of a saved log, with ``phase_names`` and ``events`` decoded."""
+    with np.load(path) as z:
+        out = {k: z[k] for k in z.files}
+    out["phase_names"] = json.loads(str(out["phase_names"]))
+    out["events"] = json.loads(str(out.pop("events_json")))
+    return out

@@ -1,0 +1,169 @@
+"""The ``fly`` job: one maneuver from the ground back to the ground, with its outputs.
+
+With no vehicle URL it spawns ``firmware_sim`` on a free loopback port as a child
+process (recording its ground truth), flies, stops the emulator, and writes into the
+output directory:
+
+- ``summary.json``: result, per-segment controller metrics, ground-truth errors, events;
+- ``flight.png``: the path in the maneuver's plane and the errors against arc length;
+- ``flight.tlog``: every MAVLink message in and out (pymavlink format);
+- ``control.npz``: the controller's internals (see :mod:`mavreg.daemon.ctrllog`);
+- ``groundtruth.npz``: the emulator's recording (bundled emulator only).
+"""
+from __future__ import annotations
+
+import asyncio
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..config.vehicle import load_vehicle
+from .app import Daemon, DaemonConfig
+from .ctrllog import load_control_log
+from .report import controller_metrics, format_summary, ground_truth_errors, plot_flight
+from .supervisor import Phase, SupervisorParams
+
+__all__ = ["FlyOptions", "fly", "spawn_emulator", "stop_process"]
+
+
+@dataclass(frozen=True)
+class FlyOptions:
+    maneuver_path: Path
+    vehicle_url: str | None
+    vehicle_path: Path
+    controller_path: Path
+    out_dir: Path
+    socket_path: Path | None
+    timeout_s: float
+    lockstep: bool
+    emulator_args: tuple[str, ...]
+
+
+def spawn_emulator(vehicle_path: Path, record: Path | None, lockstep: bool, extra: tuple[str, ...] = (),
+                   timeout_s: float = 20.0) -> tuple[subprocess.Popen, str]:
+    """Start ``firmware_sim`` on a free loopback port; return (process, ``udpout:`` URL for us)."""
+    cmd = [sys.executable, "-m", "firmware_sim", "--listen", "udpin:127.0.0.1:0", "--quiet",
+           "--vehicle", str(vehicle_path)]
+    if record is not None:
+        cmd += ["--record", str(record)]
+    if lockstep:
+        cmd += ["--lockstep"]
+    cmd += list(extra)
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=None, text=True)
+    deadline = time.monotonic() + timeout_s
+    line = ""
+    while time.monotonic() < deadline and proc.poll() is None:
+        line = proc.stdout.readline()
+        if line.startswith("firmware_sim listening on "):
+            url = line.split()[-1]
+            return proc, url.replace("udpin:", "udpout:", 1)
+    stop_process(proc)
+    raise RuntimeError(f"firmware_sim did not start (last line {line!r}, exit {proc.returncode})")
+
+
+def stop_process(proc: subprocess.Popen, timeout_s: float = 20.0) -> int:
+    """SIGINT (the emulator saves its recording), then SIGKILL if it does not exit."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+    if proc.stdout is not None:
+        proc.stdout.close()
+    return proc.returncode
+
+
+def fly(opts: FlyOptions) -> int:
+    """Run the whole job; returns the process exit code (0 success, 1 flight failed)."""
+    text = opts.maneuver_path.read_text()
+    vehicle = load_vehicle(opts.vehicle_path)
+    opts.out_dir.mkdir(parents=True, exist_ok=True)
+    record_path = opts.out_dir / "groundtruth.npz"
+    from ..control.regulator import ManeuverRegulator
+    config = DaemonConfig(vehicle_url=opts.vehicle_url or "", vehicle_path=opts.vehicle_path,
+                          controller_path=opts.controller_path, socket_path=opts.socket_path,
+                          tlog_path=opts.out_dir / "flight.tlog",
+                          supervisor=SupervisorParams(land_when_done=True))
+    daemon = Daemon(config, vehicle, lambda plan: ManeuverRegulator(plan, vehicle))
+    proc = None
+    emulator_code = None
+    t0 = time.monotonic()
+    try:
+        async def main():
+            nonlocal proc
+            if opts.vehicle_url is None:
+                proc, url = spawn_emulator(opts.vehicle_path, record_path, opts.lockstep, opts.emulator_args)
+                daemon.config = DaemonConfig(url, config.vehicle_path, config.controller_path,
+                                             config.socket_path, config.tlog_path, config.supervisor)
+            await daemon.run([(text, str(opts.maneuver_path))], timeout_s=opts.timeout_s)
+        asyncio.run(main())
+    finally:
+        if proc is not None:
+            emulator_code = stop_process(proc)
+    wall_s = time.monotonic() - t0
+    daemon.ctrl_log.save(opts.out_dir / "control.npz")
+    ctrl = load_control_log(opts.out_dir / "control.npz")
+    return _finish(opts, daemon, ctrl, record_path if proc is not None else None, emulator_code, wall_s)
+
+
+def _finish(opts, daemon, ctrl, record_path, emulator_code, wall_s) -> int:
+    sup = daemon.supervisor
+    plan = daemon.plans[0] if daemon.plans else None
+    ok = sup.succeeded and emulator_code in (None, 0)
+    events = ctrl["events"]
+    man = [e for e in events if e["kind"] == "phase" and e["phase"] == Phase.MANEUVER]
+    after = [e for e in events if e["kind"] == "phase" and man and e["time_s"] is not None
+             and e["time_s"] > man[0]["time_s"]]
+    summary = {
+        "result": "ok" if ok else "failed",
+        "reason": sup.reason or ("" if ok else f"ended in phase {sup.phase}"),
+        "maneuver": plan.name if plan else str(opts.maneuver_path),
+        "length_m": plan.length_m if plan else float("nan"),
+        "flight_time_s": float(ctrl["t_s"][-1] - ctrl["t_s"][0]) if ctrl["t_s"].size else 0.0,
+        "wall_time_s": wall_s,
+        "emulator_exit_code": emulator_code,
+        "controller_metrics": controller_metrics(ctrl, plan, daemon.vehicle.max_rotor_thrust_n) if plan else {},
+        "ground_truth": None,
+        "status": daemon.status(),
+        "latency_ms": _latency(daemon),
+        "events": events,
+    }
+    record = None
+    if record_path is not None and record_path.exists() and man and plan is not None:
+        with np.load(record_path) as z:
+            record = {k: z[k] for k in ("t_s", "position_ned_m")}
+        t_end = after[0]["time_s"] if after else float(record["t_s"][-1])
+        summary["ground_truth"] = ground_truth_errors(record, plan, man[0]["time_s"], t_end)
+    (opts.out_dir / "summary.json").write_text(json.dumps(summary, indent=1, default=_plain))
+    if plan is not None and ctrl["t_s"].size:
+        plot_flight(opts.out_dir / "flight.png", ctrl, plan, record)
+    print(format_summary(summary))
+    print(f"outputs: {opts.out_dir}/ (summary.json, flight.png, flight.tlog, control.npz"
+          f"{', groundtruth.npz' if record_path is not None else ''})")
+    return 0 if ok else 1
+
+
+def _latency(daemon) -> dict:
+    lat = np.array(daemon.latency_ns, dtype=float) / 1e6
+    if lat.size == 0:
+        return {}
+    return {"median": float(np.median(lat)), "p99": float(np.percentile(lat, 99)), "samples": int(lat.size)}
+
+
+def _plain(obj):
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, Path):
+        return os.fspath(obj)
+    raise TypeError(type(obj).__name__)

@@ -1,0 +1,145 @@
+"""Flight summary and plot: per-segment tracking metrics, ground truth when recorded.
+
+From the daemon's controller log (what the controller saw) it computes, per segment,
+the max/RMS transverse error, the max attitude error, the peak rotor commands and the
+time saturated (:func:`mavreg.sim.metrics.tracking_metrics`). From an emulator
+recording (``firmware_sim --record``) it computes the *true* transverse error: each
+recorded position during the maneuver projected on the plan's path.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..geometry.projection import Projector
+from ..sim.metrics import tracking_metrics
+from .supervisor import PHASE_CODES, Phase
+
+__all__ = ["controller_metrics", "ground_truth_errors", "format_summary", "plot_flight"]
+
+
+def _maneuver_rows(ctrl: dict) -> np.ndarray:
+    return ctrl["phase"] == PHASE_CODES[Phase.MANEUVER]
+
+
+def controller_metrics(ctrl: dict, plan, max_rotor_thrust_n: float) -> dict:
+    """tracking_metrics over the maneuver's control steps of a control-log dict."""
+    m = _maneuver_rows(ctrl)
+    if not np.any(m):
+        return {}
+    t = ctrl["t_s"][m]
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    return tracking_metrics(ctrl["s_m"][m].astype(float), ctrl["w"][m].astype(float), plan.segments,
+                            rotor_forces_n=ctrl["rotor_cmd_n"][m].astype(float),
+                            max_rotor_thrust_n=max_rotor_thrust_n, dt_s=dt)
+
+
+def ground_truth_errors(record: dict, plan, t_begin_s: float, t_end_s: float) -> dict:
+    """True transverse error of the recorded positions within [t_begin, t_end] (vehicle time).
+
+    Returns ``{"max_m", "rms_m", "samples", "segments": {name: {"max_m", "rms_m"}}}``;
+    samples whose projection falls outside (0, length) are left out.
+    """
+    t = record["t_s"]
+    sel = np.flatnonzero((t >= t_begin_s) & (t <= t_end_s))
+    proj = Projector(plan.path)
+    s_all, e_all = [], []
+    first = True
+    for i in sel:
+        p = record["position_ned_m"][i]
+        pr = proj.reset(p, 0.0) if first else proj.update(p)
+        first = False
+        if 0.0 < pr.s < plan.length_m:
+            s_all.append(pr.s)
+            e_all.append(pr.distance_m)
+    s_arr, e_arr = np.array(s_all), np.array(e_all)
+    out = {"samples": int(e_arr.size), "segments": {}}
+    out.update(_stats(e_arr))
+    for name, a, b in plan.segments:
+        mask = (s_arr >= a) & (s_arr < b)
+        out["segments"][name] = _stats(e_arr[mask])
+    return out
+
+
+def _stats(e: np.ndarray) -> dict:
+    if e.size == 0:
+        return {"max_m": None, "rms_m": None}
+    return {"max_m": float(e.max()), "rms_m": float(np.sqrt(np.mean(e * e)))}
+
+
+def _f(v, scale=1.0, fmt="{:8.4f}") -> str:
+    return "     n/a" if v is None or (isinstance(v, float) and math.isnan(v)) else fmt.format(v * scale)
+
+
+def format_summary(summary: dict) -> str:
+    """Human-readable per-segment table of a summary dict (see ``mavreg fly``)."""
+    lines = [f"flight {summary['result']}: {summary['maneuver']} "
+             f"({summary['length_m']:.2f} m) in {summary['flight_time_s']:.1f} s"]
+    cm = summary.get("controller_metrics") or {}
+    gt = summary.get("ground_truth") or {}
+    lines.append(f"{'segment':<16}{'max e_t cm':>11}{'rms e_t cm':>11}{'true max cm':>12}"
+                 f"{'max att deg':>12}{'peak rotor N':>13}{'sat s':>7}")
+
+    def row(name, blk, g):
+        te = blk.get("transverse_error_m") or {}
+        ae = blk.get("attitude_error_deg") or {}
+        rc = blk.get("rotor_command_n") or {}
+        return (f"{name:<16}{_f(te.get('max'), 100, '{:11.2f}')}{_f(te.get('rms'), 100, '{:11.2f}')}"
+                f"{_f((g or {}).get('max_m'), 100, '{:12.2f}')}{_f(ae.get('max'), 1, '{:12.2f}')}"
+                f"{_f(rc.get('max'), 1, '{:13.2f}')}{_f(blk.get('saturated_s'), 1, '{:7.3f}')}")
+
+    for name, blk in (cm.get("segments") or {}).items():
+        lines.append(row(name, blk, (gt.get("segments") or {}).get(name)))
+    if cm:
+        lines.append(row("all", cm, gt))
+    for ev in summary.get("events", []):
+        if ev["kind"] in ("phase", "touchdown", "tube", "command_refused"):
+            lines.append(f"  t={ev['time_s'] if ev['time_s'] is not None else float('nan'):8.3f} s "
+                         f"{ev['phase']:<9} {ev['detail']}")
+    return "\n".join(lines)
+
+
+def plot_flight(path, ctrl: dict, plan, record: dict | None) -> None:
+    """Path in the plane of the maneuver, and errors against arc length (Agg backend)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    m = _maneuver_rows(ctrl)
+    nodes = plan.path.c_nodes
+    # plane of the maneuver: the two principal directions of the path's points
+    centred = nodes - nodes.mean(axis=0)
+    _, _, vt = np.linalg.svd(centred, full_matrices=False)
+    axes = vt[:2]
+    names = ["north", "east", "down"]
+    label = [" ".join(f"{c:+.2f}{n[0]}" for c, n in zip(a, names) if abs(c) > 0.05) for a in axes]
+    fig, (a0, a1, a2) = plt.subplots(3, 1, figsize=(8, 11))
+    pp = centred @ axes.T
+    a0.plot(pp[:, 0], -pp[:, 1] if axes[1][2] > 0 else pp[:, 1], "k--", lw=1, label="path")
+    def proj(p):
+        q = (p - nodes.mean(axis=0)) @ axes.T
+        return q[:, 0], (-q[:, 1] if axes[1][2] > 0 else q[:, 1])
+    x = ctrl["x"].astype(float)
+    a0.plot(*proj(x[:, :3]), lw=0.8, label="flown (daemon state)")
+    if record is not None:
+        a0.plot(*proj(record["position_ned_m"][::5]), lw=0.6, alpha=0.6, label="ground truth")
+    a0.set_aspect("equal")
+    a0.set_xlabel(f"[{label[0]}] m")
+    a0.set_ylabel(f"[{label[1]}] m (up positive)")
+    a0.legend(fontsize=8)
+    a0.set_title(f"{plan.name}: path in the plane of the maneuver")
+    s = ctrl["s_m"][m].astype(float)
+    w = ctrl["w"][m].astype(float)
+    a1.plot(s, 100 * np.hypot(w[:, 0], w[:, 1]), lw=0.8)
+    a1.set_ylabel("transverse error (cm)")
+    a2.plot(s, np.degrees(np.linalg.norm(np.arctan2(np.sin(w[:, 2:5]), np.cos(w[:, 2:5])), axis=1)), lw=0.8)
+    a2.set_ylabel("attitude error (deg)")
+    a2.set_xlabel("arc length s (m)")
+    for ax in (a1, a2):
+        for name, a, b in plan.segments:
+            ax.axvline(a, color="0.8", lw=0.5)
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
