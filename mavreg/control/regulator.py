@@ -43,16 +43,27 @@ class ManeuverRegulator:
         Nominal and gains (built with the design vehicle).
     vehicle : VehicleParams
         For the mixer (arm length, k).
+    control_period_s : float
+        The period at which the command is held (zero-order hold). A held command acts,
+        on average, half a period after the state it was computed from, so the
+        feedforward is taken that much further along: at s + v(s) T/2. This removes the
+        first-order ZOH error of the feedforward (0 disables it).
     """
 
-    def __init__(self, plan: Plan, vehicle: VehicleParams):
+    def __init__(self, plan: Plan, vehicle: VehicleParams, control_period_s: float = 0.0):
         self.plan = plan
         self.mixer_inverse = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m).inverse
         self.projector = Projector(plan.path)
         self._s = plan.s
         self._x, self._u, self._K = plan.x, plan.u, plan.K
+        self._v = plan.speed_m_s
         self._last = len(plan.s) - 2
+        self._lead_s = control_period_s / 2
         self.s = 0.0
+
+    def _locate(self, s: float) -> tuple[int, float]:
+        i = min(max(int(np.searchsorted(self._s, s)) - 1, 0), self._last)
+        return i, min(max((s - self._s[i]) / (self._s[i + 1] - self._s[i]), 0.0), 1.0)
 
     def reset(self, x, s_guess: float = 0.0) -> None:
         """Start tracking from state x, with s near ``s_guess``."""
@@ -66,11 +77,13 @@ class ManeuverRegulator:
         self.s = s
         pt = proj.point
         # Linear interpolation of the tables at s (clamped to the ends).
-        i = min(max(int(np.searchsorted(self._s, s)) - 1, 0), self._last)
-        a = min(max((s - self._s[i]) / (self._s[i + 1] - self._s[i]), 0.0), 1.0)
+        i, a = self._locate(s)
         xbar = self._x[i] + a * (self._x[i + 1] - self._x[i])
-        ubar = self._u[i] + a * (self._u[i + 1] - self._u[i])
         K = self._K[i] + a * (self._K[i + 1] - self._K[i])
+        if self._lead_s > 0.0:
+            v = self._v[i] + a * (self._v[i + 1] - self._v[i])
+            i, a = self._locate(s + v * self._lead_s)
+        ubar = self._u[i] + a * (self._u[i + 1] - self._u[i])
         w = transverse_coordinates(x[:3], pt.frame, pt.position, x, xbar)
         u = ubar - K @ w
         return RegulatorOutput(s, w, u, self.mixer_inverse @ u, proj.in_tube,
