@@ -40,7 +40,7 @@ class HoverParams:
     """Diagonal of Q over x = (p, roll pitch yaw, v_body, w_body)."""
     r: tuple[float, ...] = (0.1, 1.0, 1.0, 1.0)
     """Diagonal of R over u = (f, g1, g2, g3)."""
-    max_speed_m_s: float = 1.5
+    max_speed_m_s: float = 2.5
     """Largest reference speed of a take-off, transfer or landing ramp."""
     max_accel_m_s2: float = 1.0
     """Largest reference acceleration of a ramp (keeps rotors far from saturation)."""

@@ -208,6 +208,13 @@ class Supervisor:
         out = Output()
         self._land_requested = True
         self._pending.clear()
+        if self.phase == Phase.PREFLIGHT:
+            armed = self.vehicle_status is not None and self.vehicle_status.armed
+            if not armed:
+                self._set_phase(out, Phase.DISARMED, "land requested before take-off; nothing to fly")
+            else:
+                self._event(out, "land_requested", "disarming on the ground")
+            return out
         self._event(out, "land_requested", "landing at the next safe point")
         return out
 
@@ -287,6 +294,8 @@ class Supervisor:
         flying = self.phase in (Phase.TAKEOFF, Phase.HOLD, Phase.RUN_IN, Phase.MANEUVER, Phase.LAND)
         if self.phase == Phase.LAND and self._spool_down_t0 is not None and not st.armed:
             self._set_phase(out, Phase.DISARMED, "touched down and disarmed")
+        elif self.phase == Phase.PREFLIGHT and self._land_requested and not st.armed:
+            self._set_phase(out, Phase.DISARMED, "disarmed on the ground")
         elif flying and (not st.armed or not st.offboard):
             self._abort(out, f"vehicle left OFFBOARD control (armed={st.armed}, mode {st.mode}); "
                         "its failsafe is in charge")
@@ -310,6 +319,10 @@ class Supervisor:
             if self._stream_start_t is None:
                 self._stream_start_t = t
             self._send_rotors(np.zeros(4), now_s, out)
+            if self._land_requested:
+                if self.vehicle_status.armed:
+                    self._command(out, mm.arm_disarm(sysid, compid, False))
+                return
             if not self._pending:
                 return
             st = self.vehicle_status

@@ -142,3 +142,11 @@ def test_offer_after_flight_over_is_refused():
         assert "over" in str(exc)
     else:
         raise AssertionError("expected ValueError")
+
+
+def test_land_request_before_takeoff_ends_on_the_ground():
+    sup = make_supervisor(None)
+    veh = SimVehicle()
+    run(sup, veh, 1.0)
+    sup.request_land(1.0)
+    assert sup.phase == Phase.DISARMED and not sup.succeeded

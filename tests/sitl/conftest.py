@@ -1,0 +1,38 @@
+"""Shared fixtures of the end-to-end tests: the planned barrel roll, one reference flight."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from sitl_helpers import BARREL, CONTROLLER, VEHICLE, load_record, mavreg, start_emulator
+
+
+@pytest.fixture(scope="session")
+def barrel_plan():
+    from mavreg.config.controller import load_controller
+    from mavreg.config.vehicle import load_vehicle
+    from mavreg.maneuver.plan import plan_file
+    return plan_file(BARREL, load_vehicle(VEHICLE), load_controller(CONTROLLER))
+
+
+def fly_lockstep(tmp, emulator_args=(), fly_args=(), during=None):
+    """Emulator in lockstep + ``mavreg fly --vehicle`` as two processes; returns a result dict."""
+    record = tmp / "groundtruth.npz"
+    emu, url = start_emulator(record, "--lockstep", *emulator_args)
+    out = tmp / "out"
+    try:
+        fly = mavreg("fly", str(BARREL), "--vehicle", url, "--out", str(out), "--timeout-s", "240", *fly_args)
+        extra = during(fly, emu) if during is not None else None
+        code = fly.wait(300)
+    finally:
+        emu_code = emu.stop()
+    summary = json.loads((out / "summary.json").read_text())
+    return {"code": code, "emu_code": emu_code, "summary": summary, "record": load_record(record),
+            "out": out, "lines": fly.lines, "extra": extra}
+
+
+@pytest.fixture(scope="session")
+def ideal_flight(tmp_path_factory):
+    """The barrel roll from the ground with ideal actuators (rotor time constant 0)."""
+    return fly_lockstep(tmp_path_factory.mktemp("ideal"), ("--rotor-time-constant-s", "0"))

@@ -1,0 +1,102 @@
+"""Process helpers for the end-to-end tests: firmware_sim and the daemon as separate processes.
+
+Every process gets a timeout and is stopped by its own id (SIGINT, then SIGKILL).
+"""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[2]
+BARREL = REPO / "params/maneuvers/barrel_roll.yaml"
+VEHICLE = REPO / "params/vehicles/mk_quadro.yaml"
+CONTROLLER = REPO / "params/controller/paper_lqr.yaml"
+
+
+class Proc:
+    """A child process whose output lines are collected by a reader thread."""
+
+    def __init__(self, cmd, cwd=REPO):
+        self.cmd = cmd
+        self.p = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                  text=True, bufsize=1)
+        self.lines: list[str] = []
+        self._cv = threading.Condition()
+        self._t = threading.Thread(target=self._read, daemon=True)
+        self._t.start()
+
+    def _read(self):
+        for line in self.p.stdout:
+            with self._cv:
+                self.lines.append(line.rstrip("\n"))
+                self._cv.notify_all()
+        with self._cv:
+            self._cv.notify_all()
+
+    def wait_line(self, needle: str, timeout_s: float) -> str:
+        deadline = time.monotonic() + timeout_s
+        with self._cv:
+            while True:
+                for ln in self.lines:
+                    if needle in ln:
+                        return ln
+                left = deadline - time.monotonic()
+                if left <= 0 or (self.p.poll() is not None and not self._t.is_alive()):
+                    raise AssertionError(f"{needle!r} not seen from {self.cmd[:3]}; last lines:\n"
+                                         + "\n".join(self.lines[-20:]))
+                self._cv.wait(min(left, 0.5))
+
+    def wait(self, timeout_s: float) -> int:
+        try:
+            return self.p.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            self.stop()
+            raise AssertionError(f"{self.cmd[:3]} did not finish in {timeout_s} s; last lines:\n"
+                                 + "\n".join(self.lines[-20:]))
+
+    def stop(self, sig=signal.SIGINT, timeout_s: float = 20.0) -> int:
+        if self.p.poll() is None:
+            self.p.send_signal(sig)
+            try:
+                self.p.wait(timeout_s)
+            except subprocess.TimeoutExpired:
+                self.p.kill()
+                self.p.wait()
+        self._t.join(5)
+        return self.p.returncode
+
+
+def start_emulator(record: Path, *args: str) -> tuple[Proc, str]:
+    """firmware_sim on a free loopback port; returns (process, the daemon's udpout URL)."""
+    proc = Proc([sys.executable, "-m", "firmware_sim", "--listen", "udpin:127.0.0.1:0", "--quiet",
+                 "--record", str(record), *args])
+    line = proc.wait_line("firmware_sim listening on", 30)
+    return proc, line.split()[-1].replace("udpin:", "udpout:")
+
+
+def mavreg(*args: str) -> Proc:
+    return Proc([sys.executable, "-m", "mavreg.cli.main", *args])
+
+
+def load_record(path: Path) -> dict:
+    with np.load(path) as z:
+        return {k: z[k] for k in z.files}
+
+
+def tilt_deg(q: np.ndarray) -> np.ndarray:
+    """Angle between body z and NED z for quaternions (w, x, y, z)."""
+    up = 1.0 - 2.0 * (q[:, 1] ** 2 + q[:, 2] ** 2)
+    return np.degrees(np.arccos(np.clip(up, -1.0, 1.0)))
+
+
+def env_without_display() -> dict:
+    env = dict(os.environ)
+    env["MPLBACKEND"] = "Agg"
+    return env

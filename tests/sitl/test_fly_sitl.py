@@ -1,0 +1,191 @@
+"""End-to-end: firmware_sim --lockstep and the daemon as separate processes, judged by the
+emulator's ground-truth recording."""
+from __future__ import annotations
+
+import subprocess
+import time
+
+import numpy as np
+import pytest
+
+from conftest import fly_lockstep
+from mavreg.daemon.ctrllog import load_control_log
+from mavreg.daemon.report import ground_truth_errors
+from sitl_helpers import BARREL, REPO, tilt_deg
+
+pytestmark = pytest.mark.sitl
+
+OFFBOARD = 6 << 16
+
+
+def _maneuver_window(out):
+    ctrl = load_control_log(out / "control.npz")
+    ph = [e for e in ctrl["events"] if e["kind"] == "phase"]
+    i = next(k for k, e in enumerate(ph) if e["phase"] == "maneuver")
+    return ph[i]["time_s"], ph[i + 1]["time_s"]
+
+
+def _truth(flight, plan):
+    t0, t1 = _maneuver_window(flight["out"])
+    return ground_truth_errors(flight["record"], plan, t0, t1)
+
+
+def test_barrel_roll_from_the_ground_ideal_actuators(ideal_flight, barrel_plan):
+    f = ideal_flight
+    assert f["code"] == 0 and f["emu_code"] == 0, "\n".join(f["lines"][-30:])
+    rec = f["record"]
+    # take-off, maneuver, landing, disarm: seen in the vehicle's own recording
+    assert rec["on_ground"][0] and not rec["armed"][0]
+    assert -rec["position_ned_m"][:, 2].min() > 10.0            # the loop climbs to ~11 m
+    assert np.any(rec["armed"] & (rec["custom_mode"] == OFFBOARD))
+    assert rec["on_ground"][-1] and not rec["armed"][-1]
+    roll = np.degrees(np.unwrap(np.arctan2(
+        2 * (rec["quaternion_wxyz"][:, 0] * rec["quaternion_wxyz"][:, 1]
+             + rec["quaternion_wxyz"][:, 2] * rec["quaternion_wxyz"][:, 3]),
+        1 - 2 * (rec["quaternion_wxyz"][:, 1] ** 2 + rec["quaternion_wxyz"][:, 2] ** 2))))
+    assert roll.max() - roll.min() > 350.0                         # the 360 deg roll happened
+    truth = _truth(f, barrel_plan)
+    print(f"\nideal actuators: true max transverse error {100 * truth['max_m']:.3f} cm, "
+          f"RMS {100 * truth['rms_m']:.3f} cm over {truth['samples']} physics steps")
+    for name, st in truth["segments"].items():
+        print(f"  {name:<14} max {100 * st['max_m']:.3f} cm  rms {100 * st['rms_m']:.3f} cm")
+    assert truth["samples"] > 10000
+    assert truth["max_m"] < 0.02
+    assert truth["segments"]["loop"]["max_m"] < 0.02
+
+
+def test_mavlogdump_reads_the_tlog(ideal_flight):
+    tlog = ideal_flight["out"] / "flight.tlog"
+    res = subprocess.run(["mavlogdump.py", "--types", "SET_ACTUATOR_CONTROL_TARGET,HEARTBEAT,COMMAND_ACK",
+                          str(tlog)], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    lines = res.stdout.splitlines()
+    n_act = sum("SET_ACTUATOR_CONTROL_TARGET" in ln for ln in lines)
+    st = ideal_flight["summary"]["status"]
+    assert n_act == st["counters"]["actuator_sent"] > 10000
+    assert any("type : 18, autopilot : 8" in ln for ln in lines)      # our heartbeat (out)
+    assert any("type : 2" in ln and "HEARTBEAT" in ln for ln in lines)  # the vehicle's (in)
+    assert any("COMMAND_ACK" in ln for ln in lines)
+
+
+def test_fly_outputs_and_summary(ideal_flight):
+    out = ideal_flight["out"]
+    for name in ("summary.json", "flight.png", "flight.tlog", "control.npz"):
+        assert (out / name).stat().st_size > 0
+    s = ideal_flight["summary"]
+    assert s["result"] == "ok"
+    segs = s["controller_metrics"]["segments"]
+    assert {"run_up", "loop", "run_out"} <= set(segs)
+    for blk in segs.values():
+        assert blk["saturated_s"] == 0.0 and blk["rotor_command_n"]["max"] < 12.0
+    text = "\n".join(ideal_flight["lines"])
+    assert "loop" in text and "max e_t cm" in text
+
+
+def test_barrel_roll_with_default_motor_lag(tmp_path, barrel_plan):
+    f = fly_lockstep(tmp_path)
+    assert f["code"] == 0 and f["emu_code"] == 0, "\n".join(f["lines"][-30:])
+    truth = _truth(f, barrel_plan)
+    print(f"\ndefault motor lag (20 ms): true max transverse error {100 * truth['max_m']:.2f} cm, "
+          f"RMS {100 * truth['rms_m']:.2f} cm")
+    for name, st in truth["segments"].items():
+        print(f"  {name:<14} max {100 * st['max_m']:.2f} cm  rms {100 * st['rms_m']:.2f} cm")
+    (REPO / "benchmarks").mkdir(exist_ok=True)
+    assert f["record"]["on_ground"][-1] and not f["record"]["armed"][-1]
+    assert truth["max_m"] < 0.5     # reported above; the bound only catches a broken loop
+
+
+def _same_flight(a, b, tol_m=1e-3):
+    pa, pb = a["record"]["position_ned_m"], b["record"]["position_ned_m"]
+    n = min(len(pa), len(pb))
+    return float(np.max(np.linalg.norm(pa[:n] - pb[:n], axis=1))), abs(len(pa) - len(pb))
+
+
+def test_invalid_upload_mid_flight_is_rejected_and_changes_nothing(tmp_path, ideal_flight, barrel_plan):
+    sock = tmp_path / "mavreg.sock"
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(BARREL.read_text().replace("radius_m: 1.5", "radius_m: -1.5"))
+    infeasible = tmp_path / "too_fast.yaml"
+    infeasible.write_text(BARREL.read_text().replace("to_m_s: 8.0", "to_m_s: 30.0"))
+
+    def during(fly, emu):
+        fly.wait_line("[maneuver] phase", 200)
+        verdicts = []
+        for f in (bad, infeasible):
+            r = subprocess.run(["mavreg", "upload", str(f), "--socket", str(sock)], capture_output=True,
+                               text=True, timeout=120)
+            verdicts.append((r.returncode, r.stdout.strip()))
+        return verdicts
+
+    f = fly_lockstep(tmp_path, ("--rotor-time-constant-s", "0"), ("--socket", str(sock)), during)
+    assert f["code"] == 0, "\n".join(f["lines"][-30:])
+    (c1, v1), (c2, v2) = f["extra"]
+    print(f"\nverdicts: {v1!r}\n          {v2!r}")
+    assert c1 == 1 and v1.startswith("rejected:") and "radius_m" in v1
+    assert c2 == 1 and v2.startswith("rejected:")
+    assert f["summary"]["status"]["uploads"] == {"accepted": 0, "rejected": 2}
+    truth = _truth(f, barrel_plan)
+    assert truth["max_m"] < 0.02
+    dist, dlen = _same_flight(f, ideal_flight)
+    print(f"largest distance to the undisturbed flight: {dist:.2e} m")
+    assert dist < 1e-3
+
+
+def test_foreign_system_actuator_traffic_changes_nothing(tmp_path, ideal_flight):
+    from pymavlink.dialects.v20 import common as mavlink2
+    import socket as pysocket
+
+    def during(fly, emu):
+        port = int(emu.wait_line("listening on", 5).rsplit(":", 1)[1])
+        s = pysocket.socket(pysocket.AF_INET, pysocket.SOCK_DGRAM)
+        mav = mavlink2.MAVLink(None, srcSystem=42, srcComponent=191)
+        impostor = mavlink2.MAVLink(None, srcSystem=42, srcComponent=1)
+        sent = 0
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline and fly.p.poll() is None:
+            for m, frm in ((mavlink2.MAVLink_set_actuator_control_target_message(
+                    0, 0, 1, 1, [1.0, 0.0, 1.0, 0.0, 0, 0, 0, 0]), mav),
+                    (mavlink2.MAVLink_command_long_message(1, 1, 400, 0, 0, 21196, 0, 0, 0, 0, 0), mav),
+                    (mavlink2.MAVLink_heartbeat_message(2, 0, 0, 0, 4, 3), impostor)):
+                s.sendto(m.pack(frm), ("127.0.0.1", port))
+                sent += 1
+            time.sleep(0.005)
+        s.close()
+        return sent
+
+    f = fly_lockstep(tmp_path, ("--rotor-time-constant-s", "0"), (), during)
+    assert f["extra"] > 100
+    assert f["code"] == 0, "\n".join(f["lines"][-30:])
+    dist, _ = _same_flight(f, ideal_flight)
+    print(f"\nforeign messages sent: {f['extra']}; largest distance to the clean flight: {dist:.2e} m")
+    assert dist < 1e-3
+
+
+def test_killing_the_daemon_mid_maneuver_lets_the_failsafe_land(tmp_path):
+    from sitl_helpers import load_record, mavreg, start_emulator
+    record = tmp_path / "gt.npz"
+    emu, url = start_emulator(record, "--lockstep", "--lockstep-stall-speed", "0", "--duration-s", "90")
+    try:
+        fly = mavreg("fly", str(BARREL), "--vehicle", url, "--out", str(tmp_path / "out"))
+        fly.wait_line("[maneuver] phase", 200)
+        time.sleep(1.0)   # well into the run-up or the loop (lockstep runs faster than real time)
+        fly.stop(sig=9)
+        emu_code = emu.wait(200)
+    finally:
+        emu.stop()
+        fly.stop()
+    assert emu_code == 0, "\n".join(emu.lines[-20:])
+    rec = load_record(record)
+    armed_offboard = np.flatnonzero(rec["armed"] & (rec["custom_mode"] == OFFBOARD))
+    t_loss = rec["t_s"][armed_offboard[-1]]
+    after = rec["t_s"] > t_loss
+    speed = np.linalg.norm(rec["velocity_ned_m_s"], axis=1)
+    print(f"\ncommand stream lost at t={t_loss:.2f} s at {speed[armed_offboard[-1]]:.1f} m/s, "
+          f"altitude {-rec['position_ned_m'][armed_offboard[-1], 2]:.1f} m")
+    assert speed[armed_offboard[-1]] > 1.0                      # it really was mid-maneuver
+    modes = set(np.unique(rec["custom_mode"][after]).tolist())
+    assert (3 << 24) | (4 << 16) in modes and (6 << 24) | (4 << 16) in modes   # HOLD, then LAND
+    tilt = tilt_deg(rec["quaternion_wxyz"])
+    level = after & (rec["t_s"] > t_loss + 2.0)
+    assert tilt[level & ~rec["on_ground"]].max() < 15.0          # levelled
+    assert rec["on_ground"][-1] and not rec["armed"][-1]          # landed and disarmed
