@@ -80,7 +80,9 @@ class SpeedChange:
     length_m: float = field(metadata=_POS)
     to_m_s: float = field(metadata=_POS)
     offset_m: float = field(default=0.0, metadata={"min": 0.0})
-    """Where the change begins, from the start of ``segment``."""
+    """Where the change begins: this far after the start of ``segment``, or with
+    ``anchor: end`` this far before its end."""
+    anchor: str = field(default="start", metadata={"choices": ("start", "end")})
 
 
 @dataclass(frozen=True)
@@ -89,6 +91,7 @@ class YawChange:
     length_m: float = field(metadata=_POS)
     to_rad: float = field(metadata={"deg": True, "min": -720.0, "max": 720.0})
     offset_m: float = field(default=0.0, metadata={"min": 0.0})
+    anchor: str = field(default="start", metadata={"choices": ("start", "end")})
 
 
 @dataclass(frozen=True)

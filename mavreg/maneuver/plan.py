@@ -26,7 +26,8 @@ from .feasibility import Feasibility, check_feasibility
 from .flatness import nominal_from_flat
 from .profiles import Profile
 
-__all__ = ["Plan", "plan_spec", "plan_file", "plan_text", "segment_starts"]
+__all__ = ["Plan", "plan_spec", "plan_file", "plan_text", "segment_starts", "segment_ends",
+           "build_profiles"]
 
 
 @dataclass(frozen=True)
@@ -120,13 +121,29 @@ def segment_starts(path: Path) -> dict[str, float]:
     return starts
 
 
-def _profile(initial, changes, starts, what) -> Profile:
-    steps = tuple((starts[c.segment] + c.offset_m, c.length_m,
+def segment_ends(path: Path) -> dict[str, float]:
+    """Arc length where each named segment ends (the start of the next, or the path's end)."""
+    starts = segment_starts(path)
+    names = list(starts)
+    return {n: (starts[names[i + 1]] if i + 1 < len(names) else path.length_m)
+            for i, n in enumerate(names)}
+
+
+def _profile(initial, changes, path, what) -> Profile:
+    starts, ends = segment_starts(path), segment_ends(path)
+    steps = tuple((starts[c.segment] + c.offset_m if c.anchor == "start"
+                   else ends[c.segment] - c.offset_m, c.length_m,
                    c.to_m_s if what == "speed" else c.to_rad) for c in changes)
     try:
         return Profile(initial, tuple(sorted(steps)))
     except ValueError as exc:
         raise ManeuverError(f"{what}: {exc}") from None
+
+
+def build_profiles(spec: ManeuverSpec, path: Path) -> tuple[Profile, Profile]:
+    """The speed (m/s) and yaw (rad) profiles of ``spec`` along ``path``."""
+    return (_profile(spec.speed.initial_m_s, spec.speed.changes, path, "speed"),
+            _profile(spec.yaw.initial_rad, spec.yaw.changes, path, "yaw"))
 
 
 def _time_grid(path: Path, speed: Profile, step_s: float) -> np.ndarray:
@@ -162,9 +179,7 @@ def plan_spec(spec: ManeuverSpec, vehicle: VehicleParams, controller: Controller
     model = QuadrotorModel.from_vehicle(vehicle)
     mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
     path = build_path(spec)
-    starts = segment_starts(path)
-    speed = _profile(spec.speed.initial_m_s, spec.speed.changes, starts, "speed")
-    yaw = _profile(spec.yaw.initial_rad, spec.yaw.changes, starts, "yaw")
+    speed, yaw = build_profiles(spec, path)
     s = _time_grid(path, speed, controller.riccati_step_s)
     F, k, x, u, dx, v = _nominal(model, path, speed, yaw, s)
     rotors = u @ mixer.inverse.T
