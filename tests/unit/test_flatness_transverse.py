@@ -12,7 +12,8 @@ from mavreg.config.vehicle import G, load_vehicle
 from mavreg.control.transverse import transverse_jacobians, transverse_rhs
 from mavreg.config.maneuver import load_maneuver
 from mavreg.maneuver.flatness import nominal_from_flat
-from mavreg.maneuver.plan import _profile, plan_file, segment_starts
+from mavreg.maneuver import plan as plan_mod
+from mavreg.maneuver.plan import plan_file
 from mavreg.model.quadrotor import QuadrotorModel
 from mavreg.model.rotation import wrap_angle
 
@@ -40,9 +41,12 @@ def _away_from_blend_ends(plan, s, margin=0.05):
 def exact(plan, model):
     """x-bar(s), u-bar(s) straight from the flatness map at any s (not the table)."""
     spec = load_maneuver(ROOT / "params/maneuvers/barrel_roll.yaml")
-    starts = segment_starts(plan.path)
-    speed = _profile(spec.speed.initial_m_s, spec.speed.changes, starts, "speed")
-    yaw = _profile(spec.yaw.initial_rad, spec.yaw.changes, starts, "yaw")
+    if hasattr(plan_mod, "build_profiles"):
+        speed, yaw = plan_mod.build_profiles(spec, plan.path)
+    else:  # before build_profiles existed
+        starts = plan_mod.segment_starts(plan.path)
+        speed = plan_mod._profile(spec.speed.initial_m_s, spec.speed.changes, starts, "speed")
+        yaw = plan_mod._profile(spec.yaw.initial_rad, spec.yaw.changes, starts, "yaw")
 
     def at(s):
         s = np.atleast_1d(np.asarray(s, dtype=float))
