@@ -41,12 +41,7 @@ def _away_from_blend_ends(plan, s, margin=0.05):
 def exact(plan, model):
     """x-bar(s), u-bar(s) straight from the flatness map at any s (not the table)."""
     spec = load_maneuver(ROOT / "params/maneuvers/barrel_roll.yaml")
-    if hasattr(plan_mod, "build_profiles"):
-        speed, yaw = plan_mod.build_profiles(spec, plan.path)
-    else:  # before build_profiles existed
-        starts = plan_mod.segment_starts(plan.path)
-        speed = plan_mod._profile(spec.speed.initial_m_s, spec.speed.changes, starts, "speed")
-        yaw = plan_mod._profile(spec.yaw.initial_rad, spec.yaw.changes, starts, "yaw")
+    speed, yaw = plan_mod.build_profiles(spec, plan.path)
 
     def at(s):
         s = np.atleast_1d(np.asarray(s, dtype=float))
