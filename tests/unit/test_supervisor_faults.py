@@ -150,3 +150,37 @@ def test_land_request_before_takeoff_ends_on_the_ground():
     run(sup, veh, 1.0)
     sup.request_land(1.0)
     assert sup.phase == Phase.DISARMED and not sup.succeeded
+
+
+def test_rejected_upload_changes_nothing_accepted_waits_for_safe_point():
+    import asyncio
+    from pathlib import Path
+
+    from mavreg.daemon.app import Daemon, DaemonConfig
+    from mavreg.daemon.planner_pool import PlanResult
+    from mavreg.daemon.supervisor import SupervisorParams
+    from test_supervisor_harness import VEHICLE
+
+    class FakePool:
+        busy = 0
+
+        async def plan(self, text, source):
+            return PlanResult(None, f"{source}:3: segments: bad") if "bad" in text else PlanResult(FakePlan(name="second"))
+
+    cfg = DaemonConfig("udpout:127.0.0.1:1", Path("v"), Path("c"), None, None,
+                       SupervisorParams(land_when_done=False))
+    d = Daemon(cfg, VEHICLE, lambda p: FakeRegulator(p), log=lambda line: None)
+    d.pool = FakePool()
+    sup = d.supervisor
+    sup.offer_plan(FakePlan(name="first"), 0.0)
+    veh = SimVehicle()
+    run(sup, veh, 13.0)
+    assert sup.phase == Phase.MANEUVER
+    before = (sup.status(), sup.last_sample.x.copy())
+    r = asyncio.run(d.offer_text("bad", "x.yaml"))
+    assert r == {"ok": False, "verdict": "rejected", "reason": "x.yaml:3: segments: bad"}
+    after = sup.status()
+    assert after == before[0] and d.uploads == {"accepted": 0, "rejected": 1}
+    r = asyncio.run(d.offer_text("good", "y.yaml"))
+    assert r["ok"] and "next safe point" in r["detail"]
+    assert sup.status()["active"] == "first" and sup.status()["pending"] == ["second"]

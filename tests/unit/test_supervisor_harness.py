@@ -54,6 +54,9 @@ class FakePlan:
     def exit_state(self):
         return self.nominal_state(self.length_m)
 
+    def summary(self):
+        return {"name": self.name, "length_m": self.length_m}
+
 
 @dataclass
 class RegOut:
