@@ -53,6 +53,7 @@ class Daemon:
         self.ctrl_log = ControlLog()
         self.log = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
         self.latency_ns: collections.deque = collections.deque(maxlen=200_000)
+        self.maneuver_latency_ns: collections.deque = collections.deque(maxlen=200_000)
         self.uploads = {"accepted": 0, "rejected": 0}
         self.plans: list = []
         self.pool: PlannerPool | None = None
@@ -80,7 +81,10 @@ class Daemon:
 
     def _on_message(self, msg, t_recv_ns: int) -> None:
         if self._emit(self.supervisor.handle(msg, self.clock_s())):
-            self.latency_ns.append(time.perf_counter_ns() - t_recv_ns)
+            dt = time.perf_counter_ns() - t_recv_ns
+            self.latency_ns.append(dt)
+            if self.supervisor.phase == Phase.MANEUVER:
+                self.maneuver_latency_ns.append(dt)
 
     async def _heartbeat_task(self) -> None:
         while True:
@@ -127,8 +131,18 @@ class Daemon:
         if self.link is not None:
             st["link"] = dict(self.link.counters.__dict__)
         st["uploads"] = dict(self.uploads)
+        st["latency_ms"] = self.latency_summary()
         st["planning"] = 0 if self.pool is None else self.pool.busy
         return st
+
+    def latency_summary(self, maneuver_only: bool = False) -> dict:
+        """Median and 99th percentile (ms) from datagram receipt to the command sent."""
+        src = self.maneuver_latency_ns if maneuver_only else self.latency_ns
+        if not src:
+            return {}
+        lat = sorted(src)
+        n = len(lat)
+        return {"median": lat[n // 2] / 1e6, "p99": lat[min(n - 1, int(0.99 * n))] / 1e6, "samples": n}
 
     def request_stop(self) -> None:
         """Signal handler: first land (if airborne), then stop at once."""

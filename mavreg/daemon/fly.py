@@ -134,7 +134,8 @@ def _finish(opts, daemon, ctrl, record_path, emulator_code, wall_s) -> int:
         "controller_metrics": controller_metrics(ctrl, plan, daemon.vehicle.max_rotor_thrust_n) if plan else {},
         "ground_truth": None,
         "status": daemon.status(),
-        "latency_ms": _latency(daemon),
+        "latency_ms": daemon.latency_summary(),
+        "maneuver_latency_ms": daemon.latency_summary(maneuver_only=True),
         "events": events,
     }
     record = None
@@ -150,13 +151,6 @@ def _finish(opts, daemon, ctrl, record_path, emulator_code, wall_s) -> int:
     print(f"outputs: {opts.out_dir}/ (summary.json, flight.png, flight.tlog, control.npz"
           f"{', groundtruth.npz' if record_path is not None else ''})")
     return 0 if ok else 1
-
-
-def _latency(daemon) -> dict:
-    lat = np.array(daemon.latency_ns, dtype=float) / 1e6
-    if lat.size == 0:
-        return {}
-    return {"median": float(np.median(lat)), "p99": float(np.percentile(lat, 99)), "samples": int(lat.size)}
 
 
 def _plain(obj):

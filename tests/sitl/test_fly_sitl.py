@@ -129,7 +129,7 @@ def test_invalid_upload_mid_flight_is_rejected_and_changes_nothing(tmp_path, ide
     print(f"\nverdicts: {v1!r}\n          {v2!r}")
     assert c1 == 1 and v1.startswith("rejected:") and "radius_m" in v1
     assert c2 == 1 and v2.startswith("rejected:")
-    assert f["summary"]["status"]["uploads"] == {"accepted": 0, "rejected": 2}
+    assert f["summary"]["status"]["uploads"] == {"accepted": 1, "rejected": 2}   # 1: the flight itself
     truth = _truth(f, barrel_plan)
     assert truth["max_m"] < 0.02
     dist, dlen = _same_flight(f, ideal_flight)
