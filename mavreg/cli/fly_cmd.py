@@ -44,6 +44,10 @@ def add_arguments(p):
                    help="also accept uploads on this Unix socket during the flight (default: none)")
     p.add_argument("--timeout-s", type=float, default=300.0, metavar="S",
                    help="give up (exit 1) after this many wall seconds (default: %(default)s)")
+    p.add_argument("--control-rate-hz", type=float, default=500.0, metavar="HZ",
+                   help="the vehicle's telemetry/control rate; the bundled emulator is started "
+                   "at it and the regulator leads its feedforward by half its period "
+                   "(default %(default)s)")
     p.add_argument("--lockstep", action="store_true",
                    help="bundled emulator only: run it in lockstep (faster than real time)")
     p.add_argument("--emulator-arg", action="append", default=[], metavar="ARG",
@@ -69,5 +73,5 @@ def run(args) -> int:
     out = Path(args.out) if args.out else Path("flights") / time.strftime("%Y%m%d-%H%M%S")
     opts = FlyOptions(maneuver, args.vehicle, Path(args.vehicle_params), Path(args.controller), out,
                       Path(args.socket) if args.socket else None, args.timeout_s, args.lockstep,
-                      tuple(args.emulator_arg))
+                      tuple(args.emulator_arg), args.control_rate_hz)
     return fly(opts)

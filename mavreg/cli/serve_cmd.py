@@ -38,6 +38,9 @@ def add_arguments(p):
     p.add_argument("--tlog", metavar="FILE", default=None, help="write a MAVLink .tlog here")
     p.add_argument("--control-log", metavar="FILE.npz", default=None,
                    help="write the controller log (s, w, u, phase) here on exit")
+    p.add_argument("--control-rate-hz", type=float, default=500.0, metavar="HZ",
+                   help="the vehicle's telemetry/control rate; the regulator leads its "
+                   "feedforward by half its period (default %(default)s)")
     p.add_argument("--stale-timeout-s", type=float, default=0.1, metavar="S",
                    help="stop streaming when no complete state arrives for S seconds (default: %(default)s)")
     add_model_arguments(p)
@@ -47,8 +50,7 @@ def run(args) -> int:
     import asyncio
 
     from ..config.vehicle import load_vehicle
-    from ..control.regulator import ManeuverRegulator
-    from ..daemon.app import Daemon, DaemonConfig
+    from ..daemon.app import Daemon, DaemonConfig, regulator_factory
     from ..daemon.endpoint import default_socket_path
     from ..daemon.link import parse_url
     from ..daemon.supervisor import Phase, SupervisorParams
@@ -62,7 +64,7 @@ def run(args) -> int:
                           Path(args.socket) if args.socket else default_socket_path(),
                           Path(args.tlog) if args.tlog else None,
                           SupervisorParams(land_when_done=False, stale_timeout_s=args.stale_timeout_s))
-    daemon = Daemon(config, vehicle, lambda plan: ManeuverRegulator(plan, vehicle))
+    daemon = Daemon(config, vehicle, regulator_factory(vehicle, args.control_rate_hz))
     asyncio.run(daemon.run())
     if args.control_log:
         daemon.ctrl_log.save(args.control_log)

@@ -46,6 +46,10 @@ class VehicleParams:
     drag_torque_ratio_m: float = field(metadata=_POS)
     """k of eq 34: rotor drag torque per unit thrust."""
     max_rotor_thrust_n: float = field(metadata=_POS)
+    rotor_time_constant_s: float = field(default=0.0, metadata={"min": 0.0, "max": 1.0})
+    """The controller's estimate of the rotors' first-order thrust lag. The design model
+    (eq 34) has ideal rotors; the regulator leads its feedforward by this much. The
+    emulator's true lag is ``emulator.rotor_time_constant_s``."""
     emulator: EmulatorParams = field(default_factory=EmulatorParams)
 
     def __post_init__(self):

@@ -44,13 +44,23 @@ class ManeuverRegulator:
     vehicle : VehicleParams
         For the mixer (arm length, k).
     control_period_s : float
-        The period at which the command is held (zero-order hold). A held command acts,
-        on average, half a period after the state it was computed from, so the
-        feedforward is taken that much further along: at s + v(s) T/2. This removes the
-        first-order ZOH error of the feedforward (0 disables it).
+        The period T at which the command is held (zero-order hold). A held command acts,
+        on average, T/2 after the state it was computed from.
+    rotor_time_constant_s : float, optional
+        First-order lag tau of the rotors' thrust (default: the vehicle's estimate,
+        ``vehicle.rotor_time_constant_s``). A lagged force follows a slowly varying command
+        about tau late.
+
+    Notes
+    -----
+    The feedforward is taken where the vehicle will be when the command takes effect:
+    at s + v(s) (T/2 + tau). This removes the first-order error of both delays on the
+    nominal input, which dominates the tracking error of an aggressive maneuver (on the
+    barrel roll in lockstep with a 20 ms motor lag, 4.4 cm without the lead, 0.12 cm with it).
     """
 
-    def __init__(self, plan: Plan, vehicle: VehicleParams, control_period_s: float = 0.0):
+    def __init__(self, plan: Plan, vehicle: VehicleParams, control_period_s: float = 0.0,
+                 rotor_time_constant_s: float | None = None):
         self.plan = plan
         self.mixer_inverse = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m).inverse
         self.projector = Projector(plan.path)
@@ -58,7 +68,8 @@ class ManeuverRegulator:
         self._x, self._u, self._K = plan.x, plan.u, plan.K
         self._v = plan.speed_m_s
         self._last = len(plan.s) - 2
-        self._lead_s = control_period_s / 2
+        tau = vehicle.rotor_time_constant_s if rotor_time_constant_s is None else rotor_time_constant_s
+        self._lead_s = control_period_s / 2 + tau
         self.s = 0.0
 
     def _locate(self, s: float) -> tuple[int, float]:

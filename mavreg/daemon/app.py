@@ -18,12 +18,23 @@ from pathlib import Path
 from typing import Callable
 
 from ..config.vehicle import VehicleParams
+from ..control.regulator import ManeuverRegulator
 from .ctrllog import ControlLog
 from .endpoint import EndpointServer
 from .link import MavlinkLink, open_link
 from .planner_pool import PlannerPool
 from .supervisor import Output, Phase, Supervisor, SupervisorParams
 from .tlog import TlogWriter
+
+
+def regulator_factory(vehicle: VehicleParams, control_rate_hz: float) -> Callable:
+    """plan -> ManeuverRegulator at the vehicle's control rate (for its feedforward lead)."""
+    if not control_rate_hz > 0:
+        raise ValueError(f"control rate must be positive, got {control_rate_hz} Hz")
+
+    def make(plan) -> ManeuverRegulator:
+        return ManeuverRegulator(plan, vehicle, control_period_s=1.0 / control_rate_hz)
+    return make
 
 __all__ = ["DaemonConfig", "Daemon"]
 

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..config.vehicle import load_vehicle
-from .app import Daemon, DaemonConfig
+from .app import Daemon, DaemonConfig, regulator_factory
 from .ctrllog import load_control_log
 from .report import controller_metrics, format_summary, ground_truth_errors, plot_flight
 from .supervisor import Phase, SupervisorParams
@@ -44,13 +44,15 @@ class FlyOptions:
     timeout_s: float
     lockstep: bool
     emulator_args: tuple[str, ...]
+    control_rate_hz: float = 500.0
+    """The vehicle's telemetry (control) rate; the bundled emulator is started at it."""
 
 
 def spawn_emulator(vehicle_path: Path, record: Path | None, lockstep: bool, extra: tuple[str, ...] = (),
-                   timeout_s: float = 20.0) -> tuple[subprocess.Popen, str]:
+                   timeout_s: float = 20.0, rate_hz: float = 500.0) -> tuple[subprocess.Popen, str]:
     """Start ``firmware_sim`` on a free loopback port; return (process, ``udpout:`` URL for us)."""
     cmd = [sys.executable, "-m", "firmware_sim", "--listen", "udpin:127.0.0.1:0", "--quiet",
-           "--vehicle", str(vehicle_path)]
+           "--vehicle", str(vehicle_path), "--rate-hz", f"{rate_hz:g}"]
     if record is not None:
         cmd += ["--record", str(record)]
     if lockstep:
@@ -88,12 +90,11 @@ def fly(opts: FlyOptions) -> int:
     vehicle = load_vehicle(opts.vehicle_path)
     opts.out_dir.mkdir(parents=True, exist_ok=True)
     record_path = opts.out_dir / "groundtruth.npz"
-    from ..control.regulator import ManeuverRegulator
     config = DaemonConfig(vehicle_url=opts.vehicle_url or "", vehicle_path=opts.vehicle_path,
                           controller_path=opts.controller_path, socket_path=opts.socket_path,
                           tlog_path=opts.out_dir / "flight.tlog",
                           supervisor=SupervisorParams(land_when_done=True))
-    daemon = Daemon(config, vehicle, lambda plan: ManeuverRegulator(plan, vehicle))
+    daemon = Daemon(config, vehicle, regulator_factory(vehicle, opts.control_rate_hz))
     proc = None
     emulator_code = None
     t0 = time.monotonic()
@@ -101,7 +102,8 @@ def fly(opts: FlyOptions) -> int:
         async def main():
             nonlocal proc
             if opts.vehicle_url is None:
-                proc, url = spawn_emulator(opts.vehicle_path, record_path, opts.lockstep, opts.emulator_args)
+                proc, url = spawn_emulator(opts.vehicle_path, record_path, opts.lockstep,
+                                           opts.emulator_args, rate_hz=opts.control_rate_hz)
                 daemon.config = DaemonConfig(url, config.vehicle_path, config.controller_path,
                                              config.socket_path, config.tlog_path, config.supervisor)
             await daemon.run([(text, str(opts.maneuver_path))], timeout_s=opts.timeout_s)

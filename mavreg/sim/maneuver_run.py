@@ -37,7 +37,9 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
     plus ``extra_time_s``.
     """
     vehicle = plan.vehicle
-    reg = ManeuverRegulator(plan, vehicle, control_period_s=1.0 / control_rate_hz)
+    # The design model's rotors are ideal (eq 34): no lag to lead.
+    reg = ManeuverRegulator(plan, vehicle, control_period_s=1.0 / control_rate_hz,
+                            rotor_time_constant_s=0.0)
     x0 = plan.entry_state
     x0[:3] += np.asarray(offset_m, dtype=float)
     reg.reset(x0)

@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from sitl_helpers import BARREL, CONTROLLER, VEHICLE, load_record, mavreg, start_emulator
+from sitl_helpers import BARREL, CONTROLLER, VEHICLE, VEHICLE_IDEAL, load_record, mavreg, start_emulator
 
 
 @pytest.fixture(scope="session")
@@ -16,13 +16,17 @@ def barrel_plan():
     return plan_file(BARREL, load_vehicle(VEHICLE), load_controller(CONTROLLER))
 
 
-def fly_lockstep(tmp, emulator_args=(), fly_args=(), during=None):
-    """Emulator in lockstep + ``mavreg fly --vehicle`` as two processes; returns a result dict."""
+def fly_lockstep(tmp, emulator_args=(), fly_args=(), during=None, vehicle=VEHICLE):
+    """Emulator in lockstep + ``mavreg fly --vehicle`` as two processes; returns a result dict.
+
+    ``vehicle`` is the parameter file both read: the emulator its physics, the daemon its
+    design model (``mk_quadro_ideal.yaml``: ideal actuators on both sides)."""
     record = tmp / "groundtruth.npz"
-    emu, url = start_emulator(record, "--lockstep", *emulator_args)
+    emu, url = start_emulator(record, "--lockstep", "--vehicle", str(vehicle), *emulator_args)
     out = tmp / "out"
     try:
-        fly = mavreg("fly", str(BARREL), "--vehicle", url, "--out", str(out), "--timeout-s", "240", *fly_args)
+        fly = mavreg("fly", str(BARREL), "--vehicle", url, "--vehicle-params", str(vehicle),
+                     "--out", str(out), "--timeout-s", "240", *fly_args)
         extra = during(fly, emu) if during is not None else None
         code = fly.wait(300)
     finally:
@@ -35,4 +39,4 @@ def fly_lockstep(tmp, emulator_args=(), fly_args=(), during=None):
 @pytest.fixture(scope="session")
 def ideal_flight(tmp_path_factory):
     """The barrel roll from the ground with ideal actuators (rotor time constant 0)."""
-    return fly_lockstep(tmp_path_factory.mktemp("ideal"), ("--rotor-time-constant-s", "0"))
+    return fly_lockstep(tmp_path_factory.mktemp("ideal"), vehicle=VEHICLE_IDEAL)

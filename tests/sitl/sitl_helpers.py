@@ -17,6 +17,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[2]
 BARREL = REPO / "params/maneuvers/barrel_roll.yaml"
 VEHICLE = REPO / "params/vehicles/mk_quadro.yaml"
+VEHICLE_IDEAL = REPO / "params/vehicles/mk_quadro_ideal.yaml"
+"""Ideal actuators in the emulator, and a controller that knows it (no lag to lead)."""
 CONTROLLER = REPO / "params/controller/paper_lqr.yaml"
 
 

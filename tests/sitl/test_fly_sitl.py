@@ -11,7 +11,7 @@ import pytest
 from conftest import fly_lockstep
 from mavreg.daemon.ctrllog import load_control_log
 from mavreg.daemon.report import ground_truth_errors
-from sitl_helpers import BARREL, REPO, tilt_deg
+from sitl_helpers import BARREL, REPO, VEHICLE_IDEAL, tilt_deg
 
 pytestmark = pytest.mark.sitl
 
@@ -90,9 +90,10 @@ def test_barrel_roll_with_default_motor_lag(tmp_path, barrel_plan):
           f"RMS {100 * truth['rms_m']:.2f} cm")
     for name, st in truth["segments"].items():
         print(f"  {name:<14} max {100 * st['max_m']:.2f} cm  rms {100 * st['rms_m']:.2f} cm")
-    (REPO / "benchmarks").mkdir(exist_ok=True)
     assert f["record"]["on_ground"][-1] and not f["record"]["armed"][-1]
-    assert truth["max_m"] < 0.5     # reported above; the bound only catches a broken loop
+    # The regulator leads its feedforward by the 20 ms lag it assumes (mk_quadro.yaml):
+    # measured 0.4 cm; without the lead it was 4.6 cm.
+    assert truth["max_m"] < 0.02
 
 
 def _same_flight(a, b):
@@ -123,7 +124,7 @@ def test_invalid_upload_mid_flight_is_rejected_and_changes_nothing(tmp_path, ide
             verdicts.append((r.returncode, r.stdout.strip()))
         return verdicts
 
-    f = fly_lockstep(tmp_path, ("--rotor-time-constant-s", "0"), ("--socket", str(sock)), during)
+    f = fly_lockstep(tmp_path, (), ("--socket", str(sock)), during, vehicle=VEHICLE_IDEAL)
     assert f["code"] == 0, "\n".join(f["lines"][-30:])
     (c1, v1), (c2, v2) = f["extra"]
     print(f"\nverdicts: {v1!r}\n          {v2!r}")
@@ -159,7 +160,7 @@ def test_foreign_system_actuator_traffic_changes_nothing(tmp_path, ideal_flight)
         s.close()
         return sent
 
-    f = fly_lockstep(tmp_path, ("--rotor-time-constant-s", "0"), (), during)
+    f = fly_lockstep(tmp_path, (), (), during, vehicle=VEHICLE_IDEAL)
     assert f["extra"] > 100
     assert f["code"] == 0, "\n".join(f["lines"][-30:])
     dist, _ = _same_flight(f, ideal_flight)
