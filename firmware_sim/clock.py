@@ -1,9 +1,12 @@
 """The two clocks: real time (wall clock) and lockstep.
 
 Real time
-    A control period every ``1/rate_hz`` wall seconds; incoming messages are handled as
-    they arrive; the latest actuator target is held. Overruns (more than 0.1 s behind)
-    are counted and the schedule is reset.
+    A control period every ``1/rate_hz`` wall seconds: the telemetry of t_k goes out at
+    the period's start, incoming messages are handled as they arrive, and at the period's
+    end the physics steps to t_{k+1} with the latest actuator target held over it. A
+    target sent in answer to the telemetry (within the period) thus acts over the whole
+    period, as in lockstep; one that misses the period acts a period later. Overruns
+    (more than 0.1 s behind) are counted and the schedule is reset.
 
 Lockstep
     Nothing advances until a valid MAVLink message has been heard (time frozen at 0).
@@ -60,7 +63,6 @@ def run_realtime(engine: Engine, rate_hz: int, duration_s: float | None = None,
     while not _done(engine, duration_s):
         engine.poll()
         engine.begin_period()
-        engine.step()
         k += 1
         deadline = start + (k - k0) * period
         now = time.monotonic()
@@ -72,6 +74,7 @@ def run_realtime(engine: Engine, rate_hz: int, duration_s: float | None = None,
             if engine.link.wait_readable(deadline - now):
                 engine.poll()
             now = time.monotonic()
+        engine.step()
         status.tick(now)
 
 
