@@ -55,8 +55,9 @@ def run(args) -> int:
                                seed=args.seed, control_rate_hz=args.rate_hz)
     m = run_.metrics
     if args.plot:
-        from ..plots import plot_run
-        plot_run(plan, run_.result.t, run_.result.x[:, :3], run_.s, run_.w, args.plot)
+        from ..plots import plot_flight
+        plot_flight(args.plot, plan, run_.s, run_.w, run_.result.x[:, :3],
+                    title=f"{plan.name} on the design model")
     if args.json:
         print(json.dumps(m, indent=2))
     else:

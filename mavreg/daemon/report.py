@@ -101,45 +101,8 @@ def format_summary(summary: dict) -> str:
 
 
 def plot_flight(path, ctrl: dict, plan, record: dict | None) -> None:
-    """Path in the plane of the maneuver, and errors against arc length (Agg backend)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    """The flight plot (:func:`mavreg.plots.plot_flight`) from a control log and a recording."""
+    from ..plots import plot_flight as plot
     m = _maneuver_rows(ctrl)
-    nodes = plan.path.c_nodes
-    # plane of the maneuver: the two principal directions of the path's points
-    centred = nodes - nodes.mean(axis=0)
-    _, _, vt = np.linalg.svd(centred, full_matrices=False)
-    axes = vt[:2]
-    names = ["north", "east", "down"]
-    label = [" ".join(f"{c:+.2f}{n[0]}" for c, n in zip(a, names) if abs(c) > 0.05) for a in axes]
-    fig, (a0, a1, a2) = plt.subplots(3, 1, figsize=(8, 11))
-    pp = centred @ axes.T
-    a0.plot(pp[:, 0], -pp[:, 1] if axes[1][2] > 0 else pp[:, 1], "k--", lw=1, label="path")
-    def proj(p):
-        q = (p - nodes.mean(axis=0)) @ axes.T
-        return q[:, 0], (-q[:, 1] if axes[1][2] > 0 else q[:, 1])
-    x = ctrl["x"].astype(float)
-    a0.plot(*proj(x[:, :3]), lw=0.8, label="flown (daemon state)")
-    if record is not None:
-        a0.plot(*proj(record["position_ned_m"][::5]), lw=0.6, alpha=0.6, label="ground truth")
-    a0.set_aspect("equal")
-    a0.set_xlabel(f"[{label[0]}] m")
-    a0.set_ylabel(f"[{label[1]}] m (up positive)")
-    a0.legend(fontsize=8)
-    a0.set_title(f"{plan.name}: path in the plane of the maneuver")
-    s = ctrl["s_m"][m].astype(float)
-    w = ctrl["w"][m].astype(float)
-    a1.plot(s, 100 * np.hypot(w[:, 0], w[:, 1]), lw=0.8)
-    a1.set_ylabel("transverse error (cm)")
-    a2.plot(s, np.degrees(np.linalg.norm(np.arctan2(np.sin(w[:, 2:5]), np.cos(w[:, 2:5])), axis=1)), lw=0.8)
-    a2.set_ylabel("attitude error (deg)")
-    a2.set_xlabel("arc length s (m)")
-    for ax in (a1, a2):
-        for name, a, b in plan.segments:
-            ax.axvline(a, color="0.8", lw=0.5)
-        ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    truth = record["position_ned_m"][::5] if record is not None else None
+    plot(path, plan, ctrl["s_m"][m], ctrl["w"][m], ctrl["x"][:, :3], truth)
