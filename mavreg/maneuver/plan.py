@@ -196,37 +196,53 @@ def plan_spec(spec: ManeuverSpec, vehicle: VehicleParams, controller: Controller
     return Plan(spec.name, path, vehicle, s, x, dx, u, K, v, feas, terminal, laps, laps_seg)
 
 
+def _linearization(model, path, speed, yaw, s):
+    F, k, x, u, dx, _ = _nominal(model, path, speed, yaw, s)
+    return transverse_jacobians(model, F, k, x, u, dx)
+
+
 def _gains(model, path, speed, yaw, s, F, k, x, u, dx, controller, spec):
     Q, R = np.diag(controller.q), np.diag(controller.r)
     A, B = transverse_jacobians(model, F, k, x, u, dx)
-    s_mid = (s[:-1] + s[1:]) / 2
-    Fm, km, xm, um, dxm, _ = _nominal(model, path, speed, yaw, s_mid)
-    Am, Bm = transverse_jacobians(model, Fm, km, xm, um, dxm)
-    h = np.diff(s)
-    last = spec.segments[-1].name
+    Am, Bm = _linearization(model, path, speed, yaw, (s[:-1] + s[1:]) / 2)
+    last = spec.segments[-1]
     try:
-        if spec.laps is not None and spec.laps.segment == last:
+        if spec.laps is not None and spec.laps.segment == last.name:
             # The maneuver ends going round: the terminal condition is the periodic solution.
-            lap = 2 * np.pi * spec.segments[-1].shape.radius_m if spec.segments[-1].arc else None
-            terminal, P_T = "periodic", _periodic_terminal(A, B, Am, Bm, s, lap, Q, R)
+            terminal = "periodic (the last lap repeats)"
+            P_T = _periodic_terminal(model, path, speed, yaw, _lap_length(last), controller, Q, R)
         else:
             terminal = "steady (CARE at the end)"
             P_T, _ = care(A[-1], B[-1], Q, R)
-        _, K = sweep_backward(A, B, Am, Bm, h, Q, R, P_T, step_check="warn")
+        _, K = sweep_backward(A, B, Am, Bm, np.diff(s), Q, R, P_T, step_check="warn")
     except ValueError as exc:
         raise ManeuverError(f"gain schedule: {exc}") from None
     return K, terminal
 
 
-def _periodic_terminal(A, B, Am, Bm, s, lap_m, Q, R):
-    """P at the end of a path whose last lap repeats: the periodic solution over that lap."""
-    if lap_m is None:
-        raise ValueError("a periodic terminal condition needs an arc as the last segment")
-    i0 = int(np.searchsorted(s, s[-1] - lap_m))
-    # Resample one lap onto the grid tail; A, B are lap-periodic there up to grid alignment.
-    A1, B1, Am1, Bm1 = A[i0:].copy(), B[i0:].copy(), Am[i0:], Bm[i0:]
-    A1[0], B1[0] = A1[-1], B1[-1]
-    P, _ = periodic_riccati(A1, B1, Am1, Bm1, np.diff(s[i0:]), Q, R, step_check="warn")
+def _lap_length(seg) -> float:
+    """Arc length of one full turn of an arc or a helix segment."""
+    shp = seg.shape
+    if seg.arc is not None:
+        return 2 * np.pi * shp.radius_m
+    return 2 * np.pi * float(np.hypot(shp.radius_m, shp.pitch_m / (2 * np.pi)))
+
+
+def _periodic_terminal(model, path, speed, yaw, lap_m, controller, Q, R):
+    """P at the end of a path whose last lap repeats: the periodic solution over that lap.
+
+    The lap gets a grid of its own, whose first and last nodes are one lap apart, so that
+    A(s) and B(s) are periodic on it (the speed and yaw must be constant over the lap,
+    else ``periodic_riccati`` says the grid is not periodic).
+    """
+    s1 = path.length_m
+    s0 = s1 - lap_m
+    v = float(speed.evaluate([s1])[0][0])
+    n = max(16, int(np.ceil(lap_m / (v * controller.riccati_step_s)))) + 1
+    grid = np.linspace(s0, s1, n)
+    A, B = _linearization(model, path, speed, yaw, grid)
+    Am, Bm = _linearization(model, path, speed, yaw, (grid[:-1] + grid[1:]) / 2)
+    P, _ = periodic_riccati(A, B, Am, Bm, np.diff(grid), Q, R, step_check="warn")
     return P[-1]
 
 
