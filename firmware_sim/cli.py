@@ -32,24 +32,23 @@ Exit status: 0 done or signalled, 1 internal error, 2 bad input, 3 crash,
 4 non-finite state, 5 speed or body rate limit. See docs/firmware_sim.md."""
 
 
-def _positive_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text!r}")
-    return v
+def _float_above(minimum: float, inclusive: bool):
+    """An argparse type: a finite float > minimum (>= with ``inclusive``)."""
+    op = ">=" if inclusive else ">"
+
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+        if not (math.isfinite(v) and (v >= minimum if inclusive else v > minimum)):
+            raise argparse.ArgumentTypeError(f"expected a finite number {op} {minimum:g}, got {text!r}")
+        return v
+    return parse
 
 
-def _nonneg_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not (math.isfinite(v) and v >= 0):
-        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text!r}")
-    return v
+_positive_float = _float_above(0.0, inclusive=False)
+_nonneg_float = _float_above(0.0, inclusive=True)
 
 
 def _positive_int(text: str) -> int:

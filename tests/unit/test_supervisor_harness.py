@@ -10,6 +10,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from mavreg.config.vehicle import load_vehicle
 from mavreg.control.hover import HoverController, Ramp
+from mavreg.control.regulator import RegulatorOutput
 from mavreg.daemon.messages import PX4_MAIN_AUTO, PX4_MAIN_OFFBOARD, PX4_SUB_LOITER
 from mavreg.daemon.supervisor import Supervisor, SupervisorParams
 from mavreg.model.mixer import Mixer
@@ -58,14 +59,6 @@ class FakePlan:
         return {"name": self.name, "length_m": self.length_m}
 
 
-@dataclass
-class RegOut:
-    s: float
-    w: np.ndarray
-    u: np.ndarray
-    rotor_forces_n: np.ndarray
-    in_tube: bool
-    finished: bool
 
 
 class FakeRegulator:
@@ -89,7 +82,7 @@ class FakeRegulator:
         forces = ho.rotor_forces_n
         if self.nan_at_s is not None and s >= self.nan_at_s:
             forces = forces * np.nan
-        return RegOut(s, w, ho.u, forces, bool(abs(w[0]) < 0.5), s >= self.plan.length_m)
+        return RegulatorOutput(s, w, ho.u, forces, bool(abs(w[0]) < 0.5), s >= self.plan.length_m)
 
 
 class SimVehicle:
