@@ -10,7 +10,8 @@ DESCRIPTION = """\
 Plan the maneuver, start at its nominal entry state (plus --offset), and integrate the
 paper's quadrotor model (eqs 6-17, RK4, 1 ms) in closed loop with the s-scheduled LQR
 regulator run at --rate-hz with zero-order hold. Rotor forces may carry Gaussian noise and
-saturate per rotor; the plant's inertia may differ from the design (--inertia-kg-m2).
+saturate per rotor; the plant's inertia may differ from the design (--inertia-kg-m2); a gust
+(--gust-n, --gust-window) may push the vehicle.
 Reports, overall and per named segment: transverse position error (max, RMS), attitude
 error (max), rotor command range and time saturated. With --json: stable, completed,
 transverse_error_m {max, rms}, attitude_error_deg {max}, segments {...}.
@@ -33,6 +34,10 @@ def add_arguments(p):
     p.add_argument("--rate-hz", type=float, default=1000.0, help="controller rate (default 1000)")
     p.add_argument("--inertia-kg-m2", nargs=3, type=float, default=None,
                    metavar=("JX", "JY", "JZ"), help="plant inertia (default: the design's)")
+    p.add_argument("--gust-n", nargs=3, type=float, default=None, metavar=("FN", "FE", "FD"),
+                   help="an external force on the vehicle, NED newtons (with --gust-window)")
+    p.add_argument("--gust-window", nargs=2, type=float, default=(0.0, 1.0), metavar=("T0", "T1"),
+                   help="when the gust acts, seconds from the start (default 0 1)")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON")
     p.add_argument("--plot", metavar="PNG", default=None,
                    help="save a plot of the path and the errors against s")
@@ -48,11 +53,14 @@ def run(args) -> int:
         raise ValueError(f"--saturation-n must be > 0, got {args.saturation_n}")
     if args.laps is not None and args.laps < 1:
         raise ValueError(f"--laps must be at least 1, got {args.laps}")
+    if not args.gust_window[0] <= args.gust_window[1]:
+        raise ValueError(f"--gust-window must be T0 <= T1, got {args.gust_window}")
     vehicle, controller = load_model_params(args)
     plan = plan_file(args.maneuver, vehicle, controller, laps=args.laps)
     run_ = fly_on_design_model(plan, offset_m=args.offset, inertia_kg_m2=args.inertia_kg_m2,
                                rotor_noise_sd_n=args.noise_n, saturation_n=args.saturation_n,
-                               seed=args.seed, control_rate_hz=args.rate_hz)
+                               seed=args.seed, control_rate_hz=args.rate_hz,
+                               gust_force_n=args.gust_n, gust_window_s=tuple(args.gust_window))
     m = run_.metrics
     if args.plot:
         from ..plots import plot_flight

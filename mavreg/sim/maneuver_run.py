@@ -9,7 +9,7 @@ from ..control.regulator import ManeuverRegulator
 from ..maneuver.plan import Plan
 from ..model.mixer import Mixer
 from ..model.quadrotor import QuadrotorModel
-from .closed_loop import SimOptions, SimResult, simulate
+from .closed_loop import SimOptions, SimResult, simulate, window_force
 from .metrics import tracking_metrics
 
 __all__ = ["ManeuverRun", "fly_on_design_model"]
@@ -29,11 +29,13 @@ class ManeuverRun:
 def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=None,
                         rotor_noise_sd_n: float = 0.0, saturation_n: float | None = None,
                         seed: int | None = None, control_rate_hz: float = 1000.0,
-                        dt_s: float = 0.001, extra_time_s: float = 5.0) -> ManeuverRun:
+                        dt_s: float = 0.001, extra_time_s: float = 5.0,
+                        gust_force_n=None, gust_window_s=(0.0, 0.0)) -> ManeuverRun:
     """Start at the nominal entry state plus ``offset_m`` and fly to the end of the path.
 
     The plant may differ from the design (``inertia_kg_m2``); the controller always uses
-    the plan's nominal design. Stops when s reaches the end, or after the nominal duration
+    the plan's nominal design. ``gust_force_n`` (NED, N) pushes on the vehicle during
+    ``gust_window_s`` = (t0, t1). Stops when s reaches the end, or after the nominal duration
     plus ``extra_time_s``.
     """
     vehicle = plan.vehicle
@@ -60,6 +62,7 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
     opts = SimOptions(initial_state=tuple(x0), dt_s=dt_s, control_period_steps=steps,
                       max_duration_s=duration, inertia_kg_m2=inertia_kg_m2,
                       rotor_noise_sd_n=rotor_noise_sd_n, seed=seed, saturation_n=saturation_n,
+                      force_fn=None if gust_force_n is None else window_force(gust_force_n, *gust_window_s),
                       done=lambda t, x: reg.s >= plan.length_m - 1e-6)
     result = simulate(QuadrotorModel.from_vehicle(vehicle),
                       Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m), controller, opts)
