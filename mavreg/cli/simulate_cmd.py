@@ -70,12 +70,12 @@ def run(args) -> int:
         print(json.dumps(m, indent=2))
     else:
         print(f"{plan.name}: {m['status']} ({m['reason']})")
-        print(f"  transverse error max {m['transverse_error_m']['max'] * 1e3:.2f} mm, "
-              f"rms {m['transverse_error_m']['rms'] * 1e3:.2f} mm; attitude error max "
-              f"{m['attitude_error_deg']['max']:.3f} deg")
+        print(f"  transverse error max {m['transverse_error_m']['max'] * 1e3:.3g} mm, "
+              f"rms {m['transverse_error_m']['rms'] * 1e3:.3g} mm; attitude error max "
+              f"{m['attitude_error_deg']['max']:.3g} deg")
         for name, seg in m["segments"].items():
             if seg["samples"]:
-                print(f"  {name:>14}: transverse max {seg['transverse_error_m']['max'] * 1e3:8.2f} mm, "
-                      f"rms {seg['transverse_error_m']['rms'] * 1e3:8.2f} mm; attitude max "
-                      f"{seg['attitude_error_deg']['max']:.3f} deg")
+                print(f"  {name:>14}: transverse max {seg['transverse_error_m']['max'] * 1e3:9.3g} mm, "
+                      f"rms {seg['transverse_error_m']['rms'] * 1e3:9.3g} mm; attitude max "
+                      f"{seg['attitude_error_deg']['max']:9.3g} deg")
     return 0 if m["stable"] and m["completed"] else 1
