@@ -150,8 +150,8 @@ def waypoint_piece(name: str, points: np.ndarray, t0: np.ndarray, m1: np.ndarray
     curvature and zero curvature slope at both ends, so that it joins lines without a
     blend (and anything else through a blend). Its curvature, expressed in the RMF
     ``(t0, m1, m2)`` carried along it, is tabulated and splined, so the path integrator
-    reproduces the curve. Returns the piece and the spline's own positions at the
-    waypoints' arc lengths (for checking).
+    reproduces the curve. Returns the piece and the arc length at the start and at each
+    waypoint.
     """
     pts = np.vstack([np.zeros(3), np.asarray(points, dtype=float)])
     chords = np.linalg.norm(np.diff(pts, axis=0), axis=1)
@@ -164,7 +164,7 @@ def waypoint_piece(name: str, points: np.ndarray, t0: np.ndarray, m1: np.ndarray
     # End tangent: along the last chord; degree 7 takes three conditions at each end.
     t_end = (pts[-1] - pts[-2]) / chords[-1]
     spl = make_interp_spline(u, pts, k=7, bc_type=(
-        [(1, t0 * 1.0), (2, zero), (3, zero)], [(1, t_end * 1.0), (2, zero), (3, zero)]))
+        [(1, t0), (2, zero), (3, zero)], [(1, t_end), (2, zero), (3, zero)]))
     # Arc length by dense quadrature of |p_u|.
     n = max(200, int(u[-1] * samples_per_m))
     uu = np.linspace(0.0, u[-1], n + 1)
