@@ -3,10 +3,7 @@ from __future__ import annotations
 
 from .config.loader import ConfigError
 
-__all__ = ["UserError", "ConfigError", "ManeuverError"]
-
-UserError = ValueError
-"""Base of every user-facing error (ConfigError and ManeuverError are ValueErrors)."""
+__all__ = ["ConfigError", "ManeuverError"]
 
 
 class ManeuverError(ValueError):

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-__all__ = ["PARAMS_DIR", "add_model_arguments", "load_model_params"]
+__all__ = ["PARAMS_DIR", "add_model_arguments", "add_laps_argument", "load_model_params"]
 
 PARAMS_DIR = Path(__file__).resolve().parents[2] / "params"
 DEFAULT_VEHICLE = PARAMS_DIR / "vehicles" / "mk_quadro.yaml"
@@ -16,6 +16,21 @@ def add_model_arguments(p: argparse.ArgumentParser) -> None:
                    help="vehicle parameter file (default: %(default)s)")
     p.add_argument("--controller", metavar="YAML", default=str(DEFAULT_CONTROLLER),
                    help="LQR weights (default: %(default)s)")
+
+
+def _laps(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {n}")
+    return n
+
+
+def add_laps_argument(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--laps", type=_laps, default=None, metavar="N",
+                   help="fly the maneuver's laps segment N times (default: as in the file)")
 
 
 def load_model_params(args):

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import json
 
-from .common import add_model_arguments, load_model_params
+from .common import add_laps_argument, add_model_arguments, load_model_params
 
 HELP = "validate a maneuver YAML, check feasibility, build the gain schedule (nothing flies)"
 DESCRIPTION = """\
@@ -20,8 +20,7 @@ Exit status: 0 feasible, 1 infeasible (the reasons say where in s and by how muc
 
 def add_arguments(p):
     p.add_argument("maneuver", metavar="FILE", help="maneuver YAML (kind: maneuver)")
-    p.add_argument("--laps", type=int, default=None, metavar="N",
-                   help="fly the maneuver's laps segment N times (default: as in the file)")
+    add_laps_argument(p)
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     add_model_arguments(p)
 
@@ -29,8 +28,6 @@ def add_arguments(p):
 def run(args) -> int:
     from ..maneuver.plan import plan_file
     vehicle, controller = load_model_params(args)
-    if args.laps is not None and args.laps < 1:
-        raise ValueError(f"--laps must be at least 1, got {args.laps}")
     plan = plan_file(args.maneuver, vehicle, controller, laps=args.laps, strict=False)
     summary = plan.summary()
     if args.json:

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import json
 
-from .common import add_model_arguments, load_model_params
+from .common import add_laps_argument, add_model_arguments, load_model_params
 
 HELP = "fly a maneuver with the regulator on the design model; tracking errors against s"
 DESCRIPTION = """\
@@ -28,8 +28,7 @@ def add_arguments(p):
                    help="Gaussian noise SD on each rotor force, N (default 0)")
     p.add_argument("--saturation-n", type=float, default=None, metavar="F",
                    help="per-rotor saturation, N (default: none)")
-    p.add_argument("--laps", type=int, default=None, metavar="N",
-                   help="fly the laps segment N times (default: as in the file)")
+    add_laps_argument(p)
     p.add_argument("--seed", type=int, default=None, metavar="N", help="noise seed")
     p.add_argument("--rate-hz", type=float, default=1000.0, help="controller rate (default 1000)")
     p.add_argument("--inertia-kg-m2", nargs=3, type=float, default=None,
@@ -51,8 +50,6 @@ def run(args) -> int:
         raise ValueError(f"--noise-n must be >= 0, got {args.noise_n}")
     if args.saturation_n is not None and args.saturation_n <= 0:
         raise ValueError(f"--saturation-n must be > 0, got {args.saturation_n}")
-    if args.laps is not None and args.laps < 1:
-        raise ValueError(f"--laps must be at least 1, got {args.laps}")
     if not args.gust_window[0] <= args.gust_window[1]:
         raise ValueError(f"--gust-window must be T0 <= T1, got {args.gust_window}")
     vehicle, controller = load_model_params(args)

@@ -30,7 +30,7 @@ from typing import Any
 
 import yaml
 
-__all__ = ["ConfigError", "load_file", "load_text", "load_node", "schema_keys"]
+__all__ = ["ConfigError", "load_file", "load_text"]
 
 
 class ConfigError(ValueError):
@@ -58,11 +58,6 @@ def _yaml_key(f: dataclasses.Field) -> str:
             raise TypeError(f"field {f.name}: deg=True needs a name ending in _rad")
         return f.name[: -len("_rad")] + "_deg"
     return f.name
-
-
-def schema_keys(schema: type) -> list[str]:
-    """The YAML keys a schema accepts, in declaration order."""
-    return [_yaml_key(f) for f in dataclasses.fields(schema)]
 
 
 class _Ctx:
@@ -210,11 +205,6 @@ def _load_schema(ctx: _Ctx, node: yaml.Node, schema: type, prefix: str = "") -> 
     except ValueError as exc:  # cross-field checks in __post_init__
         ctx.fail(node, prefix, str(exc))
     return obj
-
-
-def load_node(node: yaml.Node, schema: type, source: str) -> Any:
-    """Load an already-composed YAML node against ``schema``."""
-    return _load_schema(_Ctx(source), node, schema)
 
 
 def load_text(text: str, schema: type, source: str = "<string>", kind: str | None = None) -> Any:

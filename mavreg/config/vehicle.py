@@ -4,8 +4,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from .loader import load_file
 
 __all__ = ["EmulatorParams", "VehicleParams", "load_vehicle", "G"]
@@ -65,15 +63,6 @@ class VehicleParams:
                 f"max_rotor_thrust_n {self.max_rotor_thrust_n} N cannot hover "
                 f"{self.mass_kg} kg (needs more than {self.mass_kg * G / 4:.3f} N per rotor)"
             )
-
-    @property
-    def inertia(self) -> np.ndarray:
-        """Diagonal inertia matrix J (kg m^2)."""
-        return np.diag(self.inertia_kg_m2)
-
-    @property
-    def hover_thrust_n(self) -> float:
-        return self.mass_kg * G
 
 
 def load_vehicle(path: str | Path) -> VehicleParams:

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model.linearize import _H
+from ..model.linearize import complex_step_jacobian
 from ..model.quadrotor import QuadrotorModel
 from ..model.rotation import rpy_to_matrix, wrap_angle
 
@@ -56,19 +56,10 @@ def transverse_rhs(model: QuadrotorModel, F, k, xbar, ubar, dxbar, w, uw):
 def transverse_jacobians(model: QuadrotorModel, F, k, xbar, ubar, dxbar):
     """A(s) = dF/dw and B(s) = dF/du_w at w = 0, u_w = 0, by complex step (exact to
     machine precision). Returns A (N,11,11), B (N,11,4)."""
-    n = len(xbar)
-    A = np.empty((n, NW, NW))
-    B = np.empty((n, NW, 4))
-    w0 = np.zeros((n, NW), dtype=complex)
-    u0 = np.zeros((n, 4), dtype=complex)
-    for j in range(NW):
-        w = w0.copy()
-        w[:, j] = 1j * _H
-        A[:, :, j] = transverse_rhs(model, F, k, xbar, ubar, dxbar, w, u0).imag / _H
-    for j in range(4):
-        u = u0.copy()
-        u[:, j] = 1j * _H
-        B[:, :, j] = transverse_rhs(model, F, k, xbar, ubar, dxbar, w0, u).imag / _H
+    w0 = np.zeros((len(xbar), NW))
+    u0 = np.zeros((len(xbar), 4))
+    A = complex_step_jacobian(lambda w: transverse_rhs(model, F, k, xbar, ubar, dxbar, w, u0), w0)
+    B = complex_step_jacobian(lambda uw: transverse_rhs(model, F, k, xbar, ubar, dxbar, w0, uw), u0)
     return A, B
 
 

@@ -48,6 +48,11 @@ class PathPoint:
     ddk: np.ndarray
 
     @property
+    def curvature_vector(self) -> np.ndarray:
+        """K = k1 m1 + k2 m2 = dt/ds (world frame)."""
+        return self.frame[:, 1] * self.k[0] + self.frame[:, 2] * self.k[1]
+
+    @property
     def curvature(self) -> float:
         return float(np.hypot(*self.k))
 
@@ -196,9 +201,6 @@ class Path:
         a = self._coef[i]
         v = a[0] + u * (a[1] + u * (a[2] + u * a[3]))
         return PathPoint(s, v[0:3], v[3:12].reshape(3, 3), v[12:14], v[14:16], v[16:18])
-
-    def position(self, s: float) -> np.ndarray:
-        return self.point(s).position
 
     def evaluate(self, s_values) -> tuple[np.ndarray, ...]:
         """Vectorized :meth:`point` for arc lengths inside [0, length].

@@ -77,9 +77,8 @@ class Projector:
         p = self.path.point(s)
         for _ in range(12):
             d = y - p.position
-            kvec = p.frame[:, 1] * p.k[0] + p.frame[:, 2] * p.k[1]
             g = p.frame[:, 0] @ d
-            dg = kvec @ d - 1.0
+            dg = p.curvature_vector @ d - 1.0
             if dg > -1e-3:   # at or past the focal point: Newton is not a descent
                 break
             step = float(np.clip(-g / dg, -0.5, 0.5))
@@ -91,7 +90,6 @@ class Projector:
                 ok = True
                 break
         d = y - p.position
-        kvec = p.frame[:, 1] * p.k[0] + p.frame[:, 2] * p.k[1]
-        inside = ok and (1.0 - kvec @ d) > self.tube_margin and lo < s < hi
+        inside = ok and (1.0 - p.curvature_vector @ d) > self.tube_margin and lo < s < hi
         self.s = s
         return Projection(s, float(np.linalg.norm(d)), bool(inside), p)

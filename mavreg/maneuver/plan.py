@@ -64,8 +64,9 @@ class Plan:
         return self.x[0].copy()
 
     @property
-    def exit_state(self) -> np.ndarray:
-        return self.x[-1].copy()
+    def duration_s(self) -> float:
+        """Nominal flight time: the integral of ds / v(s)."""
+        return float(np.sum(np.diff(self.s) * 2 / (self.speed_m_s[1:] + self.speed_m_s[:-1])))
 
     def nominal_state(self, s: float) -> np.ndarray:
         """x(s), cubic Hermite between grid nodes (clamped to the ends)."""
@@ -96,7 +97,7 @@ class Plan:
             "feasible": f.feasible,
             "violations": list(f.violations),
             "length_m": self.length_m,
-            "duration_s": float(np.sum(np.diff(self.s) * 2 / (self.speed_m_s[1:] + self.speed_m_s[:-1]))),
+            "duration_s": self.duration_s,
             "laps": self.laps,
             "speed_m_s": {"min": f.speed_m_s[0], "max": f.speed_m_s[1]},
             "thrust_n": {"min": f.thrust_n[0], "max": f.thrust_n[1], **top},

@@ -15,12 +15,17 @@ _H = 1e-30
 
 
 def complex_step_jacobian(fun: Callable[[np.ndarray], np.ndarray], z: np.ndarray) -> np.ndarray:
-    """Jacobian d fun / d z at real ``z``; ``fun`` must accept complex arrays."""
+    """Jacobian d fun / d z at real ``z``; ``fun`` must accept complex arrays.
+
+    ``z`` may be a batch of shape (..., n) with ``fun`` mapping (..., n) to (..., m) row by
+    row; the result is then (..., m, n): every row is perturbed at once, one component
+    at a time.
+    """
     z = np.asarray(z, dtype=float)
     cols = []
-    for j in range(z.size):
+    for j in range(z.shape[-1]):
         dz = z.astype(complex)
-        dz[j] += 1j * _H
+        dz[..., j] += 1j * _H
         cols.append(np.asarray(fun(dz)).imag / _H)
     return np.stack(cols, axis=-1)
 

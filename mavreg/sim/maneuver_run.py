@@ -58,7 +58,7 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
         log_tube.append(out.in_tube)
         return out.rotor_forces_n
 
-    duration = plan.summary()["duration_s"] + extra_time_s
+    duration = plan.duration_s + extra_time_s
     opts = SimOptions(initial_state=tuple(x0), dt_s=dt_s, control_period_steps=steps,
                       max_duration_s=duration, inertia_kg_m2=inertia_kg_m2,
                       rotor_noise_sd_n=rotor_noise_sd_n, seed=seed, saturation_n=saturation_n,

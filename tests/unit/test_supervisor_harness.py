@@ -51,10 +51,6 @@ class FakePlan:
     def entry_state(self):
         return self.nominal_state(0.0)
 
-    @property
-    def exit_state(self):
-        return self.nominal_state(self.length_m)
-
     def summary(self):
         return {"name": self.name, "length_m": self.length_m}
 
