@@ -35,6 +35,22 @@ class ControllerParams:
     """The hover controller's position weights (N, E, D); its other weights are the above."""
     riccati_step_s: float = field(default=0.001, metadata={"min_exclusive": 0.0, "max": 0.01})
     """Step of the Riccati sweep, in nominal time (the s-step is speed times this)."""
+    rotor_lag_in_design: bool = False
+    """Design the LQR on the transverse state augmented with the wrench the rotors achieve
+    through their first-order lag (``rotor_time_constant_s`` of the vehicle file; see
+    :mod:`mavreg.control.actuator`). False: the paper's design, which assumes the commanded
+    wrench acts at once."""
+    q_wrench: tuple[float, ...] = field(default=(0.0, 0.0, 0.0, 0.0),
+                                        metadata={"length": 4, "min": 0.0})
+    """With ``rotor_lag_in_design``: weights on the achieved wrench's deviation from the
+    nominal, (f, gamma1, gamma2, gamma3)."""
+    predict_delay: bool = False
+    """Predict the state across the measured (or ``fixed_delay_s``) sample-to-actuation delay
+    before regulating (:mod:`mavreg.control.predictor`). False: regulate the sample as it is."""
+    fixed_delay_s: float | None = field(default=None, metadata={"min": 0.0, "max": 0.5})
+    """A configured link delay (downlink + uplink, s) that overrides the measured one."""
+    max_prediction_s: float = field(default=0.1, metadata={"min": 0.0, "max": 0.5})
+    """Cap on the prediction horizon; past it a gap is not flown on the prediction."""
 
     @property
     def q(self) -> np.ndarray:

@@ -48,6 +48,9 @@ class VehicleParams:
     """The controller's estimate of the rotors' first-order thrust lag. The design model
     (eq 34) has ideal rotors; the regulator leads its feedforward by this much. The
     emulator's true lag is ``emulator.rotor_time_constant_s``."""
+    estimate_latency_s: float = field(default=0.0, metadata={"min": 0.0, "max": 0.2})
+    """How old the vehicle's state estimate already is when it is stamped and sent (its
+    estimator's output lag); the link's delay is measured, this cannot be."""
     emulator: EmulatorParams = field(default_factory=EmulatorParams)
 
     def __post_init__(self):

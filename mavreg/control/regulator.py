@@ -57,12 +57,24 @@ class ManeuverRegulator:
     at s + v(s) (T/2 + tau). This removes the first-order error of both delays on the
     nominal input, which dominates the tracking error of an aggressive maneuver (on the
     barrel roll in lockstep with a 20 ms motor lag, 4.4 cm without the lead, 0.12 cm with it).
+
+    When the plan's gains know the rotor lag (``plan.rotor_time_constant_s`` > 0, gains
+    (4, 15)), the feedback also acts on the achieved wrench's deviation from the nominal,
+    ``a = M f - u(s)``, with f the rotor forces when the command takes over: given to
+    :meth:`step` (a :class:`~mavreg.control.predictor.StatePredictor` knows them), or else
+    the regulator's own lag filter of its past commands (no transport delay assumed).
     """
 
     def __init__(self, plan: Plan, vehicle: VehicleParams, control_period_s: float = 0.0,
                  rotor_time_constant_s: float | None = None):
         self.plan = plan
-        self.mixer_inverse = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m).inverse
+        mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
+        self.mixer_inverse = mixer.inverse
+        self._mixer = mixer.matrix
+        self._augmented = plan.K.shape[-1] > 11
+        self._decay = (float(np.exp(-control_period_s / plan.rotor_time_constant_s))
+                       if self._augmented and control_period_s > 0 else 0.0)
+        self._rotors_est: np.ndarray | None = None
         self.projector = Projector(plan.path)
         self._s = plan.s
         self._x, self._u, self._K = plan.x, plan.u, plan.K
@@ -76,12 +88,18 @@ class ManeuverRegulator:
         i = min(max(int(np.searchsorted(self._s, s)) - 1, 0), self._last)
         return i, min(max((s - self._s[i]) / (self._s[i + 1] - self._s[i]), 0.0), 1.0)
 
-    def reset(self, x, s_guess: float = 0.0) -> None:
-        """Start tracking from state x, with s near ``s_guess``."""
+    def reset(self, x, s_guess: float = 0.0, rotor_forces_n=None) -> None:
+        """Start tracking from state x, with s near ``s_guess`` and the rotors at
+        ``rotor_forces_n`` (default: the nominal's at s)."""
         self.s = self.projector.reset(np.asarray(x)[:3], s_guess).s
+        if rotor_forces_n is None:
+            i, a = self._locate(self.s)
+            rotor_forces_n = self.mixer_inverse @ (self._u[i] + a * (self._u[i + 1] - self._u[i]))
+        self._rotors_est = np.asarray(rotor_forces_n, dtype=float).copy()
 
-    def step(self, x) -> RegulatorOutput:
-        """One control step for state x (12,)."""
+    def step(self, x, rotor_forces_n=None) -> RegulatorOutput:
+        """One control step for state x (12,); ``rotor_forces_n`` (4,): the rotors' forces
+        when this command takes over (used only by lag-aware gains)."""
         x = np.asarray(x, dtype=float)
         proj = self.projector.update(x[:3])
         s = proj.s
@@ -91,11 +109,21 @@ class ManeuverRegulator:
         i, a = self._locate(s)
         xbar = self._x[i] + a * (self._x[i + 1] - self._x[i])
         K = self._K[i] + a * (self._K[i + 1] - self._K[i])
+        u_here = self._u[i] + a * (self._u[i + 1] - self._u[i])
         if self._lead_s > 0.0:
             v = self._v[i] + a * (self._v[i + 1] - self._v[i])
             i, a = self._locate(s + v * self._lead_s)
         ubar = self._u[i] + a * (self._u[i + 1] - self._u[i])
         w = transverse_coordinates(x[:3], pt.frame, pt.position, x, xbar)
-        u = ubar - K @ w
-        return RegulatorOutput(s, w, u, self.mixer_inverse @ u, proj.in_tube,
-                               s >= self.plan.length_m - 1e-6)
+        if self._augmented:
+            f_act = self._rotors_est if rotor_forces_n is None else np.asarray(rotor_forces_n, float)
+            if f_act is None:
+                f_act = self.mixer_inverse @ u_here
+            u = ubar - K[:, :11] @ w - K[:, 11:] @ (self._mixer @ f_act - u_here)
+        else:
+            u = ubar - K @ w
+        rotors = self.mixer_inverse @ u
+        if self._augmented:
+            base = self._rotors_est if self._rotors_est is not None else rotors
+            self._rotors_est = rotors + (base - rotors) * self._decay
+        return RegulatorOutput(s, w, u, rotors, proj.in_tube, s >= self.plan.length_m - 1e-6)

@@ -35,9 +35,10 @@ __all__ = ["NW", "transverse_rhs", "transverse_jacobians", "transverse_coordinat
 NW = 11
 
 
-def transverse_rhs(model: QuadrotorModel, F, k, xbar, ubar, dxbar, w, uw):
+def transverse_rhs(model: QuadrotorModel, F, k, xbar, ubar, dxbar, w, uw, with_sdot: bool = False):
     """F(s, w, u_w) for a batch: F (N,3,3), k (N,2), xbar (N,12), ubar (N,4),
-    dxbar (N,12) = x-bar'(s), w (N,11), uw (N,4). Returns (N,11). Complex-safe."""
+    dxbar (N,12) = x-bar'(s), w (N,11), uw (N,4). Returns (N,11), and ds/dt (N,) too with
+    ``with_sdot``. Complex-safe."""
     x_r = xbar[:, 3:] + w[:, 2:]           # angles, body velocity, body rates
     u = ubar + uw
     R = rpy_to_matrix(x_r[:, 0], x_r[:, 1], x_r[:, 2])   # (3,3,N)
@@ -50,7 +51,7 @@ def transverse_rhs(model: QuadrotorModel, F, k, xbar, ubar, dxbar, w, uw):
     out[:, 0] = np.sum(m1 * Rv, axis=1) / sdot
     out[:, 1] = np.sum(m2 * Rv, axis=1) / sdot
     out[:, 2:] = fr / sdot[:, None] - dxbar[:, 3:]
-    return out
+    return (out, sdot) if with_sdot else out
 
 
 def transverse_jacobians(model: QuadrotorModel, F, k, xbar, ubar, dxbar):

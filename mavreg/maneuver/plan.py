@@ -15,6 +15,7 @@ import numpy as np
 from ..config.controller import ControllerParams
 from ..config.maneuver import ManeuverSpec, load_maneuver, load_maneuver_text
 from ..config.vehicle import VehicleParams
+from ..control.actuator import augmented_jacobians
 from ..control.riccati import care, periodic_riccati, sweep_backward
 from ..control.transverse import transverse_jacobians
 from ..errors import ManeuverError
@@ -34,7 +35,10 @@ __all__ = ["Plan", "plan_spec", "plan_file", "plan_text", "segment_starts", "seg
 class Plan:
     """A planned maneuver: nominal x(s), u(s), gains K(s) on a common grid of s.
 
-    ``dx`` is dx/ds = f(x, u)/v, used for Hermite interpolation of the nominal.
+    ``dx`` is dx/ds = f(x, u)/v, used for Hermite interpolation of the nominal. ``K`` is
+    (N, 4, 11) for the paper's design, or (N, 4, 15) when the rotor lag is in the design
+    (``rotor_time_constant_s`` > 0): the last four columns act on the achieved wrench's
+    deviation from the nominal (:mod:`mavreg.control.actuator`).
     """
 
     name: str
@@ -50,6 +54,8 @@ class Plan:
     terminal: str
     laps: int
     laps_segment: str | None
+    rotor_time_constant_s: float = 0.0
+    """The rotor lag the gains were designed with (0: the paper's design)."""
 
     @property
     def length_m(self) -> float:
@@ -182,7 +188,8 @@ def plan_spec(spec: ManeuverSpec, vehicle: VehicleParams, controller: Controller
     path = build_path(spec)
     speed, yaw = build_profiles(spec, path)
     s = _time_grid(path, speed, controller.riccati_step_s)
-    F, k, x, u, dx, v = _nominal(model, path, speed, yaw, s)
+    nominal = _nominal(model, path, speed, yaw, s)
+    _, _, x, u, dx, v = nominal
     rotors = u @ mixer.inverse.T
     feas = check_feasibility(s, u, rotors, v, vehicle.max_rotor_thrust_n,
                              spec.limits.min_speed_m_s, lambda q: path.segment_at(q).name)
@@ -193,25 +200,53 @@ def plan_spec(spec: ManeuverSpec, vehicle: VehicleParams, controller: Controller
             raise ManeuverError(f"maneuver {spec.name!r} is infeasible: " + "; ".join(feas.violations))
         return Plan(spec.name, path, vehicle, s, x, dx, u, np.zeros((len(s), 4, 11)), v, feas,
                     "none (infeasible)", laps, laps_seg)
-    K, terminal = _gains(model, path, speed, yaw, s, F, k, x, u, dx, controller, spec)
-    return Plan(spec.name, path, vehicle, s, x, dx, u, K, v, feas, terminal, laps, laps_seg)
+    tau = vehicle.rotor_time_constant_s if controller.rotor_lag_in_design else 0.0
+    if controller.rotor_lag_in_design and not tau > 0:
+        raise ManeuverError("the controller puts the rotor lag in the design "
+                            "(rotor_lag_in_design: true) but the vehicle file's "
+                            "rotor_time_constant_s is 0")
+    K, terminal = _gains(model, path, speed, yaw, s, controller, spec, tau, nominal)
+    return Plan(spec.name, path, vehicle, s, x, dx, u, K, v, feas, terminal, laps, laps_seg, tau)
 
 
-def _linearization(model, path, speed, yaw, s):
-    F, k, x, u, dx, _ = _nominal(model, path, speed, yaw, s)
-    return transverse_jacobians(model, F, k, x, u, dx)
+def _du_ds(u: np.ndarray, s: np.ndarray, periodic: bool) -> tuple[np.ndarray, np.ndarray]:
+    """du/ds at the nodes (second order, non-uniform) and at the interval midpoints."""
+    h = np.diff(s)
+    mid = np.diff(u, axis=0) / h[:, None]
+    nodes = np.gradient(u, s, axis=0, edge_order=2)
+    if periodic:      # node 0 and node N-1 are the same point of the lap
+        nodes[0] = nodes[-1] = (u[1] - u[-2]) / (h[0] + h[-1])
+    return nodes, mid
 
 
-def _gains(model, path, speed, yaw, s, F, k, x, u, dx, controller, spec):
-    Q, R = np.diag(controller.q), np.diag(controller.r)
-    A, B = transverse_jacobians(model, F, k, x, u, dx)
-    Am, Bm = _linearization(model, path, speed, yaw, (s[:-1] + s[1:]) / 2)
+def _linearization(model, path, speed, yaw, s, tau: float, periodic: bool = False, nominal=None):
+    """(A, B) at the nodes ``s`` and at their midpoints; augmented with the rotor lag when
+    ``tau`` > 0. ``nominal``: :func:`_nominal` at ``s``, if already computed."""
+    mids = (s[:-1] + s[1:]) / 2
+    F, k, x, u, dx, v = nominal if nominal is not None else _nominal(model, path, speed, yaw, s)
+    Fm, km, xm, um, dxm, vm = _nominal(model, path, speed, yaw, mids)
+    if tau <= 0:
+        return (*transverse_jacobians(model, F, k, x, u, dx),
+                *transverse_jacobians(model, Fm, km, xm, um, dxm))
+    du, dum = _du_ds(u, s, periodic)
+    return (*augmented_jacobians(model, tau, F, k, x, u, dx, du, v),
+            *augmented_jacobians(model, tau, Fm, km, xm, um, dxm, dum, vm))
+
+
+def _weights(controller: ControllerParams, tau: float) -> tuple[np.ndarray, np.ndarray]:
+    q = controller.q if tau <= 0 else np.concatenate([controller.q, controller.q_wrench])
+    return np.diag(q), np.diag(controller.r)
+
+
+def _gains(model, path, speed, yaw, s, controller, spec, tau, nominal):
+    Q, R = _weights(controller, tau)
+    A, B, Am, Bm = _linearization(model, path, speed, yaw, s, tau, nominal=nominal)
     last = spec.segments[-1]
     try:
         if spec.laps is not None and spec.laps.segment == last.name:
             # The maneuver ends going round: the terminal condition is the periodic solution.
             terminal = "periodic (the last lap repeats)"
-            P_T = _periodic_terminal(model, path, speed, yaw, _lap_length(last), controller, Q, R)
+            P_T = _periodic_terminal(model, path, speed, yaw, _lap_length(last), controller, Q, R, tau)
         else:
             terminal = "steady (CARE at the end)"
             P_T, _ = care(A[-1], B[-1], Q, R)
@@ -229,7 +264,7 @@ def _lap_length(seg) -> float:
     return 2 * np.pi * float(np.hypot(shp.radius_m, shp.pitch_m / (2 * np.pi)))
 
 
-def _periodic_terminal(model, path, speed, yaw, lap_m, controller, Q, R):
+def _periodic_terminal(model, path, speed, yaw, lap_m, controller, Q, R, tau):
     """P at the end of a path whose last lap repeats: the periodic solution over that lap.
 
     The lap gets a grid of its own, whose first and last nodes are one lap apart, so that
@@ -241,8 +276,7 @@ def _periodic_terminal(model, path, speed, yaw, lap_m, controller, Q, R):
     v = float(speed.evaluate([s1])[0][0])
     n = max(16, int(np.ceil(lap_m / (v * controller.riccati_step_s)))) + 1
     grid = np.linspace(s0, s1, n)
-    A, B = _linearization(model, path, speed, yaw, grid)
-    Am, Bm = _linearization(model, path, speed, yaw, (grid[:-1] + grid[1:]) / 2)
+    A, B, Am, Bm = _linearization(model, path, speed, yaw, grid, tau, periodic=True)
     P, _ = periodic_riccati(A, B, Am, Bm, np.diff(grid), Q, R, step_check="warn")
     return P[-1]
 

@@ -11,10 +11,16 @@ integrated by classical fixed-step RK4 with physics step ``dt_s``. The controlle
 steps (at ``t = k * control_period_steps * dt_s``) and its command is held (zero-order hold)
 until the next call. Between command and plant:
 
-``f_applied = clip(f_command + noise, 0, saturation_n)``, the noise Gaussian with standard
-deviation ``rotor_noise_sd_n`` per rotor, drawn from a seeded ``numpy.random.Generator``
-either once per control period (``noise_redraw="control"``: the propellers' error is held
-with the command) or every physics step (``"physics"``). Rotor forces are never negative.
+``f_applied = clip(lag(f_command) + noise, 0, saturation_n)``: the command (clipped to
+[0, saturation_n]) passes a first-order lag of time constant ``rotor_time_constant_s``
+(exact for a held command; the physics step uses the lagged force's mean over the step),
+then Gaussian noise of standard deviation ``rotor_noise_sd_n`` per rotor, drawn from a
+seeded ``numpy.random.Generator`` either once per control period (``noise_redraw="control"``:
+the propellers' error is held with the command) or every physics step (``"physics"``).
+Rotor forces are never negative.
+
+Delays (rounded to whole physics steps): the controller called at ``t`` sees the state of
+``t - measurement_delay_s``, and its command reaches the rotors at ``t + command_delay_s``.
 
 The plant may differ from the design (``SimOptions.inertia_kg_m2``): the controller is
 whatever the caller designed, the plant is the model with that inertia. Exit status, like
@@ -72,6 +78,12 @@ class SimOptions:
     """Seed of the noise generator when no ``rng`` is passed to :func:`simulate`."""
     saturation_n: Optional[float] = None
     """Per-rotor upper limit; None: none. The lower limit is always 0."""
+    rotor_time_constant_s: float = 0.0
+    """First-order lag of each rotor's force (0: ideal rotors, the design model's eq 34)."""
+    measurement_delay_s: float = 0.0
+    """Age of the state the controller is given."""
+    command_delay_s: float = 0.0
+    """Time from a controller call to its command reaching the rotors."""
     force_fn: Optional[ForceFn] = None
     """External force ``force_fn(t, x) -> (3,)`` in NED (N), evaluated at the start of each
     physics step and held over it (exact for windows on the step grid; first order in dt
@@ -107,6 +119,10 @@ class SimOptions:
             raise ValueError(f"noise_redraw must be 'control' or 'physics', not {self.noise_redraw!r}")
         if self.saturation_n is not None and not self.saturation_n > 0.0:
             raise ValueError(f"saturation_n must be positive or None, not {self.saturation_n}")
+        for name in ("rotor_time_constant_s", "measurement_delay_s", "command_delay_s"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0.0):
+                raise ValueError(f"{name} must be a finite number >= 0, not {v}")
 
     @property
     def control_period_s(self) -> float:
@@ -219,6 +235,12 @@ def simulate(model: QuadrotorModel, mixer: Mixer, controller: Controller,
 
     x = np.array(opt.initial_state, dtype=float)
     xs[0] = x
+    meas_lag = int(round(opt.measurement_delay_s / dt))
+    cmd_lag = int(round(opt.command_delay_s / dt))
+    pending: list = []                  # (physics step it acts from, command)
+    decay = 0.0 if opt.rotor_time_constant_s <= 0 else float(np.exp(-dt / opt.rotor_time_constant_s))
+    mean_frac = 0.0 if decay == 0.0 else opt.rotor_time_constant_s / dt * (1.0 - decay)
+    lagged = acting = None              # (before the first command: as if it had always acted)
     command = np.zeros(4)
     noise = np.zeros(4)
     applied = np.zeros(4)
@@ -234,18 +256,27 @@ def simulate(model: QuadrotorModel, mixer: Mixer, controller: Controller,
         for i in range(n_steps):
             t = ts[i]
             if i % period == 0:
-                command = np.asarray(controller(t, x.copy()), dtype=float).reshape(4)
+                seen = xs[max(i - meas_lag, 0)].copy()
+                command = np.asarray(controller(t, seen), dtype=float).reshape(4)
                 calls += 1
                 if not np.all(np.isfinite(command)):
                     cmd[i], app[i], last_filled = command, applied, True
                     status, reason, k = (SimStatus.DIVERGED, "controller returned non-finite "
                                          f"rotor forces at t = {t:.6g} s", i)
                     break
+                pending.append((i + cmd_lag, command))
+                if acting is None:
+                    acting = np.clip(command, 0.0, upper)
+                    lagged = acting.copy()
                 if sd > 0.0 and not per_physics:
                     noise = rng.normal(0.0, sd, 4)
+            while pending and pending[0][0] <= i:
+                acting = np.clip(pending.pop(0)[1], 0.0, upper)
+            mean = acting + (lagged - acting) * mean_frac
+            lagged = acting + (lagged - acting) * decay
             if sd > 0.0 and per_physics:
                 noise = rng.normal(0.0, sd, 4)
-            applied = np.clip(command + noise, 0.0, upper)
+            applied = np.clip(mean + noise, 0.0, upper)
             cmd[i] = command
             app[i] = applied
             u = M @ applied

@@ -5,12 +5,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+import dataclasses
+
+from ..control.predictor import StatePredictor
 from ..control.regulator import ManeuverRegulator
+from ..geometry.projection import Projector
 from ..maneuver.plan import Plan
 from ..model.mixer import Mixer
 from ..model.quadrotor import QuadrotorModel
+from ..model.rotation import rpy_to_matrix
 from .closed_loop import SimOptions, SimResult, simulate, window_force
-from .metrics import tracking_metrics
+from .estimate_noise import EstimateCorruptor, EstimateNoise
+from .metrics import rotor_jitter_n, tracking_metrics
 
 __all__ = ["ManeuverRun", "fly_on_design_model"]
 
@@ -30,18 +36,28 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
                         rotor_noise_sd_n: float = 0.0, saturation_n: float | None = None,
                         seed: int | None = None, control_rate_hz: float = 1000.0,
                         dt_s: float = 0.001, extra_time_s: float = 5.0,
-                        gust_force_n=None, gust_window_s=(0.0, 0.0)) -> ManeuverRun:
+                        gust_force_n=None, gust_window_s=(0.0, 0.0),
+                        rotor_time_constant_s: float = 0.0, measurement_delay_s: float = 0.0,
+                        command_delay_s: float = 0.0, estimate_noise: EstimateNoise | None = None,
+                        predict: bool = False, assumed_delay_s: float | None = None) -> ManeuverRun:
     """Start at the nominal entry state plus ``offset_m`` and fly to the end of the path.
 
     The plant may differ from the design (``inertia_kg_m2``); the controller always uses
     the plan's nominal design. ``gust_force_n`` (NED, N) pushes on the vehicle during
     ``gust_window_s`` = (t0, t1). Stops when s reaches the end, or after the nominal duration
     plus ``extra_time_s``.
+
+    A realistic loop: the rotors lag by ``rotor_time_constant_s`` (the controller knows it:
+    its feedforward leads by it, and lag-aware gains use it); the controller sees the state
+    ``measurement_delay_s`` late, corrupted by ``estimate_noise`` (seeded by ``seed``), and
+    its command reaches the rotors ``command_delay_s`` later. With ``predict`` it first
+    predicts the state across ``assumed_delay_s`` (default: the true round trip) with
+    :class:`~mavreg.control.predictor.StatePredictor`.
     """
     vehicle = plan.vehicle
-    # The design model's rotors are ideal (eq 34): no lag to lead.
-    reg = ManeuverRegulator(plan, vehicle, control_period_s=1.0 / control_rate_hz,
-                            rotor_time_constant_s=0.0)
+    period = 1.0 / control_rate_hz
+    reg = ManeuverRegulator(plan, vehicle, control_period_s=period,
+                            rotor_time_constant_s=rotor_time_constant_s)
     x0 = plan.entry_state
     x0[:3] += np.asarray(offset_m, dtype=float)
     reg.reset(x0)
@@ -50,9 +66,26 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
         raise ValueError(f"control rate {control_rate_hz} Hz is not a whole number of "
                          f"{dt_s * 1e3:g} ms physics steps")
     log_s, log_w, log_tube = [], [], []
+    rng = np.random.default_rng(seed)
+    corrupt = None if estimate_noise is None else EstimateCorruptor(estimate_noise, period, rng)
+    horizon = measurement_delay_s + command_delay_s if assumed_delay_s is None else assumed_delay_s
+    predictor = None
+    if predict:
+        predictor = StatePredictor(dataclasses.replace(vehicle, rotor_time_constant_s=rotor_time_constant_s),
+                                   max_step_s=period)
+        predictor.reset(reg.mixer_inverse @ plan.u[0])
 
     def controller(t, x):
-        out = reg.step(x)
+        R = None
+        if corrupt is not None:
+            x, R = corrupt(x)
+        if predictor is not None:
+            t_sample = t - measurement_delay_s
+            pred = predictor.predict(t_sample, x, rpy_to_matrix(*x[3:6]) if R is None else R, horizon)
+            out = reg.step(pred.x, pred.rotor_forces_n)
+            predictor.record(t_sample, out.rotor_forces_n)
+        else:
+            out = reg.step(x)
         log_s.append(out.s)
         log_w.append(out.w)
         log_tube.append(out.in_tube)
@@ -62,6 +95,8 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
     opts = SimOptions(initial_state=tuple(x0), dt_s=dt_s, control_period_steps=steps,
                       max_duration_s=duration, inertia_kg_m2=inertia_kg_m2,
                       rotor_noise_sd_n=rotor_noise_sd_n, seed=seed, saturation_n=saturation_n,
+                      rotor_time_constant_s=rotor_time_constant_s,
+                      measurement_delay_s=measurement_delay_s, command_delay_s=command_delay_s,
                       force_fn=None if gust_force_n is None else window_force(gust_force_n, *gust_window_s),
                       done=lambda t, x: reg.s >= plan.length_m - 1e-6)
     result = simulate(QuadrotorModel.from_vehicle(vehicle),
@@ -72,8 +107,30 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
     metrics = tracking_metrics(s, w, plan.segments, rotor_forces_n=rotors,
                                max_rotor_thrust_n=saturation_n or vehicle.max_rotor_thrust_n,
                                dt_s=steps * dt_s)
+    metrics["true"] = true_transverse_errors(plan, result.x[:, :3])
+    metrics["rotor_jitter_n"] = rotor_jitter_n(rotors, control_rate_hz)
     metrics = {"stable": result.status.value != "diverged",
                "completed": result.status.value == "completed",
                "status": result.status.value, "reason": result.reason,
                "always_in_tube": bool(np.all(log_tube)), **metrics}
     return ManeuverRun(result, s, w, np.array(log_tube), metrics)
+
+
+def true_transverse_errors(plan: Plan, positions_m) -> dict:
+    """Max and RMS distance of true positions (K, 3) from the path, per segment, for the
+    samples whose nearest point lies inside the path (0 < s < length)."""
+    proj = Projector(plan.path)
+    pts = np.asarray(positions_m, dtype=float)
+    s_all, e_all = [], []
+    for i, p in enumerate(pts):
+        pr = proj.reset(p, 0.0) if i == 0 else proj.update(p)
+        if 0.0 < pr.s < plan.length_m:
+            s_all.append(pr.s)
+            e_all.append(pr.distance_m)
+    s_arr, e_arr = np.array(s_all), np.array(e_all)
+    out = {"max_m": float(e_arr.max()) if e_arr.size else None, "segments": {}}
+    for name, a, b in plan.segments:
+        e = e_arr[(s_arr >= a) & (s_arr < b)]
+        out["segments"][name] = ({"max_m": float(e.max()), "rms_m": float(np.sqrt(np.mean(e * e)))}
+                                 if e.size else None)
+    return out

@@ -23,7 +23,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-__all__ = ["tracking_metrics", "SATURATION_RTOL"]
+__all__ = ["tracking_metrics", "SATURATION_RTOL", "rotor_jitter_n", "JITTER_CUTOFF_HZ"]
 
 SATURATION_RTOL = 1e-9
 """A rotor counts as saturated when its force is at least ``(1 - 1e-9) * max thrust``."""
@@ -142,3 +142,22 @@ def tracking_metrics(s, w, segments: Sequence[tuple[str, float, float]],
                       "samples": int(np.count_nonzero(mask))})
         out["segments"][name] = block
     return out
+
+
+JITTER_CUTOFF_HZ = 20.0
+"""Rotor-command jitter is the part above this frequency: a maneuver's own rotor profile
+(loops of ~1 s, blends of ~0.4 s) lies well below it; estimator noise fed back lies above."""
+
+
+def rotor_jitter_n(rotor_forces_n, sample_rate_hz: float, cutoff_hz: float = JITTER_CUTOFF_HZ) -> float:
+    """Standard deviation (N) of the high-pass part of rotor commands (N, 4), worst rotor.
+
+    The high pass is a 4th-order Butterworth at ``cutoff_hz``, run forward and backward
+    (``scipy.signal.sosfiltfilt``), so a 3 Hz maneuver component leaks by under 1e-3.
+    """
+    from scipy.signal import butter, sosfiltfilt
+    f = np.asarray(rotor_forces_n, dtype=float)
+    if f.shape[0] < 64 or cutoff_hz >= sample_rate_hz / 2:
+        return 0.0
+    sos = butter(4, cutoff_hz, btype="highpass", fs=sample_rate_hz, output="sos")
+    return float(np.max(np.std(sosfiltfilt(sos, f, axis=0), axis=0)))

@@ -1,0 +1,63 @@
+r"""Rotor lag in the transverse linearization: the state augmented with the achieved wrench.
+
+Real rotors do not produce the commanded force at once: each follows its command with a
+first-order lag of time constant :math:`\tau` (20-50 ms for brushless motors with 10-inch
+propellers). With the same :math:`\tau` on every rotor the lag commutes with the mixer of
+eq 34, so the wrench :math:`u_a = (f, \gamma)` the rotors actually produce obeys
+:math:`\dot u_a = (u_c - u_a)/\tau` for the commanded wrench :math:`u_c`.
+
+The nominal command that makes the lagged wrench follow :math:`\bar u(s)` is
+:math:`\bar u + \tau\,\dot{\bar u} = \bar u + \tau v \bar u'(s)` (the feedforward lead of
+:class:`~mavreg.control.regulator.ManeuverRegulator`). With :math:`a = u_a - \bar u(s)` and
+:math:`u_c = \bar u + \tau v \bar u' + \nu`, :math:`\dot a = \dot u_a - \bar u'\dot s`, and in s
+
+.. math::
+    a' = \frac{\tau v \bar u' + \nu - a}{\tau \dot s(w)} - \bar u'(s),\qquad
+    w' = F(s, w, a),
+
+where :math:`F` is the transverse system of :mod:`~mavreg.control.transverse` driven by the
+*achieved* wrench deviation. At :math:`(w, a, \nu) = 0`, :math:`\dot s = v` and the right
+side vanishes. The linearization in :math:`z = (w, a) \in \mathbb R^{15}` and :math:`\nu`
+keeps :math:`\dot s(w)`:
+
+.. math::
+    A_z = \begin{bmatrix} A & B \\ -\bar u' \,\partial_w \dot s / v & -I/(\tau v)\end{bmatrix},
+    \qquad B_z = \begin{bmatrix} 0 \\ I/(\tau v)\end{bmatrix}.
+
+An LQR on :math:`(A_z, B_z)` knows that its command acts through the lag, instead of assuming
+an instantaneous wrench and only leading the feedforward.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..model.linearize import complex_step_jacobian
+from ..model.quadrotor import QuadrotorModel
+from .transverse import NW, transverse_rhs
+
+__all__ = ["NZ", "augmented_rhs", "augmented_jacobians"]
+
+NZ = NW + 4
+
+
+def augmented_rhs(model: QuadrotorModel, tau_s: float, F, k, xbar, ubar, dxbar, dubar, speed,
+                  z, nu):
+    """z' for a batch: z (N,15) = (w, a), nu (N,4) commanded wrench deviation, dubar (N,4)
+    = u-bar'(s), speed (N,) nominal v(s). Returns (N,15). Complex-safe."""
+    w, a = z[:, :NW], z[:, NW:]
+    wdot, sdot = transverse_rhs(model, F, k, xbar, ubar, dxbar, w, a, with_sdot=True)
+    lead = tau_s * speed[:, None] * dubar
+    adot = (lead + nu - a) / (tau_s * sdot[:, None]) - dubar
+    return np.concatenate([wdot, adot], axis=1)
+
+
+def augmented_jacobians(model: QuadrotorModel, tau_s: float, F, k, xbar, ubar, dxbar, dubar, speed):
+    """A_z (N,15,15) and B_z (N,15,4) at z = 0, nu = 0, by complex step."""
+    if not tau_s > 0:
+        raise ValueError(f"the rotor time constant must be positive, got {tau_s}")
+    z0 = np.zeros((len(xbar), NZ))
+    n0 = np.zeros((len(xbar), 4))
+    args = (model, tau_s, F, k, xbar, ubar, dxbar, dubar, speed)
+    A = complex_step_jacobian(lambda z: augmented_rhs(*args, z, n0), z0)
+    B = complex_step_jacobian(lambda nu: augmented_rhs(*args, z0, nu), n0)
+    return A, B
