@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .envelope import EnvelopeParams
 from .loader import load_file
 
 __all__ = ["ControllerParams", "load_controller"]
@@ -35,6 +36,8 @@ class ControllerParams:
     """The hover controller's position weights (N, E, D); its other weights are the above."""
     riccati_step_s: float = field(default=0.001, metadata={"min_exclusive": 0.0, "max": 0.01})
     """Step of the Riccati sweep, in nominal time (the s-step is speed times this)."""
+    envelope: EnvelopeParams = field(default_factory=EnvelopeParams)
+    """The flight envelope the daemon holds flights to (:mod:`mavreg.config.envelope`)."""
     rotor_lag_in_design: bool = False
     """Design the LQR on the transverse state augmented with the wrench the rotors achieve
     through their first-order lag (``rotor_time_constant_s`` of the vehicle file; see

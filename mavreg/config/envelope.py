@@ -1,0 +1,184 @@
+"""The flight envelope: the bounds the daemon holds a flight to, and how it recovers.
+
+Nested in the controller YAML as an optional ``envelope:`` section (every key optional;
+a phase's bounds, when given, are given whole). Every default is the choice of a careful
+pilot, with its reason next to it; docs/safety.md states them all with the figures they
+were checked against: the clean barrel roll in lockstep and in real time, and a hover
+with an estimator's noise (5 mm position, 2 cm/s velocity), a 12 ms delay and 1 % loss,
+none of which comes near any bound.
+
+Frames and units: NED, SI inside; angles are radians inside and degrees in the YAML
+(``max_attitude_error_deg`` for ``max_attitude_error_rad``). Altitudes and the geofence
+are relative to the take-off point.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+__all__ = ["PhaseBounds", "GateParams", "RecoveryParams", "EnvelopeParams"]
+
+_POS = {"min_exclusive": 0.0}
+_SHARE = {"min": 0.0, "max": 1.0}
+_DEG = {"deg": True, "min_exclusive": 0.0, "max": 180.0}
+
+
+@dataclass(frozen=True)
+class PhaseBounds:
+    """Tracking bounds of one flight phase (given whole in the YAML: no partial defaults).
+
+    In the maneuver the position error is the distance from the path, ``|(w1, w2)|``;
+    elsewhere the distance from the hover LQR's reference point. The attitude error is
+    the angle of the rotation from the reference attitude to the vehicle's (from rotation
+    matrices, valid at any attitude). The rate error is ``|omega - omega_ref|``.
+    """
+
+    max_position_error_m: float = field(metadata=_POS)
+    max_attitude_error_rad: float = field(metadata=_DEG)
+    max_rate_error_rad_s: float = field(metadata=_POS)
+    max_saturated_share: float = field(metadata=_SHARE)
+    """Largest share of control steps with a rotor command clipped (at 0 or at the
+    maximum) over ``EnvelopeParams.saturation_window_s``."""
+
+
+_TAKEOFF = PhaseBounds(1.0, math.radians(20.0), 2.0, 0.2)
+_HOLD = PhaseBounds(0.5, math.radians(15.0), 1.5, 0.2)
+_RUN_IN = PhaseBounds(0.5, math.radians(20.0), 2.0, 0.2)
+_MANEUVER = PhaseBounds(0.5, math.radians(30.0), 3.0, 0.5)
+_LAND = PhaseBounds(0.5, math.radians(15.0), 1.5, 0.2)
+
+
+@dataclass(frozen=True)
+class GateParams:
+    """The health gate: what the hold before ``run_in`` must show before a maneuver starts."""
+
+    window_s: float = field(default=1.0, metadata=_POS)
+    """The gate judges the last second of the hold (after the move to the hold point)."""
+    max_position_error_m: float = field(default=0.15, metadata=_POS)
+    """A hover LQR that cannot hold its point within 15 cm will not hand a clean entry to
+    the regulator (clean holds: under 1 cm)."""
+    max_attitude_error_rad: float = field(default=math.radians(5.0), metadata=_DEG)
+    """A level hover is level: 5 deg is far above an estimator's attitude noise."""
+    max_rotor_hp_sd_n: float = field(default=0.5, metadata=_POS)
+    """High-pass SD of each rotor command (first differences / sqrt 2): chattering.
+    Estimator noise gives about 0.15 N (unit test); 0.5 N is about 4 % of the rotor."""
+    max_thrust_ratio_error: float = field(default=0.2, metadata=_POS)
+    """``|mean collective command / design weight - 1|``: the plan's feasibility was
+    checked on the design mass; a hold that needs 20 % more thrust has lost that margin
+    (a heavier vehicle or weaker rotors)."""
+    timeout_s: float = field(default=5.0, metadata=_POS)
+    """How long the hold may take to pass the gate before the maneuver is refused."""
+    max_link_delay_s: float = field(default=0.04, metadata=_POS)
+    """Round-trip delay the regulator tolerates: it leads its feedforward only by the rotor
+    lag and half a control period; 40 ms at 8 m/s is 0.32 m of unmodelled travel."""
+    max_link_jitter_s: float = field(default=0.01, metadata=_POS)
+    """Delay jitter (SD) the regulator tolerates: 5 control periods at 500 Hz."""
+
+
+@dataclass(frozen=True)
+class RecoveryParams:
+    """The recovery controller (:mod:`mavreg.control.recovery`) and its success criteria."""
+
+    safe_altitude_m: float = field(default=3.0, metadata=_POS)
+    """Climb to at least this altitude above the take-off point, then hold."""
+    max_tilt_rad: float = field(default=math.radians(35.0), metadata={"deg": True, "min_exclusive": 0.0,
+                                                                    "max": 80.0})
+    """Largest tilt of the desired thrust direction: keeps 80 % of the thrust vertical."""
+    max_climb_m_s: float = field(default=2.0, metadata=_POS)
+    max_descent_m_s: float = field(default=1.0, metadata=_POS)
+    max_hold_speed_m_s: float = field(default=1.0, metadata=_POS)
+    """Horizontal speed while returning to the point where braking ended."""
+    max_accel_up_m_s2: float = field(default=8.0, metadata=_POS)
+    max_accel_down_m_s2: float = field(default=4.0, metadata={"min_exclusive": 0.0, "max": 9.0})
+    """Desired downward acceleration, well under g so the thrust never points down."""
+    position_gain_1_s: float = field(default=1.0, metadata=_POS)
+    velocity_gain_1_s: float = field(default=3.0, metadata=_POS)
+    integral_gain_1_s: float = field(default=0.5, metadata={"min": 0.0})
+    """Integral of the vertical velocity error: a vehicle heavier than the design still
+    reaches its altitude (bias bounded by ``max_accel_down_m_s2``)."""
+    attitude_bandwidth_rad_s: float = field(default=12.0, metadata=_POS)
+    """Roll/pitch natural frequency on the design inertia (3x the inertia still leaves
+    7 rad/s, damped 0.46)."""
+    attitude_damping: float = field(default=0.8, metadata=_POS)
+    yaw_bandwidth_rad_s: float = field(default=3.0, metadata=_POS)
+    """Yaw is weak (drag torque): a slower loop that rarely saturates."""
+    brake_speed_m_s: float = field(default=0.5, metadata=_POS)
+    """Braking ends (and the horizontal hold point is set) below this horizontal speed."""
+    settled_tilt_rad: float = field(default=math.radians(10.0), metadata=_DEG)
+    settled_speed_m_s: float = field(default=0.5, metadata=_POS)
+    settled_altitude_error_m: float = field(default=0.5, metadata=_POS)
+    settle_s: float = field(default=1.0, metadata=_POS)
+    """Recovered: level, slow and at the safe altitude for this long."""
+    timeout_s: float = field(default=8.0, metadata=_POS)
+    """Not recovered within this time (vehicle time): the motors are stopped. From
+    inverted at 8 m/s the controller settles in about 3 s (unit test)."""
+    geofence_margin_m: float = field(default=10.0, metadata={"min": 0.0})
+    """The geofence grows by this much during a recovery: braking from 8 m/s takes 5 m."""
+    max_recoveries: int = field(default=2, metadata={"min": 0})
+    """Recoveries per flight; one more violation stops the motors."""
+
+
+@dataclass(frozen=True)
+class EnvelopeParams:
+    """Every bound of the envelope monitor, the gate and the recovery (see docs/safety.md)."""
+
+    takeoff: PhaseBounds = field(default_factory=lambda: _TAKEOFF)
+    """Looser in position: the climb's reference runs ahead of a vehicle that lifts late."""
+    hold: PhaseBounds = field(default_factory=lambda: _HOLD)
+    run_in: PhaseBounds = field(default_factory=lambda: _RUN_IN)
+    maneuver: PhaseBounds = field(default_factory=lambda: _MANEUVER)
+    """0.5 m: a third of the barrel roll's radius, 100x the clean flight's 0.4 cm; the
+    LQR was linearized about the path. 30 deg and 3 rad/s leave the same kind of margin;
+    saturation half of the time is allowed (the paper's runs saturate at 7 N)."""
+    land: PhaseBounds = field(default_factory=lambda: _LAND)
+    min_altitude_m: float = field(default=1.0, metadata=_POS)
+    """Altitude floor in hold, run-in and maneuver: 1 m leaves room to brake from a
+    2 m/s descent at 2 m/s^2. A plan that goes lower is refused at the gate."""
+    geofence_half_width_m: tuple[float, ...] = field(default=(50.0, 50.0), metadata={"length": 2, **_POS})
+    """North and east half-widths of the box around the take-off point."""
+    geofence_ceiling_m: float = field(default=30.0, metadata=_POS)
+    max_body_rate_rad_s: float = field(default=20.0, metadata=_POS)
+    """Absolute, every phase (recovery too): 1150 deg/s is a tumble (the barrel roll
+    peaks at about 6 rad/s)."""
+    tube_exit_s: float = field(default=0.05, metadata=_POS)
+    """The projection on the path not unique for this long: s is no longer meaningful."""
+    min_progress_m_s: float = field(default=0.05, metadata={"min": 0.0})
+    """ds/dt below this counts as stuck (plans fly at 0.2 m/s or more)."""
+    max_stall_s: float = field(default=1.0, metadata=_POS)
+    progress_window_s: float = field(default=0.2, metadata=_POS)
+    """ds/dt is measured over this window (estimator noise averages out)."""
+    saturation_window_s: float = field(default=0.5, metadata=_POS)
+    impact_altitude_m: float = field(default=0.2, metadata=_POS)
+    """'At the ground' for the impact detector (an estimate's altitude error is cm)."""
+    impact_descent_m_s: float = field(default=1.5, metadata=_POS)
+    """Descending faster than this at the ground is an impact (landing sinks at 0.3 m/s)."""
+    impact_speed_m_s: float = field(default=3.0, metadata=_POS)
+    """Moving faster than this at the ground is an impact (the emulator's crash speed)."""
+    impact_accel_m_s2: float = field(default=150.0, metadata=_POS)
+    """An acceleration spike: twice what the rotors and gravity can produce on the design
+    vehicle (4 x 12 N / 0.749 kg + g = 74 m/s^2)."""
+    accel_window_s: float = field(default=0.02, metadata=_POS)
+    """Acceleration is measured from velocities at least this far apart (noise / 10)."""
+    max_position_jump_m: float = field(default=0.25, metadata=_POS)
+    """A position change that the reported velocity does not explain, beyond what the
+    largest acceleration could add: a jump of the estimate."""
+    thrust_window_s: float = field(default=0.1, metadata=_POS)
+    thrust_check_min_ratio: float = field(default=1.2, metadata=_POS)
+    """The thrust check applies while the mean collective command is above this
+    multiple of the design weight."""
+    min_thrust_ratio: float = field(default=0.5, metadata=_SHARE)
+    """Measured thrust (design mass x specific force along body -z) below this share of
+    the commanded: the rotors are not doing what they are told, or the telemetry lies."""
+    thrust_mismatch_s: float = field(default=0.3, metadata=_POS)
+    maneuver_gap_s: float = field(default=0.1, metadata=_POS)
+    """No complete sample for this long in run-in or maneuver (0.8 m of travel at 8 m/s):
+    the regulation is given up for the recovery."""
+    max_touchdown_speed_m_s: float = field(default=1.0, metadata=_POS)
+    """A landing is a landing when the descent at touchdown is under this."""
+    gate: GateParams = field(default_factory=GateParams)
+    recovery: RecoveryParams = field(default_factory=RecoveryParams)
+
+    def bounds(self, phase: str) -> PhaseBounds | None:
+        """The tracking bounds of ``phase`` (None where there are none)."""
+        return {"takeoff": self.takeoff, "hold": self.hold, "run_in": self.run_in,
+                "maneuver": self.maneuver, "land": self.land}.get(phase)
