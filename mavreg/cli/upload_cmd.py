@@ -58,10 +58,13 @@ def run(args) -> int:
         print(json.dumps(resp.get("status", resp), indent=1))
         return 0 if resp.get("ok") else 1
     if args.land:
-        print(resp.get("detail") or resp.get("reason"))
+        print(resp.get("detail") or resp.get("reason") or f"error: {resp.get('error')}")
         return 0 if resp.get("ok") else 1
     if resp.get("ok"):
         print(f"accepted: {resp['detail']}")
         return 0
+    if "error" in resp:   # the daemon failed to handle the request (see its log)
+        print(f"error: {resp['error']}")
+        return 1
     print(f"{resp.get('verdict', 'rejected')}: {resp.get('reason')}")
     return 1

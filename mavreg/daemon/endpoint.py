@@ -14,8 +14,13 @@ Protocol: JSON lines. The client sends **one** request line (UTF-8 JSON object, 
 - ``{"op": "land"}`` -> ``{"ok": true, "detail": "..."}``
 
 A request that is too long, not JSON, not an object, or has an unknown ``op`` or
-missing/extra keys gets ``{"ok": false, "verdict": "refused", "reason": ...}`` and the
-connection is closed.
+missing/extra keys gets ``{"ok": false, "verdict": "refused", "reason": ...}``.
+
+Every request is answered before its connection is closed. A handler that raises (a
+daemon bug, or the planner worker dying) yields ``{"ok": false, "error": "<one line>"}``
+and its traceback in the daemon's log; a request still in progress when the daemon stops
+(e.g. an upload being planned when the flight aborts) yields ``{"ok": false, "error":
+"<why the daemon is stopping>; the request was not completed"}``.
 """
 from __future__ import annotations
 
@@ -24,6 +29,8 @@ import json
 import os
 import socket
 import stat
+import sys
+import traceback
 from pathlib import Path
 from typing import Awaitable, Callable
 
@@ -32,6 +39,7 @@ __all__ = ["MAX_REQUEST_BYTES", "default_socket_path", "validate_request", "Endp
 
 MAX_REQUEST_BYTES = 256 * 1024
 READ_TIMEOUT_S = 10.0
+WRITE_TIMEOUT_S = 5.0
 
 _KEYS = {"upload": {"op", "name", "yaml"}, "status": {"op"}, "land": {"op"}}
 
@@ -72,13 +80,34 @@ def validate_request(line: bytes) -> dict:
 
 
 class EndpointServer:
-    """Serves requests on a Unix socket; ``handler(request) -> response`` does the work."""
+    """Serves requests on a Unix socket; ``handler(request) -> response`` does the work.
 
-    def __init__(self, path: str | Path, handler: Callable[[dict], Awaitable[dict]]):
+    Every connection that sends a request gets exactly one response line before it is
+    closed: the handler's, a refusal (:class:`RequestError`), ``{"ok": false, "error":
+    ...}`` when the handler raised anything else (the traceback goes to ``log``), or
+    ``{"ok": false, "error": "<close reason>; ..."}`` when :meth:`close` interrupted it.
+
+    Parameters
+    ----------
+    path : str or Path
+        Socket path.
+    handler : async callable
+        ``handler(request: dict) -> dict`` (a JSON-ready response).
+    log : callable, optional
+        ``log(text)`` for handler failures (default: stderr).
+    """
+
+    def __init__(self, path: str | Path, handler: Callable[[dict], Awaitable[dict]],
+                 log: Callable[[str], None] | None = None):
         self.path = Path(path)
         self.handler = handler
+        self.log = log if log is not None else (lambda text: print(text, file=sys.stderr, flush=True))
         self._server: asyncio.AbstractServer | None = None
+        self._clients: set[asyncio.Task] = set()
+        self._closing: str | None = None
         self.refused = 0
+        self.errors = 0
+        """Requests whose handler raised (each answered with an error reply)."""
 
     async def start(self) -> None:
         self.path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
@@ -97,39 +126,80 @@ class EndpointServer:
         os.chmod(self.path, 0o600)
 
     async def _client(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        task = asyncio.current_task()
+        self._clients.add(task)
         try:
             try:
-                line = await asyncio.wait_for(reader.readuntil(b"\n"), READ_TIMEOUT_S)
-                req = validate_request(line)
-            except asyncio.LimitOverrunError:
-                raise RequestError(f"request too large (limit {MAX_REQUEST_BYTES} bytes)") from None
-            except asyncio.IncompleteReadError as exc:
-                if len(exc.partial) > MAX_REQUEST_BYTES:
-                    raise RequestError(f"request too large (limit {MAX_REQUEST_BYTES} bytes)") from None
-                raise RequestError("malformed request: no newline-terminated line") from None
-            except asyncio.TimeoutError:
-                raise RequestError(f"no complete request within {READ_TIMEOUT_S:g} s") from None
-            resp = await self.handler(req)
-        except RequestError as exc:
-            self.refused += 1
-            resp = {"ok": False, "verdict": "refused", "reason": str(exc)}
-        try:
-            writer.write((json.dumps(resp) + "\n").encode())
-            await writer.drain()
-        except (ConnectionError, OSError):
-            pass
+                line = await self._respond(reader)
+            except asyncio.CancelledError:
+                # Only close() cancels a client (or the loop's teardown): answer anyway.
+                if hasattr(task, "uncancel"):   # Python >= 3.11
+                    task.uncancel()
+                line = _dump({"ok": False, "error": f"{self._closing or 'the daemon is stopping'}; "
+                                                    "the request was not completed"})
+            try:
+                writer.write(line)
+                await asyncio.wait_for(writer.drain(), WRITE_TIMEOUT_S)
+            except (ConnectionError, OSError, asyncio.TimeoutError, asyncio.CancelledError):
+                pass   # the client left, does not read, or the daemon is going away
         finally:
+            self._clients.discard(task)
             writer.close()
 
-    async def close(self) -> None:
+    async def _respond(self, reader: asyncio.StreamReader) -> bytes:
+        """Read one request and return the response line (never raises but CancelledError)."""
+        op = "?"
+        try:
+            req = await _read_request(reader)
+            op = req["op"]
+            return _dump(await self.handler(req))
+        except RequestError as exc:
+            self.refused += 1
+            return _dump({"ok": False, "verdict": "refused", "reason": str(exc)})
+        except Exception as exc:   # a bug or a failure of the daemon: reply, and log it for developers
+            self.errors += 1
+            self.log(f"endpoint: {op!r} request failed:\n{traceback.format_exc().rstrip()}")
+            return _dump({"ok": False, "error": f"internal error while handling {op!r}: "
+                                                f"{exc.__class__.__name__}: {_one_line(exc)}"})
+
+    async def close(self, reason: str = "the daemon is stopping") -> None:
+        """Stop accepting, answer requests in progress with ``reason``, remove the socket."""
+        self._closing = reason
         if self._server is not None:
             self._server.close()
-            await self._server.wait_closed()
             self._server = None
+        clients = [t for t in self._clients if t is not asyncio.current_task()]
+        for task in clients:
+            task.cancel()
+        await asyncio.gather(*clients, return_exceptions=True)
         try:
             self.path.unlink()
         except FileNotFoundError:
             pass
+
+
+async def _read_request(reader: asyncio.StreamReader) -> dict:
+    try:
+        line = await asyncio.wait_for(reader.readuntil(b"\n"), READ_TIMEOUT_S)
+    except asyncio.LimitOverrunError:
+        raise RequestError(f"request too large (limit {MAX_REQUEST_BYTES} bytes)") from None
+    except asyncio.IncompleteReadError as exc:
+        if len(exc.partial) > MAX_REQUEST_BYTES:
+            raise RequestError(f"request too large (limit {MAX_REQUEST_BYTES} bytes)") from None
+        raise RequestError("malformed request: no newline-terminated line") from None
+    except asyncio.TimeoutError:
+        raise RequestError(f"no complete request within {READ_TIMEOUT_S:g} s") from None
+    return validate_request(line)
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    return text[:300] + ("..." if len(text) > 300 else "") if text else "(no message)"
+
+
+def _dump(resp: dict) -> bytes:
+    """One JSON line; a response that does not serialize raises TypeError/ValueError."""
+    return (json.dumps(resp) + "\n").encode()
 
 
 def _someone_listening(path: Path) -> bool:

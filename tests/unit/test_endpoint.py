@@ -104,3 +104,64 @@ def test_refuses_to_replace_a_live_socket_or_a_file(tmp_path):
         with pytest.raises(ValueError, match="not a socket"):
             await EndpointServer(path, None).start()
     asyncio.run(main())
+
+
+def _serve_with(tmp_path, handler, client_fn):
+    """Run ``client_fn(path)`` in a thread against a server with ``handler``; returns (result, server, log)."""
+    path = tmp_path / "s" / "mavreg.sock"
+    log: list[str] = []
+
+    async def main():
+        server = EndpointServer(path, handler, log.append)
+        await server.start()
+        try:
+            return await asyncio.get_running_loop().run_in_executor(None, client_fn, path), server
+        finally:
+            await server.close()
+    result, server = asyncio.run(main())
+    return result, server, log
+
+
+def test_handler_exception_gets_an_error_reply_and_the_server_keeps_serving(tmp_path):
+    async def handler(req):
+        if req["op"] == "land":
+            raise KeyError("no such thing\nsecond line")
+        if req["op"] == "upload":
+            return {"ok": True, "not json": object()}   # a response that does not serialize
+        return {"ok": True, "echo": req["op"]}
+
+    def client(path):
+        return [request(path, {"op": "land"}, 10), request(path, {"op": "upload", "name": "a", "yaml": ""}, 10),
+                request(path, {"op": "status"}, 10)]
+    (r_land, r_upload, r_status), server, log = _serve_with(tmp_path, handler, client)
+    assert r_land["ok"] is False and "KeyError" in r_land["error"] and "\n" not in r_land["error"]
+    assert "'land'" in r_land["error"]
+    assert r_upload["ok"] is False and "TypeError" in r_upload["error"]
+    assert r_status == {"ok": True, "echo": "status"}
+    assert server.errors == 2 and server.refused == 0
+    # developers get the tracebacks
+    assert len(log) == 2 and all("Traceback (most recent call last)" in t for t in log)
+    assert "KeyError" in log[0] and "TypeError" in log[1]
+
+
+def test_request_in_progress_when_the_server_closes_gets_the_reason(tmp_path):
+    path = tmp_path / "s" / "mavreg.sock"
+    started = asyncio.Event()
+
+    async def handler(req):
+        started.set()
+        await asyncio.sleep(60)   # an upload being planned
+        return {"ok": True}
+
+    async def main():
+        server = EndpointServer(path, handler, lambda text: None)
+        await server.start()
+        loop = asyncio.get_running_loop()
+        pending = loop.run_in_executor(None, request, path, {"op": "upload", "name": "a", "yaml": ""}, 30)
+        await asyncio.wait_for(started.wait(), 10)
+        await server.close("the daemon is stopping (phase aborted; stale state)")
+        return await pending
+    resp = asyncio.run(main())
+    assert resp == {"ok": False, "error": "the daemon is stopping (phase aborted; stale state); "
+                                          "the request was not completed"}
+    assert not path.exists()
