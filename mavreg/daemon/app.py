@@ -22,7 +22,7 @@ from ..control.regulator import ManeuverRegulator
 from .ctrllog import ControlLog
 from .endpoint import EndpointServer
 from .link import MavlinkLink, open_link
-from .planner_pool import PlannerPool
+from .planner_pool import PlannerDied, PlannerPool
 from .supervisor import Output, Phase, Supervisor, SupervisorParams
 from .tlog import TlogWriter
 
@@ -113,7 +113,11 @@ class Daemon:
         """Plan an upload in the worker and queue it; a rejection changes nothing."""
         if self.supervisor.finished:
             return {"ok": False, "verdict": "rejected", "reason": f"the flight is over ({self.supervisor.phase})"}
-        result = await self.pool.plan(yaml_text, source)
+        try:
+            result = await self.pool.plan(yaml_text, source)
+        except PlannerDied as exc:
+            self.log(f"upload {source!r} failed: {exc}")
+            return {"ok": False, "error": str(exc)}
         if not result.accepted:
             self.uploads["rejected"] += 1
             self.log(f"upload {source!r} rejected: {result.reason}")
@@ -184,7 +188,7 @@ class Daemon:
             for text, source in initial or []:
                 verdict = await self.offer_text(text, source)
                 if not verdict["ok"]:
-                    raise _InitialRejected(verdict["reason"])
+                    raise _InitialRejected(verdict["reason"] if "reason" in verdict else verdict["error"])
             if self.config.tlog_path is not None:
                 self._tlog = TlogWriter(self.config.tlog_path)
             self.link = await open_link(self.config.vehicle_url, self.config.supervisor.vehicle_system_id,
@@ -192,7 +196,7 @@ class Daemon:
             self._tasks.append(asyncio.create_task(self._heartbeat_task(), name="heartbeat"))
             self._tasks.append(asyncio.create_task(self._tick_task(), name="tick"))
             if self.config.socket_path is not None:
-                self.endpoint = EndpointServer(self.config.socket_path, self.handle_request)
+                self.endpoint = EndpointServer(self.config.socket_path, self.handle_request, self.log)
                 await self.endpoint.start()
                 self.log(f"control endpoint: {self.config.socket_path}")
             self.log(f"link: {self.config.vehicle_url}")
@@ -209,7 +213,8 @@ class Daemon:
         await asyncio.gather(*self._tasks, return_exceptions=True)
         self._tasks.clear()
         if self.endpoint is not None:
-            await self.endpoint.close()
+            why = f"; {self.supervisor.reason}" if self.supervisor.reason else ""
+            await self.endpoint.close(f"the daemon is stopping (phase {self.supervisor.phase}{why})")
         if self.link is not None:
             self.link.close()
         if self._tlog is not None:

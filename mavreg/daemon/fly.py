@@ -27,6 +27,7 @@ import numpy as np
 from ..config.vehicle import load_vehicle
 from .app import Daemon, DaemonConfig, regulator_factory
 from .ctrllog import load_control_log
+from .lifeline import wrap_command
 from .report import controller_metrics, format_summary, ground_truth_errors, plot_flight
 from .supervisor import Phase, SupervisorParams
 
@@ -50,7 +51,15 @@ class FlyOptions:
 
 def spawn_emulator(vehicle_path: Path, record: Path | None, lockstep: bool, extra: tuple[str, ...] = (),
                    timeout_s: float = 20.0, rate_hz: float = 500.0) -> tuple[subprocess.Popen, str]:
-    """Start ``firmware_sim`` on a free loopback port; return (process, ``udpout:`` URL for us)."""
+    """Start ``firmware_sim`` on a free loopback port; return (process, ``udpout:`` URL for us).
+
+    The emulator dies with this process however it ends (SIGKILL included): it is started
+    through :mod:`.lifeline`'s exec wrapper, which arms the Linux parent-death signal and
+    then execs it (same pid). It runs in a session (process group) of its own, so a
+    Ctrl-C in the terminal reaches only the daemon, which lands first and then stops the
+    emulator (:func:`stop_process`). Call it from a thread that lives as long as the
+    flight (the parent-death signal fires when the starting thread ends).
+    """
     cmd = [sys.executable, "-m", "firmware_sim", "--listen", "udpin:127.0.0.1:0", "--quiet",
            "--vehicle", str(vehicle_path), "--rate-hz", f"{rate_hz:g}"]
     if record is not None:
@@ -58,7 +67,8 @@ def spawn_emulator(vehicle_path: Path, record: Path | None, lockstep: bool, extr
     if lockstep:
         cmd += ["--lockstep"]
     cmd += list(extra)
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=None, text=True)
+    proc = subprocess.Popen(wrap_command(cmd), stdout=subprocess.PIPE, stderr=None, text=True,
+                            start_new_session=True)
     deadline = time.monotonic() + timeout_s
     line = ""
     while time.monotonic() < deadline and proc.poll() is None:
