@@ -88,18 +88,21 @@ class RecoveryParams:
     max_descent_m_s: float = field(default=1.0, metadata=_POS)
     max_hold_speed_m_s: float = field(default=1.0, metadata=_POS)
     """Horizontal speed while returning to the point where braking ended."""
-    max_accel_up_m_s2: float = field(default=8.0, metadata=_POS)
-    max_accel_down_m_s2: float = field(default=4.0, metadata={"min_exclusive": 0.0, "max": 9.0})
-    """Desired downward acceleration, well under g so the thrust never points down."""
+    max_accel_up_m_s2: float = field(default=12.0, metadata=_POS)
+    """Desired upward acceleration at most: 2.2 g of thrust, half of what the rotors give."""
+    max_accel_down_m_s2: float = field(default=6.0, metadata={"min_exclusive": 0.0, "max": 9.0})
+    """Desired downward acceleration at most: under g, so the thrust stays above 1/3 of the
+    weight and the rotors keep their torque authority."""
     position_gain_1_s: float = field(default=1.0, metadata=_POS)
     velocity_gain_1_s: float = field(default=3.0, metadata=_POS)
-    integral_gain_1_s: float = field(default=0.5, metadata={"min": 0.0})
-    """Integral of the vertical velocity error: a vehicle heavier than the design still
-    reaches its altitude (bias bounded by ``max_accel_down_m_s2``)."""
+    integral_gain_1_s: float = field(default=1.0, metadata={"min": 0.0})
+    """Integral of the vertical velocity error, integrated only while the vertical demand is
+    not saturated (transients do not wind it up): a vehicle 40 % heavier than the design
+    still holds its altitude."""
     attitude_bandwidth_rad_s: float = field(default=12.0, metadata=_POS)
-    """Roll/pitch natural frequency on the design inertia (3x the inertia still leaves
-    7 rad/s, damped 0.46)."""
-    attitude_damping: float = field(default=0.8, metadata=_POS)
+    """Roll/pitch natural frequency on the design inertia (three times the inertia still
+    leaves 7 rad/s, damped 0.58)."""
+    attitude_damping: float = field(default=1.0, metadata=_POS)
     yaw_bandwidth_rad_s: float = field(default=3.0, metadata=_POS)
     """Yaw is weak (drag torque): a slower loop that rarely saturates."""
     brake_speed_m_s: float = field(default=0.5, metadata=_POS)
