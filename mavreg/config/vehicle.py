@@ -48,6 +48,14 @@ class VehicleParams:
     """The controller's estimate of the rotors' first-order thrust lag. The design model
     (eq 34) has ideal rotors; the regulator leads its feedforward by this much. The
     emulator's true lag is ``emulator.rotor_time_constant_s``."""
+    rotor_drag_n_s_per_m: tuple[float, ...] = field(default=(0.0, 0.0), metadata={"length": 2, "min": 0.0})
+    """Linear drag of the body, (c_xy, c_z): c_xy in the rotor plane, c_z along the thrust
+    axis (force = -C v_body). Known drag is fed forward by the nominal (0: the paper's model)."""
+    parasitic_drag_n_s2_per_m2: float = field(default=0.0, metadata={"min": 0.0})
+    """Quadratic parasitic drag: force = -c |v| v."""
+    thrust_scale: float = field(default=1.0, metadata={"min": 0.5, "max": 1.5})
+    """Thrust the rotors actually give per unit commanded (a calibration: ``mavreg identify``);
+    the daemon divides its rotor commands by it."""
     estimate_latency_s: float = field(default=0.0, metadata={"min": 0.0, "max": 0.2})
     """How old the vehicle's state estimate already is when it is stamped and sent (its
     estimator's output lag); the link's delay is measured, this cannot be."""

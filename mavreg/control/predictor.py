@@ -95,6 +95,8 @@ class StatePredictor:
         self.k = float(vehicle.drag_torque_ratio_m)
         self.fmax = float(vehicle.max_rotor_thrust_n)
         self.tau = float(vehicle.rotor_time_constant_s)
+        self.cxy, self.cz = (float(c) for c in vehicle.rotor_drag_n_s_per_m)
+        self.cp = float(vehicle.parasitic_drag_n_s2_per_m2)
         self.max_step_s = float(max_step_s)
         self.max_horizon_s = float(max_horizon_s)
         self._cmds: deque = deque()          # (t_answered_s, (c1..c4)) not yet fully acted
@@ -208,9 +210,21 @@ class StatePredictor:
         dm = wdot(*wm)
         R1 = _matmul(R, _exp_so3(wm[0] * dt, wm[1] * dt, wm[2] * dt))
         s = T / m
-        a0 = (-s * R[2], -s * R[5], G - s * R[8])       # g e3 - (T/m) R e3
-        a1 = (-s * R1[2], -s * R1[5], G - s * R1[8])
+        a0 = [-s * R[2], -s * R[5], G - s * R[8]]       # g e3 - (T/m) R e3
+        a1 = [-s * R1[2], -s * R1[5], G - s * R1[8]]
+        if self.cxy or self.cz or self.cp:              # drag at the step's start velocity
+            for acc, Rm in ((a0, R), (a1, R1)):
+                d = self._drag(Rm, v)
+                for i in range(3):
+                    acc[i] += d[i] / m
         p1 = [p[i] + dt * v[i] + dt * dt / 6.0 * (2.0 * a0[i] + a1[i]) for i in range(3)]
         v1 = [v[i] + 0.5 * dt * (a0[i] + a1[i]) for i in range(3)]
         w1 = [w[i] + dt * dm[i] for i in range(3)]
         return R1, p1, v1, w1
+
+    def _drag(self, R, v):
+        """Drag force (NED) at velocity ``v``: -R C R^T v - c_p |v| v (quadrotor.py's model)."""
+        zx, zy, zz = R[2], R[5], R[8]
+        along = (self.cz - self.cxy) * (zx * v[0] + zy * v[1] + zz * v[2])
+        q = self.cxy + self.cp * math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+        return (-q * v[0] - along * zx, -q * v[1] - along * zy, -q * v[2] - along * zz)

@@ -18,6 +18,19 @@ direction is :math:`z_b = (g e_3 - \ddot c)/|g e_3 - \ddot c|` (body z, FRD), th
 come from :math:`\hat\omega = R^T\dot R` and :math:`\dot{\hat\omega} = \mathrm{skew}(R^T\ddot R)`,
 carried as exact second-order jets, which has no singularity at roll :math:`\pm 90°`
 (unlike solving eq 11 for r). Torques are :math:`\gamma = J\dot\omega + \omega\times J\omega`.
+
+With drag in the model (:class:`~mavreg.model.quadrotor.QuadrotorModel`: body-frame linear
+drag :math:`C = \mathrm{diag}(c_{xy}, c_{xy}, c_z)` and parasitic :math:`c_p|v|v`) the flat
+map stays explicit, as for rotor drag symmetric in the rotor plane (Faessler, Franchi and
+Scaramuzza, 2018): the body drag is :math:`-c_{xy}v - (c_z - c_{xy})(z_b\cdot v)z_b`, whose
+second part lies along the thrust axis, so
+
+.. math::
+    t = m(g e_3 - \ddot c) - c_{xy}\dot c - c_p|\dot c|\dot c,\qquad z_b = t/|t|,\qquad
+    f = |t| - (c_z - c_{xy})\,(z_b\cdot\dot c),
+
+and the jets of :math:`t` carry the drag's derivatives (acceleration, jerk). The nominal then
+feeds the known drag forward instead of leaving the feedback to fight it.
 """
 from __future__ import annotations
 
@@ -101,7 +114,16 @@ def nominal_from_flat(model: QuadrotorModel, F, k, dk, ddk, c, v4, yaw4):
     """
     vel, acc, jerk, snap = path_derivatives(F, k, dk, ddk, v4)
     g = model.g
+    m = model.mass_kg
     T = (g * np.array([0.0, 0.0, 1.0]) - acc, -jerk, -snap)
+    cxy, cz = model.rotor_drag_n_s_per_m
+    cp = model.parasitic_drag_n_s2_per_m2
+    if cxy or cp:          # t / m = g e3 - a - (c_xy / m) v - (c_p / m) |v| v, as jets
+        V = (vel, acc, jerk)
+        n = _jnorm(V)
+        Vq = (n[0][:, None] * vel, n[1][:, None] * vel + n[0][:, None] * acc,
+              n[2][:, None] * vel + 2 * n[1][:, None] * acc + n[0][:, None] * jerk)
+        T = tuple(Ti - (cxy / m) * Vi - (cp / m) * Qi for Ti, Vi, Qi in zip(T, V, Vq))
     tn = np.linalg.norm(T[0], axis=1)
     if np.min(tn) < 1e-6:
         i = int(np.argmin(tn))
@@ -123,7 +145,7 @@ def nominal_from_flat(model: QuadrotorModel, F, k, dk, ddk, c, v4, yaw4):
     domega = _vee(Rt @ ddR)  # vee of the skew part of R^T R'' = omega-dot
     J = np.array(model.inertia_kg_m2)
     torque = J * domega + np.cross(omega, J * omega)
-    thrust = model.mass_kg * tn
+    thrust = m * tn - (cz - cxy) * _dot(zb[0], vel)
     rpy = np.array([matrix_to_rpy(Ri) for Ri in R])
     rpy = np.unwrap(rpy, axis=0)
     vbody = np.einsum("nji,nj->ni", R, vel)

@@ -10,6 +10,17 @@ total thrust along body -z (N) and body torques (N m).
     J\dot{\boldsymbol\omega} = -\boldsymbol\omega\times J\boldsymbol\omega + \boldsymbol\gamma,
 
 with the Euler-angle kinematics of eqs 9-11. Works on complex arrays (complex step).
+
+Optionally (vehicle file: ``rotor_drag_n_s_per_m``, ``parasitic_drag_n_s2_per_m2``) the body
+feels aerodynamic drag, which the paper's model leaves out:
+
+.. math::
+    m\dot{\mathbf v} \mathrel{+}= -C\mathbf v - c_p|\mathbf v|\mathbf v,\qquad
+    C = \mathrm{diag}(c_{xy}, c_{xy}, c_z),
+
+linear rotor drag in the body frame (the same in the rotor plane, as for a symmetric
+quadrotor) and quadratic parasitic drag, both on the velocity relative to the ground (the
+design knows no wind). Zero coefficients give the paper's model exactly.
 """
 from __future__ import annotations
 
@@ -33,10 +44,18 @@ class QuadrotorModel:
     mass_kg: float
     inertia_kg_m2: tuple[float, float, float]
     g: float = G
+    rotor_drag_n_s_per_m: tuple[float, float] = (0.0, 0.0)
+    """Linear body-frame drag (c_xy in the rotor plane, c_z along the thrust axis)."""
+    parasitic_drag_n_s2_per_m2: float = 0.0
 
     @classmethod
     def from_vehicle(cls, vehicle: VehicleParams) -> "QuadrotorModel":
-        return cls(vehicle.mass_kg, tuple(vehicle.inertia_kg_m2))
+        return cls(vehicle.mass_kg, tuple(vehicle.inertia_kg_m2), G,
+                   tuple(vehicle.rotor_drag_n_s_per_m), vehicle.parasitic_drag_n_s2_per_m2)
+
+    @property
+    def has_drag(self) -> bool:
+        return any(self.rotor_drag_n_s_per_m) or self.parasitic_drag_n_s2_per_m2 > 0
 
     def f(self, x, u) -> np.ndarray:
         """State derivative dx/dt = f(x, u) (eqs 6-17); x (12,) or (12, N), u (4,) or (4, N)."""
@@ -56,6 +75,10 @@ class QuadrotorModel:
             -r * v1 + p * v3 + g * np.sin(phi) * np.cos(theta),
             q * v1 - p * v2 + g * np.cos(theta) * np.cos(phi) - thrust / m,
         ])
+        if self.has_drag:
+            cxy, cz = self.rotor_drag_n_s_per_m
+            quad = self.parasitic_drag_n_s2_per_m2 * np.sqrt(v1 * v1 + v2 * v2 + v3 * v3)
+            vdot = vdot - np.array([(cxy + quad) * v1, (cxy + quad) * v2, (cz + quad) * v3]) / m
         wdot = np.array([
             q * r * (jy - jz) / jx + g1 / jx,
             p * r * (jz - jx) / jy + g2 / jy,
