@@ -14,6 +14,9 @@ Acceptance rules (documented in docs/firmware_sim.md):
   while armed and in OFFBOARD (else counted ``not_armed_or_not_offboard``).
 - COMMAND_LONG: source system == ours or the GCS system id (default 255), any
   component; ``target_system`` ours (or 0 broadcast), ``target_component`` ours or 0.
+- TIMESYNC: same source rule as COMMAND_LONG. A request (``tc1`` 0) is answered with
+  ``tc1`` = our clock (sim time) in ns when it is handled and ``ts1`` echoed, as PX4
+  does; a reply (``tc1`` != 0) sent to us is ``unsupported``.
 - HEARTBEAT from anyone is fine. Any other message is ``unsupported``.
 """
 from __future__ import annotations
@@ -27,7 +30,7 @@ from . import modes
 from .physics import euler_from_quat
 from .stabilizer import Stabilizer
 
-__all__ = ["AutopilotConfig", "Autopilot", "FORCE_DISARM_MAGIC", "DROP_REASONS"]
+__all__ = ["AutopilotConfig", "Autopilot", "FORCE_DISARM_MAGIC", "DROP_REASONS", "state_messages"]
 
 FORCE_DISARM_MAGIC = 21196.0
 DROP_REASONS = ("malformed", "foreign_system", "foreign_component", "wrong_target", "non_finite",
@@ -151,38 +154,46 @@ class Autopilot:
             self._on_target(msg, t_s)
         elif mtype == "COMMAND_LONG":
             self._on_command(msg, t_s, state, on_ground)
+        elif mtype == "TIMESYNC":
+            self._on_timesync(msg, t_s)
         elif mtype == "BAD_DATA":
             self.drops["malformed"] += 1
         elif mtype != "HEARTBEAT":
             self.drops["unsupported"] += 1
         return self._out
 
-    def _on_target(self, msg, t_s: float) -> None:
+    def target_drop_reason(self, msg) -> str | None:
+        """Why a SET_ACTUATOR_CONTROL_TARGET would be dropped now (``None``: valid). No side effect.
+
+        Before any offboard peer is known, every component passes the component check.
+        """
         cfg = self.cfg
-        if msg.get_srcSystem() != cfg.system_id or msg.target_system != cfg.system_id:
-            self.drops["foreign_system" if msg.get_srcSystem() != cfg.system_id else "wrong_target"] += 1
-            return
-        if msg.target_component not in (0, cfg.component_id):
-            self.drops["wrong_target"] += 1
-            return
-        comp = msg.get_srcComponent()
-        if self.offboard_component is None:
-            self.offboard_component = comp
-        elif comp != self.offboard_component:
-            self.drops["foreign_component"] += 1
-            return
+        if msg.get_srcSystem() != cfg.system_id:
+            return "foreign_system"
+        if msg.target_system != cfg.system_id or msg.target_component not in (0, cfg.component_id):
+            return "wrong_target"
+        if self.offboard_component is not None and msg.get_srcComponent() != self.offboard_component:
+            return "foreign_component"
         if msg.group_mlx != 0:
-            self.drops["unsupported"] += 1
-            return
+            return "unsupported"
         c = msg.controls
         if not math.isfinite(sum(c)):
-            self.drops["non_finite"] += 1
-            return
+            return "non_finite"
         tol = cfg.range_tolerance
-        c0, c1, c2, c3 = c[0], c[1], c[2], c[3]
-        if min(c0, c1, c2, c3) < -tol or max(c0, c1, c2, c3) > 1.0 + tol:
-            self.drops["out_of_range"] += 1
+        if min(c[0], c[1], c[2], c[3]) < -tol or max(c[0], c[1], c[2], c[3]) > 1.0 + tol:
+            return "out_of_range"
+        return None
+
+    def _on_target(self, msg, t_s: float) -> None:
+        cfg = self.cfg
+        reason = self.target_drop_reason(msg)
+        if self.offboard_component is None and reason not in ("foreign_system", "wrong_target"):
+            self.offboard_component = msg.get_srcComponent()    # the first one to address us
+        if reason is not None:
+            self.drops[reason] += 1
             return
+        c = msg.controls
+        c0, c1, c2, c3 = c[0], c[1], c[2], c[3]
         fmax = cfg.max_rotor_thrust_n
         self.target_n = tuple(fmax * (0.0 if x < 0.0 else (1.0 if x > 1.0 else x)) for x in (c0, c1, c2, c3))
         if t_s - self.last_target_t > 1.0 / cfg.stream_min_hz:
@@ -213,6 +224,16 @@ class Autopilot:
         else:
             self.drops["unsupported"] += 1
             self._ack(msg, _UNSUPPORTED)
+
+    def _on_timesync(self, msg, t_s: float) -> None:
+        cfg = self.cfg
+        if msg.get_srcSystem() not in (cfg.system_id, cfg.gcs_system_id):
+            self.drops["foreign_system"] += 1
+            return
+        if msg.tc1 != 0:                 # a reply to a request of ours: we send none
+            self.drops["unsupported"] += 1
+            return
+        self._out.append(mavlink2.MAVLink_timesync_message(int(round(t_s * 1e9)), msg.ts1))
 
     def _arm_disarm(self, msg, t_s, state, on_ground) -> None:
         if msg.param1 == 1.0:
@@ -302,13 +323,25 @@ class Autopilot:
             return self.stab.land(state, self.cfg.land_descent_m_s)
         return self.stab.hold(state)
 
-    def telemetry(self, t_s: float, state) -> list:
-        """ATTITUDE, ATTITUDE_QUATERNION and LOCAL_POSITION_NED with one ``time_boot_ms``."""
-        ms = int(round(t_s * 1000.0))
-        (x, y, z, qw, qx, qy, qz, vx, vy, vz, p, q, r) = state
-        roll, pitch, yaw = euler_from_quat((qw, qx, qy, qz))
-        return [
-            mavlink2.MAVLink_attitude_message(ms, roll, pitch, yaw, p, q, r),
-            mavlink2.MAVLink_attitude_quaternion_message(ms, qw, qx, qy, qz, p, q, r, (0.0, 0.0, 0.0, 0.0)),
-            mavlink2.MAVLink_local_position_ned_message(ms, x, y, z, vx, vy, vz),
-        ]
+    def telemetry(self, t_s: float, state) -> tuple:
+        """ATTITUDE, ATTITUDE_QUATERNION and LOCAL_POSITION_NED of the true ``state`` at ``t_s``."""
+        return state_messages(t_s, state[0:3], state[7:10], state[3:7], state[10:13])
+
+
+def state_messages(t_s: float, position, velocity, quat, rates) -> tuple:
+    """``(ATTITUDE, ATTITUDE_QUATERNION, LOCAL_POSITION_NED)`` with one ``time_boot_ms``.
+
+    The Euler angles of ATTITUDE are those of ``quat`` (ZYX); both attitude messages
+    carry ``rates`` (body p, q, r).
+    """
+    ms = int(round(t_s * 1000.0))
+    x, y, z = position
+    vx, vy, vz = velocity
+    qw, qx, qy, qz = quat
+    p, q, r = rates
+    roll, pitch, yaw = euler_from_quat((qw, qx, qy, qz))
+    return (
+        mavlink2.MAVLink_attitude_message(ms, roll, pitch, yaw, p, q, r),
+        mavlink2.MAVLink_attitude_quaternion_message(ms, qw, qx, qy, qz, p, q, r, (0.0, 0.0, 0.0, 0.0)),
+        mavlink2.MAVLink_local_position_ned_message(ms, x, y, z, vx, vy, vz),
+    )

@@ -2,9 +2,11 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import signal
 import sys
+import textwrap
 
 from .autopilot import Autopilot, AutopilotConfig
 from .clock import StopRun, run_lockstep, run_realtime
@@ -17,6 +19,7 @@ from .sim import Simulation
 from .stabilizer import Stabilizer
 from .status import ExitCode, SimStop
 from .wind import Wind, parse_wind
+from .world import PRESET_NAMES, PRESETS, build_world
 
 __all__ = ["main", "build_parser", "build_engine"]
 
@@ -27,9 +30,29 @@ contact, and a small autopilot (arming, HOLD/LAND/OFFBOARD modes, offboard-loss
 failsafe). SET_ACTUATOR_CONTROL_TARGET group 0 is a pass-through mixer: controls[0..3]
 are rotors 1..4 (front, right, back, left) as a fraction of the maximum rotor thrust.
 
-The first stdout line is 'firmware_sim listening on udpin:HOST:PORT'.
+By default the world is realistic: the telemetry is a state estimate, late and noisy,
+sent over a link with delay, jitter and loss, and commands arrive late (all in sim time,
+seeded by --seed, deterministic in lockstep). --preset ideal sends the exact true state
+with no delay and no loss. Motor lag and rotor noise come from the vehicle YAML in both.
+
+The first stdout line is 'firmware_sim listening on udpin:HOST:PORT'; the second one
+('firmware_sim world: ...') names the preset, its values and any overrides.
 Exit status: 0 done or signalled, 1 internal error, 2 bad input, 3 crash,
 4 non-finite state, 5 speed or body rate limit. See docs/firmware_sim.md."""
+
+
+def _presets_epilog() -> str:
+    lines = ["presets (--preset):"]
+    for name in PRESET_NAMES:
+        text = PRESETS[name].describe().replace("world: preset ", "", 1)
+        lines.extend(textwrap.wrap(text, 88, initial_indent="  ", subsequent_indent="      "))
+    lines.extend(textwrap.wrap(
+        "Delays are uniform in [delay - jitter, delay + jitter]. Telemetry is released at "
+        "control-period boundaries (every 2 ms at 500 Hz), commands act at the physics step "
+        "where they fall due (1 ms at 1 kHz). In lockstep the loop waits for a target only "
+        "in a period that released a complete sample (ATTITUDE_QUATERNION and "
+        "LOCAL_POSITION_NED of one time) to the peers.", 88))
+    return "\n".join(lines)
 
 
 def _float_above(minimum: float, inclusive: bool):
@@ -49,6 +72,13 @@ def _float_above(minimum: float, inclusive: bool):
 
 _positive_float = _float_above(0.0, inclusive=False)
 _nonneg_float = _float_above(0.0, inclusive=True)
+
+
+def _probability(text: str) -> float:
+    v = _nonneg_float(text)
+    if v > 1.0:
+        raise argparse.ArgumentTypeError(f"expected a probability in [0, 1], got {text!r}")
+    return v
 
 
 def _positive_int(text: str) -> int:
@@ -74,7 +104,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="firmware-sim", description=DESCRIPTION,
+    p = _Parser(prog="firmware-sim", description=DESCRIPTION, epilog=_presets_epilog(),
                 formatter_class=argparse.RawDescriptionHelpFormatter)
     a = p.add_argument
     a("--listen", default="udpin:127.0.0.1:14540", metavar="URL",
@@ -124,12 +154,34 @@ def build_parser() -> argparse.ArgumentParser:
     a("--duration-s", type=_positive_float, default=None, metavar="S",
       help="stop after this much simulation time (default: run until signalled)")
     a("--quiet", action="store_true", help="no status line every second")
+    w = p.add_argument_group("world", "link effects and estimator errors; each flag overrides the preset's value")
+    w.add_argument("--preset", choices=PRESET_NAMES, default="realistic",
+                   help="named world (default %(default)s; values below)")
+    w.add_argument("--telemetry-delay-ms", type=_nonneg_float, default=None, metavar="MS",
+                   help="mean delay of the telemetry (vehicle to peers), sim time")
+    w.add_argument("--telemetry-jitter-ms", type=_nonneg_float, default=None, metavar="MS",
+                   help="half-width of the uniform telemetry delay spread (<= the delay)")
+    w.add_argument("--command-delay-ms", type=_nonneg_float, default=None, metavar="MS",
+                   help="mean delay of commands (peers to vehicle), sim time")
+    w.add_argument("--command-jitter-ms", type=_nonneg_float, default=None, metavar="MS",
+                   help="half-width of the uniform command delay spread (<= the delay)")
+    w.add_argument("--loss", type=_probability, default=None, metavar="P",
+                   help="probability that a telemetry message or a command datagram is lost (0..1)")
+    w.add_argument("--estimate-latency-ms", type=_nonneg_float, default=None, metavar="MS",
+                   help="the telemetry of time t describes the true state of t - MS")
+    w.add_argument("--estimator-scale", type=_nonneg_float, default=None, metavar="X",
+                   help="multiply every estimator error SD; 0 turns the errors off (latency kept)")
     return p
 
 
 def build_engine(args) -> tuple[Engine, Recorder | None]:
     """Everything the run needs, from parsed arguments. Raises ValueError on bad input."""
     vehicle_path = args.vehicle if args.vehicle is not None else default_vehicle_path()
+    world = build_world(args.preset, telemetry_delay_ms=args.telemetry_delay_ms,
+                        telemetry_jitter_ms=args.telemetry_jitter_ms,
+                        command_delay_ms=args.command_delay_ms, command_jitter_ms=args.command_jitter_ms,
+                        loss=args.loss, estimate_latency_ms=args.estimate_latency_ms,
+                        estimator_scale=args.estimator_scale)
     params = load_sim_params(
         vehicle_path, rate_hz=args.rate_hz, physics_hz=args.physics_hz, seed=args.seed,
         mass_kg=args.mass_kg, inertia_kg_m2=args.inertia_kg_m2, inertia_scale=args.inertia_scale,
@@ -146,7 +198,8 @@ def build_engine(args) -> tuple[Engine, Recorder | None]:
     if recorder is not None:
         recorder.meta.update(vehicle=str(vehicle_path), params=repr(params), seed=args.seed,
                              rate_hz=args.rate_hz, physics_hz=args.physics_hz,
-                             lockstep=args.lockstep, start=args.start, wind=args.wind)
+                             lockstep=args.lockstep, start=args.start, wind=args.wind,
+                             world=dataclasses.asdict(world))
     sim = Simulation(params, start, wind, recorder)
     stab = Stabilizer(v.mass_kg, params.inertia_matrix_kg_m2, v.arm_length_m,
                       v.drag_torque_ratio_m, v.max_rotor_thrust_n)
@@ -156,7 +209,7 @@ def build_engine(args) -> tuple[Engine, Recorder | None]:
                           failsafe_hold_s=args.failsafe_hold_s)
     ap = Autopilot(cfg, stab, v.mass_kg * G / 4)
     link = Link(args.listen, args.system_id, cfg.component_id)
-    engine = Engine(sim, ap, link)
+    engine = Engine(sim, ap, link, world)
     if start is not None:
         link.send(ap.start_in_flight(0.0))
     sim.record_initial(ap.armed, ap.mode)
@@ -176,6 +229,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"firmware-sim: error: {exc}", file=sys.stderr)
         return int(ExitCode.USAGE)
     print(f"firmware_sim listening on {engine.link.url}", flush=True)
+    print(f"firmware_sim {engine.world.describe()}", flush=True)
     code, reason = ExitCode.OK, "done"
     old = {s: signal.signal(s, _raise_stop) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
@@ -199,7 +253,7 @@ def main(argv: list[str] | None = None) -> int:
             signal.signal(s, h)
         if recorder is not None:
             recorder.meta.update(stop_reason=reason, exit_code=int(code),
-                                 drops=engine.ap.drops, counters=engine.counters)
+                                 drops=engine.ap.drops, counters=engine.all_counters())
             recorder.save()
         engine.link.close()
     if not args.quiet:

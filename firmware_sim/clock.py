@@ -10,14 +10,20 @@ Real time
 
 Lockstep
     Nothing advances until a valid MAVLink message has been heard (time frozen at 0).
-    Then, period k: send HEARTBEAT (when due) and the telemetry of t_k; handle datagrams
-    one at a time until one carries a valid SET_ACTUATOR_CONTROL_TARGET (COMMAND_LONG
-    etc. are handled meanwhile, at time t_k); step the physics to t_{k+1}. Datagrams
-    after that target wait for period k+1, so a client that answers every telemetry
-    with one target gets a deterministic run.
+    Then, period k: the downlink releases what is due at t_k (in the ideal world: the
+    HEARTBEAT when due and the telemetry of t_k). If that includes n >= 1 *complete*
+    state bundles (ATTITUDE_QUATERNION and LOCAL_POSITION_NED of one time, neither
+    lost), datagrams are received one at a time until n valid
+    SET_ACTUATOR_CONTROL_TARGETs have been *received* (counted on arrival, before the
+    uplink's delay and loss, so a lost or late command does not stall the loop;
+    COMMAND_LONG etc. received meanwhile enter the uplink at t_k). If n == 0 (nothing
+    released yet, or a sample lost on the way) nothing is read: the peer has no sample
+    to answer. Then the physics steps to t_{k+1}, handling commands as they fall due.
+    Datagrams after the n-th target wait for period k+1, so a peer that answers every
+    complete sample with one target gets a deterministic run.
 
-    If no target arrives within ``lockstep_timeout_s`` (wall), the period counts as a
-    lockstep timeout, the last command is held and the loop is *stalled*: it stops
+    If a target does not arrive within ``lockstep_timeout_s`` (wall), the period counts
+    as a lockstep timeout, the last command is held and the loop is *stalled*: it stops
     waiting per period and runs at ``stall_speed`` times real time (0: as fast as it
     can) until a target arrives again, which resumes waiting at once. Timeouts of the
     autopilot (failsafe, OFFBOARD precondition, heartbeat) count in simulation time.
@@ -81,7 +87,7 @@ def run_realtime(engine: Engine, rate_hz: int, duration_s: float | None = None,
 def run_lockstep(engine: Engine, timeout_s: float = 0.1, duration_s: float | None = None,
                  quiet: bool = False, stall_speed: float = 1.0) -> None:
     """Run in lockstep (see the module docstring) until ``duration_s`` of sim time."""
-    link, ap = engine.link, engine.ap
+    link = engine.link
     status = _Status(engine, quiet)
     while not link.peers:                        # frozen until someone talks
         if link.wait_readable(1.0):
@@ -92,30 +98,31 @@ def run_lockstep(engine: Engine, timeout_s: float = 0.1, duration_s: float | Non
     stall_wall0 = stall_t0 = 0.0
     while not _done(engine, duration_s):
         engine.begin_period()
-        count0 = ap.target_count
+        count0 = engine.targets_received
         if stalled:
             engine.poll()
-            if ap.target_count != count0:
+            if engine.targets_received != count0:
                 stalled = False
             elif stall_speed > 0:
                 deadline = stall_wall0 + (engine.sim.t_s + period - stall_t0) / stall_speed
                 now = time.monotonic()
-                while now < deadline and ap.target_count == count0:
+                while now < deadline and engine.targets_received == count0:
                     if link.wait_readable(deadline - now):
                         engine.process_datagram()
                     now = time.monotonic()
-                if ap.target_count != count0:
+                if engine.targets_received != count0:
                     stalled = False
-        else:
+        elif engine.complete_released:
+            wanted = count0 + engine.complete_released
             deadline = None
-            while ap.target_count == count0:
+            while engine.targets_received < wanted:
                 if engine.process_datagram():
                     continue
                 now = time.monotonic()
                 if deadline is None:
                     deadline = now + timeout_s
                 if now >= deadline or not link.wait_readable(deadline - now):
-                    if ap.target_count == count0 and time.monotonic() >= deadline:
+                    if engine.targets_received < wanted and time.monotonic() >= deadline:
                         engine.counters["lockstep_timeouts"] += 1
                         stalled = True
                         stall_wall0, stall_t0 = time.monotonic(), engine.sim.t_s

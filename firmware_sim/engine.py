@@ -1,6 +1,13 @@
-"""Glue between the link, the autopilot and the simulation, one control period at a time.
+"""Glue between the link, the world, the autopilot and the simulation, one control period at a time.
 
-The clocks in :mod:`firmware_sim.clock` decide *when* these run.
+The clocks in :mod:`firmware_sim.clock` decide *when* these run. The world
+(:mod:`firmware_sim.world`) sits between the autopilot and the socket: received
+datagrams go through the uplink delay line (:class:`firmware_sim.channel.Uplink`) and
+are handled when due, at physics-step granularity, also in the middle of a control
+period; everything the vehicle sends goes through the downlink delay line
+(:class:`firmware_sim.channel.Downlink`), released at period boundaries; the telemetry
+describes the estimate (:class:`firmware_sim.estimator.Estimator`) when the world has
+one. The autopilot's own HOLD/LAND stabilizer flies on the true state.
 """
 from __future__ import annotations
 
@@ -9,62 +16,167 @@ import math
 from pymavlink.dialects.v20 import common as mavlink2
 
 from . import modes
-from .autopilot import Autopilot
+from .autopilot import Autopilot, state_messages
+from .channel import Downlink, Uplink
+from .estimator import Estimator
 from .link import Link
 from .sim import Simulation
+from .world import PRESETS, WorldPreset
 
 __all__ = ["Engine"]
 
+_UNDELAYED = ("HEARTBEAT", "BAD_DATA")
+
 
 class Engine:
-    """One emulator instance: simulation + autopilot + link.
+    """One emulator instance: simulation + autopilot + link + world.
 
     Parameters
     ----------
     sim : Simulation
     autopilot : Autopilot
     link : Link
+    world : WorldPreset, optional
+        Default: the ideal world.
+
+    Attributes
+    ----------
+    targets_received : int
+        Valid SET_ACTUATOR_CONTROL_TARGETs received (counted on arrival, before the
+        uplink's delay and loss): what the lockstep loop waits for.
+    complete_released : int
+        Complete state bundles the last :meth:`begin_period` released to the peers.
     """
 
-    def __init__(self, sim: Simulation, autopilot: Autopilot, link: Link):
+    def __init__(self, sim: Simulation, autopilot: Autopilot, link: Link,
+                 world: WorldPreset | None = None):
         self.sim = sim
         self.ap = autopilot
         self.link = link
+        self.world = world if world is not None else PRESETS["ideal"]
+        p = sim.params
+        self._physics_hz = p.physics_hz
+        self._substeps = p.substeps
+        self.downlink = Downlink(self.world.link, p.rate_hz, p.substeps, p.seed)
+        self.uplink = Uplink(self.world.link, p.physics_hz, p.seed)
+        est = self.world.estimator
+        latency_steps = int(math.floor(est.latency_ms * 1e-3 * p.physics_hz + 0.5))
+        self.estimator = Estimator(est, 1.0 / p.rate_hz, p.seed) if est.has_errors else None
+        self.estimating = self.estimator is not None or latency_steps > 0
+        if latency_steps > 0:
+            sim.keep_history(latency_steps)
         self.counters = {"lockstep_timeouts": 0, "overruns": 0}
+        self.targets_received = 0
+        self.complete_released = 0
 
+    # ---------------------------------------------------------------- uplink
     def process_datagram(self) -> bool:
-        """Handle one waiting datagram; ``False`` when none was waiting."""
+        """Read and take one waiting datagram; ``False`` when none was waiting."""
         got = self.link.recv_datagram()
         if got is None:
             return False
-        msgs, _ = got
-        sim = self.sim
-        for msg in msgs:
-            out = self.ap.handle(msg, sim.t_s, sim.state, sim.on_ground)
-            if out:
-                self.link.send(out)
+        self.receive(got[0])
         return True
 
     def poll(self) -> None:
-        """Handle every waiting datagram."""
+        """Take every waiting datagram."""
         while self.process_datagram():
             pass
 
+    def receive(self, msgs) -> None:
+        """Take the decoded messages of one datagram received now (sim time ``sim.t_s``)."""
+        step = self.sim.step_count
+        carries_target = False
+        undelayed = True
+        for m in msgs:
+            mtype = m.get_type()
+            if mtype == "SET_ACTUATOR_CONTROL_TARGET":
+                carries_target = True
+                if self.ap.target_drop_reason(m) is None:
+                    self.targets_received += 1
+            if mtype not in _UNDELAYED:
+                undelayed = False
+        if undelayed or self.uplink.ideal:
+            self._handle(msgs, step)
+        elif self.uplink.push(step, msgs, carries_target):
+            for due in self.uplink.pop_due(step):
+                self._handle(due, step)
+        self._send_due()
+
+    def _handle(self, msgs, step: int) -> None:
+        """The autopilot handles ``msgs`` at physics step ``step``; replies go down the link."""
+        sim, ap = self.sim, self.ap
+        t = step / self._physics_hz
+        for msg in msgs:
+            out = ap.handle(msg, t, sim.state, sim.on_ground)
+            if out:
+                self.downlink.push_reply(step, out)
+
+    def _send_due(self) -> int:
+        """Send what the downlink releases now; return the complete state bundles among it."""
+        msgs, complete = self.downlink.release(self.sim.step_count // self._substeps)
+        if msgs:
+            self.link.send(msgs)
+        return complete
+
+    # ---------------------------------------------------------------- period
     def begin_period(self) -> None:
-        """Autopilot timeouts and heartbeat, then the telemetry of the current state."""
+        """Commands due now, autopilot timeouts and heartbeat, then the telemetry of this period."""
         sim = self.sim
-        out = self.ap.update(sim.t_s, sim.state, sim.on_ground)
-        out.extend(self.ap.telemetry(sim.t_s, sim.state))
-        self.link.send(out)
+        step = sim.step_count
+        if self.uplink.next_due() is not None:
+            for due in self.uplink.pop_due(step):
+                self._handle(due, step)
+        t = sim.t_s
+        out = self.ap.update(t, sim.state, sim.on_ground)
+        self.downlink.push_period(step // self._substeps, out, self._state_messages(t))
+        self.complete_released = self._send_due()
+
+    def _state_messages(self, t: float) -> tuple:
+        sim = self.sim
+        if self.estimating:
+            s = sim.lagged_state
+            if self.estimator is not None:
+                pos, vel, q, rates = self.estimator.publish(s)
+            else:
+                pos, vel, q, rates = s[0:3], s[7:10], s[3:7], s[10:13]
+        else:
+            s = sim.state
+            pos, vel, q, rates = s[0:3], s[7:10], s[3:7], s[10:13]
+        rec = sim.recorder
+        if rec is not None:
+            rec.record_estimate(t, pos, vel, q, rates)
+        return state_messages(t, pos, vel, q, rates)
 
     def step(self) -> None:
-        """Advance the physics one control period with the autopilot's rotor command."""
-        sim, ap = self.sim, self.ap
-        cmd = ap.rotor_command_n(sim.state, sim.on_ground)
-        sim.advance(cmd, ap.armed, ap.mode)
+        """Advance the physics one control period with the autopilot's rotor command.
+
+        Commands that fall due inside the period are handled at their physics step, and
+        the rotor command is taken again from the autopilot from there on.
+        """
+        sim, ap, up = self.sim, self.ap, self.uplink
+        end = sim.step_count + self._substeps
+        while True:
+            cmd = ap.rotor_command_n(sim.state, sim.on_ground)
+            due = up.next_due()
+            if due is None or due >= end:
+                sim.advance(cmd, ap.armed, ap.mode, end - sim.step_count)
+                return
+            if due > sim.step_count:
+                sim.advance(cmd, ap.armed, ap.mode, due - sim.step_count)
+            step = sim.step_count
+            for msgs in up.pop_due(step):
+                self._handle(msgs, step)
+
+    # ---------------------------------------------------------------- reporting
+    def all_counters(self) -> dict:
+        """Loop counters and link statistics."""
+        return {**self.counters, "telemetry_sent": self.downlink.sent, "telemetry_lost": self.downlink.lost,
+                "commands_received": self.uplink.received, "commands_lost": self.uplink.lost,
+                "targets_received": self.targets_received}
 
     def announce_stop(self, reason: str) -> None:
-        """Tell the peers why the simulation stopped (STATUSTEXT, critical)."""
+        """Tell the peers why the simulation stopped (STATUSTEXT, critical; not delayed)."""
         self.link.send([mavlink2.MAVLink_statustext_message(
             mavlink2.MAV_SEVERITY_CRITICAL, f"sim stopped: {reason}".encode()[:50], 0, 0)])
 
@@ -73,7 +185,8 @@ class Engine:
         s = self.sim.state
         speed = math.sqrt(s[7] ** 2 + s[8] ** 2 + s[9] ** 2)
         drops = " ".join(f"{k}={v}" for k, v in self.ap.drops.items() if v) or "none"
-        extra = " ".join(f"{k}={v}" for k, v in self.counters.items() if v)
+        counters = {**self.counters, "telemetry_lost": self.downlink.lost, "commands_lost": self.uplink.lost}
+        extra = " ".join(f"{k}={v}" for k, v in counters.items() if v)
         return (f"t={self.sim.t_s:9.3f}s {modes.MODE_NAMES.get(self.ap.mode, '?'):8s} "
                 f"{'ARMED   ' if self.ap.armed else 'disarmed'} "
                 f"ned=({s[0]:7.2f},{s[1]:7.2f},{s[2]:7.2f})m speed={speed:5.2f}m/s "

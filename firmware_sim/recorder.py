@@ -13,8 +13,20 @@ Arrays in the file (N rows, one per physics step plus the initial state):
 ``armed``            (N,)      bool
 ``custom_mode``      (N,)      uint32 HEARTBEAT custom_mode (see firmware_sim.modes)
 ``on_ground``        (N,)      bool, ground contact
-``meta_json``        ()        str: JSON with vehicle parameters, rates, seed, stop reason
+``meta_json``        ()        str: JSON with vehicle parameters, rates, seed, world, stop reason
 ===================  ========  ====================================================
+
+and the state estimate the vehicle published (M rows, one per control period, whether
+or not the link then lost it; the truth itself in the ideal world):
+
+=============================  ======  ================================================
+``estimate_t_s``               (M,)    its time stamp (``time_boot_ms / 1000``); it
+                                       describes the true state of ``t - latency``
+``estimate_position_ned_m``    (M, 3)  LOCAL_POSITION_NED x, y, z
+``estimate_velocity_ned_m_s``  (M, 3)  LOCAL_POSITION_NED vx, vy, vz
+``estimate_quat``              (M, 4)  ATTITUDE_QUATERNION q1..q4 (w, x, y, z)
+``estimate_rates_rad_s``       (M, 3)  rollspeed, pitchspeed, yawspeed
+=============================  ======  ================================================
 """
 from __future__ import annotations
 
@@ -26,6 +38,7 @@ import numpy as np
 __all__ = ["Recorder", "COLUMNS"]
 
 COLUMNS = 1 + 3 + 4 + 3 + 3 + 4 + 4 + 1 + 1 + 1
+ESTIMATE_COLUMNS = 1 + 3 + 3 + 4 + 3
 _CHUNK = 8192
 
 
@@ -37,6 +50,9 @@ class Recorder:
         self._chunks: list[np.ndarray] = []
         self._cur = np.empty((_CHUNK, COLUMNS))
         self._i = 0
+        self._est_chunks: list[np.ndarray] = []
+        self._est = np.empty((_CHUNK, ESTIMATE_COLUMNS))
+        self._est_i = 0
         self.meta: dict = {}
 
     def record(self, t_s: float, s, cmd_n, applied_n, armed: bool, mode: int, on_ground: bool):
@@ -48,9 +64,22 @@ class Recorder:
         self._cur[self._i] = (t_s, *s, *cmd_n, *applied_n, armed, mode, on_ground)
         self._i += 1
 
+    def record_estimate(self, t_s: float, position, velocity, quat, rates) -> None:
+        """Append the estimate published at ``t_s`` (one row per control period)."""
+        if self._est_i == _CHUNK:
+            self._est_chunks.append(self._est)
+            self._est = np.empty((_CHUNK, ESTIMATE_COLUMNS))
+            self._est_i = 0
+        self._est[self._est_i] = (t_s, *position, *velocity, *quat, *rates)
+        self._est_i += 1
+
     def data(self) -> np.ndarray:
         """All rows so far, shape (N, COLUMNS)."""
         return np.concatenate(self._chunks + [self._cur[: self._i]], axis=0)
+
+    def estimate_data(self) -> np.ndarray:
+        """All estimate rows so far, shape (M, ESTIMATE_COLUMNS)."""
+        return np.concatenate(self._est_chunks + [self._est[: self._est_i]], axis=0)
 
     def save(self) -> Path:
         """Write the npz file (atomic rename) and return its path."""
@@ -68,6 +97,10 @@ class Recorder:
             "on_ground": d[:, 24].astype(bool),
             "meta_json": np.array(json.dumps(self.meta, default=str)),
         }
+        e = self.estimate_data()
+        out.update(estimate_t_s=e[:, 0], estimate_position_ned_m=e[:, 1:4],
+                   estimate_velocity_ned_m_s=e[:, 4:7], estimate_quat=e[:, 7:11],
+                   estimate_rates_rad_s=e[:, 11:14])
         tmp = self.path.with_name(self.path.name + ".tmp.npz")
         np.savez_compressed(tmp, **out)
         tmp.replace(self.path)

@@ -1,9 +1,11 @@
 """The simulated airframe: rigid body, rotors, wind, ground, limits and recorder together.
 
 No I/O, no clock: :meth:`Simulation.advance` runs the physics steps of one control
-period with the rotor command held.
+period (or part of one) with the rotor command held.
 """
 from __future__ import annotations
+
+from collections import deque
 
 import numpy as np
 
@@ -56,6 +58,7 @@ class Simulation:
         self.step_count = 0
         self.t_s = 0.0
         self.applied_n = (0.0, 0.0, 0.0, 0.0)
+        self._history: deque | None = None
         self.state = self.ground.apply(self.state, 0.0) if self.state[2] >= 0 else self.state
         if state is not None and self.state[2] < 0:
             # Start in flight with rotors already spinning at hover.
@@ -68,14 +71,26 @@ class Simulation:
         """Whether the vehicle rests on the ground."""
         return self.ground.on_ground
 
+    def keep_history(self, n_steps: int) -> None:
+        """Keep the true states of the last ``n_steps`` physics steps (for :attr:`lagged_state`).
+
+        Before the start the vehicle is taken to have been in its initial state.
+        """
+        self._history = deque([self.state] * (int(n_steps) + 1), maxlen=int(n_steps) + 1)
+
+    @property
+    def lagged_state(self):
+        """The true state ``n_steps`` physics steps ago (see :meth:`keep_history`)."""
+        return self._history[0] if self._history is not None else self.state
+
     def record_initial(self, armed: bool, mode: int) -> None:
         """Write the initial state as the recorder's first row."""
         if self.recorder is not None:
             self.recorder.record(self.t_s, self.state, (0.0,) * 4, self.applied_n, armed, mode,
                                  self.ground.on_ground)
 
-    def advance(self, cmd_n, armed: bool, mode: int) -> None:
-        """Run one control period of physics steps with rotor command ``cmd_n`` held.
+    def advance(self, cmd_n, armed: bool, mode: int, steps: int | None = None) -> None:
+        """Run ``steps`` physics steps (default: one control period) with ``cmd_n`` held.
 
         Raises
         ------
@@ -83,11 +98,13 @@ class Simulation:
             On a crash, a non-finite state or a limit exceeded.
         """
         body, rotors, ground, wind, rec = self.body, self.rotors, self.ground, self.wind, self.recorder
+        hist = self._history
         l, k, dt = self.arm_length_m, self.k_m, self.dt_s
         s = self.state
         n0 = self.step_count
         pdt = self.params.physics_hz
-        for i in range(1, self.substeps + 1):
+        steps = self.substeps if steps is None else steps
+        for i in range(1, steps + 1):
             t0 = (n0 + i - 1) / pdt
             applied = rotors.step(cmd_n, armed)
             T, tx, ty, tz = mix(applied, l, k)
@@ -103,5 +120,7 @@ class Simulation:
             self.applied_n = applied
             if rec is not None:
                 rec.record(t1, s, cmd_n, applied, armed, mode, ground.on_ground)
-        self.step_count = n0 + self.substeps
+            if hist is not None:
+                hist.append(s)
+        self.step_count = n0 + steps
         self.t_s = self.step_count / pdt

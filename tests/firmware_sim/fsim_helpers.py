@@ -126,3 +126,53 @@ def _collect(texts):
 
 ARM = mavlink2.MAV_CMD_COMPONENT_ARM_DISARM
 SET_MODE = mavlink2.MAV_CMD_DO_SET_MODE
+
+
+class SamplePairer:
+    """Completes state samples as the daemon does: ATTITUDE_QUATERNION + LOCAL_POSITION_NED of one time."""
+
+    def __init__(self):
+        self.att: set = set()
+        self.pos: set = set()
+        self.last_ms = -1
+
+    def add(self, m) -> int | None:
+        """Feed one message; return the sample's ``time_boot_ms`` when it completes one."""
+        kind = {"ATTITUDE_QUATERNION": self.att, "LOCAL_POSITION_NED": self.pos}.get(m.get_type())
+        if kind is None or m.time_boot_ms <= self.last_ms:
+            return None
+        kind.add(m.time_boot_ms)
+        t = m.time_boot_ms
+        if t in self.att and t in self.pos:
+            self.last_ms = t
+            self.att = {x for x in self.att if x > t}
+            self.pos = {x for x in self.pos if x > t}
+            return t
+        return None
+
+
+def answer_samples(client: Client, on_sample, on_msg=None, until_ms: int | None = None, proc=None,
+                   timeout_s: float = 10.0) -> None:
+    """Lockstep peer: call ``on_sample(time_boot_ms)`` for every complete sample.
+
+    ``on_sample`` must send exactly one actuator target (after any command). Stops after
+    the sample of ``until_ms``, or when process ``proc`` has exited and nothing is left
+    to read; raises after ``timeout_s`` of silence otherwise.
+    """
+    pairer = SamplePairer()
+    silent_s = 0.0
+    while until_ms is None or pairer.last_ms < until_ms:
+        m = client.recv(0.2)
+        if m is None:
+            if proc is not None and proc.poll() is not None:
+                return
+            silent_s += 0.2
+            if silent_s > timeout_s:
+                raise AssertionError(f"no message within {timeout_s} s after sample {pairer.last_ms} ms")
+            continue
+        silent_s = 0.0
+        if on_msg is not None:
+            on_msg(m)
+        t = pairer.add(m)
+        if t is not None:
+            on_sample(t)

@@ -1,0 +1,182 @@
+"""The world around the airframe: link effects and estimator errors, as named presets.
+
+Two presets (see docs/firmware_sim.md, "Realistic world", for the sources of every value):
+
+``realistic`` (the default)
+    Telemetry 10 ms +- 3 ms late, commands 5 ms +- 3 ms late, 1 % of the messages lost
+    each way, and the telemetry an estimate 4 ms old with Gauss-Markov errors of a
+    motion-capture-aided EKF and a noisy, slowly biased gyro.
+``ideal``
+    No link effects, no estimator: the telemetry is the true state of the period it is
+    stamped with and every command acts at once (the emulator's behaviour before the
+    realistic world existed).
+
+Motor lag and rotor noise are the vehicle YAML's (``emulator.*``) in both.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+__all__ = ["LinkParams", "EstimatorParams", "WorldPreset", "PRESETS", "PRESET_NAMES",
+           "build_world", "MAX_DELAY_MS"]
+
+MAX_DELAY_MS = 1000.0
+"""Upper bound of every delay, jitter and latency (ms)."""
+
+
+@dataclass(frozen=True)
+class LinkParams:
+    """Delay, jitter and loss of the MAVLink link, each way (sim time).
+
+    Delays are uniform in ``[delay - jitter, delay + jitter]``; ``jitter_ms <= delay_ms``.
+    """
+
+    telemetry_delay_ms: float = 0.0
+    telemetry_jitter_ms: float = 0.0
+    command_delay_ms: float = 0.0
+    command_jitter_ms: float = 0.0
+    loss_probability: float = 0.0
+    """Probability that one message (telemetry) or one datagram (commands) is lost."""
+
+    @property
+    def ideal(self) -> bool:
+        """No delay, no jitter, no loss."""
+        return not (self.telemetry_delay_ms or self.telemetry_jitter_ms or self.command_delay_ms
+                    or self.command_jitter_ms or self.loss_probability)
+
+
+@dataclass(frozen=True)
+class EstimatorParams:
+    """Errors and latency of the published state estimate.
+
+    Position, velocity and attitude errors are first-order Gauss-Markov processes per
+    axis (stationary SD and correlation time); the attitude error is a small rotation
+    in the body frame. The gyro rates carry a Gauss-Markov bias plus white noise per
+    published sample. ``latency_ms``: the estimate published at t describes the true
+    state at t - latency.
+    """
+
+    latency_ms: float = 0.0
+    position_sd_m: float = 0.0
+    position_tau_s: float = 0.5
+    velocity_sd_m_s: float = 0.0
+    velocity_tau_s: float = 0.2
+    attitude_sd_deg: float = 0.0
+    attitude_tau_s: float = 0.5
+    gyro_noise_sd_rad_s: float = 0.0
+    gyro_bias_sd_rad_s: float = 0.0
+    gyro_bias_tau_s: float = 30.0
+
+    @property
+    def has_errors(self) -> bool:
+        """Whether any error SD is non-zero."""
+        return bool(self.position_sd_m or self.velocity_sd_m_s or self.attitude_sd_deg
+                    or self.gyro_noise_sd_rad_s or self.gyro_bias_sd_rad_s)
+
+    def scaled(self, factor: float) -> "EstimatorParams":
+        """The same estimator with every error SD multiplied by ``factor`` (latency kept)."""
+        return dataclasses.replace(
+            self, position_sd_m=self.position_sd_m * factor,
+            velocity_sd_m_s=self.velocity_sd_m_s * factor,
+            attitude_sd_deg=self.attitude_sd_deg * factor,
+            gyro_noise_sd_rad_s=self.gyro_noise_sd_rad_s * factor,
+            gyro_bias_sd_rad_s=self.gyro_bias_sd_rad_s * factor)
+
+
+@dataclass(frozen=True)
+class WorldPreset:
+    """A named world: the link and the estimator."""
+
+    name: str
+    link: LinkParams
+    estimator: EstimatorParams
+    overrides: tuple = ()
+    """``(flag, value)`` pairs applied on top of the named preset, for the start-up line."""
+
+    def describe(self) -> str:
+        """One line: preset name, its effective values and the overrides."""
+        lk, es = self.link, self.estimator
+        text = (f"world: preset {self.name}: telemetry {lk.telemetry_delay_ms:g}+-{lk.telemetry_jitter_ms:g} ms, "
+                f"commands {lk.command_delay_ms:g}+-{lk.command_jitter_ms:g} ms, "
+                f"loss {100.0 * lk.loss_probability:g} %, estimate latency {es.latency_ms:g} ms, ")
+        if es.has_errors:
+            text += (f"estimator errors (SD, tau): position {1000.0 * es.position_sd_m:g} mm "
+                     f"{es.position_tau_s:g} s, velocity {100.0 * es.velocity_sd_m_s:g} cm/s "
+                     f"{es.velocity_tau_s:g} s, attitude {es.attitude_sd_deg:g} deg {es.attitude_tau_s:g} s, "
+                     f"gyro bias {es.gyro_bias_sd_rad_s:g} rad/s {es.gyro_bias_tau_s:g} s, "
+                     f"gyro noise {es.gyro_noise_sd_rad_s:g} rad/s per sample")
+        else:
+            text += "no estimator errors"
+        if self.overrides:
+            text += "; overrides: " + " ".join(f"{flag} {value:g}" for flag, value in self.overrides)
+        return text
+
+
+PRESETS = {
+    "realistic": WorldPreset(
+        "realistic",
+        LinkParams(telemetry_delay_ms=10.0, telemetry_jitter_ms=3.0, command_delay_ms=5.0,
+                   command_jitter_ms=3.0, loss_probability=0.01),
+        EstimatorParams(latency_ms=4.0, position_sd_m=0.005, position_tau_s=0.5,
+                        velocity_sd_m_s=0.02, velocity_tau_s=0.2, attitude_sd_deg=0.3,
+                        attitude_tau_s=0.5, gyro_noise_sd_rad_s=0.005, gyro_bias_sd_rad_s=0.003,
+                        gyro_bias_tau_s=30.0)),
+    "ideal": WorldPreset("ideal", LinkParams(), EstimatorParams()),
+}
+PRESET_NAMES = tuple(PRESETS)
+
+
+def _check_ms(flag: str, value: float) -> float:
+    if not (math.isfinite(value) and 0.0 <= value <= MAX_DELAY_MS):
+        raise ValueError(f"{flag} must be a number in [0, {MAX_DELAY_MS:g}] ms, got {value!r}")
+    return float(value)
+
+
+def build_world(name: str, *, telemetry_delay_ms: float | None = None,
+                telemetry_jitter_ms: float | None = None, command_delay_ms: float | None = None,
+                command_jitter_ms: float | None = None, loss: float | None = None,
+                estimate_latency_ms: float | None = None,
+                estimator_scale: float | None = None) -> WorldPreset:
+    """The preset ``name`` with the command-line overrides applied (``None`` keeps the preset's).
+
+    Raises
+    ------
+    ValueError
+        One line, naming the flag: unknown preset, a value out of range, or a jitter
+        larger than its delay (the delay would go negative).
+    """
+    if name not in PRESETS:
+        raise ValueError(f"--preset {name!r}: expected one of {', '.join(PRESET_NAMES)}")
+    base = PRESETS[name]
+    given = (("--telemetry-delay-ms", telemetry_delay_ms), ("--telemetry-jitter-ms", telemetry_jitter_ms),
+             ("--command-delay-ms", command_delay_ms), ("--command-jitter-ms", command_jitter_ms),
+             ("--loss", loss), ("--estimate-latency-ms", estimate_latency_ms),
+             ("--estimator-scale", estimator_scale))
+    overrides = tuple((flag, float(v)) for flag, v in given if v is not None)
+    link_changes = {}
+    for flag, field, value in (("--telemetry-delay-ms", "telemetry_delay_ms", telemetry_delay_ms),
+                               ("--telemetry-jitter-ms", "telemetry_jitter_ms", telemetry_jitter_ms),
+                               ("--command-delay-ms", "command_delay_ms", command_delay_ms),
+                               ("--command-jitter-ms", "command_jitter_ms", command_jitter_ms)):
+        if value is not None:
+            link_changes[field] = _check_ms(flag, value)
+    if loss is not None:
+        if not (math.isfinite(loss) and 0.0 <= loss <= 1.0):
+            raise ValueError(f"--loss must be a probability in [0, 1], got {loss!r}")
+        link_changes["loss_probability"] = float(loss)
+    link = dataclasses.replace(base.link, **link_changes)
+    for what, delay, jitter in (("telemetry", link.telemetry_delay_ms, link.telemetry_jitter_ms),
+                                ("command", link.command_delay_ms, link.command_jitter_ms)):
+        if jitter > delay:
+            raise ValueError(f"--{what}-jitter-ms {jitter:g} exceeds --{what}-delay-ms {delay:g} "
+                             "(the delay would go negative)")
+    est = base.estimator
+    if estimate_latency_ms is not None:
+        est = dataclasses.replace(est, latency_ms=_check_ms("--estimate-latency-ms", estimate_latency_ms))
+    if estimator_scale is not None:
+        if not (math.isfinite(estimator_scale) and 0.0 <= estimator_scale <= 100.0):
+            raise ValueError(f"--estimator-scale must be a number in [0, 100], got {estimator_scale!r}")
+        est = est.scaled(float(estimator_scale))
+    return WorldPreset(name, link, est, overrides)
