@@ -50,7 +50,8 @@ class FlyOptions:
 
 
 def spawn_emulator(vehicle_path: Path, record: Path | None, lockstep: bool, extra: tuple[str, ...] = (),
-                   timeout_s: float = 20.0, rate_hz: float = 500.0) -> tuple[subprocess.Popen, str]:
+                   timeout_s: float = 20.0, rate_hz: float = 500.0,
+                   preset: str = "ideal") -> tuple[subprocess.Popen, str]:
     """Start ``firmware_sim`` on a free loopback port; return (process, ``udpout:`` URL for us).
 
     The emulator dies with this process however it ends (SIGKILL included): it is started
@@ -59,9 +60,11 @@ def spawn_emulator(vehicle_path: Path, record: Path | None, lockstep: bool, extr
     Ctrl-C in the terminal reaches only the daemon, which lands first and then stops the
     emulator (:func:`stop_process`). Call it from a thread that lives as long as the
     flight (the parent-death signal fires when the starting thread ends).
+    ``preset`` is the emulator's world (``ideal``: true state, no link effects); ``extra``
+    comes after it, so an ``--preset`` there wins.
     """
     cmd = [sys.executable, "-m", "firmware_sim", "--listen", "udpin:127.0.0.1:0", "--quiet",
-           "--vehicle", str(vehicle_path), "--rate-hz", f"{rate_hz:g}"]
+           "--vehicle", str(vehicle_path), "--rate-hz", f"{rate_hz:g}", "--preset", preset]
     if record is not None:
         cmd += ["--record", str(record)]
     if lockstep:
