@@ -115,6 +115,10 @@ class RecoveryParams:
     timeout_s: float = field(default=8.0, metadata=_POS)
     """Not recovered within this time (vehicle time): the motors are stopped. From
     inverted at 8 m/s the controller settles in about 3 s (unit test)."""
+    max_body_rate_rad_s: float = field(default=30.0, metadata=_POS)
+    """Absolute body-rate bound during a recovery: turning over at full torque peaks near
+    25 rad/s; 2000 deg/s (35 rad/s) is a common gyro's range, past which the rates reported
+    are meaningless."""
     geofence_margin_m: float = field(default=10.0, metadata={"min": 0.0})
     """The geofence grows by this much during a recovery: braking from 8 m/s takes 5 m."""
     max_recoveries: int = field(default=2, metadata={"min": 0})
@@ -141,8 +145,8 @@ class EnvelopeParams:
     """North and east half-widths of the box around the take-off point."""
     geofence_ceiling_m: float = field(default=30.0, metadata=_POS)
     max_body_rate_rad_s: float = field(default=20.0, metadata=_POS)
-    """Absolute, every phase (recovery too): 1150 deg/s is a tumble (the barrel roll
-    peaks at about 6 rad/s)."""
+    """Absolute, every phase but the recovery (``recovery.max_body_rate_rad_s``): 1150 deg/s
+    is a tumble (the barrel roll peaks at about 6 rad/s)."""
     tube_exit_s: float = field(default=0.05, metadata=_POS)
     """The projection on the path not unique for this long: s is no longer meaningful."""
     min_progress_m_s: float = field(default=0.05, metadata={"min": 0.0})

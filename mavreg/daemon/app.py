@@ -13,10 +13,11 @@ import collections
 import signal
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+from ..config.envelope import EnvelopeParams
 from ..config.vehicle import VehicleParams
 from ..control.regulator import ManeuverRegulator
 from .ctrllog import ControlLog
@@ -50,6 +51,8 @@ class DaemonConfig:
     socket_path: Path | None
     tlog_path: Path | None
     supervisor: SupervisorParams
+    envelope: EnvelopeParams = field(default_factory=EnvelopeParams)
+    """The controller file's ``envelope:`` section (``fly`` and ``serve`` load it)."""
 
 
 class Daemon:
@@ -60,7 +63,7 @@ class Daemon:
         self.config = config
         self.vehicle = vehicle
         self.clock_s = clock_s
-        self.supervisor = Supervisor(vehicle, config.supervisor, regulator_factory)
+        self.supervisor = Supervisor(vehicle, config.supervisor, regulator_factory, envelope=config.envelope)
         self.ctrl_log = ControlLog()
         self.log = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
         self.latency_ns: collections.deque = collections.deque(maxlen=200_000)

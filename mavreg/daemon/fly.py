@@ -4,7 +4,8 @@ With no vehicle URL it spawns ``firmware_sim`` on a free loopback port as a chil
 process (recording its ground truth), flies, stops the emulator, and writes into the
 output directory:
 
-- ``summary.json``: result, per-segment controller metrics, ground-truth errors, events;
+- ``summary.json``: result, the failure (first bound violated, where, by how much, what was
+  done), per-segment controller metrics, ground-truth errors, events;
 - ``flight.png``: the path in the maneuver's plane and the errors against arc length;
 - ``flight.tlog``: every MAVLink message in and out (pymavlink format);
 - ``control.npz``: the controller's internals (see :mod:`mavreg.daemon.ctrllog`);
@@ -19,16 +20,18 @@ import signal
 import subprocess
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
+from ..config.controller import load_controller
 from ..config.vehicle import load_vehicle
 from .app import Daemon, DaemonConfig, regulator_factory
 from .ctrllog import load_control_log
 from .lifeline import wrap_command
 from .report import controller_metrics, format_summary, ground_truth_errors, plot_flight
+from .phases import Failure
 from .supervisor import Phase, SupervisorParams
 
 __all__ = ["FlyOptions", "fly", "spawn_emulator", "stop_process"]
@@ -101,12 +104,13 @@ def fly(opts: FlyOptions) -> int:
     """Run the whole job; returns the process exit code (0 success, 1 flight failed)."""
     text = opts.maneuver_path.read_text()
     vehicle = load_vehicle(opts.vehicle_path)
+    envelope = load_controller(opts.controller_path).envelope
     opts.out_dir.mkdir(parents=True, exist_ok=True)
     record_path = opts.out_dir / "groundtruth.npz"
     config = DaemonConfig(vehicle_url=opts.vehicle_url or "", vehicle_path=opts.vehicle_path,
                           controller_path=opts.controller_path, socket_path=opts.socket_path,
                           tlog_path=opts.out_dir / "flight.tlog",
-                          supervisor=SupervisorParams(land_when_done=True))
+                          supervisor=SupervisorParams(land_when_done=True), envelope=envelope)
     daemon = Daemon(config, vehicle, regulator_factory(vehicle, opts.control_rate_hz))
     proc = None
     emulator_code = None
@@ -117,8 +121,7 @@ def fly(opts: FlyOptions) -> int:
             if opts.vehicle_url is None:
                 proc, url = spawn_emulator(opts.vehicle_path, record_path, opts.lockstep,
                                            opts.emulator_args, rate_hz=opts.control_rate_hz)
-                daemon.config = DaemonConfig(url, config.vehicle_path, config.controller_path,
-                                             config.socket_path, config.tlog_path, config.supervisor)
+                daemon.config = replace(config, vehicle_url=url)
             await daemon.run([(text, str(opts.maneuver_path))], timeout_s=opts.timeout_s)
         asyncio.run(main())
     finally:
@@ -133,14 +136,17 @@ def fly(opts: FlyOptions) -> int:
 def _finish(opts, daemon, ctrl, record_path, emulator_code, wall_s) -> int:
     sup = daemon.supervisor
     plan = daemon.plans[0] if daemon.plans else None
-    ok = sup.succeeded and emulator_code in (None, 0)
+    failure = outcome(sup, emulator_code, opts.timeout_s)
+    ok = failure is None
     events = ctrl["events"]
     man = [e for e in events if e["kind"] == "phase" and e["phase"] == Phase.MANEUVER]
     after = [e for e in events if e["kind"] == "phase" and man and e["time_s"] is not None
              and e["time_s"] > man[0]["time_s"]]
     summary = {
         "result": "ok" if ok else "failed",
-        "reason": sup.reason or ("" if ok else f"ended in phase {sup.phase}"),
+        "reason": "" if ok else failure.line(),
+        "failure": None if ok else failure.as_dict(),
+        "touchdown_speed_m_s": sup.status()["touchdown_speed_m_s"],
         "maneuver": plan.name if plan else str(opts.maneuver_path),
         "length_m": plan.length_m if plan else float("nan"),
         "flight_time_s": float(ctrl["t_s"][-1] - ctrl["t_s"][0]) if ctrl["t_s"].size else 0.0,
@@ -165,7 +171,36 @@ def _finish(opts, daemon, ctrl, record_path, emulator_code, wall_s) -> int:
     print(format_summary(summary))
     print(f"outputs: {opts.out_dir}/ (summary.json, flight.png, flight.tlog, control.npz"
           f"{', groundtruth.npz' if record_path is not None else ''})")
+    if not ok:
+        print(f"flight failed: {failure.line()}")
     return 0 if ok else 1
+
+
+_EMULATOR_EXIT = {1: "internal error", 3: "crash", 4: "non-finite state", 5: "speed or body rate limit"}
+
+
+def outcome(sup, emulator_code: int | None, timeout_s: float) -> Failure | None:
+    """None for a flight flown within its envelope and landed; else the cause.
+
+    The supervisor's first violated bound wins; otherwise the emulator's exit (a crash the
+    daemon did not see), a timeout, or a flight that ended without flying its maneuver.
+    """
+    if sup.failure is not None:
+        return sup.failure
+    nan = float("nan")
+    t = sup.last_sample.time_s if sup.last_sample is not None else nan
+    if emulator_code not in (None, 0):
+        why = _EMULATOR_EXIT.get(emulator_code, "unknown")
+        return Failure("emulator_exit", sup.phase, t, nan, float(emulator_code), 0.0, "code",
+                       f"the emulator stopped: {why} (exit {emulator_code})", "none")
+    if not sup.finished:
+        return Failure("timeout", sup.phase, t, nan, timeout_s, timeout_s, "s",
+                       f"the flight did not end within --timeout-s {timeout_s:g}",
+                       "command stream stopped (vehicle failsafe)")
+    if not sup.succeeded:
+        return Failure("not_flown", sup.phase, t, nan, nan, nan, "",
+                       sup.reason or f"ended in phase {sup.phase} without flying the maneuver", "none")
+    return None
 
 
 def _plain(obj):

@@ -12,13 +12,20 @@ from dataclasses import dataclass
 from pymavlink.dialects.v20 import common as mavlink2
 
 __all__ = ["mavlink2", "PX4_MAIN_OFFBOARD", "PX4_MAIN_AUTO", "PX4_SUB_LOITER", "PX4_SUB_LAND",
-           "VehicleStatus", "decode_heartbeat", "actuator_target", "arm_disarm", "set_offboard",
-           "daemon_heartbeat", "mode_name"]
+           "VehicleStatus", "decode_heartbeat", "actuator_target", "arm_disarm", "force_disarm",
+           "set_offboard", "daemon_heartbeat", "mode_name", "statustext", "SEVERITY_CRITICAL",
+           "SEVERITY_WARNING", "FORCE_DISARM_MAGIC"]
 
 PX4_MAIN_AUTO = 4
 PX4_MAIN_OFFBOARD = 6
 PX4_SUB_LOITER = 3
 PX4_SUB_LAND = 6
+FORCE_DISARM_MAGIC = 21196.0
+"""param2 of ARM_DISARM that forces a disarm in flight (PX4's value)."""
+SEVERITY_CRITICAL = mavlink2.MAV_SEVERITY_CRITICAL
+SEVERITY_WARNING = mavlink2.MAV_SEVERITY_WARNING
+_TEXT_LEN = 50
+_MAX_CHUNKS = 6
 
 
 @dataclass(frozen=True)
@@ -77,6 +84,31 @@ def arm_disarm(target_system: int, target_component: int, arm: bool) -> object:
     return mavlink2.MAVLink_command_long_message(
         target_system, target_component, mavlink2.MAV_CMD_COMPONENT_ARM_DISARM, 0,
         1.0 if arm else 0.0, 0, 0, 0, 0, 0, 0)
+
+
+def force_disarm(target_system: int, target_component: int) -> object:
+    """COMMAND_LONG ARM_DISARM param1 = 0, param2 = 21196: stop the motors even in flight."""
+    return mavlink2.MAVLink_command_long_message(
+        target_system, target_component, mavlink2.MAV_CMD_COMPONENT_ARM_DISARM, 0,
+        0.0, FORCE_DISARM_MAGIC, 0, 0, 0, 0, 0)
+
+
+def statustext(severity: int, text: str, chunk_id: int) -> list:
+    """STATUSTEXT message(s) of ``text`` (ASCII; at most 300 characters are sent).
+
+    Up to 50 characters: one message with id 0. Longer: MAVLink 2 chunks, all with the
+    non-zero ``chunk_id`` and ``chunk_seq`` 0, 1, ...; the last chunk is shorter than 50
+    characters (an empty one follows a full last chunk), which ends the sequence.
+    """
+    data = text.encode("ascii", "replace")[:_TEXT_LEN * _MAX_CHUNKS - 1]
+    if len(data) <= _TEXT_LEN:
+        return [mavlink2.MAVLink_statustext_message(severity, data, 0, 0)]
+    if not 0 < chunk_id < 65536:
+        raise ValueError(f"chunk_id must be 1..65535, got {chunk_id}")
+    chunks = [data[i:i + _TEXT_LEN] for i in range(0, len(data), _TEXT_LEN)]
+    if len(chunks[-1]) == _TEXT_LEN:
+        chunks.append(b"")
+    return [mavlink2.MAVLink_statustext_message(severity, c, chunk_id, k) for k, c in enumerate(chunks)]
 
 
 def set_offboard(target_system: int, target_component: int) -> object:

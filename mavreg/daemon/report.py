@@ -76,6 +76,8 @@ def format_summary(summary: dict) -> str:
     """Human-readable per-segment table of a summary dict (see ``mavreg fly``)."""
     lines = [f"flight {summary['result']}: {summary['maneuver']} "
              f"({summary['length_m']:.2f} m) in {summary['flight_time_s']:.1f} s"]
+    if summary.get("reason"):
+        lines.append(f"cause: {summary['reason']}")
     cm = summary.get("controller_metrics") or {}
     gt = summary.get("ground_truth") or {}
     lines.append(f"{'segment':<16}{'max e_t cm':>11}{'rms e_t cm':>11}{'true max cm':>12}"
@@ -94,7 +96,8 @@ def format_summary(summary: dict) -> str:
     if cm:
         lines.append(row("all", cm, gt))
     for ev in summary.get("events", []):
-        if ev["kind"] in ("phase", "touchdown", "tube", "command_refused"):
+        if ev["kind"] in ("phase", "touchdown", "command_refused", "gap", "recover", "motors_stopped",
+                          "hand_over", "refused", "hard_landing"):
             lines.append(f"  t={ev['time_s'] if ev['time_s'] is not None else float('nan'):8.3f} s "
                          f"{ev['phase']:<9} {ev['detail']}")
     return "\n".join(lines)

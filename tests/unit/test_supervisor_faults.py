@@ -24,7 +24,11 @@ def test_stale_state_stops_stream_for_good():
         if out.events:
             break
     assert sup.phase == Phase.ABORTED and "stale" in sup.reason
-    assert any(e.phase == Phase.ABORTED for e in out.events) and out.messages == []
+    assert any(e.phase == Phase.ABORTED for e in out.events) and _actuators(out) == []
+    # announced to the vehicle (and the .tlog) as a CRITICAL STATUSTEXT
+    texts = [m for m in out.messages if m.get_type() == "STATUSTEXT"]
+    assert texts and all(m.severity == mavlink2.MAV_SEVERITY_CRITICAL for m in texts)
+    assert sup.failure.bound == "link_lost" and sup.failure.value > 0.1
     assert 0.1 < 0.02 * k + veh.dt <= 0.13   # the last sample came one period before `now`
     # fresh samples afterwards never restart the stream
     sent = 0

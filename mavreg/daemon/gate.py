@@ -1,0 +1,138 @@
+"""The health gate: a maneuver starts only from a hold that shows the vehicle is fit for it.
+
+Sans-I/O. The supervisor feeds it the hold's samples once the move to the hold point has
+ended (:meth:`HealthGate.observe`), and asks :meth:`HealthGate.evaluate` before ``run_in``.
+Over the last ``GateParams.window_s`` of the hold it requires, in this order:
+
+- the plan inside the envelope from this take-off point (altitude floor, geofence);
+- tracking: largest distance from the hold point and largest attitude error within bounds;
+- rotor commands that do not clip, and do not chatter (high-pass SD of each rotor,
+  ``sqrt(mean(diff(f)^2) / 2)``, which is the SD of white noise and ~0 for smooth commands);
+- the mean collective command within ``max_thrust_ratio_error`` of the design weight (the
+  plan's feasibility was checked on the design mass);
+- the link's delay and jitter within bounds, when known (unknown does not block).
+
+A failing check is a :class:`GateVerdict` with the bound, the value and the limit.
+"""
+from __future__ import annotations
+
+import collections
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from ..config.envelope import EnvelopeParams
+from ..config.vehicle import G
+
+__all__ = ["GateVerdict", "HealthGate", "nominal_points", "plan_outside_envelope"]
+
+
+@dataclass(frozen=True)
+class GateVerdict:
+    ok: bool
+    bound: str = ""
+    value: float = math.nan
+    limit: float = math.nan
+    unit: str = ""
+    detail: str = ""
+
+
+PASS = GateVerdict(True)
+
+
+def nominal_points(plan, n: int = 400) -> tuple[np.ndarray, np.ndarray]:
+    """(s, positions) of ``n`` points of the plan's nominal path (computed once per upload)."""
+    s = np.linspace(0.0, plan.length_m, n)
+    return s, np.array([np.asarray(plan.nominal_state(si), dtype=float)[:3] for si in s])
+
+
+def plan_outside_envelope(points, origin_m, envelope: EnvelopeParams) -> GateVerdict | None:
+    """A failing verdict when the nominal path ``points`` (from :func:`nominal_points`) leaves
+    the envelope seen from the take-off point ``origin_m`` (floor, geofence), else None."""
+    s, pts = points
+    alt = origin_m[2] - pts[:, 2]
+    if alt.min() < envelope.min_altitude_m:
+        i = int(np.argmin(alt))
+        return GateVerdict(False, "gate_plan_floor", float(alt[i]), envelope.min_altitude_m, "m",
+                           f"the plan goes down to {alt[i]:.2f} m above the take-off point (s={s[i]:.2f} m)")
+    if alt.max() > envelope.geofence_ceiling_m:
+        return GateVerdict(False, "gate_plan_geofence", float(alt.max()), envelope.geofence_ceiling_m, "m",
+                           "the plan climbs above the geofence ceiling")
+    for axis, name in ((0, "north"), (1, "east")):
+        d = float(np.abs(pts[:, axis] - origin_m[axis]).max())
+        if d > envelope.geofence_half_width_m[axis]:
+            return GateVerdict(False, "gate_plan_geofence", d, envelope.geofence_half_width_m[axis], "m",
+                               f"the plan leaves the geofence box ({name})")
+    return None
+
+
+class HealthGate:
+    """Judges the last ``window_s`` of a hold.
+
+    Parameters
+    ----------
+    envelope : EnvelopeParams
+    mass_kg, max_rotor_thrust_n : float
+        The design weight and what counts as a clipped command.
+    link_health : callable or None
+        ``() -> (delay_s, jitter_s)`` or None when unknown.
+    """
+
+    def __init__(self, envelope: EnvelopeParams, mass_kg: float, max_rotor_thrust_n: float,
+                 link_health: Callable[[], tuple[float, float] | None] | None = None):
+        self.params = envelope.gate
+        self.weight_n = float(mass_kg) * G
+        self.fmax = float(max_rotor_thrust_n)
+        self.link_health = link_health
+        self._rows: collections.deque = collections.deque()   # (t, pos err, att err, f1..f4)
+
+    def reset(self) -> None:
+        self._rows.clear()
+
+    def observe(self, t_s: float, position_error_m: float, attitude_error_rad: float, demand_n) -> None:
+        """One hold sample: errors from the hold reference, rotor forces asked (unclipped)."""
+        self._rows.append((t_s, position_error_m, attitude_error_rad, *(float(f) for f in demand_n)))
+        while self._rows and t_s - self._rows[0][0] > self.params.window_s + 1e-9:
+            self._rows.popleft()
+
+    def ready(self) -> bool:
+        """Whether a full window has been seen."""
+        return len(self._rows) > 2 and self._rows[-1][0] - self._rows[0][0] >= 0.9 * self.params.window_s
+
+    def evaluate(self) -> GateVerdict:
+        """The first failing check over the window, or a pass (call when :meth:`ready`)."""
+        g = self.params
+        rows = np.array(self._rows)
+        pos, att, f = rows[:, 1], rows[:, 2], rows[:, 3:7]
+        if pos.max() > g.max_position_error_m:
+            return GateVerdict(False, "gate_position", float(pos.max()), g.max_position_error_m, "m",
+                               "the hold does not hold its point")
+        if att.max() > g.max_attitude_error_rad:
+            return GateVerdict(False, "gate_attitude", float(att.max()), g.max_attitude_error_rad, "rad",
+                               "the hold is not level")
+        clipped = np.any((f < -1e-9) | (f > self.fmax + 1e-9), axis=1)
+        if clipped.any():
+            return GateVerdict(False, "gate_saturation", float(clipped.mean()), 0.0, "share",
+                               "rotor commands clipped during the hold")
+        hp = np.sqrt(np.mean(np.diff(f, axis=0) ** 2, axis=0) / 2.0)
+        if hp.max() > g.max_rotor_hp_sd_n:
+            i = int(np.argmax(hp))
+            return GateVerdict(False, "gate_rotor_chatter", float(hp[i]), g.max_rotor_hp_sd_n, "N",
+                               f"rotor {i + 1} command chatters (high-pass SD)")
+        ratio = float(f.sum(axis=1).mean()) / self.weight_n
+        if abs(ratio - 1.0) > g.max_thrust_ratio_error:
+            return GateVerdict(False, "gate_thrust", ratio, 1.0 + math.copysign(g.max_thrust_ratio_error, ratio - 1.0),
+                               "ratio", f"the hold needs {ratio:.2f} x the design hover thrust: the vehicle's "
+                               "mass or rotors differ from the design model")
+        link = self.link_health() if self.link_health is not None else None
+        if link is not None:
+            delay, jitter = link
+            if delay > g.max_link_delay_s:
+                return GateVerdict(False, "gate_link_delay", float(delay), g.max_link_delay_s, "s",
+                                   "link delay beyond what the plan tolerates")
+            if jitter > g.max_link_jitter_s:
+                return GateVerdict(False, "gate_link_jitter", float(jitter), g.max_link_jitter_s, "s",
+                                   "link jitter beyond what the plan tolerates")
+        return PASS

@@ -1,0 +1,289 @@
+"""The flight envelope monitor: numbers in, the first violated bound out (sans-I/O).
+
+The supervisor calls it on every complete state sample, in this order:
+
+1. :meth:`EnvelopeMonitor.check_state` with the telemetry alone: impact (ground contact at
+   speed, acceleration spike), a position jump the velocity does not explain, thrust that
+   the measured acceleration contradicts, absolute body rate, altitude floor, geofence;
+2. :meth:`EnvelopeMonitor.check_tracking` with the controller's errors: distance from the
+   path or the hover reference, attitude error, rate error, the regulation tube, progress
+   along s, and the share of clipped rotor commands;
+3. :meth:`EnvelopeMonitor.record_command` with every rotor command sent.
+
+Each check returns a :class:`Violation` (or None): which bound, where (phase, s, t), the
+value, the limit, and whether the vehicle has hit something (``impact``: stop the motors).
+Bounds come from :class:`mavreg.config.envelope.EnvelopeParams`; docs/safety.md lists them.
+Altitudes and the geofence are relative to the take-off point (:meth:`set_origin`).
+"""
+from __future__ import annotations
+
+import collections
+import math
+from dataclasses import dataclass
+
+from ..config.envelope import EnvelopeParams
+from ..config.vehicle import G
+from .phases import Phase
+
+__all__ = ["Violation", "Tracking", "EnvelopeMonitor"]
+
+_FLYING = (Phase.TAKEOFF, Phase.HOLD, Phase.RUN_IN, Phase.MANEUVER, Phase.LAND, Phase.RECOVER)
+_FLOOR = (Phase.HOLD, Phase.RUN_IN, Phase.MANEUVER)
+
+
+@dataclass(frozen=True)
+class Violation:
+    """A bound exceeded: where, by how much (SI values; ``unit`` names the unit)."""
+
+    bound: str
+    phase: str
+    t_s: float
+    s_m: float
+    """Arc length in the maneuver, NaN elsewhere."""
+    value: float
+    limit: float
+    unit: str
+    detail: str
+    impact: bool = False
+    """The vehicle has hit something: the motors must stop, whatever the phase."""
+
+    def describe(self) -> str:
+        """One line: bound, where, value against limit (angles in degrees)."""
+        scale, unit = (180.0 / math.pi, "deg") if self.unit == "rad" else (1.0, self.unit)
+        where = f"{self.phase}" + ("" if math.isnan(self.s_m) else f" at s={self.s_m:.2f} m")
+        return (f"{self.bound} in {where}, t={self.t_s:.3f} s: {self.value * scale:.3g} {unit} "
+                f"(limit {self.limit * scale:.3g} {unit}); {self.detail}")
+
+
+@dataclass(frozen=True)
+class Tracking:
+    """The controller's errors at one step (see :class:`~mavreg.config.envelope.PhaseBounds`)."""
+
+    position_error_m: float
+    attitude_error_rad: float
+    rate_error_rad_s: float
+    s_m: float = math.nan
+    in_tube: bool = True
+
+
+class EnvelopeMonitor:
+    """Sliding-window checks of one flight.
+
+    Parameters
+    ----------
+    params : EnvelopeParams
+    mass_kg, max_rotor_thrust_n : float
+        Design mass and rotor limit: the weight the thrust check compares with, the
+        largest acceleration the rotors can produce, what counts as a clipped command.
+    """
+
+    def __init__(self, params: EnvelopeParams, mass_kg: float, max_rotor_thrust_n: float):
+        self.p = params
+        self.mass_kg = float(mass_kg)
+        self.fmax = float(max_rotor_thrust_n)
+        self.max_accel_m_s2 = 4.0 * self.fmax / self.mass_kg + G
+        self.origin: tuple[float, float, float] | None = None
+        self._states: collections.deque = collections.deque()     # (t, p, v)
+        self._commands: collections.deque = collections.deque()   # (t, clipped, collective)
+        self._phase = Phase.PREFLIGHT
+        self._phase_t0 = 0.0
+        self._progress: collections.deque = collections.deque()   # (t, s)
+        self._stall_since: float | None = None
+        self._out_of_tube_since: float | None = None
+        self._mismatch_since: float | None = None
+
+    # ------------------------------------------------------------------ context
+    def set_origin(self, position_m) -> None:
+        """The take-off point (NED): altitude floor, geofence and impact are relative to it."""
+        self.origin = (float(position_m[0]), float(position_m[1]), float(position_m[2]))
+
+    def altitude_m(self, position_m) -> float:
+        return math.nan if self.origin is None else self.origin[2] - float(position_m[2])
+
+    def phase_changed(self, phase: str, t_s: float) -> None:
+        """Windows that belong to one phase (saturation, progress, tube) start again."""
+        self._phase = phase
+        self._phase_t0 = t_s
+        self._commands.clear()
+        self._progress.clear()
+        self._stall_since = None
+        self._out_of_tube_since = None
+
+    # ------------------------------------------------------------------ telemetry
+    def check_state(self, t_s: float, phase: str, s_m: float, p, v, R, omega) -> Violation | None:
+        """Telemetry-only bounds of a sample (NED position and velocity, body-to-NED R, body rates)."""
+        prm = self.p
+        px, py, pz = float(p[0]), float(p[1]), float(p[2])
+        vx, vy, vz = float(v[0]), float(v[1]), float(v[2])
+        prev = self._states[-1] if self._states else None
+        self._states.append((t_s, (px, py, pz), (vx, vy, vz)))
+        while self._states and t_s - self._states[0][0] > 0.5:
+            self._states.popleft()
+        if phase not in _FLYING:
+            return None
+
+        def fail(bound, value, limit, unit, detail, impact=False):
+            return Violation(bound, phase, t_s, s_m, float(value), float(limit), unit, detail, impact)
+
+        speed = math.sqrt(vx * vx + vy * vy + vz * vz)
+        alt = self.altitude_m(p)
+        # 1. impact: at the ground at speed, or an acceleration no rotor can produce
+        if alt <= prm.impact_altitude_m:
+            if vz > prm.impact_descent_m_s:
+                return fail("impact", vz, prm.impact_descent_m_s, "m/s",
+                            f"descending at {vz:.2f} m/s at {alt:.2f} m above the take-off point", True)
+            if speed > prm.impact_speed_m_s:
+                return fail("impact", speed, prm.impact_speed_m_s, "m/s",
+                            f"moving at {speed:.2f} m/s at {alt:.2f} m above the take-off point", True)
+        acc = self._acceleration(t_s, prm.accel_window_s)
+        if acc is not None:
+            a = math.sqrt(acc[0] ** 2 + acc[1] ** 2 + acc[2] ** 2)
+            if a > prm.impact_accel_m_s2:
+                return fail("impact", a, prm.impact_accel_m_s2, "m/s^2",
+                            f"acceleration spike {a:.0f} m/s^2 from the reported velocity", True)
+        # 2. telemetry that contradicts itself or the commands
+        if prev is not None and 0.0 < t_s - prev[0] <= 0.5:
+            dt = t_s - prev[0]
+            (qx, qy, qz), (ux, uy, uz) = prev[1], prev[2]
+            ex = px - qx - 0.5 * (ux + vx) * dt
+            ey = py - qy - 0.5 * (uy + vy) * dt
+            ez = pz - qz - 0.5 * (uz + vz) * dt
+            jump = math.sqrt(ex * ex + ey * ey + ez * ez)
+            limit = prm.max_position_jump_m + 0.5 * self.max_accel_m_s2 * dt * dt
+            if jump > limit:
+                return fail("position_jump", jump, limit, "m",
+                            f"position moved {jump:.2f} m more than the velocity explains over {dt * 1e3:.0f} ms")
+        v_bad = self._thrust_check(t_s, R)
+        if v_bad is not None:
+            measured, commanded, lasted = v_bad
+            near_ground = alt <= prm.impact_altitude_m
+            return fail("thrust_mismatch", measured / commanded, prm.min_thrust_ratio, "ratio",
+                        f"measured thrust {measured:.1f} N against {commanded:.1f} N commanded for "
+                        f"{lasted:.2f} s" + (" at the ground" if near_ground else ""), near_ground)
+        # 3. where the vehicle may be
+        w = math.sqrt(float(omega[0]) ** 2 + float(omega[1]) ** 2 + float(omega[2]) ** 2)
+        w_max = prm.recovery.max_body_rate_rad_s if phase == Phase.RECOVER else prm.max_body_rate_rad_s
+        if w > w_max:
+            return fail("body_rate", w, w_max, "rad/s", "body rate beyond the envelope")
+        if phase in _FLOOR and alt < prm.min_altitude_m:
+            return fail("altitude_floor", alt, prm.min_altitude_m, "m", "below the altitude floor")
+        if self.origin is not None:
+            margin = prm.recovery.geofence_margin_m if phase == Phase.RECOVER else 0.0
+            dn, de = abs(px - self.origin[0]), abs(py - self.origin[1])
+            hn, he = (h + margin for h in prm.geofence_half_width_m)
+            if dn > hn:
+                return fail("geofence", dn, hn, "m", "north of or south of the geofence box")
+            if de > he:
+                return fail("geofence", de, he, "m", "east of or west of the geofence box")
+            if alt > prm.geofence_ceiling_m + margin:
+                return fail("geofence", alt, prm.geofence_ceiling_m + margin, "m", "above the geofence ceiling")
+        return None
+
+    def _acceleration(self, t_s: float, window_s: float):
+        """NED acceleration from the newest velocity and the newest one at least ``window_s``
+        older (None without one within 0.1 s more)."""
+        t1, _, v1 = self._states[-1]
+        for t0, _, v0 in reversed(self._states):
+            dt = t1 - t0
+            if dt >= window_s - 1e-9:
+                if dt > window_s + 0.1:
+                    return None
+                return ((v1[0] - v0[0]) / dt, (v1[1] - v0[1]) / dt, (v1[2] - v0[2]) / dt)
+        return None
+
+    def _thrust_check(self, t_s: float, R):
+        """(measured N, commanded N, lasted s) when the mismatch has lasted long enough."""
+        prm = self.p
+        cmds = [c for c in self._commands if t_s - c[0] <= prm.thrust_window_s]
+        acc = self._acceleration(t_s, prm.thrust_window_s)
+        if not cmds or acc is None:
+            self._mismatch_since = None
+            return None
+        commanded = sum(c[2] for c in cmds) / len(cmds)
+        if commanded < prm.thrust_check_min_ratio * self.mass_kg * G:
+            self._mismatch_since = None
+            return None
+        # specific force along the thrust axis (-body z) times the design mass
+        measured = self.mass_kg * (G * float(R[2][2]) - (float(R[0][2]) * acc[0] + float(R[1][2]) * acc[1]
+                                                          + float(R[2][2]) * acc[2]))
+        if measured >= prm.min_thrust_ratio * commanded:
+            self._mismatch_since = None
+            return None
+        if self._mismatch_since is None:
+            self._mismatch_since = t_s
+        lasted = t_s - self._mismatch_since
+        return (measured, commanded, lasted) if lasted >= prm.thrust_mismatch_s else None
+
+    # ------------------------------------------------------------------ control
+    def check_tracking(self, t_s: float, phase: str, tr: Tracking) -> Violation | None:
+        """The phase's tracking bounds, the tube, progress along s, the saturation share."""
+        b = self.p.bounds(phase)
+        if b is None:
+            return None
+        s_m = tr.s_m
+
+        def fail(bound, value, limit, unit, detail):
+            return Violation(bound, phase, t_s, s_m, float(value), float(limit), unit, detail)
+
+        what = "distance from the path" if phase == Phase.MANEUVER else "distance from the reference"
+        if tr.position_error_m > b.max_position_error_m:
+            return fail("position_error", tr.position_error_m, b.max_position_error_m, "m", what)
+        if tr.attitude_error_rad > b.max_attitude_error_rad:
+            return fail("attitude_error", tr.attitude_error_rad, b.max_attitude_error_rad, "rad",
+                        "angle from the reference attitude")
+        if tr.rate_error_rad_s > b.max_rate_error_rad_s:
+            return fail("rate_error", tr.rate_error_rad_s, b.max_rate_error_rad_s, "rad/s",
+                        "body rate error from the reference")
+        if phase == Phase.MANEUVER:
+            v = self._maneuver_checks(t_s, tr, fail)
+            if v is not None:
+                return v
+        return self._saturation(t_s, b.max_saturated_share, fail)
+
+    def _maneuver_checks(self, t_s: float, tr: Tracking, fail):
+        prm = self.p
+        if tr.in_tube:
+            self._out_of_tube_since = None
+        else:
+            if self._out_of_tube_since is None:
+                self._out_of_tube_since = t_s
+            if t_s - self._out_of_tube_since >= prm.tube_exit_s:
+                return fail("tube", t_s - self._out_of_tube_since, prm.tube_exit_s, "s",
+                            "outside the regulation tube (nearest point on the path not unique)")
+        q = self._progress
+        q.append((t_s, tr.s_m))
+        while len(q) > 2 and t_s - q[1][0] >= prm.progress_window_s:
+            q.popleft()
+        dt = t_s - q[0][0]
+        if dt >= prm.progress_window_s:
+            rate = (tr.s_m - q[0][1]) / dt
+            if rate >= prm.min_progress_m_s:
+                self._stall_since = None
+            else:
+                if self._stall_since is None:
+                    self._stall_since = t_s - dt
+                if t_s - self._stall_since >= prm.max_stall_s:
+                    return fail("progress", rate, prm.min_progress_m_s, "m/s",
+                                f"ds/dt under the bound for {t_s - self._stall_since:.2f} s")
+        return None
+
+    def _saturation(self, t_s: float, share_limit: float, fail):
+        win = self.p.saturation_window_s
+        if t_s - self._phase_t0 < win or not self._commands:
+            return None
+        recent = [c[1] for c in self._commands if t_s - c[0] < win]
+        share = sum(recent) / len(recent)
+        if share > share_limit:
+            return fail("saturation", share, share_limit, "share",
+                        f"{100 * share:.0f} % of the rotor commands of the last {win:g} s clipped")
+        return None
+
+    def record_command(self, t_s: float, demand_n) -> None:
+        """A rotor command about to be sent: the controller's forces, before clipping."""
+        f = [float(x) for x in demand_n]
+        clipped = any(x < -1e-9 or x > self.fmax + 1e-9 for x in f)
+        collective = sum(min(max(x, 0.0), self.fmax) for x in f)
+        self._commands.append((t_s, clipped, collective))
+        horizon = max(self.p.saturation_window_s, self.p.thrust_window_s)
+        while self._commands and t_s - self._commands[0][0] > horizon:
+            self._commands.popleft()

@@ -1,0 +1,151 @@
+"""The supervisor's vocabulary: phases, parameters, events, log records, outcome (no logic)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..control.hover import HoverParams
+
+__all__ = ["Phase", "PHASE_CODES", "SupervisorParams", "Event", "LogRecord", "Output", "Counters",
+           "Failure"]
+
+
+class Phase:
+    PREFLIGHT = "preflight"
+    TAKEOFF = "takeoff"
+    HOLD = "hold"
+    RUN_IN = "run_in"
+    MANEUVER = "maneuver"
+    LAND = "land"
+    DISARMED = "disarmed"
+    ABORTED = "aborted"
+    RECOVER = "recover"
+    """The recovery controller levels, brakes, climbs and holds."""
+    TERMINATE = "terminate"
+    """Motors stopped: forced disarm repeated until the vehicle reports disarmed; no stream."""
+
+
+PHASE_CODES = {p: i for i, p in enumerate(
+    [Phase.PREFLIGHT, Phase.TAKEOFF, Phase.HOLD, Phase.RUN_IN, Phase.MANEUVER, Phase.LAND,
+     Phase.DISARMED, Phase.ABORTED, Phase.RECOVER, Phase.TERMINATE])}
+"""Integer codes of the phases in the controller log (new phases appended: old logs keep theirs)."""
+
+AIRBORNE = (Phase.TAKEOFF, Phase.HOLD, Phase.RUN_IN, Phase.MANEUVER, Phase.LAND, Phase.RECOVER)
+"""Phases in which the daemon streams rotor commands to an armed vehicle in OFFBOARD."""
+
+
+@dataclass(frozen=True)
+class SupervisorParams:
+    """Identities, timeouts and flight-shape parameters (SI units)."""
+
+    vehicle_system_id: int = 1
+    vehicle_component_id: int = 1
+    stale_timeout_s: float = 0.5
+    """No complete sample for this long (injected clock) while armed: the link is lost, the
+    stream stops for good and the vehicle's failsafe takes over (docs/safety.md, gaps)."""
+    tick_stall_s: float = 0.05
+    """A tick this much later than the previous one means the daemon's own process was
+    stalled (samples may be waiting unread): that tick does not judge the link."""
+    command_retry_s: float = 0.5
+    """Vehicle time between repeats of an unanswered ARM / DO_SET_MODE / DISARM."""
+    disarm_retry_s: float = 0.1
+    """Injected-clock time between repeats of a forced disarm (it repeats until disarmed)."""
+    terminate_timeout_s: float = 5.0
+    """A forced disarm not confirmed within this (injected clock): give up, stream stopped."""
+    offboard_stream_min_s: float = 0.7
+    """Vehicle time the idle stream runs before OFFBOARD is requested (vehicle needs 0.5 s)."""
+    spool_s: float = 1.0
+    """Smooth thrust spool-up before take-off and spool-down after touchdown."""
+    hold_before_s: float = 1.0
+    hold_after_s: float = 1.0
+    run_in_m: float = 0.6
+    """Distance of the hold point before the entry, along the entry velocity."""
+    land_speed_m_s: float = 0.3
+    land_slow_altitude_m: float = 0.4
+    touchdown_altitude_m: float = 0.03
+    land_when_done: bool = True
+    """Land after the last queued maneuver (``fly``); ``serve`` keeps holding."""
+    euler_pitch_limit_rad: float = math.radians(75.0)
+    hover: HoverParams = field(default_factory=HoverParams)
+
+
+@dataclass(frozen=True)
+class Event:
+    """A phase change or notable fact, stamped with vehicle time and arc length."""
+
+    time_s: float
+    kind: str
+    phase: str
+    s_m: float
+    detail: str
+
+    def line(self) -> str:
+        s = "" if math.isnan(self.s_m) else f" s={self.s_m:.3f} m"
+        return f"t={self.time_s:8.3f} s [{self.phase}] {self.kind}{s}: {self.detail}"
+
+
+@dataclass(frozen=True)
+class LogRecord:
+    """Controller internals of one control step."""
+
+    time_s: float
+    phase: str
+    s_m: float
+    w: np.ndarray
+    u: np.ndarray
+    rotor_cmd_n: np.ndarray
+    """Rotor forces asked by the controller (unclipped)."""
+    x: np.ndarray
+
+
+@dataclass
+class Output:
+    messages: list = field(default_factory=list)
+    events: list = field(default_factory=list)
+    log: LogRecord | None = None
+
+
+@dataclass
+class Counters:
+    foreign_dropped: int = 0
+    samples: int = 0
+    actuator_sent: int = 0
+    commands_sent: int = 0
+    non_finite: int = 0
+    acks: int = 0
+    gaps: int = 0
+    """Samples that came after a gap longer than ``EnvelopeParams.maneuver_gap_s``."""
+    statustexts: int = 0
+
+
+@dataclass(frozen=True)
+class Failure:
+    """Why a flight failed: the first bound violated, where, by how much, and what was done."""
+
+    bound: str
+    phase: str
+    t_s: float
+    s_m: float
+    value: float
+    limit: float
+    unit: str
+    detail: str
+    action: str
+
+    def as_dict(self) -> dict:
+        def num(x):
+            return None if isinstance(x, float) and not math.isfinite(x) else x
+        return {"bound": self.bound, "phase": self.phase, "s_m": num(self.s_m), "t_s": num(self.t_s),
+                "value": num(self.value), "limit": num(self.limit), "unit": self.unit,
+                "detail": self.detail, "action": self.action}
+
+    def line(self) -> str:
+        """The cause in one line."""
+        scale, unit = (180.0 / math.pi, "deg") if self.unit == "rad" else (1.0, self.unit)
+        where = self.phase + ("" if math.isnan(self.s_m) else f" at s={self.s_m:.2f} m")
+        t = "" if math.isnan(self.t_s) else f", t={self.t_s:.3f} s"
+        amount = ("" if math.isnan(self.value) else
+                  f": {self.value * scale:.3g} {unit} (limit {self.limit * scale:.3g} {unit})")
+        return f"{self.bound} in {where}{t}{amount}; {self.detail}; action: {self.action}"
