@@ -91,6 +91,18 @@ class EnvelopeMonitor:
         self._stall_since: float | None = None
         self._out_of_tube_since: float | None = None
         self._mismatch_since: float | None = None
+        self.peaks: dict[str, dict] = {}
+        """Per bound, the closest the flight came to it: value / limit (limit / value for
+        lower bounds), with the value, the limit, the phase and the time. Over 1 fires."""
+
+    def _peak(self, bound: str, value: float, limit: float, phase: str, t_s: float, lower: bool = False) -> None:
+        if lower:
+            ratio = limit / value if value > 0 else (0.0 if limit <= 0 else math.inf)
+        else:
+            ratio = value / limit if limit > 0 else (0.0 if value <= 0 else math.inf)
+        p = self.peaks.get(bound)
+        if p is None or ratio > p["ratio"]:
+            self.peaks[bound] = {"ratio": ratio, "value": value, "limit": limit, "phase": phase, "t_s": t_s}
 
     # ------------------------------------------------------------------ context
     def set_origin(self, position_m) -> None:
@@ -129,6 +141,8 @@ class EnvelopeMonitor:
         alt = self.altitude_m(p)
         # 1. impact: at the ground at speed, or an acceleration no rotor can produce
         if alt <= prm.impact_altitude_m:
+            self._peak("impact_descent", vz, prm.impact_descent_m_s, phase, t_s)
+            self._peak("impact_speed", speed, prm.impact_speed_m_s, phase, t_s)
             if vz > prm.impact_descent_m_s:
                 return fail("impact", vz, prm.impact_descent_m_s, "m/s",
                             f"descending at {vz:.2f} m/s at {alt:.2f} m above the take-off point", True)
@@ -138,6 +152,7 @@ class EnvelopeMonitor:
         acc = self._acceleration(t_s, prm.accel_window_s)
         if acc is not None:
             a = math.sqrt(acc[0] ** 2 + acc[1] ** 2 + acc[2] ** 2)
+            self._peak("impact_accel", a, prm.impact_accel_m_s2, phase, t_s)
             if a > prm.impact_accel_m_s2:
                 return fail("impact", a, prm.impact_accel_m_s2, "m/s^2",
                             f"acceleration spike {a:.0f} m/s^2 from the reported velocity", True)
@@ -150,6 +165,7 @@ class EnvelopeMonitor:
             ez = pz - qz - 0.5 * (uz + vz) * dt
             jump = math.sqrt(ex * ex + ey * ey + ez * ez)
             limit = prm.max_position_jump_m + 0.5 * self.max_accel_m_s2 * dt * dt
+            self._peak("position_jump", jump, limit, phase, t_s)
             if jump > limit:
                 return fail("position_jump", jump, limit, "m",
                             f"position moved {jump:.2f} m more than the velocity explains over {dt * 1e3:.0f} ms")
@@ -163,14 +179,18 @@ class EnvelopeMonitor:
         # 3. where the vehicle may be
         w = math.sqrt(float(omega[0]) ** 2 + float(omega[1]) ** 2 + float(omega[2]) ** 2)
         w_max = prm.recovery.max_body_rate_rad_s if phase == Phase.RECOVER else prm.max_body_rate_rad_s
+        self._peak("body_rate", w, w_max, phase, t_s)
         if w > w_max:
             return fail("body_rate", w, w_max, "rad/s", "body rate beyond the envelope")
+        if phase in _FLOOR:
+            self._peak("altitude_floor", alt, prm.min_altitude_m, phase, t_s, lower=True)
         if phase in _FLOOR and alt < prm.min_altitude_m:
             return fail("altitude_floor", alt, prm.min_altitude_m, "m", "below the altitude floor")
         if self.origin is not None:
             margin = prm.recovery.geofence_margin_m if phase == Phase.RECOVER else 0.0
             dn, de = abs(px - self.origin[0]), abs(py - self.origin[1])
             hn, he = (h + margin for h in prm.geofence_half_width_m)
+            self._peak("geofence", max(dn / hn, de / he, alt / (prm.geofence_ceiling_m + margin)), 1.0, phase, t_s)
             if dn > hn:
                 return fail("geofence", dn, hn, "m", "north of or south of the geofence box")
             if de > he:
@@ -206,6 +226,7 @@ class EnvelopeMonitor:
         # specific force along the thrust axis (-body z) times the design mass
         measured = self.mass_kg * (G * float(R[2][2]) - (float(R[0][2]) * acc[0] + float(R[1][2]) * acc[1]
                                                           + float(R[2][2]) * acc[2]))
+        self._peak("thrust_mismatch", measured / commanded, prm.min_thrust_ratio, self._phase, t_s, lower=True)
         if measured >= prm.min_thrust_ratio * commanded:
             self._mismatch_since = None
             return None
@@ -226,6 +247,9 @@ class EnvelopeMonitor:
             return Violation(bound, phase, t_s, s_m, float(value), float(limit), unit, detail)
 
         what = "distance from the path" if phase == Phase.MANEUVER else "distance from the reference"
+        self._peak(f"position_error.{phase}", tr.position_error_m, b.max_position_error_m, phase, t_s)
+        self._peak(f"attitude_error.{phase}", tr.attitude_error_rad, b.max_attitude_error_rad, phase, t_s)
+        self._peak(f"rate_error.{phase}", tr.rate_error_rad_s, b.max_rate_error_rad_s, phase, t_s)
         if tr.position_error_m > b.max_position_error_m:
             return fail("position_error", tr.position_error_m, b.max_position_error_m, "m", what)
         if tr.attitude_error_rad > b.max_attitude_error_rad:
@@ -257,6 +281,7 @@ class EnvelopeMonitor:
         dt = t_s - q[0][0]
         if dt >= prm.progress_window_s:
             rate = (tr.s_m - q[0][1]) / dt
+            self._peak("progress", rate, prm.min_progress_m_s, Phase.MANEUVER, t_s, lower=True)
             if rate >= prm.min_progress_m_s:
                 self._stall_since = None
             else:
@@ -273,6 +298,7 @@ class EnvelopeMonitor:
             return None
         recent = [c[1] for c in self._commands if t_s - c[0] < win]
         share = sum(recent) / len(recent)
+        self._peak(f"saturation.{self._phase}", share, share_limit, self._phase, t_s)
         if share > share_limit:
             return fail("saturation", share, share_limit, "share",
                         f"{100 * share:.0f} % of the rotor commands of the last {win:g} s clipped")

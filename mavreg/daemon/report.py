@@ -78,6 +78,11 @@ def format_summary(summary: dict) -> str:
              f"({summary['length_m']:.2f} m) in {summary['flight_time_s']:.1f} s"]
     if summary.get("reason"):
         lines.append(f"cause: {summary['reason']}")
+    peaks = (summary.get("status") or {}).get("envelope_peaks") or {}
+    if peaks:
+        top = sorted(peaks.items(), key=lambda kv: -kv[1]["ratio"])[:4]
+        lines.append("closest to the envelope: " + ", ".join(
+            f"{name} {100 * p['ratio']:.0f} %" for name, p in top))
     cm = summary.get("controller_metrics") or {}
     gt = summary.get("ground_truth") or {}
     lines.append(f"{'segment':<16}{'max e_t cm':>11}{'rms e_t cm':>11}{'true max cm':>12}"

@@ -163,6 +163,7 @@ class Supervisor(FlightPhases, SafetyActions):
             "vehicle_armed": None if self.vehicle_status is None else self.vehicle_status.armed,
             "failure": None if self.failure is None else self.failure.as_dict(),
             "recoveries": self._recoveries, "touchdown_speed_m_s": self._touchdown_speed,
+            "envelope_peaks": {k: dict(v) for k, v in sorted(self.monitor.peaks.items())},
             "counters": {**c.__dict__, "state_late": a.late, "state_unmatched": a.unmatched,
                          "state_euler_refused": a.euler_near_vertical, "state_non_finite": a.non_finite},
         }
