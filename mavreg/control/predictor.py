@@ -157,11 +157,18 @@ class StatePredictor:
         self._t_f, self._f = t_s, f
         return f
 
-    def predict(self, t_s: float, x, rotation, horizon_s: float) -> Prediction:
+    def predict(self, t_s: float, x, rotation, horizon_s: float, delay_s: float | None = None,
+                external_force_n=(0.0, 0.0, 0.0), thrust_scale: float = 1.0) -> Prediction:
         """The state at ``t_s + horizon_s`` from the sample ``x`` (12,) with body-to-NED
-        ``rotation`` (3, 3) at ``t_s``. ``horizon_s`` is capped at ``max_horizon_s``."""
+        ``rotation`` (3, 3) at ``t_s``. ``horizon_s`` is capped at ``max_horizon_s``.
+
+        ``delay_s`` (default: the horizon) is when commands act after the sample they
+        answered; a shorter horizon predicts part of the way (the disturbance observer's
+        one-step prediction). ``external_force_n`` (NED) and ``thrust_scale`` (actual per
+        commanded rotor force) are the disturbance observer's estimates."""
         H = min(max(float(horizon_s), 0.0), self.max_horizon_s)
-        f = self.rotor_forces(t_s, H)
+        D = H if delay_s is None else min(max(float(delay_s), 0.0), self.max_horizon_s)
+        f = self.rotor_forces(t_s, D)
         R = tuple(float(v) for v in np.asarray(rotation, dtype=float).ravel())
         x = np.asarray(x, dtype=float)
         vb = x[6:9]
@@ -174,7 +181,7 @@ class StatePredictor:
         segments = []
         current = None
         for tj, c in self._cmds:
-            start = tj + H
+            start = tj + D
             if start <= t_s:
                 current = c
             elif start < t_end:
@@ -185,16 +192,18 @@ class StatePredictor:
             while t < start - 1e-12:
                 dt = min(self.max_step_s, start - t)
                 f, fm = self._lag(f, c, dt)
-                R, p, v, w = self._body_step(R, p, v, w, fm, dt)
+                if thrust_scale != 1.0:
+                    fm = tuple(thrust_scale * fi for fi in fm)
+                R, p, v, w = self._body_step(R, p, v, w, fm, dt, external_force_n)
                 t += dt
             if nxt is not None:
                 c = nxt
         Rm = np.array(R).reshape(3, 3)
         vb_new = Rm.T @ np.array(v)
         xp = np.concatenate([p, matrix_to_rpy(Rm), vb_new, w])
-        return Prediction(t_end, H, xp, Rm, np.array(f))
+        return Prediction(t_end, H, xp, Rm, thrust_scale * np.array(f))
 
-    def _body_step(self, R, p, v, w, f, dt):
+    def _body_step(self, R, p, v, w, f, dt, fext=(0.0, 0.0, 0.0)):
         """One step of eqs 1-4 on (R, p, v_ned, w) with rotor forces ``f`` held."""
         m, l, k = self.mass_kg, self.l, self.k
         jx, jy, jz = self.jx, self.jy, self.jz
@@ -212,11 +221,11 @@ class StatePredictor:
         s = T / m
         a0 = [-s * R[2], -s * R[5], G - s * R[8]]       # g e3 - (T/m) R e3
         a1 = [-s * R1[2], -s * R1[5], G - s * R1[8]]
-        if self.cxy or self.cz or self.cp:              # drag at the step's start velocity
-            for acc, Rm in ((a0, R), (a1, R1)):
-                d = self._drag(Rm, v)
-                for i in range(3):
-                    acc[i] += d[i] / m
+        drag = self.cxy or self.cz or self.cp
+        for acc, Rm in ((a0, R), (a1, R1)):
+            d = self._drag(Rm, v) if drag else (0.0, 0.0, 0.0)   # at the step's start velocity
+            for i in range(3):
+                acc[i] += (d[i] + fext[i]) / m
         p1 = [p[i] + dt * v[i] + dt * dt / 6.0 * (2.0 * a0[i] + a1[i]) for i in range(3)]
         v1 = [v[i] + 0.5 * dt * (a0[i] + a1[i]) for i in range(3)]
         w1 = [w[i] + dt * dm[i] for i in range(3)]

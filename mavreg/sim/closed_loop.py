@@ -84,6 +84,8 @@ class SimOptions:
     """Age of the state the controller is given."""
     command_delay_s: float = 0.0
     """Time from a controller call to its command reaching the rotors."""
+    thrust_scale: float = 1.0
+    """Force (and torque) each rotor gives per unit of its applied command (a sagging battery: 0.9)."""
     force_fn: Optional[ForceFn] = None
     """External force ``force_fn(t, x) -> (3,)`` in NED (N), evaluated at the start of each
     physics step and held over it (exact for windows on the step grid; first order in dt
@@ -119,6 +121,8 @@ class SimOptions:
             raise ValueError(f"noise_redraw must be 'control' or 'physics', not {self.noise_redraw!r}")
         if self.saturation_n is not None and not self.saturation_n > 0.0:
             raise ValueError(f"saturation_n must be positive or None, not {self.saturation_n}")
+        if not (np.isfinite(self.thrust_scale) and self.thrust_scale > 0.0):
+            raise ValueError(f"thrust_scale must be positive, not {self.thrust_scale}")
         for name in ("rotor_time_constant_s", "measurement_delay_s", "command_delay_s"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0.0):
@@ -279,7 +283,7 @@ def simulate(model: QuadrotorModel, mixer: Mixer, controller: Controller,
             applied = np.clip(mean + noise, 0.0, upper)
             cmd[i] = command
             app[i] = applied
-            u = M @ applied
+            u = M @ (applied * opt.thrust_scale)
             F = None if force_fn is None else np.asarray(force_fn(t, x), dtype=float) * inv_mass
             k1 = deriv(x, u, F)
             k2 = deriv(x + 0.5 * dt * k1, u, F)

@@ -7,7 +7,7 @@ import numpy as np
 
 import dataclasses
 
-from ..control.predictor import StatePredictor
+from ..control.forecast import Forecaster
 from ..control.regulator import ManeuverRegulator
 from ..geometry.projection import Projector
 from ..maneuver.plan import Plan
@@ -52,7 +52,7 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
     ``measurement_delay_s`` late, corrupted by ``estimate_noise`` (seeded by ``seed``), and
     its command reaches the rotors ``command_delay_s`` later. With ``predict`` it first
     predicts the state across ``assumed_delay_s`` (default: the true round trip) with
-    :class:`~mavreg.control.predictor.StatePredictor`.
+    :class:`~mavreg.control.forecast.Forecaster`.
     """
     vehicle = plan.vehicle
     period = 1.0 / control_rate_hz
@@ -69,27 +69,28 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
     rng = np.random.default_rng(seed)
     corrupt = None if estimate_noise is None else EstimateCorruptor(estimate_noise, period, rng)
     horizon = measurement_delay_s + command_delay_s if assumed_delay_s is None else assumed_delay_s
-    predictor = None
+    forecaster = None
     if predict:
-        predictor = StatePredictor(dataclasses.replace(vehicle, rotor_time_constant_s=rotor_time_constant_s),
-                                   max_step_s=period)
-        predictor.reset(reg.mixer_inverse @ plan.u[0])
+        forecaster = Forecaster(dataclasses.replace(vehicle, rotor_time_constant_s=rotor_time_constant_s),
+                                period)
+        forecaster.reset(reg.mixer_inverse @ plan.u[0])
 
     def controller(t, x):
         R = None
         if corrupt is not None:
             x, R = corrupt(x)
-        if predictor is not None:
+        if forecaster is not None:
             t_sample = t - measurement_delay_s
-            pred = predictor.predict(t_sample, x, rpy_to_matrix(*x[3:6]) if R is None else R, horizon)
-            out = reg.step(pred.x, pred.rotor_forces_n)
-            predictor.record(t_sample, out.rotor_forces_n)
+            fc = forecaster.update(t_sample, x, rpy_to_matrix(*x[3:6]) if R is None else R, horizon)
+            out = reg.step(fc.x, fc.rotor_forces_n)
+            command = forecaster.command(t_sample, out.rotor_forces_n)
         else:
             out = reg.step(x)
+            command = out.rotor_forces_n
         log_s.append(out.s)
         log_w.append(out.w)
         log_tube.append(out.in_tube)
-        return out.rotor_forces_n
+        return command
 
     duration = plan.duration_s + extra_time_s
     opts = SimOptions(initial_state=tuple(x0), dt_s=dt_s, control_period_steps=steps,
@@ -134,3 +135,4 @@ def true_transverse_errors(plan: Plan, positions_m) -> dict:
         out["segments"][name] = ({"max_m": float(e.max()), "rms_m": float(np.sqrt(np.mean(e * e)))}
                                  if e.size else None)
     return out
+

@@ -180,3 +180,11 @@ def test_options_are_validated_and_frozen():
     assert opt.initial_state == (1.0,) * 12
     with pytest.raises(Exception):
         opt.dt_s = 1.0
+
+
+def test_thrust_scale_weakens_the_rotors():
+    """Rotors giving 90 % of their command: the hover command leaves 10 % of g unbalanced."""
+    hover = MODEL.mass_kg * 9.81 / 4
+    opts = SimOptions(initial_state=(0, 0, -5) + (0.0,) * 9, max_duration_s=0.2, thrust_scale=0.9)
+    run = simulate(MODEL, MIXER, lambda t, x: np.full(4, hover), opts)
+    assert run.x[-1, 8] == pytest.approx(0.1 * 9.81 * run.t[-1], rel=1e-6)   # body z velocity (down)
