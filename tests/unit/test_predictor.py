@@ -111,3 +111,20 @@ def test_horizon_is_capped_and_zero_is_the_identity():
     assert pred.predict(0.0, x, np.eye(3), 1.0).horizon_s == pytest.approx(0.05)
     p0 = pred.predict(0.0, x, np.eye(3), 0.0)
     np.testing.assert_allclose(p0.x, x, atol=0)
+
+
+def test_forecaster_divides_commands_by_the_thrust_scale_and_predicts_with_it():
+    from mavreg.control.forecast import Forecaster
+    weak = dataclasses.replace(VEHICLE, rotor_time_constant_s=0.0, thrust_scale=0.9)
+    fc = Forecaster(weak, PERIOD)
+    hover = VEHICLE.mass_kg * G / 4
+    fc.reset([hover] * 4)
+    cmd = fc.command(0.0, [hover] * 4)
+    np.testing.assert_allclose(cmd, hover / 0.9)
+    np.testing.assert_allclose(fc.command(0.002, [20.0, -1.0, 5.0, 5.0]), [12.0, 0.0, 5 / 0.9, 5 / 0.9])
+    fc.command(0.002, [hover] * 4)                 # a second answer to a sample replaces the first
+    x = np.zeros(12)
+    x[2] = -3.0
+    f = fc.update(0.004, x, np.eye(3), 0.02)
+    np.testing.assert_allclose(f.rotor_forces_n, hover, rtol=1e-12)   # physical force: hover
+    np.testing.assert_allclose(f.x, x, atol=1e-12)                    # so it stays put
