@@ -34,7 +34,10 @@ from .report import controller_metrics, format_summary, ground_truth_errors, plo
 from .phases import Failure
 from .supervisor import Phase, SupervisorParams
 
-__all__ = ["FlyOptions", "fly", "spawn_emulator", "stop_process"]
+__all__ = ["FlyOptions", "fly", "spawn_emulator", "stop_process", "outcome"]
+
+LOCKSTEP_TIMEOUT_S = 5.0
+"""Wall seconds the bundled lockstep emulator waits for each period's command."""
 
 
 @dataclass(frozen=True)
@@ -64,14 +67,16 @@ def spawn_emulator(vehicle_path: Path, record: Path | None, lockstep: bool, extr
     emulator (:func:`stop_process`). Call it from a thread that lives as long as the
     flight (the parent-death signal fires when the starting thread ends).
     ``preset`` is the emulator's world (``ideal``: true state, no link effects); ``extra``
-    comes after it, so an ``--preset`` there wins.
+    comes after it, so an ``--preset`` (or ``--lockstep-timeout``) there wins.
     """
     cmd = [sys.executable, "-m", "firmware_sim", "--listen", "udpin:127.0.0.1:0", "--quiet",
            "--vehicle", str(vehicle_path), "--rate-hz", f"{rate_hz:g}", "--preset", preset]
     if record is not None:
         cmd += ["--record", str(record)]
     if lockstep:
-        cmd += ["--lockstep"]
+        # The daemon is the only pacer: a lost period (the default 0.1 s wait missed on a
+        # loaded machine) would leave every later command one period late for good.
+        cmd += ["--lockstep", "--lockstep-timeout", f"{LOCKSTEP_TIMEOUT_S:g}"]
     cmd += list(extra)
     proc = subprocess.Popen(wrap_command(cmd), stdout=subprocess.PIPE, stderr=None, text=True,
                             start_new_session=True)
