@@ -36,7 +36,7 @@ from .supervisor import Phase, SupervisorParams
 
 __all__ = ["FlyOptions", "fly", "spawn_emulator", "stop_process", "outcome"]
 
-LOCKSTEP_TIMEOUT_S = 5.0
+LOCKSTEP_TIMEOUT_S = 2.0
 """Wall seconds the bundled lockstep emulator waits for each period's command."""
 
 

@@ -52,8 +52,10 @@ class SupervisorParams:
     """Vehicle time between repeats of an unanswered ARM / DO_SET_MODE / DISARM."""
     disarm_retry_s: float = 0.1
     """Injected-clock time between repeats of a forced disarm (it repeats until disarmed)."""
-    terminate_timeout_s: float = 5.0
-    """A forced disarm not confirmed within this (injected clock): give up, stream stopped."""
+    terminate_timeout_s: float = 10.0
+    """A forced disarm not confirmed within this (injected clock): give up, stream stopped.
+    Long enough for a lockstep emulator to notice the stream has stopped (it waits
+    ``--lockstep-timeout`` before running on) and deliver a delayed command."""
     offboard_stream_min_s: float = 0.7
     """Vehicle time the idle stream runs before OFFBOARD is requested (vehicle needs 0.5 s)."""
     spool_s: float = 1.0
