@@ -2,8 +2,10 @@
 
 Its own physics (quaternion rigid body with the full inertia matrix, RK4, rotor lag,
 noise, drag, wind, ground contact), a small sans-I/O autopilot (arming, modes,
-offboard stream, failsafe stabilizer), a UDP link, two clocks (real time and lockstep)
-and a flight recorder. It imports nothing from ``mavreg`` but ``mavreg.config``.
+offboard stream, failsafe stabilizer, TIMESYNC), a UDP link, a world between them (link
+delay, jitter and loss in sim time; a late, noisy state estimate; presets ``realistic``
+and ``ideal``), two clocks (real time and lockstep) and a flight recorder. It imports
+nothing from ``mavreg`` but ``mavreg.config``.
 See ``docs/firmware_sim.md``.
 """
 __all__ = ["__version__"]

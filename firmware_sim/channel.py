@@ -28,7 +28,6 @@ on (non-zero jitter, non-zero loss); the rotor-noise stream (``seed``) is never 
 """
 from __future__ import annotations
 
-import math
 from collections import deque
 
 import numpy as np
@@ -38,6 +37,7 @@ from .world import LinkParams
 __all__ = ["Uniforms", "Downlink", "Uplink"]
 
 _CHUNK = 4096
+_NOTHING = ((), 0)
 
 
 class Uniforms:
@@ -65,8 +65,8 @@ class Uniforms:
 
 
 def _ticks(delay_ticks: float) -> int:
-    """Round a delay in ticks to the nearest tick (halves up)."""
-    return int(math.floor(delay_ticks + 0.5))
+    """Round a delay (>= 0) in ticks to the nearest tick, halves up."""
+    return int(delay_ticks + 0.5)
 
 
 class Downlink:
@@ -96,7 +96,7 @@ class Downlink:
 
     def _delay(self, rng: Uniforms) -> float:
         if self.jitter_periods:
-            return self.delay_periods + self.jitter_periods * (2.0 * rng.next() - 1.0)
+            return max(0.0, self.delay_periods + self.jitter_periods * (2.0 * rng.next() - 1.0))
         return self.delay_periods
 
     def _enqueue(self, release: int, msgs: list, complete: bool) -> None:
@@ -128,7 +128,8 @@ class Downlink:
         state : tuple
             ``(ATTITUDE, ATTITUDE_QUATERNION, LOCAL_POSITION_NED)``.
         """
-        release = period + _ticks(self._delay(self._state_rng))
+        release = period + int((self._delay(self._state_rng) if self.jitter_periods
+                                else self.delay_periods) + 0.5)
         msgs = self._survivors(events, self._event_rng) if events else []
         if self.loss:
             rng, p = self._state_rng, self.loss
@@ -154,12 +155,14 @@ class Downlink:
 
         Returns
         -------
-        messages : list
-            In FIFO order, to send now.
+        messages : list or tuple
+            In FIFO order, to send now (an empty tuple when nothing is due).
         complete : int
             How many complete state bundles are among them.
         """
         q = self._queue
+        if not q or q[0][0] > period:
+            return _NOTHING
         out: list = []
         complete = 0
         while q and q[0][0] <= period:
@@ -204,7 +207,7 @@ class Uplink:
         self.received += 1
         d = self.delay_steps
         if self.jitter_steps:
-            d += self.jitter_steps * (2.0 * rng.next() - 1.0)
+            d = max(0.0, d + self.jitter_steps * (2.0 * rng.next() - 1.0))
         if self.loss and rng.next() < self.loss:
             self.lost += 1
             return False

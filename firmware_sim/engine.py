@@ -59,6 +59,7 @@ class Engine:
         self._substeps = p.substeps
         self.downlink = Downlink(self.world.link, p.rate_hz, p.substeps, p.seed)
         self.uplink = Uplink(self.world.link, p.physics_hz, p.seed)
+        self._direct = self.world.link.ideal       # ideal link: send at once, skip the delay lines
         est = self.world.estimator
         latency_steps = int(math.floor(est.latency_ms * 1e-3 * p.physics_hz + 0.5))
         self.estimator = Estimator(est, 1.0 / p.rate_hz, p.seed) if est.has_errors else None
@@ -86,17 +87,24 @@ class Engine:
     def receive(self, msgs) -> None:
         """Take the decoded messages of one datagram received now (sim time ``sim.t_s``)."""
         step = self.sim.step_count
+        ap = self.ap
+        if self.uplink.ideal:                # handled now: the autopilot counts valid targets
+            n0 = ap.target_count
+            self._handle(msgs, step)
+            self.targets_received += ap.target_count - n0
+            self._send_due()
+            return
         carries_target = False
         undelayed = True
         for m in msgs:
             mtype = m.get_type()
             if mtype == "SET_ACTUATOR_CONTROL_TARGET":
                 carries_target = True
-                if self.ap.target_drop_reason(m) is None:
+                if ap.target_drop_reason(m) is None:
                     self.targets_received += 1
             if mtype not in _UNDELAYED:
                 undelayed = False
-        if undelayed or self.uplink.ideal:
+        if undelayed:
             self._handle(msgs, step)
         elif self.uplink.push(step, msgs, carries_target):
             for due in self.uplink.pop_due(step):
@@ -110,10 +118,16 @@ class Engine:
         for msg in msgs:
             out = ap.handle(msg, t, sim.state, sim.on_ground)
             if out:
-                self.downlink.push_reply(step, out)
+                if self._direct:
+                    self.downlink.sent += len(out)
+                    self.link.send(out)
+                else:
+                    self.downlink.push_reply(step, out)
 
     def _send_due(self) -> int:
         """Send what the downlink releases now; return the complete state bundles among it."""
+        if self._direct:
+            return 0
         msgs, complete = self.downlink.release(self.sim.step_count // self._substeps)
         if msgs:
             self.link.send(msgs)
@@ -129,6 +143,12 @@ class Engine:
                 self._handle(due, step)
         t = sim.t_s
         out = self.ap.update(t, sim.state, sim.on_ground)
+        if self._direct:
+            out.extend(self._state_messages(t))
+            self.downlink.sent += len(out)
+            self.link.send(out)
+            self.complete_released = 1
+            return
         self.downlink.push_period(step // self._substeps, out, self._state_messages(t))
         self.complete_released = self._send_due()
 

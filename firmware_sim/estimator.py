@@ -97,7 +97,5 @@ class Estimator:
             q = quat_mul(q, (math.cos(0.5 * angle), k * dx, k * dy, k * dz))
         w = self.white_sd
         rates = (s[10] + e[9] + w * n[12], s[11] + e[10] + w * n[13], s[12] + e[11] + w * n[14])
-        a, c = self._a, self._c
-        for i in range(12):
-            e[i] = a[i] * e[i] + c[i] * n[i]
+        self.errors = [a * x + c * z for a, x, c, z in zip(self._a, e, self._c, n)]
         return pos, vel, q, rates

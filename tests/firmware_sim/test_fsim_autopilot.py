@@ -141,3 +141,18 @@ def test_heartbeat_encodes_mode_and_armed():
     assert ap.update(0.5, sim.state, sim.on_ground) == []
     assert ap.update(1.0, sim.state, sim.on_ground)[0].get_type() == "HEARTBEAT"
     assert modes.decode_custom_mode(modes.LAND) == (4, 6) and modes.OFFBOARD == 6 << 16
+
+
+def test_timesync_request_is_answered_with_our_clock_others_counted():
+    sim, ap = make()
+    s, g = sim.state, sim.on_ground
+
+    def req(tc1, ts1, src=(1, 191)):
+        return decoded(mavlink2.MAVLink_timesync_message(tc1, ts1), src)
+    out = ap.handle(req(0, 123456789), 1.234, s, g)
+    assert [(m.get_type(), m.tc1, m.ts1) for m in out] == [("TIMESYNC", 1_234_000_000, 123456789)]
+    out = ap.handle(req(0, 5, src=(255, 190)), 0.5, s, g)          # a ground station may ask too
+    assert [m.tc1 for m in out] == [500_000_000]
+    assert ap.handle(req(0, 5, src=(7, 1)), 0.5, s, g) == []         # foreign system
+    assert ap.handle(req(42, 5), 0.5, s, g) == []                    # a reply: we sent no request
+    assert ap.drops["foreign_system"] == 1 and ap.drops["unsupported"] == 1

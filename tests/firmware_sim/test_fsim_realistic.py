@@ -210,3 +210,29 @@ def test_bad_world_flags_give_one_line_and_exit_2(flags):
                        timeout=30, cwd=REPO)
     assert r.returncode == 2 and r.stdout == ""
     assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+
+
+def test_realtime_default_world_is_late_and_estimated():
+    """Real time, default preset: TIMESYNC sees at least the minimum downlink + uplink delay.
+
+    Judged in vehicle time only: tc1 - (time of a sample read before sending) >= 8 ms
+    (10 - 3 ms, released at the nearest 2 ms boundary) + 2 ms (5 - 3 ms).
+    """
+    with Emulator() as emu:
+        c = Client(emu.port)
+        c.heartbeat()
+        seen = []
+        for _ in range(5):
+            p = c.wait_for("LOCAL_POSITION_NED")
+            seen.append(p.z)
+            c.send(mavlink2.MAVLink_timesync_message(0, p.time_boot_ms * 1_000_000))
+            try:
+                r = c.wait_for("TIMESYNC", timeout_s=2.0)
+            except AssertionError:            # 1 % loss each way: try again
+                continue
+            assert r.tc1 - r.ts1 >= 10_000_000 and r.ts1 == p.time_boot_ms * 1_000_000
+            break
+        else:
+            raise AssertionError("no TIMESYNC reply in 5 tries")
+        assert all(z != 0.0 for z in seen)     # on the ground (z = 0), but the estimate has errors
+        c.close()

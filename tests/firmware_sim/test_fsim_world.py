@@ -21,8 +21,6 @@ from firmware_sim.stabilizer import Stabilizer
 from firmware_sim.world import PRESETS, EstimatorParams, LinkParams, build_world
 
 VEHICLE = load_vehicle(default_vehicle_path())
-HOVER = VEHICLE.mass_kg * 9.81 / 4 / VEHICLE.max_rotor_thrust_n
-_MAV = mavlink2.MAVLink(None, 1, 191)
 
 
 def decoded(msg, src=(1, 191)):
@@ -44,7 +42,7 @@ def _release_delays(dl: Downlink, n: int, spacing: int, lo: int, hi: int) -> lis
     for i in range(n):
         k = i * spacing
         dl.push_period(k, [], _state(i))
-        assert dl.release(k + lo - 1) == ([], 0), "released too early"
+        assert not dl.release(k + lo - 1)[0], "released too early"
         for p in range(k + lo, k + hi + 1):
             msgs, _ = dl.release(p)
             if msgs:
