@@ -189,6 +189,8 @@ async def _read_request(reader: asyncio.StreamReader) -> dict:
         raise RequestError("malformed request: no newline-terminated line") from None
     except asyncio.TimeoutError:
         raise RequestError(f"no complete request within {READ_TIMEOUT_S:g} s") from None
+    except (ConnectionError, OSError) as exc:   # the client went away: nobody to answer, not a bug
+        raise RequestError(f"connection lost before a complete request ({exc.__class__.__name__})") from None
     return validate_request(line)
 
 

@@ -35,8 +35,10 @@ def _tree(pid: int) -> dict[int, int | None]:
 def _kill_and_check(proc, tree: dict[int, int | None]) -> list[str]:
     """SIGKILL ``proc``; return the command lines of its descendants still alive after 10 s."""
     proc.p.kill()
+    t0 = time.monotonic()
     proc.p.wait(30)
     left = survivors(tree)
+    print(f"\n{len(tree)} children; {len(left)} left {time.monotonic() - t0:.2f} s after the SIGKILL")
     names = [f"{p}: {cmdline(p)}" for p in left]
     for p in left:   # a failing test must not leave them behind either
         os.kill(p, signal.SIGKILL)
@@ -80,7 +82,7 @@ def test_sigkilled_serve_mid_plan_leaves_no_worker(tmp_path):
 def test_sigkilled_fly_leaves_no_emulator_and_no_worker(tmp_path):
     fly = mavreg("fly", str(BARREL), "--lockstep", "--out", str(tmp_path / "out"), "--timeout-s", "300")
     try:
-        fly.wait_line("[takeoff] phase", 180)
+        fly.wait_line("[takeoff] phase", 600)   # planning first, at the lowest priority
         tree = _tree(fly.p.pid)
         kinds = {p: cmdline(p) for p in tree}
         assert sum("firmware_sim" in c for c in kinds.values()) == 1, kinds
