@@ -2,14 +2,15 @@
 
 Sans-I/O. The supervisor feeds it the hold's samples once the move to the hold point has
 ended (:meth:`HealthGate.observe`), and asks :meth:`HealthGate.evaluate` before ``run_in``.
-Over the last ``GateParams.window_s`` of the hold it requires, in this order:
+Over the last ``GateParams.window_s`` of the hold it requires, in this order (causes
+before symptoms, so the reason names what is wrong):
 
 - the plan inside the envelope from this take-off point (altitude floor, geofence);
-- tracking: largest distance from the hold point and largest attitude error within bounds;
-- rotor commands that do not clip, and do not chatter (high-pass SD of each rotor,
-  ``sqrt(mean(diff(f)^2) / 2)``, which is the SD of white noise and ~0 for smooth commands);
 - the mean collective command within ``max_thrust_ratio_error`` of the design weight (the
   plan's feasibility was checked on the design mass);
+- rotor commands that do not clip, and do not chatter (high-pass SD of each rotor,
+  ``sqrt(mean(diff(f)^2) / 2)``, which is the SD of white noise and ~0 for smooth commands);
+- tracking: largest distance from the hold point and largest attitude error within bounds;
 - the link's delay and jitter within bounds, when known (unknown does not block).
 
 A failing check is a :class:`GateVerdict` with the bound, the value and the limit.
@@ -106,12 +107,11 @@ class HealthGate:
         g = self.params
         rows = np.array(self._rows)
         pos, att, f = rows[:, 1], rows[:, 2], rows[:, 3:7]
-        if pos.max() > g.max_position_error_m:
-            return GateVerdict(False, "gate_position", float(pos.max()), g.max_position_error_m, "m",
-                               "the hold does not hold its point")
-        if att.max() > g.max_attitude_error_rad:
-            return GateVerdict(False, "gate_attitude", float(att.max()), g.max_attitude_error_rad, "rad",
-                               "the hold is not level")
+        ratio = float(f.sum(axis=1).mean()) / self.weight_n
+        if abs(ratio - 1.0) > g.max_thrust_ratio_error:
+            return GateVerdict(False, "gate_thrust", ratio, 1.0 + math.copysign(g.max_thrust_ratio_error, ratio - 1.0),
+                               "ratio", f"the hold needs {ratio:.2f} x the design hover thrust: the vehicle's "
+                               "mass or rotors differ from the design model")
         clipped = np.any((f < -1e-9) | (f > self.fmax + 1e-9), axis=1)
         if clipped.any():
             return GateVerdict(False, "gate_saturation", float(clipped.mean()), 0.0, "share",
@@ -121,11 +121,12 @@ class HealthGate:
             i = int(np.argmax(hp))
             return GateVerdict(False, "gate_rotor_chatter", float(hp[i]), g.max_rotor_hp_sd_n, "N",
                                f"rotor {i + 1} command chatters (high-pass SD)")
-        ratio = float(f.sum(axis=1).mean()) / self.weight_n
-        if abs(ratio - 1.0) > g.max_thrust_ratio_error:
-            return GateVerdict(False, "gate_thrust", ratio, 1.0 + math.copysign(g.max_thrust_ratio_error, ratio - 1.0),
-                               "ratio", f"the hold needs {ratio:.2f} x the design hover thrust: the vehicle's "
-                               "mass or rotors differ from the design model")
+        if pos.max() > g.max_position_error_m:
+            return GateVerdict(False, "gate_position", float(pos.max()), g.max_position_error_m, "m",
+                               "the hold does not hold its point")
+        if att.max() > g.max_attitude_error_rad:
+            return GateVerdict(False, "gate_attitude", float(att.max()), g.max_attitude_error_rad, "rad",
+                               "the hold is not level")
         link = self.link_health() if self.link_health is not None else None
         if link is not None:
             delay, jitter = link

@@ -87,10 +87,8 @@ class SafetyActions:
 
     def _recover(self, v: Violation, out) -> None:
         s = self.last_sample
-        x = self._controller_state(s)
-        R = s.rotation
         self._recoveries += 1
-        self.recovery.start(x[:3], s.velocity_ned_m_s, R, self._ground_z)
+        self.recovery.start(s.x[:3], s.velocity_ned_m_s, s.rotation, self._ground_z)
         dropped = [p.name for p, _, _ in self._pending]
         self._pending.clear()
         self._active = None

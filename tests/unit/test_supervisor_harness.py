@@ -2,7 +2,7 @@
 vehicle on the design model (RK4), all driven by an injected clock (no sockets)."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -66,10 +66,10 @@ class FakeRegulator:
         self.nan_at_s = nan_at_s
         self.resets = []
 
-    def reset(self, x, s_guess=0.0):
+    def reset(self, x, s_guess=0.0, rotor_forces_n=None):
         self.resets.append((np.array(x), s_guess))
 
-    def step(self, x):
+    def step(self, x, rotor_forces_n=None):
         s = float(x[0] - self.plan.start[0])
         xn = self.plan.nominal_state(min(max(s, 0.0), self.plan.length_m))
         ramp = Ramp(np.zeros((4, 8)), 0.0, xn[:3], np.array([self.plan.speed, 0, 0]), 0.0)
@@ -82,11 +82,18 @@ class FakeRegulator:
 
 
 class SimVehicle:
-    """A minimal PX4-like vehicle: arms, grants OFFBOARD after 0.5 s of stream, flies RK4."""
+    """A minimal PX4-like vehicle: arms, grants OFFBOARD after 0.5 s of stream, flies RK4.
 
-    def __init__(self, rate_hz=250):
+    ``mass_scale`` makes it heavier than the design; it accepts a disarm in flight only
+    with the force code (as PX4 does) and sends a HEARTBEAT at once on an arming change;
+    ``ignore_disarm`` commands are dropped unanswered (a lossy uplink)."""
+
+    def __init__(self, rate_hz=250, mass_scale=1.0, ignore_disarm=0):
         self.dt = 1.0 / rate_hz
-        self.model = QuadrotorModel.from_vehicle(VEHICLE)
+        self.model = QuadrotorModel.from_vehicle(replace(VEHICLE, mass_kg=VEHICLE.mass_kg * mass_scale))
+        self.ignore_disarm = ignore_disarm
+        self.heartbeat_due = False
+        self.acks = []
         self.x = np.zeros(12)
         self.t_ms = 0
         self.armed = False
@@ -112,7 +119,15 @@ class SimVehicle:
             self.last_target_ms = self.t_ms
             self.controls = np.array(msg.controls[:4])
         elif t == "COMMAND_LONG" and msg.command == 400:
+            if msg.param1 == 0.0 and self.ignore_disarm > 0:
+                self.ignore_disarm -= 1
+                return
+            on_ground = self.x[2] >= 0.0
+            if msg.param1 == 0.0 and not on_ground and msg.param2 != 21196:
+                return
+            was = self.armed
             self.armed = msg.param1 == 1.0
+            self.heartbeat_due = was != self.armed
             if not self.armed:
                 self.main, self.sub = PX4_MAIN_AUTO, PX4_SUB_LOITER
         elif t == "COMMAND_LONG" and msg.command == 176:
@@ -144,7 +159,7 @@ class SimVehicle:
             self.x[6:12] = 0.0
 
 
-def make_supervisor(plan=None, regulator=None, **kw):
+def make_supervisor(plan=None, regulator=None, envelope=None, link_health=None, **kw):
     params = SupervisorParams(**kw)
     made = []
 
@@ -153,7 +168,7 @@ def make_supervisor(plan=None, regulator=None, **kw):
         made.append(reg)
         return reg
 
-    sup = Supervisor(VEHICLE, params, factory)
+    sup = Supervisor(VEHICLE, params, factory, envelope=envelope, link_health=link_health)
     sup.regulators = made
     if plan is not None:
         sup.offer_plan(plan, 0.0)
@@ -165,7 +180,9 @@ def run(sup, veh, seconds, on_step=None):
     events, logs, sent = [], [], []
     for _ in range(int(round(seconds / veh.dt))):
         now = veh.t_ms / 1000.0
-        msgs = ([veh.heartbeat()] if veh.t_ms % 1000 == 0 else []) + veh.telemetry()
+        due = veh.t_ms % 1000 == 0 or veh.heartbeat_due
+        veh.heartbeat_due = False
+        msgs = ([veh.heartbeat()] if due else []) + veh.telemetry()
         if on_step is not None:
             msgs = on_step(veh, msgs)
         for m in msgs:
