@@ -59,11 +59,13 @@ def run(args) -> int:
         raise ValueError(f"--stale-timeout-s must be positive, got {args.stale_timeout_s}")
     vehicle = load_vehicle(args.vehicle_params)
     from ..config.controller import load_controller
-    load_controller(args.controller)
+    controller = load_controller(args.controller)
     config = DaemonConfig(args.vehicle, Path(args.vehicle_params), Path(args.controller),
                           Path(args.socket) if args.socket else default_socket_path(),
                           Path(args.tlog) if args.tlog else None,
-                          SupervisorParams(land_when_done=False, stale_timeout_s=args.stale_timeout_s))
+                          SupervisorParams(land_when_done=False, stale_timeout_s=args.stale_timeout_s),
+                          envelope=controller.envelope, controller=controller,
+                          control_rate_hz=args.control_rate_hz)
     daemon = Daemon(config, vehicle, regulator_factory(vehicle, args.control_rate_hz))
     asyncio.run(daemon.run())
     if args.control_log:

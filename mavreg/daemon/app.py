@@ -17,7 +17,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+from ..config.controller import ControllerParams
 from ..config.envelope import EnvelopeParams
+from ..control.forecast import Forecaster
 from ..config.vehicle import VehicleParams
 from ..control.regulator import ManeuverRegulator
 from .ctrllog import ControlLog
@@ -53,6 +55,11 @@ class DaemonConfig:
     supervisor: SupervisorParams
     envelope: EnvelopeParams = field(default_factory=EnvelopeParams)
     """The controller file's ``envelope:`` section (``fly`` and ``serve`` load it)."""
+    controller: ControllerParams | None = None
+    """The controller file: its prediction settings (``predict_delay``, ``fixed_delay_s``,
+    ``max_prediction_s``). None: no prediction."""
+    control_rate_hz: float = 500.0
+    """The vehicle's telemetry (control) rate: the prediction's integration step."""
 
 
 class Daemon:
@@ -63,7 +70,13 @@ class Daemon:
         self.config = config
         self.vehicle = vehicle
         self.clock_s = clock_s
-        self.supervisor = Supervisor(vehicle, config.supervisor, regulator_factory, envelope=config.envelope)
+        ctl = config.controller
+        forecaster = Forecaster(vehicle, 1.0 / config.control_rate_hz,
+                                predict=ctl is not None and ctl.predict_delay,
+                                max_horizon_s=0.1 if ctl is None else ctl.max_prediction_s)
+        self.supervisor = Supervisor(vehicle, config.supervisor, regulator_factory, envelope=config.envelope,
+                                     forecaster=forecaster,
+                                     fixed_delay_s=None if ctl is None else ctl.fixed_delay_s)
         self.ctrl_log = ControlLog()
         self.log = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
         self.latency_ns: collections.deque = collections.deque(maxlen=200_000)
@@ -151,6 +164,12 @@ class Daemon:
         st["uploads"] = dict(self.uploads)
         st["latency_ms"] = self.latency_summary()
         st["planning"] = 0 if self.pool is None else self.pool.busy
+        est = self.supervisor.timesync.estimate()
+        st["link_delay_ms"] = None if est is None else {
+            "sample_to_actuation": est.delay_s * 1e3, "jitter": est.jitter_s * 1e3,
+            "round_trip_wall": est.round_trip_s * 1e3, "replies": est.samples,
+            "used_for_prediction": self.supervisor.link_delay_s() * 1e3
+            if self.supervisor.forecaster.predict else None}
         return st
 
     def latency_summary(self, maneuver_only: bool = False) -> dict:

@@ -88,9 +88,10 @@ class FlightPhases:
         ramp = self._ramps[0]
         return self.hover.step(x, ramp, t), len(self._ramps) == 1 and ramp.finished(t)
 
-    def _record(self, sample, x, s, w, u, rotors) -> LogRecord:
+    def _record(self, sample, s, w, u, rotors) -> LogRecord:
+        """The log keeps the measured state (the controllers may act on a prediction of it)."""
         return LogRecord(sample.time_s, self.phase, s, np.asarray(w, float), np.asarray(u, float),
-                         np.asarray(rotors, float), np.array(x, dtype=float))
+                         np.asarray(rotors, float), np.array(sample.x, dtype=float))
 
     def _control(self, sample, x, out):
         """(rotor forces, log record, tracking errors or None) of the current phase."""
@@ -110,7 +111,7 @@ class FlightPhases:
             rotors = self._land_logic(sample, rotors, out)
             if self._spool_down_t0 is not None:
                 tracking = None          # on the ground: the reference sinks on without it
-        record = self._record(sample, x, math.nan, _NAN11, ho.u, rotors)
+        record = self._record(sample, math.nan, _NAN11, ho.u, rotors)
         if self.phase == Phase.TAKEOFF and ramp_done:
             self._set_phase(out, Phase.HOLD, "take-off complete, holding")
         elif self.phase == Phase.HOLD and ramp_done:
@@ -119,18 +120,18 @@ class FlightPhases:
                 self._leave_hold(sample, out)
         elif self.phase == Phase.RUN_IN and ramp_done:
             plan, reg = self._active
-            reg.reset(x, s_guess=0.0)
+            reg.reset(x, s_guess=0.0, rotor_forces_n=self._forecast.rotor_forces_n)
             self._s = 0.0
             self._set_phase(out, Phase.MANEUVER, f"maneuver {plan.name!r} begins")
         return rotors, record, tracking
 
     def _maneuver_control(self, sample, x, out):
         plan, reg = self._active
-        r = reg.step(x)
+        r = reg.step(x, self._forecast.rotor_forces_n)
         self._s = float(r.s)
         w = np.asarray(r.w, dtype=float)
         rotors = np.asarray(r.rotor_forces_n, dtype=float)
-        record = self._record(sample, x, r.s, w, r.u, rotors)
+        record = self._record(sample, r.s, w, r.u, rotors)
         tracking = Tracking(float(math.hypot(w[0], w[1])), angle_between(x[3:6], x[3:6] - w[2:5]),
                             float(np.linalg.norm(w[8:11])), self._s, bool(r.in_tube))
         if r.finished and np.all(np.isfinite(rotors)):
@@ -144,7 +145,7 @@ class FlightPhases:
         R = rpy_to_matrix(*x[3:6])
         o = self.recovery.step(t, x[:3], R @ x[6:9], R, x[9:12])
         u = np.concatenate([[o.thrust_n], o.torque_n_m])
-        record = self._record(sample, x, math.nan, _NAN11, u, o.rotor_forces_n)
+        record = self._record(sample, math.nan, _NAN11, u, o.rotor_forces_n)
         if self.recovery.settled(x[:3], R @ x[6:9], R):
             if self._settled_since is None:
                 self._settled_since = t

@@ -109,13 +109,14 @@ def fly(opts: FlyOptions) -> int:
     """Run the whole job; returns the process exit code (0 success, 1 flight failed)."""
     text = opts.maneuver_path.read_text()
     vehicle = load_vehicle(opts.vehicle_path)
-    envelope = load_controller(opts.controller_path).envelope
+    controller = load_controller(opts.controller_path)
     opts.out_dir.mkdir(parents=True, exist_ok=True)
     record_path = opts.out_dir / "groundtruth.npz"
     config = DaemonConfig(vehicle_url=opts.vehicle_url or "", vehicle_path=opts.vehicle_path,
                           controller_path=opts.controller_path, socket_path=opts.socket_path,
                           tlog_path=opts.out_dir / "flight.tlog",
-                          supervisor=SupervisorParams(land_when_done=True), envelope=envelope)
+                          supervisor=SupervisorParams(land_when_done=True), envelope=controller.envelope,
+                          controller=controller, control_rate_hz=opts.control_rate_hz)
     daemon = Daemon(config, vehicle, regulator_factory(vehicle, opts.control_rate_hz))
     proc = None
     emulator_code = None

@@ -118,6 +118,11 @@ def set_offboard(target_system: int, target_component: int) -> object:
         float(mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED), float(PX4_MAIN_OFFBOARD), 0, 0, 0, 0, 0)
 
 
+def timesync_request(ts1_ns: int) -> object:
+    """TIMESYNC request (tc1 = 0); the vehicle answers with its clock in tc1 and ts1 echoed."""
+    return mavlink2.MAVLink_timesync_message(0, int(ts1_ns))
+
+
 def daemon_heartbeat(healthy: bool) -> object:
     """The daemon's HEARTBEAT: onboard controller, no autopilot."""
     state = mavlink2.MAV_STATE_ACTIVE if healthy else mavlink2.MAV_STATE_CRITICAL

@@ -120,6 +120,8 @@ class Counters:
     gaps: int = 0
     """Samples that came after a gap longer than ``EnvelopeParams.maneuver_gap_s``."""
     statustexts: int = 0
+    timesync_dropped: int = 0
+    """TIMESYNC replies that answered no request of ours, or implied an implausible delay."""
 
 
 @dataclass(frozen=True)

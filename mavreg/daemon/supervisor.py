@@ -33,6 +33,7 @@ import numpy as np
 
 from ..config.envelope import EnvelopeParams
 from ..config.vehicle import VehicleParams
+from ..control.forecast import Forecaster
 from ..control.hover import HoverController
 from ..control.recovery import RecoveryController
 from . import messages as mm
@@ -43,6 +44,7 @@ from .phases import (AIRBORNE, PHASE_CODES, Counters, Event, Failure, LogRecord,
                      SupervisorParams)
 from .safety import SafetyActions
 from .state import StateAssembler, StateSample
+from .timesync import TimesyncEstimator
 
 __all__ = ["Phase", "SupervisorParams", "Event", "LogRecord", "Output", "Supervisor", "PHASE_CODES",
            "Failure"]
@@ -63,14 +65,27 @@ class Supervisor(FlightPhases, SafetyActions):
         The bounds (the controller file's ``envelope:`` section); default: the defaults.
     link_health : callable, optional
         ``() -> (delay_s, jitter_s)`` or None while unknown; the health gate refuses a
-        maneuver over a link worse than the envelope allows. None: never known.
+        maneuver over a link worse than the envelope allows. Default: the supervisor's own
+        TIMESYNC measurement (:mod:`mavreg.daemon.timesync`).
+    forecaster : Forecaster, optional
+        Predicts each sample across the sample-to-actuation delay and records every command
+        sent (:mod:`mavreg.control.forecast`). Default: no prediction.
+    fixed_delay_s : float, optional
+        A configured sample-to-actuation delay that overrides the measured one.
     """
 
     def __init__(self, vehicle: VehicleParams, params: SupervisorParams, regulator_factory,
                  envelope: EnvelopeParams | None = None,
-                 link_health: Callable[[], tuple[float, float] | None] | None = None):
+                 link_health: Callable[[], tuple[float, float] | None] | None = None,
+                 forecaster: Forecaster | None = None, fixed_delay_s: float | None = None):
         self.vehicle = vehicle
         self.params = params
+        self.timesync = TimesyncEstimator()
+        self.forecaster = forecaster if forecaster is not None else Forecaster(vehicle, 0.002, predict=False)
+        self.fixed_delay_s = fixed_delay_s
+        self._forecast = None
+        if link_health is None:
+            link_health = self._measured_link
         self.envelope = envelope if envelope is not None else EnvelopeParams()
         self.hover = HoverController(vehicle, params.hover)
         self.recovery = RecoveryController(vehicle, self.envelope.recovery)
@@ -181,6 +196,9 @@ class Supervisor(FlightPhases, SafetyActions):
             self._on_heartbeat(mm.decode_heartbeat(msg), out)
         elif mtype == "COMMAND_ACK":
             self._on_ack(msg, out)
+        elif mtype == "TIMESYNC":
+            if msg.tc1 != 0 and not self.timesync.reply(msg.tc1, msg.ts1, int(now_s * 1e9)):
+                self.counters.timesync_dropped += 1
         else:
             sample = self.assembler.add(msg)
             if sample is not None:
@@ -296,15 +314,38 @@ class Supervisor(FlightPhases, SafetyActions):
         self._send_rotors(rotors, now_s, out)
         out.log = record
 
+    def _measured_link(self) -> tuple[float, float] | None:
+        est = self.timesync.estimate()
+        return None if est is None else (est.delay_s, est.jitter_s)
+
+    def link_delay_s(self) -> float:
+        """Sample-to-actuation delay the prediction uses: the configured one, else the TIMESYNC
+        median (0 before the first reply), plus the vehicle file's ``estimate_latency_s``."""
+        if self.fixed_delay_s is not None:
+            d = self.fixed_delay_s
+        else:
+            est = self.timesync.estimate()
+            d = 0.0 if est is None else est.delay_s
+        return d + self.vehicle.estimate_latency_s
+
     def _controller_state(self, sample: StateSample) -> np.ndarray:
-        """The state every controller acts on: the sample's (a predictor goes here)."""
-        return sample.x
+        """The state every controller acts on: the sample predicted to the instant the answer
+        takes over (:class:`~mavreg.control.forecast.Forecaster`; the sample itself when
+        prediction is off)."""
+        self._forecast = self.forecaster.update(sample.time_s, sample.x, sample.rotation,
+                                                self.link_delay_s())
+        return self._forecast.x
 
     def _send_rotors(self, rotor_forces_n: np.ndarray, now_s: float, out: Output) -> None:
-        """The only way a rotor command leaves: recorded by the monitor, clipped, sent."""
+        """The only way a rotor command leaves: recorded by the monitor and the forecaster
+        (divided by the thrust-scale calibration, clipped), sent; then a TIMESYNC request
+        when one is due, so that it travels as this command does."""
         t = self.last_sample.time_s if self.last_sample is not None else 0.0
         self.monitor.record_command(t, rotor_forces_n)
-        controls = np.clip(np.asarray(rotor_forces_n, dtype=float) / self.vehicle.max_rotor_thrust_n, 0.0, 1.0)
+        cmd = self.forecaster.command(t, rotor_forces_n)
+        controls = cmd / self.vehicle.max_rotor_thrust_n
         out.messages.append(mm.actuator_target(int(now_s * 1e6), self.params.vehicle_system_id,
                                                self.params.vehicle_component_id, controls))
         self.counters.actuator_sent += 1
+        if self.timesync.due(t):
+            out.messages.append(mm.timesync_request(self.timesync.request(int(now_s * 1e9), t)))
