@@ -12,8 +12,8 @@ import math
 
 import numpy as np
 
-from ..geometry.projection import Projector
-from ..sim.metrics import tracking_metrics
+from ..sim.metrics import rotor_jitter_n, tracking_metrics
+from ..sim.truth import quats_to_matrices, true_errors
 from .supervisor import PHASE_CODES, Phase
 
 __all__ = ["controller_metrics", "ground_truth_errors", "format_summary", "plot_flight"]
@@ -30,42 +30,21 @@ def controller_metrics(ctrl: dict, plan, max_rotor_thrust_n: float) -> dict:
         return {}
     t = ctrl["t_s"][m]
     dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
-    return tracking_metrics(ctrl["s_m"][m].astype(float), ctrl["w"][m].astype(float), plan.segments,
-                            rotor_forces_n=ctrl["rotor_cmd_n"][m].astype(float),
-                            max_rotor_thrust_n=max_rotor_thrust_n, dt_s=dt)
-
-
-def ground_truth_errors(record: dict, plan, t_begin_s: float, t_end_s: float) -> dict:
-    """True transverse error of the recorded positions within [t_begin, t_end] (vehicle time).
-
-    Returns ``{"max_m", "rms_m", "samples", "segments": {name: {"max_m", "rms_m"}}}``;
-    samples whose projection falls outside (0, length) are left out.
-    """
-    t = record["t_s"]
-    sel = np.flatnonzero((t >= t_begin_s) & (t <= t_end_s))
-    proj = Projector(plan.path)
-    s_all, e_all = [], []
-    first = True
-    for i in sel:
-        p = record["position_ned_m"][i]
-        pr = proj.reset(p, 0.0) if first else proj.update(p)
-        first = False
-        if 0.0 < pr.s < plan.length_m:
-            s_all.append(pr.s)
-            e_all.append(pr.distance_m)
-    s_arr, e_arr = np.array(s_all), np.array(e_all)
-    out = {"samples": int(e_arr.size), "segments": {}}
-    out.update(_stats(e_arr))
-    for name, a, b in plan.segments:
-        mask = (s_arr >= a) & (s_arr < b)
-        out["segments"][name] = _stats(e_arr[mask])
+    rotors = ctrl["rotor_cmd_n"][m].astype(float)
+    out = tracking_metrics(ctrl["s_m"][m].astype(float), ctrl["w"][m].astype(float), plan.segments,
+                           rotor_forces_n=rotors, max_rotor_thrust_n=max_rotor_thrust_n, dt_s=dt)
+    out["rotor_jitter_n"] = rotor_jitter_n(rotors, 1.0 / dt) if dt > 0 else None
     return out
 
 
-def _stats(e: np.ndarray) -> dict:
-    if e.size == 0:
-        return {"max_m": None, "rms_m": None}
-    return {"max_m": float(e.max()), "rms_m": float(np.sqrt(np.mean(e * e)))}
+def ground_truth_errors(record: dict, plan, t_begin_s: float, t_end_s: float) -> dict:
+    """True transverse (and, with ``quaternion_wxyz`` recorded, attitude) errors of the
+    recorded states within [t_begin, t_end] of vehicle time (:func:`mavreg.sim.truth.true_errors`)."""
+    t = record["t_s"]
+    sel = np.flatnonzero((t >= t_begin_s) & (t <= t_end_s))
+    quats = record.get("quaternion_wxyz")
+    return true_errors(plan, record["position_ned_m"][sel],
+                       None if quats is None else quats_to_matrices(quats[sel]))
 
 
 def _f(v, scale=1.0, fmt="{:8.4f}") -> str:
@@ -86,7 +65,7 @@ def format_summary(summary: dict) -> str:
     cm = summary.get("controller_metrics") or {}
     gt = summary.get("ground_truth") or {}
     lines.append(f"{'segment':<16}{'max e_t cm':>11}{'rms e_t cm':>11}{'true max cm':>12}"
-                 f"{'max att deg':>12}{'peak rotor N':>13}{'sat s':>7}")
+                 f"{'max att deg':>12}{'true att deg':>13}{'peak rotor N':>13}{'sat s':>7}")
 
     def row(name, blk, g):
         te = blk.get("transverse_error_m") or {}
@@ -94,12 +73,15 @@ def format_summary(summary: dict) -> str:
         rc = blk.get("rotor_command_n") or {}
         return (f"{name:<16}{_f(te.get('max'), 100, '{:11.2f}')}{_f(te.get('rms'), 100, '{:11.2f}')}"
                 f"{_f((g or {}).get('max_m'), 100, '{:12.2f}')}{_f(ae.get('max'), 1, '{:12.2f}')}"
+                f"{_f((g or {}).get('max_deg'), 1, '{:13.2f}')}"
                 f"{_f(rc.get('max'), 1, '{:13.2f}')}{_f(blk.get('saturated_s'), 1, '{:7.3f}')}")
 
     for name, blk in (cm.get("segments") or {}).items():
         lines.append(row(name, blk, (gt.get("segments") or {}).get(name)))
     if cm:
         lines.append(row("all", cm, gt))
+        if cm.get("rotor_jitter_n") is not None:
+            lines.append(f"rotor command jitter (SD above 20 Hz, worst rotor): {cm['rotor_jitter_n']:.3f} N")
     for ev in summary.get("events", []):
         if ev["kind"] in ("phase", "touchdown", "command_refused", "gap", "recover", "motors_stopped",
                           "hand_over", "refused", "hard_landing"):

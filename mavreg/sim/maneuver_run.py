@@ -9,7 +9,6 @@ import dataclasses
 
 from ..control.forecast import Forecaster
 from ..control.regulator import ManeuverRegulator
-from ..geometry.projection import Projector
 from ..maneuver.plan import Plan
 from ..model.mixer import Mixer
 from ..model.quadrotor import QuadrotorModel
@@ -17,6 +16,7 @@ from ..model.rotation import rpy_to_matrix
 from .closed_loop import SimOptions, SimResult, simulate, window_force
 from .estimate_noise import EstimateCorruptor, EstimateNoise
 from .metrics import rotor_jitter_n, tracking_metrics
+from .truth import true_errors
 
 __all__ = ["ManeuverRun", "fly_on_design_model"]
 
@@ -108,31 +108,12 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
     metrics = tracking_metrics(s, w, plan.segments, rotor_forces_n=rotors,
                                max_rotor_thrust_n=saturation_n or vehicle.max_rotor_thrust_n,
                                dt_s=steps * dt_s)
-    metrics["true"] = true_transverse_errors(plan, result.x[:, :3])
+    metrics["true"] = true_errors(plan, result.x[:, :3],
+                                  rpy_to_matrix(*result.x[:, 3:6].T).transpose(2, 0, 1))
     metrics["rotor_jitter_n"] = rotor_jitter_n(rotors, control_rate_hz)
     metrics = {"stable": result.status.value != "diverged",
                "completed": result.status.value == "completed",
                "status": result.status.value, "reason": result.reason,
                "always_in_tube": bool(np.all(log_tube)), **metrics}
     return ManeuverRun(result, s, w, np.array(log_tube), metrics)
-
-
-def true_transverse_errors(plan: Plan, positions_m) -> dict:
-    """Max and RMS distance of true positions (K, 3) from the path, per segment, for the
-    samples whose nearest point lies inside the path (0 < s < length)."""
-    proj = Projector(plan.path)
-    pts = np.asarray(positions_m, dtype=float)
-    s_all, e_all = [], []
-    for i, p in enumerate(pts):
-        pr = proj.reset(p, 0.0) if i == 0 else proj.update(p)
-        if 0.0 < pr.s < plan.length_m:
-            s_all.append(pr.s)
-            e_all.append(pr.distance_m)
-    s_arr, e_arr = np.array(s_all), np.array(e_all)
-    out = {"max_m": float(e_arr.max()) if e_arr.size else None, "segments": {}}
-    for name, a, b in plan.segments:
-        e = e_arr[(s_arr >= a) & (s_arr < b)]
-        out["segments"][name] = ({"max_m": float(e.max()), "rms_m": float(np.sqrt(np.mean(e * e)))}
-                                 if e.size else None)
-    return out
 

@@ -1,0 +1,79 @@
+"""True errors of a flown maneuver: recorded positions and attitudes against the plan.
+
+The controller's own errors (``w``) are measured on what it saw: an estimate, perhaps a
+prediction. A simulator's or emulator's record has the truth. Each true position is
+projected on the path (warm-started, as the regulator does), giving the true transverse
+error at the true arc length s; the true attitude is compared with the nominal attitude at
+that s by the angle of the rotation between them, :math:`\\arccos((\\mathrm{tr}(\\bar R^T R) - 1)/2)`.
+Samples whose projection falls outside (0, length) are left out. Pure numpy.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry.projection import Projector
+from ..model.rotation import rpy_to_matrix
+
+__all__ = ["true_errors", "quats_to_matrices"]
+
+
+def quats_to_matrices(q) -> np.ndarray:
+    """(N, 3, 3) rotation matrices of unit quaternions (N, 4), scalar first."""
+    q = np.asarray(q, dtype=float)
+    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    w, x, y, z = q.T
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=1),
+    ], axis=1)
+
+
+def _stats(e: np.ndarray, key: str) -> dict:
+    if e.size == 0:
+        return {f"max_{key}": None, f"rms_{key}": None}
+    return {f"max_{key}": float(e.max()), f"rms_{key}": float(np.sqrt(np.mean(e * e)))}
+
+
+def true_errors(plan, positions_m, rotations=None) -> dict:
+    """True transverse (m) and attitude (deg) errors, overall and per segment.
+
+    Parameters
+    ----------
+    plan : Plan
+    positions_m : (K, 3) true NED positions, in time order.
+    rotations : (K, 3, 3) true body-to-NED rotations, optional.
+
+    Returns
+    -------
+    dict
+        ``{"samples", "max_m", "rms_m", ["max_deg", "rms_deg"], "segments": {name: {...}}}``.
+    """
+    proj = Projector(plan.path)
+    pts = np.asarray(positions_m, dtype=float)
+    keep, s_all, e_all = [], [], []
+    for i, p in enumerate(pts):
+        pr = proj.reset(p, 0.0) if i == 0 else proj.update(p)
+        if 0.0 < pr.s < plan.length_m:
+            keep.append(i)
+            s_all.append(pr.s)
+            e_all.append(pr.distance_m)
+    s_arr, e_arr = np.array(s_all), np.array(e_all)
+    a_arr = None
+    if rotations is not None:
+        Rt = np.asarray(rotations, dtype=float)[keep]
+        a_arr = np.empty(len(keep))
+        for j, (s, R) in enumerate(zip(s_arr, Rt)):
+            Rn = rpy_to_matrix(*plan.nominal_state(s)[3:6])
+            c = (float(np.sum(Rn * R)) - 1.0) / 2.0
+            a_arr[j] = np.degrees(np.arccos(min(max(c, -1.0), 1.0)))
+    out = {"samples": int(e_arr.size), **_stats(e_arr, "m"), "segments": {}}
+    if a_arr is not None:
+        out.update(_stats(a_arr, "deg"))
+    for name, a, b in plan.segments:
+        mask = (s_arr >= a) & (s_arr < b) if s_arr.size else np.zeros(0, bool)
+        seg = _stats(e_arr[mask], "m")
+        if a_arr is not None:
+            seg.update(_stats(a_arr[mask], "deg"))
+        out["segments"][name] = seg
+    return out
