@@ -68,9 +68,11 @@ class GateParams:
     (a heavier vehicle or weaker rotors)."""
     timeout_s: float = field(default=5.0, metadata=_POS)
     """How long the hold may take to pass the gate before the maneuver is refused."""
-    max_link_delay_s: float = field(default=0.04, metadata=_POS)
-    """Round-trip delay the regulator tolerates: it leads its feedforward only by the rotor
-    lag and half a control period; 40 ms at 8 m/s is 0.32 m of unmodelled travel."""
+    max_link_delay_s: float = field(default=0.06, metadata=_POS)
+    """Sample-to-actuation delay the controller tolerates. With prediction across the delay
+    (``predict_delay``, params/controller/realistic.yaml) the barrel roll stays within 2 cm up to
+    60 ms on the design model (docs/robustness.md, delay sweep). Without prediction a few
+    milliseconds already cost centimetres and 20 ms diverges: paper_lqr.yaml sets 5 ms."""
     max_link_jitter_s: float = field(default=0.01, metadata=_POS)
     """Delay jitter (SD) the regulator tolerates: 5 control periods at 500 Hz."""
 
@@ -107,11 +109,13 @@ class RecoveryParams:
     """Yaw is weak (drag torque): a slower loop that rarely saturates."""
     brake_speed_m_s: float = field(default=0.5, metadata=_POS)
     """Braking ends (and the horizontal hold point is set) below this horizontal speed."""
-    settled_tilt_rad: float = field(default=math.radians(10.0), metadata=_DEG)
+    settled_attitude_error_rad: float = field(default=math.radians(10.0), metadata=_DEG)
+    """Settled: within this of the desired attitude (level, or tilted into a steady wind)."""
+    settled_rate_rad_s: float = field(default=0.5, metadata=_POS)
     settled_speed_m_s: float = field(default=0.5, metadata=_POS)
     settled_altitude_error_m: float = field(default=0.5, metadata=_POS)
     settle_s: float = field(default=1.0, metadata=_POS)
-    """Recovered: level, slow and at the safe altitude for this long."""
+    """Recovered: braked, on its attitude, not rotating, slow and at the altitude for this long."""
     timeout_s: float = field(default=8.0, metadata=_POS)
     """Not recovered within this time (vehicle time): the motors are stopped. From
     inverted at 8 m/s the controller settles in about 3 s (unit test)."""

@@ -8,8 +8,8 @@ changes for recovery:
 - **Desired thrust vector** from a saturated PD on velocity and altitude (NED):
   horizontal velocity command 0 while braking, then back to where braking ended; vertical
   velocity command up to ``safe_altitude_m`` above the take-off point, or to hold the
-  highest point reached (a recovery never descends), with a conditional integral for a
-  vehicle heavier than the design. The horizontal acceleration is limited so that the thrust tilts at most
+  highest point reached (a recovery never descends), with conditional integrals for a
+  vehicle heavier than the design and for a steady wind. The horizontal acceleration is limited so that the thrust tilts at most
   ``max_tilt_rad`` from vertical:
 
   .. math:: F_d = m (a_d - g e_3),\qquad b_{3d} = -F_d / |F_d|,\qquad f = -F_d^T R e_3
@@ -162,7 +162,10 @@ class RecoveryController:
         self._yaw = 0.0
         self._hold_h: np.ndarray | None = None
         self._bias = 0.0
+        self._bias_h = np.zeros(2)
         self._t_last: float | None = None
+        self._last_att_err = math.pi
+        self._last_rate = math.inf
         self._clipped = False
 
     @property
@@ -176,7 +179,10 @@ class RecoveryController:
         self._yaw = heading_rad(np.asarray(R, dtype=float))
         self._hold_h = None
         self._bias = 0.0
+        self._bias_h = np.zeros(2)
         self._t_last = None
+        self._last_att_err = math.pi
+        self._last_rate = math.inf
         self._clipped = False
 
     def _accel(self, p, v, dt: float, integrate: bool) -> np.ndarray:
@@ -200,8 +206,16 @@ class RecoveryController:
             self._bias = min(max(self._bias + prm.integral_gain_1_s * prm.velocity_gain_1_s * ez * dt,
                                  -prm.max_accel_up_m_s2), prm.max_accel_down_m_s2)
         az = min(max(prm.velocity_gain_1_s * ez + self._bias, -prm.max_accel_up_m_s2), prm.max_accel_down_m_s2)
-        ah = prm.velocity_gain_1_s * (vc_h - vh)
+        eh = vc_h - vh
         lim = math.tan(prm.max_tilt_rad) * (G - az)
+        ah = prm.velocity_gain_1_s * eh + self._bias_h
+        if integrate and dt > 0.0 and float(np.linalg.norm(ah)) < lim:
+            # the same for a steady horizontal force (wind): bounded to half the tilt limit
+            self._bias_h = self._bias_h + prm.integral_gain_1_s * prm.velocity_gain_1_s * eh * dt
+            nb = float(np.linalg.norm(self._bias_h))
+            if nb > 0.5 * lim:
+                self._bias_h *= 0.5 * lim / nb
+            ah = prm.velocity_gain_1_s * eh + self._bias_h
         n = float(np.linalg.norm(ah))
         if n > lim:
             ah *= lim / n
@@ -236,12 +250,16 @@ class RecoveryController:
         forces = allocate(f, tau, self.mixer_inverse, self.vehicle.max_rotor_thrust_n)
         self._clipped = abs(float(np.sum(forces)) - f) > 1e-6 * max(1.0, abs(f)) and f > 0.0
         hold = p[:2] if self._hold_h is None else self._hold_h
-        return RecoveryOutput(forces, f, tau, R_d, float(np.linalg.norm(e_R)), self._hold_h is None,
+        self._last_att_err = float(np.linalg.norm(e_R))
+        self._last_rate = float(np.linalg.norm(w))
+        return RecoveryOutput(forces, f, tau, R_d, self._last_att_err, self._hold_h is None,
                               np.array([hold[0], hold[1], self._z_target]))
 
     def settled(self, position_m, velocity_ned_m_s, R) -> bool:
-        """Braked, level, slow and near the altitude target."""
+        """Braked, slow, near the altitude target, on its desired attitude (level, or tilted
+        into a steady wind) and not rotating: judged with the last :meth:`step`'s errors."""
         prm = self.params
-        return (self._hold_h is not None and tilt_rad(np.asarray(R)) < prm.settled_tilt_rad
+        return (self._hold_h is not None and self._last_att_err < prm.settled_attitude_error_rad
+                and self._last_rate < prm.settled_rate_rad_s
                 and float(np.linalg.norm(velocity_ned_m_s)) < prm.settled_speed_m_s
                 and abs(float(position_m[2]) - self._z_target) < prm.settled_altitude_error_m)

@@ -107,7 +107,7 @@ def test_allocation_always_within_limits(f, t1, t2, t3):
 
 # ------------------------------------------------------------------ closed loop
 def fly(roll_deg=0.0, pitch_deg=0.0, v_ned=(0.0, 8.0, 0.0), z=-10.0, rates=(0.0, 0.0, 0.0),
-        mass_scale=1.0, inertia_scale=1.0, seconds=8.0, ground_z=0.0):
+        mass_scale=1.0, inertia_scale=1.0, seconds=8.0, ground_z=0.0, force_ned=(0.0, 0.0, 0.0)):
     """Recover from the given state; returns per-step (t, position, velocity, tilt) arrays."""
     params = RecoveryParams()
     body = RigidBody(VEHICLE.mass_kg * mass_scale,
@@ -125,7 +125,7 @@ def fly(roll_deg=0.0, pitch_deg=0.0, v_ned=(0.0, 8.0, 0.0), z=-10.0, rates=(0.0,
         for _ in range(2):
             T, tx, ty, tz = mix(rotors.step(o.rotor_forces_n.tolist(), True), VEHICLE.arm_length_m,
                                 VEHICLE.drag_torque_ratio_m)
-            s = body.rk4_step(s, 0.001, T, tx, ty, tz, (0, 0, 0), (0, 0, 0))
+            s = body.rk4_step(s, 0.001, T, tx, ty, tz, (0, 0, 0), force_ned)
         R = quat_to_matrix(np.array(s[3:7]))
         out["t"].append((k + 1) / 500)
         out["p"].append(s[:3])
@@ -191,3 +191,18 @@ def test_stops_a_tumble():
     assert r["p"][:, 2].max() < -10.0 + 1e-3                 # never below where it started
     apex = r["p"][:, 2].min()
     assert abs(r["p"][-1, 2] - apex) < 0.3
+
+
+def test_holds_against_a_steady_wind():
+    """3.5 N of side force (4.7 m/s^2, across its 8 m/s) all along: braking takes the whole
+    tilt budget (35 deg) for 1.5 s, so the wind carries it about 6 m; then it holds, tilted
+    into the wind, settled, drifting less than 5 cm over the last 2 s."""
+    r = fly(roll_deg=0.0, v_ned=(0.0, 8.0, 0.0), force_ned=(3.5, 0.0, 0.0), seconds=10.0)
+    print(f"\nsteady wind: carried {r['p'][-1, 0]:.2f} m, settled at {_settled_since(r):.2f} s, "
+          f"tilted {np.degrees(r['tilt'][-1]):.1f} deg")
+    assert _settled_since(r) < 4.0
+    end = r["t"] > 8.0
+    assert np.ptp(r["p"][end, 0]) < 0.05 and np.ptp(r["p"][end, 1]) < 0.05
+    assert r["p"][:, 0].max() < 6.5
+    assert abs(np.degrees(r["tilt"][-1]) - np.degrees(np.arctan(3.5 / (VEHICLE.mass_kg * 9.81)))) < 1.0
+    assert abs(r["p"][-1, 2] + 10.0) < 0.15
