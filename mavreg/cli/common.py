@@ -8,13 +8,17 @@ __all__ = ["PARAMS_DIR", "add_model_arguments", "add_laps_argument", "load_model
 
 PARAMS_DIR = Path(__file__).resolve().parents[2] / "params"
 DEFAULT_VEHICLE = PARAMS_DIR / "vehicles" / "mk_quadro.yaml"
-DEFAULT_CONTROLLER = PARAMS_DIR / "controller" / "paper_lqr.yaml"
+PAPER_CONTROLLER = PARAMS_DIR / "controller" / "paper_lqr.yaml"
+"""The paper's design: the default of the design-model commands (plan, simulate)."""
+REAL_CONTROLLER = PARAMS_DIR / "controller" / "realistic.yaml"
+"""Lag-aware gains, delay prediction, weights for estimator noise: the default of the commands
+that fly a vehicle (fly, serve)."""
 
 
-def add_model_arguments(p: argparse.ArgumentParser) -> None:
+def add_model_arguments(p: argparse.ArgumentParser, controller: Path = PAPER_CONTROLLER) -> None:
     p.add_argument("--vehicle-params", metavar="YAML", default=str(DEFAULT_VEHICLE),
                    help="vehicle parameter file (default: %(default)s)")
-    p.add_argument("--controller", metavar="YAML", default=str(DEFAULT_CONTROLLER),
+    p.add_argument("--controller", metavar="YAML", default=str(controller),
                    help="LQR weights (default: %(default)s)")
 
 

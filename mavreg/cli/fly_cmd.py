@@ -4,7 +4,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from .common import add_model_arguments
+from .common import REAL_CONTROLLER, add_model_arguments
 
 HELP = "fly a maneuver YAML on a vehicle (default: the bundled firmware_sim) and report"
 DESCRIPTION = """\
@@ -48,12 +48,18 @@ def add_arguments(p):
                    help="the vehicle's telemetry/control rate; the bundled emulator is started "
                    "at it and the regulator leads its feedforward by half its period "
                    "(default %(default)s)")
+    p.add_argument("--world", choices=("realistic", "ideal"), default="realistic",
+                   help="bundled emulator only: 'realistic' (default) gives it a real vehicle's "
+                   "link (10 ms down, 5 ms up, +-3 ms, 1%% loss) and an EKF-like estimate in its "
+                   "telemetry; 'ideal' sends the true state at once, the paper's world "
+                   "(reproductions: with --controller params/controller/paper_lqr.yaml). "
+                   "See docs/firmware_sim.md and docs/robustness.md")
     p.add_argument("--lockstep", action="store_true",
                    help="bundled emulator only: run it in lockstep (faster than real time)")
     p.add_argument("--emulator-arg", action="append", default=[], metavar="ARG",
                    help="bundled emulator only: extra firmware_sim argument (repeatable), "
                    "e.g. --emulator-arg=--rotor-time-constant-s=0")
-    add_model_arguments(p)
+    add_model_arguments(p, controller=REAL_CONTROLLER)
 
 
 def run(args) -> int:
@@ -65,13 +71,14 @@ def run(args) -> int:
         raise ValueError(f"{maneuver}: no such file")
     if args.vehicle is not None:
         parse_url(args.vehicle)
-        if args.lockstep or args.emulator_arg:
-            raise ValueError("--lockstep and --emulator-arg apply only to the bundled emulator (no --vehicle)")
+        if args.lockstep or args.emulator_arg or args.world != "realistic":
+            raise ValueError("--lockstep, --world and --emulator-arg apply only to the bundled "
+                             "emulator (no --vehicle)")
     if args.timeout_s <= 0:
         raise ValueError(f"--timeout-s must be positive, got {args.timeout_s}")
     load_vehicle(args.vehicle_params)   # a bad vehicle file is a user error before anything starts
     out = Path(args.out) if args.out else Path("flights") / time.strftime("%Y%m%d-%H%M%S")
     opts = FlyOptions(maneuver, args.vehicle, Path(args.vehicle_params), Path(args.controller), out,
                       Path(args.socket) if args.socket else None, args.timeout_s, args.lockstep,
-                      tuple(args.emulator_arg), args.control_rate_hz)
+                      tuple(args.emulator_arg), args.control_rate_hz, args.world)
     return fly(opts)

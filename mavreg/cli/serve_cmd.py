@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .common import add_model_arguments
+from .common import REAL_CONTROLLER, add_model_arguments
 
 HELP = "run the offboard daemon: fly maneuvers uploaded on the control endpoint"
 DESCRIPTION = """\
@@ -43,7 +43,7 @@ def add_arguments(p):
                    "feedforward by half its period (default %(default)s)")
     p.add_argument("--stale-timeout-s", type=float, default=0.1, metavar="S",
                    help="stop streaming when no complete state arrives for S seconds (default: %(default)s)")
-    add_model_arguments(p)
+    add_model_arguments(p, controller=REAL_CONTROLLER)
 
 
 def run(args) -> int:

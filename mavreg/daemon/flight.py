@@ -61,6 +61,11 @@ class FlightPhases:
             if t - self._stream_start_t >= self.params.offboard_stream_min_s:
                 self._command(out, mm.set_offboard(sysid, compid))
         else:
+            verdict = self.gate.link_verdict()
+            if verdict is not None:
+                self._refuse(verdict, out, Phase.PREFLIGHT)
+                self._land_requested = True          # disarm on the ground
+                return
             self._start_takeoff(sample, out)
 
     def _start_ramps(self, ramps, t: float) -> None:

@@ -53,11 +53,14 @@ class FlyOptions:
     emulator_args: tuple[str, ...]
     control_rate_hz: float = 500.0
     """The vehicle's telemetry (control) rate; the bundled emulator is started at it."""
+    world: str = "realistic"
+    """The bundled emulator's world preset: ``realistic`` (link delay, jitter and loss, an
+    EKF-like estimate in telemetry) or ``ideal`` (the true state at once: the paper's world)."""
 
 
 def spawn_emulator(vehicle_path: Path, record: Path | None, lockstep: bool, extra: tuple[str, ...] = (),
                    timeout_s: float = 20.0, rate_hz: float = 500.0,
-                   preset: str = "ideal") -> tuple[subprocess.Popen, str]:
+                   preset: str = "realistic") -> tuple[subprocess.Popen, str]:
     """Start ``firmware_sim`` on a free loopback port; return (process, ``udpout:`` URL for us).
 
     The emulator dies with this process however it ends (SIGKILL included): it is started
@@ -66,7 +69,8 @@ def spawn_emulator(vehicle_path: Path, record: Path | None, lockstep: bool, extr
     Ctrl-C in the terminal reaches only the daemon, which lands first and then stops the
     emulator (:func:`stop_process`). Call it from a thread that lives as long as the
     flight (the parent-death signal fires when the starting thread ends).
-    ``preset`` is the emulator's world (``ideal``: true state, no link effects); ``extra``
+    ``preset`` is the emulator's world (``realistic`` by default; ``ideal``: the true state, no
+    link effects); ``extra``
     comes after it, so an ``--preset`` (or ``--lockstep-timeout``) there wins.
     """
     cmd = [sys.executable, "-m", "firmware_sim", "--listen", "udpin:127.0.0.1:0", "--quiet",
@@ -126,7 +130,8 @@ def fly(opts: FlyOptions) -> int:
             nonlocal proc
             if opts.vehicle_url is None:
                 proc, url = spawn_emulator(opts.vehicle_path, record_path, opts.lockstep,
-                                           opts.emulator_args, rate_hz=opts.control_rate_hz)
+                                           opts.emulator_args, rate_hz=opts.control_rate_hz,
+                                           preset=opts.world)
                 daemon.config = replace(config, vehicle_url=url)
             await daemon.run([(text, str(opts.maneuver_path))], timeout_s=opts.timeout_s)
         asyncio.run(main())
@@ -168,7 +173,7 @@ def _finish(opts, daemon, ctrl, record_path, emulator_code, wall_s) -> int:
     record = None
     if record_path is not None and record_path.exists() and man and plan is not None:
         with np.load(record_path) as z:
-            record = {k: z[k] for k in ("t_s", "position_ned_m")}
+            record = {k: z[k] for k in ("t_s", "position_ned_m", "quaternion_wxyz")}
         t_end = after[0]["time_s"] if after else float(record["t_s"][-1])
         summary["ground_truth"] = ground_truth_errors(record, plan, man[0]["time_s"], t_end)
     (opts.out_dir / "summary.json").write_text(json.dumps(summary, indent=1, default=_plain))

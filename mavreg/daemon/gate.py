@@ -102,6 +102,23 @@ class HealthGate:
         """Whether a full window has been seen."""
         return len(self._rows) > 2 and self._rows[-1][0] - self._rows[0][0] >= 0.9 * self.params.window_s
 
+    def link_verdict(self) -> GateVerdict | None:
+        """The link's failing check (delay, then jitter), or None when it passes or is unknown.
+        Also asked before take-off: a vehicle whose link the controller cannot fly over does
+        not leave the ground."""
+        g = self.params
+        link = self.link_health() if self.link_health is not None else None
+        if link is None:
+            return None
+        delay, jitter = link
+        if delay > g.max_link_delay_s:
+            return GateVerdict(False, "gate_link_delay", float(delay), g.max_link_delay_s, "s",
+                               "link delay beyond what the controller tolerates")
+        if jitter > g.max_link_jitter_s:
+            return GateVerdict(False, "gate_link_jitter", float(jitter), g.max_link_jitter_s, "s",
+                               "link jitter beyond what the controller tolerates")
+        return None
+
     def evaluate(self) -> GateVerdict:
         """The first failing check over the window, or a pass (call when :meth:`ready`)."""
         g = self.params
@@ -127,13 +144,7 @@ class HealthGate:
         if att.max() > g.max_attitude_error_rad:
             return GateVerdict(False, "gate_attitude", float(att.max()), g.max_attitude_error_rad, "rad",
                                "the hold is not level")
-        link = self.link_health() if self.link_health is not None else None
+        link = self.link_verdict()
         if link is not None:
-            delay, jitter = link
-            if delay > g.max_link_delay_s:
-                return GateVerdict(False, "gate_link_delay", float(delay), g.max_link_delay_s, "s",
-                                   "link delay beyond what the plan tolerates")
-            if jitter > g.max_link_jitter_s:
-                return GateVerdict(False, "gate_link_jitter", float(jitter), g.max_link_jitter_s, "s",
-                                   "link jitter beyond what the plan tolerates")
+            return link
         return PASS

@@ -146,15 +146,19 @@ class SafetyActions:
         self._note_action("command stream stopped (vehicle failsafe)")
         self._set_phase(out, Phase.ABORTED, detail)
 
-    def _refuse(self, verdict, out) -> None:
-        """The health gate did not pass in time: the maneuver is not flown."""
+    def _refuse(self, verdict, out, phase: str = Phase.HOLD) -> None:
+        """The health gate did not pass in time (in the hold), or the link is known to be too
+        slow before take-off (``phase`` preflight): the maneuver is not flown."""
         plan = self._pending[0][0]
         t = self.last_sample.time_s
-        self._fail(verdict.bound, Phase.HOLD, t, math.nan, verdict.value, verdict.limit, verdict.unit,
+        self._fail(verdict.bound, phase, t, math.nan, verdict.value, verdict.limit, verdict.unit,
                    verdict.detail)
         self._pending.clear()
         self._gate_wait_t0 = None
-        then = "landing" if self.params.land_when_done or self._land_requested else "holding"
+        if phase == Phase.PREFLIGHT:
+            then = "staying on the ground, disarming"
+        else:
+            then = "landing" if self.params.land_when_done or self._land_requested else "holding"
         self._announce(out, "refused", mm.SEVERITY_WARNING, f"maneuver {plan.name!r} refused by the health gate: "
                        f"{verdict.bound} {verdict.value:.3g} {verdict.unit} (limit {verdict.limit:.3g}); "
                        f"{verdict.detail}; {then}")
