@@ -14,7 +14,7 @@ import numpy as np
 from ..config.vehicle import VehicleParams
 from ..geometry.projection import Projector
 from ..maneuver.plan import Plan
-from ..model.mixer import Mixer
+from ..model.mixer import Mixer, lift_to_zero
 from .transverse import transverse_coordinates
 
 __all__ = ["ManeuverRegulator", "RegulatorOutput"]
@@ -28,7 +28,8 @@ class RegulatorOutput:
     u: np.ndarray
     """(f, g1, g2, g3) commanded."""
     rotor_forces_n: np.ndarray
-    """Rotor forces by the inverse of eq 34, not clipped."""
+    """Rotor forces by the inverse of eq 34, lifted so that none pulls
+    (:func:`~mavreg.model.mixer.lift_to_zero`); not clipped at the top."""
     in_tube: bool
     finished: bool
     """s has reached the end of the maneuver."""
@@ -69,6 +70,7 @@ class ManeuverRegulator:
                  rotor_time_constant_s: float | None = None):
         self.plan = plan
         mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
+        self._fmax = float(vehicle.max_rotor_thrust_n)
         self.mixer_inverse = mixer.inverse
         self._mixer = mixer.matrix
         self._augmented = plan.K.shape[-1] > 11
@@ -122,7 +124,7 @@ class ManeuverRegulator:
             u = ubar - K[:, :11] @ w - K[:, 11:] @ (self._mixer @ f_act - u_here)
         else:
             u = ubar - K @ w
-        rotors = self.mixer_inverse @ u
+        rotors = lift_to_zero(self.mixer_inverse @ u, self._fmax)
         if self._augmented:
             base = self._rotors_est if self._rotors_est is not None else rotors
             self._rotors_est = rotors + (base - rotors) * self._decay

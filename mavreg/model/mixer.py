@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["mixer_matrix", "Mixer"]
+__all__ = ["mixer_matrix", "Mixer", "lift_to_zero"]
 
 
 def mixer_matrix(arm_length_m: float, drag_torque_ratio_m: float) -> np.ndarray:
@@ -37,3 +37,20 @@ class Mixer:
     def to_rotors(self, u) -> np.ndarray:
         """Rotor forces (f1..f4) that produce u = (f, g1, g2, g3) exactly (no saturation)."""
         return self.inverse @ np.asarray(u)
+
+
+def lift_to_zero(rotor_forces_n, max_rotor_thrust_n: float) -> np.ndarray:
+    """Rotors cannot pull: a force below zero is met by lifting all four, torques kept.
+
+    Where eq 34 inverted asks a rotor for f_min < 0, all four rotors get -f_min more, as far
+    as the top limit leaves room: the torques (differences) are unchanged and only the
+    collective thrust grows, briefly (PX4's "airmode" at the low end). Plain per-rotor
+    clipping at 0 would instead drop that rotor's share of the torque. Nothing changes when
+    every force is already non-negative; forces above the limit are left to the caller.
+    """
+    f = np.asarray(rotor_forces_n, dtype=float)
+    low = float(f.min())
+    if low >= 0.0:
+        return f
+    room = max(max_rotor_thrust_n - float(f.max()), 0.0)
+    return f + min(-low, room)

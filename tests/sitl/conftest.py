@@ -16,17 +16,20 @@ def barrel_plan():
     return plan_file(BARREL, load_vehicle(VEHICLE), load_controller(CONTROLLER))
 
 
-def fly_lockstep(tmp, emulator_args=(), fly_args=(), during=None, vehicle=VEHICLE):
+def fly_lockstep(tmp, emulator_args=(), fly_args=(), during=None, vehicle=VEHICLE, world="ideal",
+                 controller=CONTROLLER):
     """Emulator in lockstep + ``mavreg fly --vehicle`` as two processes; returns a result dict.
 
     ``vehicle`` is the parameter file both read: the emulator its physics, the daemon its
-    design model (``mk_quadro_ideal.yaml``: ideal actuators on both sides)."""
+    design model (``mk_quadro_ideal.yaml``: ideal actuators on both sides). The paper's
+    world and design by default: the emulator's ``ideal`` preset, ``paper_lqr.yaml``."""
     record = tmp / "groundtruth.npz"
-    emu, url = start_emulator(record, "--lockstep", "--vehicle", str(vehicle), *emulator_args)
+    emu, url = start_emulator(record, "--lockstep", "--preset", world, "--vehicle", str(vehicle),
+                              *emulator_args)
     out = tmp / "out"
     try:
         fly = mavreg("fly", str(BARREL), "--vehicle", url, "--vehicle-params", str(vehicle),
-                     "--out", str(out), "--timeout-s", "240", *fly_args)
+                     "--controller", str(controller), "--out", str(out), "--timeout-s", "240", *fly_args)
         extra = during(fly, emu) if during is not None else None
         code = fly.wait(300)
     finally:

@@ -169,14 +169,15 @@ def test_foreign_system_actuator_traffic_changes_nothing(tmp_path, ideal_flight)
 
 
 def test_killing_the_daemon_mid_maneuver_lets_the_failsafe_land(tmp_path):
-    from sitl_helpers import load_record, mavreg, start_emulator
+    from sitl_helpers import CONTROLLER, load_record, mavreg, start_emulator
     from mavreg.daemon.endpoint import request
     record = tmp_path / "gt.npz"
     sock = tmp_path / "mavreg.sock"
-    emu, url = start_emulator(record, "--lockstep", "--lockstep-stall-speed", "0", "--duration-s", "100")
+    emu, url = start_emulator(record, "--lockstep", "--preset", "ideal", "--lockstep-stall-speed", "0",
+                              "--duration-s", "100")
     try:
         fly = mavreg("fly", str(BARREL), "--vehicle", url, "--out", str(tmp_path / "out"),
-                     "--socket", str(sock))
+                     "--controller", str(CONTROLLER), "--socket", str(sock))
         fly.wait_line("[maneuver] phase", 200)
         s_kill = None
         for _ in range(20000):   # kill it inside the loop (s between 19.5 and 27 m)

@@ -121,3 +121,17 @@ def test_model_accepts_a_batch():
     batch = MODEL.f(X, U)
     for j in range(5):
         np.testing.assert_allclose(batch[:, j], MODEL.f(X[:, j], U[:, j]), rtol=1e-13)
+
+
+def test_lift_to_zero_keeps_the_torques_and_only_adds_thrust():
+    from mavreg.model.mixer import Mixer, lift_to_zero
+    mix = Mixer(0.3, 0.016)
+    f = np.array([2.0, -0.8, 3.0, 1.5])
+    g = lift_to_zero(f, 12.0)
+    assert g.min() == pytest.approx(0.0)
+    np.testing.assert_allclose(mix.to_wrench(g)[1:], mix.to_wrench(f)[1:], atol=1e-12)
+    assert mix.to_wrench(g)[0] == pytest.approx(mix.to_wrench(f)[0] + 4 * 0.8)
+    ok = np.array([0.5, 1.0, 2.0, 3.0])
+    np.testing.assert_array_equal(lift_to_zero(ok, 12.0), ok)
+    # No room at the top: lifted only as far as the limit allows
+    np.testing.assert_allclose(lift_to_zero(np.array([11.5, -1.0, 5.0, 5.0]), 12.0), [12.0, -0.5, 5.5, 5.5])
