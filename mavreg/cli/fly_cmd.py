@@ -28,8 +28,16 @@ Rotor commands are SET_ACTUATOR_CONTROL_TARGET group 0 with a pass-through mixer
 (controls[0..3] = rotors 1..4 front, right, back, left, as a fraction of the maximum rotor
 thrust): this is not PX4 v1.13's default attitude mixer.
 
-Exit status: 0 the flight succeeded (maneuver flown, landed, disarmed); 1 the flight failed
-(abort, vehicle failsafe, timeout, emulator crash); 2 bad file or arguments.
+Every sample is checked against a flight envelope (docs/safety.md): off the path or the hover
+point, attitude, rates, altitude floor, geofence, progress, rotor saturation, impact,
+telemetry that contradicts itself. A violated bound starts a recovery (level, brake, climb,
+hold, then land); an impact or a failed recovery stops the motors (forced disarm). Each
+action is also sent to the vehicle as a STATUSTEXT.
+
+Exit status: 0 the maneuver was flown within its envelope and the vehicle landed (touchdown
+under 1 m/s) and disarmed; 1 the flight failed: the first bound violated (where, by how much,
+what was done) is printed in one line and kept in summary.json under "failure"; 2 bad file
+or arguments.
 """
 
 

@@ -41,8 +41,10 @@ def add_arguments(p):
     p.add_argument("--control-rate-hz", type=float, default=500.0, metavar="HZ",
                    help="the vehicle's telemetry/control rate; the regulator leads its "
                    "feedforward by half its period (default %(default)s)")
-    p.add_argument("--stale-timeout-s", type=float, default=0.1, metavar="S",
-                   help="stop streaming when no complete state arrives for S seconds (default: %(default)s)")
+    p.add_argument("--stale-timeout-s", type=float, default=0.5, metavar="S",
+                   help="link lost: stop streaming for good when no complete state arrives for S "
+                   "seconds; shorter pauses are ridden out in hover, a recovery starts after 0.1 s "
+                   "in a maneuver (docs/safety.md) (default: %(default)s)")
     add_model_arguments(p, controller=REAL_CONTROLLER)
 
 

@@ -166,6 +166,9 @@ class FlightPhases:
         yaw = float(x[5])
         self._note_action(f"recovered after {t - self._phase_t0:.1f} s")
         self._s = math.nan
+        then = "landing" if self.params.land_when_done or self._land_requested else "holding"
+        self._announce(out, "recovered", mm.SEVERITY_WARNING,
+                       f"level and holding at {np.round(p, 2).tolist()} after {t - self._phase_t0:.1f} s; {then}")
         if self.params.land_when_done or self._land_requested:
             self._set_phase(out, Phase.LAND, f"recovered at {np.round(p, 2).tolist()}; landing")
             self._note_action("landing")
