@@ -83,7 +83,7 @@ def format_summary(summary: dict) -> str:
         if cm.get("rotor_jitter_n") is not None:
             lines.append(f"rotor command jitter (SD above 20 Hz, worst rotor): {cm['rotor_jitter_n']:.3f} N")
     for ev in summary.get("events", []):
-        if ev["kind"] in ("phase", "touchdown", "command_refused", "gap", "recover", "motors_stopped",
+        if ev["kind"] in ("phase", "touchdown", "command_refused", "gap", "recover", "recovered", "motors_stopped",
                           "hand_over", "refused", "hard_landing"):
             lines.append(f"  t={ev['time_s'] if ev['time_s'] is not None else float('nan'):8.3f} s "
                          f"{ev['phase']:<9} {ev['detail']}")
