@@ -64,6 +64,9 @@ def add_arguments(p):
                    "See docs/firmware_sim.md and docs/robustness.md")
     p.add_argument("--lockstep", action="store_true",
                    help="bundled emulator only: run it in lockstep (faster than real time)")
+    p.add_argument("--vehicle-lockstep", action="store_true",
+                   help="the --vehicle is a lockstep simulator (it waits for each command): do not "
+                   "fly telemetry gaps on the prediction (in real time the daemon does)")
     p.add_argument("--emulator-arg", action="append", default=[], metavar="ARG",
                    help="bundled emulator only: extra firmware_sim argument (repeatable), "
                    "e.g. --emulator-arg=--rotor-time-constant-s=0")
@@ -88,5 +91,5 @@ def run(args) -> int:
     out = Path(args.out) if args.out else Path("flights") / time.strftime("%Y%m%d-%H%M%S")
     opts = FlyOptions(maneuver, args.vehicle, Path(args.vehicle_params), Path(args.controller), out,
                       Path(args.socket) if args.socket else None, args.timeout_s, args.lockstep,
-                      tuple(args.emulator_arg), args.control_rate_hz, args.world)
+                      tuple(args.emulator_arg), args.control_rate_hz, args.vehicle_lockstep, args.world)
     return fly(opts)

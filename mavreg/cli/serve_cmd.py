@@ -45,6 +45,9 @@ def add_arguments(p):
                    help="link lost: stop streaming for good when no complete state arrives for S "
                    "seconds; shorter pauses are ridden out in hover, a recovery starts after 0.1 s "
                    "in a maneuver (docs/safety.md) (default: %(default)s)")
+    p.add_argument("--vehicle-lockstep", action="store_true",
+                   help="the vehicle is a lockstep simulator (it waits for each command): do not "
+                   "fly telemetry gaps on the prediction (in real time the daemon does)")
     add_model_arguments(p, controller=REAL_CONTROLLER)
 
 
@@ -65,7 +68,8 @@ def run(args) -> int:
     config = DaemonConfig(args.vehicle, Path(args.vehicle_params), Path(args.controller),
                           Path(args.socket) if args.socket else default_socket_path(),
                           Path(args.tlog) if args.tlog else None,
-                          SupervisorParams(land_when_done=False, stale_timeout_s=args.stale_timeout_s),
+                          SupervisorParams(land_when_done=False, stale_timeout_s=args.stale_timeout_s,
+                                           gap_fill=not args.vehicle_lockstep),
                           envelope=controller.envelope, controller=controller,
                           control_rate_hz=args.control_rate_hz)
     daemon = Daemon(config, vehicle, regulator_factory(vehicle, args.control_rate_hz))

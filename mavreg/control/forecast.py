@@ -54,6 +54,7 @@ class Forecaster:
         self.vehicle = vehicle
         self.predict = bool(predict)
         self.thrust_scale = float(vehicle.thrust_scale)
+        self.period_s = float(control_period_s)
         self.predictor = StatePredictor(vehicle, max_step_s=control_period_s, max_horizon_s=max_horizon_s)
 
     def reset(self, rotor_forces_n=(0.0, 0.0, 0.0, 0.0)) -> None:
@@ -67,6 +68,17 @@ class Forecaster:
         if not self.predict:
             return Forecast(x, R, self.thrust_scale * np.asarray(self.predictor.rotor_forces(t_s, 0.0)), 0.0)
         p = self.predictor.predict(t_s, x, R, delay_s, thrust_scale=self.thrust_scale)
+        return Forecast(p.x, p.rotation, p.rotor_forces_n, p.horizon_s)
+
+    def ahead(self, t_s: float, x, rotation, elapsed_s: float, delay_s: float) -> Forecast | None:
+        """The sample of time ``t_s`` predicted ``elapsed_s + delay_s`` ahead (commands act
+        ``delay_s`` after the sample they answer): the state a command sent ``elapsed_s``
+        after that sample would meet. None past the prediction horizon."""
+        horizon = elapsed_s + delay_s
+        if not self.predict or horizon > self.predictor.max_horizon_s:
+            return None
+        p = self.predictor.predict(t_s, x, rotation, horizon, delay_s=delay_s,
+                                   thrust_scale=self.thrust_scale)
         return Forecast(p.x, p.rotation, p.rotor_forces_n, p.horizon_s)
 
     def command(self, t_s: float, rotor_forces_n) -> np.ndarray:

@@ -89,6 +89,7 @@ class Daemon:
         self._tlog: TlogWriter | None = None
         self._tasks: list[asyncio.Task] = []
         self._stop = asyncio.Event()
+        self._gap_timer: asyncio.TimerHandle | None = None
         self._signals = 0
 
     # ------------------------------------------------------------------ wiring
@@ -112,6 +113,21 @@ class Daemon:
             self.latency_ns.append(dt)
             if self.supervisor.phase == Phase.MANEUVER:
                 self.maneuver_latency_ns.append(dt)
+            self._arm_gap_timer(1.5)
+
+    def _arm_gap_timer(self, periods: float) -> None:
+        """(Re)start the timer that fills a telemetry gap (real time only)."""
+        if not self.config.supervisor.gap_fill:
+            return
+        if self._gap_timer is not None:
+            self._gap_timer.cancel()
+        loop = asyncio.get_running_loop()
+        self._gap_timer = loop.call_later(periods * self.supervisor.forecaster.period_s, self._fill_gap)
+
+    def _fill_gap(self) -> None:
+        self._gap_timer = None
+        if self._emit(self.supervisor.fill_gap(self.clock_s())):
+            self._arm_gap_timer(1.0)
 
     async def _heartbeat_task(self) -> None:
         while True:
@@ -230,6 +246,8 @@ class Daemon:
             await self._shutdown(loop, install_signals)
 
     async def _shutdown(self, loop, signals_installed: bool) -> None:
+        if self._gap_timer is not None:
+            self._gap_timer.cancel()
         for task in self._tasks:
             task.cancel()
         await asyncio.gather(*self._tasks, return_exceptions=True)

@@ -53,6 +53,8 @@ class FlyOptions:
     emulator_args: tuple[str, ...]
     control_rate_hz: float = 500.0
     """The vehicle's telemetry (control) rate; the bundled emulator is started at it."""
+    vehicle_lockstep: bool = False
+    """The vehicle (``--vehicle``) is a lockstep simulator: no telemetry gaps to fly through."""
     world: str = "realistic"
     """The bundled emulator's world preset: ``realistic`` (link delay, jitter and loss, an
     EKF-like estimate in telemetry) or ``ideal`` (the true state at once: the paper's world)."""
@@ -119,7 +121,9 @@ def fly(opts: FlyOptions) -> int:
     config = DaemonConfig(vehicle_url=opts.vehicle_url or "", vehicle_path=opts.vehicle_path,
                           controller_path=opts.controller_path, socket_path=opts.socket_path,
                           tlog_path=opts.out_dir / "flight.tlog",
-                          supervisor=SupervisorParams(land_when_done=True), envelope=controller.envelope,
+                          supervisor=SupervisorParams(land_when_done=True,
+                                                      gap_fill=not (opts.lockstep or opts.vehicle_lockstep)),
+                          envelope=controller.envelope,
                           controller=controller, control_rate_hz=opts.control_rate_hz)
     daemon = Daemon(config, vehicle, regulator_factory(vehicle, opts.control_rate_hz))
     proc = None

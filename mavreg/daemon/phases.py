@@ -69,6 +69,11 @@ class SupervisorParams:
     touchdown_altitude_m: float = 0.03
     land_when_done: bool = True
     """Land after the last queued maneuver (``fly``); ``serve`` keeps holding."""
+    gap_fill: bool = True
+    """A vehicle in real time: when a sample is more than 1.5 control periods late, command
+    from the prediction of the last one (:meth:`Supervisor.fill_gap`), as far as the
+    prediction horizon reaches. Off for a lockstep simulator, which waits for each command
+    (an extra command there would answer a sample that has not been sent)."""
     euler_pitch_limit_rad: float = math.radians(75.0)
     hover: HoverParams = field(default_factory=HoverParams)
 
@@ -120,6 +125,8 @@ class Counters:
     gaps: int = 0
     """Samples that came after a gap longer than ``EnvelopeParams.maneuver_gap_s``."""
     statustexts: int = 0
+    gap_commands: int = 0
+    """Commands sent from a prediction while a sample was late (:meth:`Supervisor.fill_gap`)."""
     timesync_dropped: int = 0
     """TIMESYNC replies that answered no request of ours, or implied an implausible delay."""
 

@@ -26,6 +26,7 @@ the vocabulary in :mod:`mavreg.daemon.phases`; docs/safety.md states the envelop
 from __future__ import annotations
 
 import collections
+import dataclasses
 import math
 from typing import Callable
 
@@ -223,6 +224,37 @@ class Supervisor(FlightPhases, SafetyActions):
             self._wall_clock_gap(now_s, out)
         return out
 
+    def fill_gap(self, now_s: float) -> Output:
+        """A sample is late (real time): command from the prediction of the last one.
+
+        Called by the I/O layer when no complete sample has come for 1.5 control periods,
+        then every period while the gap lasts. The last sample is predicted across the wall
+        time since it arrived plus the link delay, the phase's controller runs on that state,
+        and the command goes out as the answer to the vehicle time it stands for. Beyond the
+        prediction horizon (``max_prediction_s``) nothing is sent: the vehicle holds the last
+        command and the gap policy judges the gap when samples resume (docs/safety.md)."""
+        out = Output()
+        self._now_s = now_s
+        last = self.last_sample
+        if (not self.params.gap_fill or last is None or self._last_sample_now is None
+                or self.phase not in AIRBORNE or self.phase == Phase.RECOVER):
+            return out
+        elapsed = now_s - self._last_sample_now
+        if elapsed < 1.5 * self.forecaster.period_s:
+            return out
+        fc = self.forecaster.ahead(last.time_s, last.x, last.rotation, elapsed, self.link_delay_s())
+        if fc is None:
+            return out
+        virtual = dataclasses.replace(last, time_boot_ms=last.time_boot_ms + int(round(elapsed * 1e3)))
+        self._forecast = fc
+        rotors, record, _ = self._control(virtual, fc.x, out)
+        if self.finished or not np.all(np.isfinite(rotors)):
+            return out
+        self.counters.gap_commands += 1
+        self._send_rotors(rotors, now_s, out, t_s=virtual.time_s)
+        out.log = record
+        return out
+
     # ----------------------------------------------------------------- internals
     def _event(self, out: Output, kind: str, detail: str) -> None:
         t = self.last_sample.time_s if self.last_sample is not None else math.nan
@@ -336,11 +368,15 @@ class Supervisor(FlightPhases, SafetyActions):
                                                 self.link_delay_s())
         return self._forecast.x
 
-    def _send_rotors(self, rotor_forces_n: np.ndarray, now_s: float, out: Output) -> None:
+    def _send_rotors(self, rotor_forces_n: np.ndarray, now_s: float, out: Output,
+                     t_s: float | None = None) -> None:
         """The only way a rotor command leaves: recorded by the monitor and the forecaster
         (divided by the thrust-scale calibration, clipped), sent; then a TIMESYNC request
         when one is due, so that it travels as this command does."""
-        t = self.last_sample.time_s if self.last_sample is not None else 0.0
+        if t_s is not None:
+            t = t_s                    # a gap-filling command: the vehicle time it stands for
+        else:
+            t = self.last_sample.time_s if self.last_sample is not None else 0.0
         self.monitor.record_command(t, rotor_forces_n)
         cmd = self.forecaster.command(t, rotor_forces_n)
         controls = cmd / self.vehicle.max_rotor_thrust_n

@@ -28,7 +28,7 @@ def fly_lockstep(tmp, emulator_args=(), fly_args=(), during=None, vehicle=VEHICL
                               *emulator_args)
     out = tmp / "out"
     try:
-        fly = mavreg("fly", str(BARREL), "--vehicle", url, "--vehicle-params", str(vehicle),
+        fly = mavreg("fly", str(BARREL), "--vehicle", url, "--vehicle-lockstep", "--vehicle-params", str(vehicle),
                      "--controller", str(controller), "--out", str(out), "--timeout-s", "240", *fly_args)
         extra = during(fly, emu) if during is not None else None
         code = fly.wait(300)

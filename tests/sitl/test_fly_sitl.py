@@ -176,7 +176,7 @@ def test_killing_the_daemon_mid_maneuver_lets_the_failsafe_land(tmp_path):
     emu, url = start_emulator(record, "--lockstep", "--preset", "ideal", "--lockstep-stall-speed", "0",
                               "--duration-s", "100")
     try:
-        fly = mavreg("fly", str(BARREL), "--vehicle", url, "--out", str(tmp_path / "out"),
+        fly = mavreg("fly", str(BARREL), "--vehicle", url, "--vehicle-lockstep", "--out", str(tmp_path / "out"),
                      "--controller", str(CONTROLLER), "--socket", str(sock))
         fly.wait_line("[maneuver] phase", 200)
         s_kill = None

@@ -49,7 +49,7 @@ def test_sigkilled_serve_mid_plan_leaves_no_worker(tmp_path):
     sock = tmp_path / "d.sock"
     emu, url = start_emulator(tmp_path / "gt.npz", "--lockstep", "--lockstep-timeout", "30",
                               "--preset", "ideal", "--duration-s", "600")
-    serve = mavreg("serve", "--vehicle", url, "--socket", str(sock), "--stale-timeout-s", "30")
+    serve = mavreg("serve", "--vehicle", url, "--vehicle-lockstep", "--socket", str(sock), "--stale-timeout-s", "30")
     upload: dict = {}
 
     def send():

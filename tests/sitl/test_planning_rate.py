@@ -52,7 +52,7 @@ def test_control_loop_runs_every_period_while_planning(tmp_path):
     second: dict = {}
     try:
         url = emu.wait_line("firmware_sim listening on", 60).split()[-1].replace("udpin:", "udpout:")
-        serve = mavreg("serve", "--vehicle", url, "--socket", str(sock), "--stale-timeout-s", "30")
+        serve = mavreg("serve", "--vehicle", url, "--vehicle-lockstep", "--socket", str(sock), "--stale-timeout-s", "30")
         serve.wait_line("control endpoint", 120)
         workers = {p: start_time(p) for p in children(serve.p.pid)}
         first = request(sock, {"op": "upload", "name": "first", "yaml": BARREL.read_text()}, 900)
