@@ -46,7 +46,7 @@ def fly_fault(tmp: Path, duration_s: float, *emulator_args: str) -> dict:
                               "--vehicle", str(tough_vehicle(tmp)), *emulator_args)
     out = tmp / "out"
     try:
-        fly = mavreg("fly", str(NEAR), "--vehicle", url, "--controller", str(CONTROLLER), "--out", str(out),
+        fly = mavreg("fly", str(NEAR), "--vehicle", url, "--vehicle-lockstep", "--controller", str(CONTROLLER), "--out", str(out),
                      "--timeout-s", "150")
         code = fly.wait(200)
         emu_code = emu.wait(120)        # runs on, as fast as it can, to --duration-s
