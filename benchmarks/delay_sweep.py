@@ -7,7 +7,9 @@
 controller sees a late state) and 1/3 uplink (its command acts late), controller
 ``params/controller/realistic.yaml`` with the delay known. ``sitl``: ``mavreg fly --lockstep``
 on the bundled emulator's realistic preset with its telemetry and command delays set the
-same way (the daemon measures the delay with TIMESYNC). Each row gives the loop's true
+same way, each with the preset's +-3 ms jitter (less on a shorter leg); the daemon measures
+the delay with TIMESYNC. A failed flight is marked (its result: a bound fired, the daemon
+recovered or stopped the motors). Each row gives the loop's true
 maximum transverse error (cm), or the way the run ended. Prints a table; figures go to
 docs/robustness.md.
 """
@@ -67,7 +69,10 @@ def sitl_row(delay_ms: float, predict: bool) -> str:
         out = Path(tmp) / "flight"
         cmd = [sys.executable, "-m", "mavreg.cli.main", "fly", str(MANEUVER), "--lockstep",
                "--controller", str(ctl), "--out", str(out), "--timeout-s", "600",
-               f"--emulator-arg=--telemetry-delay-ms={down:g}", f"--emulator-arg=--command-delay-ms={up:g}"]
+               f"--emulator-arg=--telemetry-delay-ms={down:g}", f"--emulator-arg=--command-delay-ms={up:g}",
+               # the preset's +-3 ms jitter, or less where a leg is shorter than that
+               f"--emulator-arg=--telemetry-jitter-ms={min(3.0, down):g}",
+               f"--emulator-arg=--command-jitter-ms={min(3.0, up):g}"]
         subprocess.run(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=900)
         try:
             summary = json.loads((out / "summary.json").read_text())
