@@ -37,7 +37,7 @@ class Forecast:
 
 
 class Forecaster:
-    """Prediction and disturbance estimation for one vehicle.
+    """Prediction across the link for one vehicle, and the record of the commands sent.
 
     Parameters
     ----------

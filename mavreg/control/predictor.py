@@ -36,6 +36,9 @@ from ..model.rotation import matrix_to_rpy
 
 __all__ = ["StatePredictor", "Prediction"]
 
+_MAX_PENDING = 4096
+"""Commands kept before the acted ones are folded into the rotor state (8 s at 500 Hz)."""
+
 
 @dataclass(frozen=True)
 class Prediction:
@@ -102,6 +105,7 @@ class StatePredictor:
         self._cmds: deque = deque()          # (t_answered_s, (c1..c4)) not yet fully acted
         self._f = (0.0, 0.0, 0.0, 0.0)       # rotor forces at self._t_f
         self._t_f: float | None = None
+        self._last_delay_s = 0.0
 
     def reset(self, rotor_forces_n=(0.0, 0.0, 0.0, 0.0)) -> None:
         """Forget the command history; the rotors are at ``rotor_forces_n``."""
@@ -118,6 +122,10 @@ class StatePredictor:
             self._cmds[-1] = (self._cmds[-1][0], c)   # a second answer to the same sample replaces the first
         else:
             self._cmds.append((float(t_s), c))
+        if len(self._cmds) > _MAX_PENDING:
+            # Nobody has asked for a prediction for a while (a long preflight): fold the
+            # commands that have acted into the rotor state, so the history stays bounded.
+            self.rotor_forces(t_s, self._last_delay_s)
 
     def _lag(self, f, c, dt):
         """Rotor forces after ``dt`` toward ``c`` and their mean over the interval."""
@@ -135,6 +143,7 @@ class StatePredictor:
         """Lagged rotor forces at ``t_s`` from the commands that acted before it (each acts
         ``horizon_s`` after the sample it answered). Advances the kept filter state."""
         cmds = self._cmds
+        self._last_delay_s = horizon_s
         if self._t_f is None:         # the rotors were at the reset value until the first command
             self._t_f = min(t_s, cmds[0][0] + horizon_s) if cmds else t_s
         t, f = self._t_f, self._f

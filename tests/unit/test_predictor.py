@@ -128,3 +128,15 @@ def test_forecaster_divides_commands_by_the_thrust_scale_and_predicts_with_it():
     f = fc.update(0.004, x, np.eye(3), 0.02)
     np.testing.assert_allclose(f.rotor_forces_n, hover, rtol=1e-12)   # physical force: hover
     np.testing.assert_allclose(f.x, x, atol=1e-12)                    # so it stays put
+
+
+def test_command_history_stays_bounded_without_predictions():
+    """A long-running daemon streams idle commands for hours before a maneuver: the history
+    is folded into the rotor state instead of growing."""
+    tau = 0.02
+    pred = StatePredictor(dataclasses.replace(VEHICLE, rotor_time_constant_s=tau), max_step_s=PERIOD)
+    for k in range(20000):
+        pred.record(k * PERIOD, [1.0, 2.0, 3.0, 4.0])
+    assert len(pred._cmds) <= 4097
+    f = pred.rotor_forces(20000 * PERIOD, 0.0)
+    np.testing.assert_allclose(f, [1.0, 2.0, 3.0, 4.0], rtol=1e-9)
