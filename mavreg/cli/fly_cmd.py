@@ -15,7 +15,14 @@ Hold, take-off and landing use a hover LQR from the same design model.
 
 With no --vehicle, the bundled emulator (firmware_sim) is started on a free loopback port
 as a child process (real time; --lockstep for a deterministic faster-than-real-time run)
-and its ground-truth recording is used for the true tracking error.
+and its ground-truth recording is used for the true tracking error. Its world is a real
+vehicle's by default (--world realistic: link delay, jitter and loss, an EKF-like estimate in
+telemetry, 20 ms rotor lag); --world ideal sends the true state at once (the paper's world).
+
+The default controller (params/controller/realistic.yaml) measures the link's delay with
+TIMESYNC, predicts every sample across it before regulating, flies gains designed with the
+rotor lag, and in real time flies short telemetry gaps on the prediction
+(docs/robustness.md). The paper's design: --controller params/controller/paper_lqr.yaml.
 
 Outputs go to --out DIR (default: flights/<YYYYmmdd-HHMMSS>/): summary.json, flight.png
 (path in the maneuver's plane, errors against arc length), flight.tlog (every MAVLink
