@@ -71,6 +71,10 @@ def add_arguments(p):
                    "See docs/firmware_sim.md and docs/robustness.md")
     p.add_argument("--lockstep", action="store_true",
                    help="bundled emulator only: run it in lockstep (faster than real time)")
+    p.add_argument("--stale-timeout-s", type=float, default=0.5, metavar="S",
+                   help="link lost: stop streaming for good when no complete state arrives for S "
+                   "wall seconds; shorter pauses are ridden out in hover (docs/safety.md) "
+                   "(default: %(default)s)")
     p.add_argument("--vehicle-lockstep", action="store_true",
                    help="the --vehicle is a lockstep simulator (it waits for each command): do not "
                    "fly telemetry gaps on the prediction (in real time the daemon does)")
@@ -92,11 +96,14 @@ def run(args) -> int:
         if args.lockstep or args.emulator_arg or args.world != "realistic":
             raise ValueError("--lockstep, --world and --emulator-arg apply only to the bundled "
                              "emulator (no --vehicle)")
+    if not args.stale_timeout_s > 0:
+        raise ValueError(f"--stale-timeout-s must be positive, got {args.stale_timeout_s}")
     if args.timeout_s <= 0:
         raise ValueError(f"--timeout-s must be positive, got {args.timeout_s}")
     load_vehicle(args.vehicle_params)   # a bad vehicle file is a user error before anything starts
     out = Path(args.out) if args.out else Path("flights") / time.strftime("%Y%m%d-%H%M%S")
     opts = FlyOptions(maneuver, args.vehicle, Path(args.vehicle_params), Path(args.controller), out,
                       Path(args.socket) if args.socket else None, args.timeout_s, args.lockstep,
-                      tuple(args.emulator_arg), args.control_rate_hz, args.vehicle_lockstep, args.world)
+                      tuple(args.emulator_arg), args.control_rate_hz, args.vehicle_lockstep, args.world,
+                      args.stale_timeout_s)
     return fly(opts)

@@ -56,6 +56,8 @@ class FlyOptions:
     vehicle_lockstep: bool = False
     """The vehicle (``--vehicle``) is a lockstep simulator: no telemetry gaps to fly through."""
     world: str = "realistic"
+    stale_timeout_s: float = 0.5
+    """Wall seconds without a complete sample before the link counts as lost."""
     """The bundled emulator's world preset: ``realistic`` (link delay, jitter and loss, an
     EKF-like estimate in telemetry) or ``ideal`` (the true state at once: the paper's world)."""
 
@@ -121,7 +123,7 @@ def fly(opts: FlyOptions) -> int:
     config = DaemonConfig(vehicle_url=opts.vehicle_url or "", vehicle_path=opts.vehicle_path,
                           controller_path=opts.controller_path, socket_path=opts.socket_path,
                           tlog_path=opts.out_dir / "flight.tlog",
-                          supervisor=SupervisorParams(land_when_done=True,
+                          supervisor=SupervisorParams(land_when_done=True, stale_timeout_s=opts.stale_timeout_s,
                                                       gap_fill=not (opts.lockstep or opts.vehicle_lockstep)),
                           envelope=controller.envelope,
                           controller=controller, control_rate_hz=opts.control_rate_hz)

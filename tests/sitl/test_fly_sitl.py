@@ -2,6 +2,7 @@
 emulator's ground-truth recording."""
 from __future__ import annotations
 
+import signal
 import subprocess
 import time
 
@@ -117,14 +118,21 @@ def test_invalid_upload_mid_flight_is_rejected_and_changes_nothing(tmp_path, ide
 
     def during(fly, emu):
         fly.wait_line("[maneuver] phase", 200)
-        verdicts = []
-        for f in (bad, infeasible):
-            r = subprocess.run(["mavreg", "upload", str(f), "--socket", str(sock)], capture_output=True,
-                               text=True, timeout=120)
-            verdicts.append((r.returncode, r.stdout.strip()))
+        # The lockstep vehicle waits while the uploads are planned (the planner runs at the
+        # lowest priority: on a loaded machine the flight could end first).
+        emu.p.send_signal(signal.SIGSTOP)
+        try:
+            verdicts = []
+            for f in (bad, infeasible):
+                r = subprocess.run(["mavreg", "upload", str(f), "--socket", str(sock)], capture_output=True,
+                                   text=True, timeout=300)
+                verdicts.append((r.returncode, r.stdout.strip()))
+        finally:
+            emu.p.send_signal(signal.SIGCONT)
         return verdicts
 
-    f = fly_lockstep(tmp_path, (), ("--socket", str(sock)), during, vehicle=VEHICLE_IDEAL)
+    f = fly_lockstep(tmp_path, (), ("--socket", str(sock), "--stale-timeout-s", "300"), during,
+                     vehicle=VEHICLE_IDEAL)
     assert f["code"] == 0, "\n".join(f["lines"][-30:])
     (c1, v1), (c2, v2) = f["extra"]
     print(f"\nverdicts: {v1!r}\n          {v2!r}")
