@@ -1,0 +1,522 @@
+r"""Calibrate a vehicle from one flight: thrust scale, body drag, rotor time constant, delay.
+
+Pure numpy/scipy: arrays in, numbers out (:mod:`mavreg.identify.flightlog` reads the files).
+
+**Model.** Translational dynamics in NED with the measured attitude :math:`R` (body to NED)
+and velocity :math:`v`:
+
+.. math::
+    m\dot v = s_T \Big(\sum_i f_i\Big)(-R e_3) + m g e_3 - R\,\mathrm{diag}(c_x, c_y, c_z)R^T v
+              \;[-\,c_p |v| v],
+
+:math:`f_i` the rotor commands (``controls`` times the maximum rotor thrust) delayed by
+:math:`D` (sample time to the rotors, on the vehicle clock) and passed through a first-order
+lag :math:`\tau\dot f = c - f`, discretized exactly for a piecewise-constant input that
+switches anywhere inside a sample interval; :math:`s_T` is the thrust scale (actual thrust
+per unit commanded). The drag is the emulator's body-frame linear drag with no wind; the
+quadratic parasitic term is kept only when the flight shows it (its 95 % interval excludes 0).
+
+**Equation error without differentiating the model.** The acceleration is the
+Savitzky-Golay derivative :math:`y_j = \sum_k d_k v_{j+k}` of the velocity. Since
+:math:`\sum_k d_k = 0`, :math:`y_j = \sum_m E_m \Delta v_{j+m}` with :math:`E_m =
+\sum_{k\ge m} d_k`, and :math:`\Delta v_i = \int_{t_{i-1}}^{t_i} \dot v\,dt` exactly. So each
+regressor is integrated over every sample interval (the lagged thrust exactly, the others by
+the trapezoid rule) and filtered with the same kernel :math:`E`: both sides of the equation
+see the same linear filter, with no lag or bias between them.
+
+**Fit.** For fixed :math:`(\tau, D)` the model is linear in :math:`\theta = (s_T, c_x, c_y,
+c_z[, c_p])`: least squares over all three axes of every usable sample (armed, OFFBOARD,
+airborne, command stream alive, whole filter window inside). :math:`(\tau, D)` minimize the
+residual over a grid, then :math:`\tau` is refined by a bounded 1-D search on a fine grid of
+:math:`D`. Only the thrust column depends on :math:`(\tau, D)`; the rest is projected out once
+(Frisch-Waugh).
+
+**Intervals.** The residuals are correlated in time (estimator errors, the filter), so the
+LS covariance is far too narrow. 95 % intervals come from a moving-block bootstrap: blocks of
+consecutive samples (length from the residual autocorrelation) drawn with replacement, every
+parameter, :math:`\tau` and :math:`D` included, re-estimated on each replicate (on a local
+:math:`(\tau, D)` grid around the estimate, from per-chunk sums of the normal equations).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+from scipy.signal import lfilter, savgol_coeffs
+
+from ..sim.truth import quats_to_matrices
+from .bootstrap import BlockBootstrap, block_length_rows
+
+__all__ = ["FlightSeries", "FitOptions", "Estimate", "Identification", "IdentifyError", "identify",
+           "G"]
+
+G = 9.81
+_MIN_FIT_SPEED_M_S = 0.05
+"""A drag axis slower than this (RMS) is left out of the fit (its column would be all noise)."""
+
+
+class IdentifyError(ValueError):
+    """The flight cannot calibrate the vehicle (no usable data, too short); one line."""
+
+
+@dataclass(frozen=True)
+class FlightSeries:
+    """A flight as the fit needs it (numbers only; :func:`mavreg.identify.flightlog.read_flight`)."""
+
+    t_s: np.ndarray
+    """(N,) sample times on the vehicle clock, increasing."""
+    position_ned_m: np.ndarray
+    velocity_ned_m_s: np.ndarray
+    quaternion_wxyz: np.ndarray
+    """(N, 4) attitude, body FRD to NED, scalar first."""
+    controlled: np.ndarray
+    """(N,) bool: armed and in OFFBOARD (the vehicle obeys the commands)."""
+    command_t_s: np.ndarray
+    """(K,) vehicle time of the sample each command answered, in the order sent."""
+    command_controls: np.ndarray
+    """(K, 4) rotor commands as a fraction of the maximum rotor thrust."""
+    link_delay_s: float | None = None
+    """Sample-to-actuation delay measured by TIMESYNC, if the flight has it."""
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    """Settings of :func:`identify` (defaults suit 500 Hz telemetry)."""
+
+    min_height_m: float = 0.3
+    """Samples closer to the ground than this (above the first sample) are left out."""
+    window: int = 21
+    """Savitzky-Golay window (samples, odd)."""
+    polyorder: int = 3
+    tau_max_s: float = 0.1
+    delay_max_s: float = 0.08
+    delay_s: float | None = None
+    """A known sample-to-rotor delay; None: estimated jointly with tau."""
+    parasitic: str = "auto"
+    """'auto' (kept when significant), 'yes' or 'no'."""
+    replicates: int = 300
+    seed: int = 0
+    min_duration_s: float = 3.0
+    min_drag_speed_m_s: float = 0.5
+    """Body-axis RMS speed below which that axis' drag is reported as not identified (it is
+    still fitted, above 0.05 m/s, so that its force is not blamed on the other terms)."""
+    block_s: float = 1.0
+    """Shortest bootstrap block; longer when the residuals' scores remember longer."""
+    max_gap_s: float = 0.01
+    """Telemetry gaps up to this are interpolated; longer ones cut the data."""
+    command_timeout_s: float = 0.1
+    """Samples this long after the last command are left out (the stream stopped)."""
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """A value with its 95 % bootstrap interval; ``value`` None: not identified (``why``)."""
+
+    value: float | None
+    low: float | None = None
+    high: float | None = None
+    why: str = ""
+
+    def as_dict(self) -> dict:
+        if self.value is None:
+            return {"value": None, "why": self.why}
+        return {"value": self.value, "ci95": [self.low, self.high]}
+
+
+@dataclass(frozen=True)
+class Identification:
+    """What :func:`identify` found; see :meth:`as_dict` for the JSON form."""
+
+    thrust_scale: Estimate
+    drag_n_s_per_m: tuple[Estimate, Estimate, Estimate]
+    drag_xy_n_s_per_m: Estimate
+    """c_x and c_y combined (inverse-variance mean): the vehicle file's c_xy."""
+    parasitic_n_s2_per_m2: Estimate
+    rotor_time_constant_s: Estimate
+    delay_s: Estimate
+    model: str
+    residual_rms_m_s2: float
+    r_squared: float
+    samples: int
+    duration_s: float
+    rms_body_speed_m_s: tuple[float, float, float]
+    intervals: str
+    link_delay_s: float | None
+
+    def as_dict(self) -> dict:
+        return {
+            "model": self.model, "thrust_scale": self.thrust_scale.as_dict(),
+            "drag_n_s_per_m": {k: e.as_dict() for k, e in zip("xyz", self.drag_n_s_per_m)},
+            "drag_xy_n_s_per_m": self.drag_xy_n_s_per_m.as_dict(),
+            "parasitic_drag_n_s2_per_m2": self.parasitic_n_s2_per_m2.as_dict(),
+            "rotor_time_constant_s": self.rotor_time_constant_s.as_dict(),
+            "delay_s": self.delay_s.as_dict(), "link_delay_timesync_s": self.link_delay_s,
+            "residual_rms_m_s2": self.residual_rms_m_s2, "r_squared": self.r_squared,
+            "samples": self.samples, "duration_s": self.duration_s,
+            "rms_body_speed_m_s": list(self.rms_body_speed_m_s), "intervals": self.intervals,
+        }
+
+
+class _Problem:
+    """The flight on a uniform grid, the fixed regressors and the thrust column's ingredients."""
+
+    def __init__(self, s: FlightSeries, mass_kg: float, max_rotor_thrust_n: float, o: FitOptions):
+        t, p, v, q, ctrl = _clean(s)
+        if t.size < o.window + 2:
+            raise IdentifyError(f"only {t.size} usable telemetry samples; a calibration needs seconds of flight")
+        h = float(np.median(np.diff(t)))
+        idx = np.rint((t - t[0]) / h).astype(int)
+        keep = np.concatenate([[True], np.diff(idx) > 0])
+        idx, t, p, v, q, ctrl = idx[keep], t[keep], p[keep], v[keep], _continuous(q[keep]), ctrl[keep]
+        n = int(idx[-1]) + 1
+        self.h, self.n, self.mass = h, n, mass_kg
+        grid = np.arange(n)
+
+        def on_grid(a):
+            return np.stack([np.interp(grid, idx, a[:, k]) for k in range(a.shape[1])], axis=1)
+        v, pos, R = on_grid(v), on_grid(p), quats_to_matrices(on_grid(q))
+        # good: measured or inside a short gap, controlled, airborne, commands streaming
+        k = np.searchsorted(idx, grid, side="right") - 1
+        gap = np.append(np.diff(idx), 1)[k]
+        near = (grid == idx[k]) | (gap * h <= o.max_gap_s + 1e-9)
+        airborne = pos[:, 2] < _ground_z(p[:, 2], ctrl) - o.min_height_m
+        self.csum, alive = self._commands(s, t[0], max_rotor_thrust_n, o.command_timeout_s)
+        good = near & ctrl[k] & airborne & alive
+        # rows j whose whole window j-M-1 .. j+M is good, M = window // 2
+        W = o.window
+        self.M = M = W // 2
+        self.d = savgol_coeffs(W, o.polyorder, deriv=1, delta=h, use="dot")
+        self.E = np.cumsum(self.d[::-1])[::-1]
+        span = np.convolve(good.astype(int), np.ones(W + 1, int), mode="valid") == W + 1
+        rows = np.flatnonzero(span) + M + 1             # span[i] covers i .. i + W
+        self.rows = rows[rows <= n - 1 - M]
+        if self.rows.size * h < o.min_duration_s:
+            raise IdentifyError(
+                f"only {self.rows.size * h:.2f} s of usable flight (armed, OFFBOARD, {o.min_height_m:g} m "
+                f"above the ground, commanded); a calibration needs at least {o.min_duration_s:g} s")
+        self.dir = -(R[:-1, :, 2] + R[1:, :, 2]) / 2.0          # mean thrust direction per interval
+        vb = np.einsum("nji,nj->ni", R, v)                        # R^T v
+        self.vbody_rows = vb[self.rows]
+        self.y = self._deriv(v) - np.array([0.0, 0.0, G])
+        cols = [-R[:, :, k] * vb[:, k:k + 1] / mass_kg for k in range(3)]
+        cols.append(-np.linalg.norm(v, axis=1)[:, None] * v / mass_kg)
+        self.fixed = np.stack([self._filtered(h / 2 * (c[:-1] + c[1:])) for c in cols], axis=-1)
+
+    def _commands(self, s: FlightSeries, t0: float, fmax: float, timeout_s: float):
+        """Summed rotor command on the grid (zero-order hold in the order sent) and 'alive'."""
+        ct = np.asarray(s.command_t_s, float)
+        u = np.asarray(s.command_controls, float).reshape(ct.size, -1)
+        ok = np.isfinite(ct) & np.all(np.isfinite(u), axis=1)
+        slot = np.rint((ct[ok] - t0) / self.h).astype(int)
+        order = np.flatnonzero(ok)
+        inside = (slot >= 0) & (slot < self.n)
+        if not inside.any():
+            raise IdentifyError("no rotor command could be placed on the telemetry's clock")
+        last = np.full(self.n, -1)
+        np.maximum.at(last, slot[inside], order[inside])      # the last one sent wins a slot
+        which = np.maximum.accumulate(last)                   # the last sent among those due
+        total = np.clip(u, 0.0, 1.0).sum(axis=1) * fmax       # the vehicle clips each rotor
+        csum = np.where(which >= 0, total[np.maximum(which, 0)], 0.0)
+        grid = np.arange(self.n)
+        latest = np.maximum.accumulate(np.where(last >= 0, grid, -1))
+        alive = (latest >= 0) & ((grid - latest) * self.h <= timeout_s + 1e-9)
+        return csum, alive
+
+    def _deriv(self, v: np.ndarray) -> np.ndarray:
+        """The Savitzky-Golay derivative of v (n, 3) at the rows: (rows, 3)."""
+        return _correlate(v, self.d)[self.rows - self.M]
+
+    def _filtered(self, g: np.ndarray) -> np.ndarray:
+        """Interval integrals g (n-1, 3) filtered with E at the rows: (rows, 3)."""
+        return _correlate(g, self.E)[self.rows - self.M - 1]
+
+    def thrust_column(self, tau_s: float, delay_s: float) -> np.ndarray:
+        """(rows, 3): the filtered integral of (lagged, delayed thrust) (-R e3) / m."""
+        F = lagged_integrals(self.csum, self.h, tau_s, delay_s)
+        return self._filtered(F[:, None] * self.dir / self.mass)
+
+
+def _correlate(a: np.ndarray, kernel: np.ndarray) -> np.ndarray:
+    """out[i] = sum_k kernel[k] a[i + k] per column ('valid'). np.correlate, not BLAS: a
+    threaded BLAS on a loaded machine made this call ten times slower."""
+    return np.stack([np.correlate(a[:, c], kernel, mode="valid") for c in range(a.shape[1])], axis=1)
+
+
+def _clean(s: FlightSeries):
+    """Finite samples of increasing time with a usable quaternion; IdentifyError on bad shapes."""
+    t = np.asarray(s.t_s, float).ravel()
+    arrays = []
+    for name, a, w in (("position_ned_m", s.position_ned_m, 3), ("velocity_ned_m_s", s.velocity_ned_m_s, 3),
+                       ("quaternion_wxyz", s.quaternion_wxyz, 4)):
+        a = np.asarray(a, float)
+        if a.shape != (t.size, w):
+            raise IdentifyError(f"{name} has shape {a.shape}, expected ({t.size}, {w})")
+        arrays.append(a)
+    ctrl = np.asarray(s.controlled, bool).ravel()
+    if ctrl.size != t.size:
+        raise IdentifyError(f"controlled has {ctrl.size} values for {t.size} samples")
+    p, v, q = arrays
+    ok = (np.isfinite(t) & np.all(np.isfinite(p), axis=1) & np.all(np.isfinite(v), axis=1)
+          & np.all(np.isfinite(q), axis=1) & (np.linalg.norm(np.nan_to_num(q), axis=1) > 0.5))
+    t, p, v, q, ctrl = t[ok], p[ok], v[ok], q[ok], ctrl[ok]
+    if t.size:
+        later = np.concatenate([[True], t[1:] > np.maximum.accumulate(t)[:-1]])
+        t, p, v, q, ctrl = t[later], p[later], v[later], q[later], ctrl[later]
+    return t, p, v, q, ctrl
+
+
+def _ground_z(z: np.ndarray, controlled: np.ndarray) -> float:
+    """The ground's z: the median of the samples before the vehicle first obeyed the commands
+    (on the ground, disarmed), else of those after it last did; +inf (all airborne) if none."""
+    on = np.flatnonzero(controlled)
+    if on.size == 0:
+        return float(np.median(z))
+    before, after = z[:on[0]], z[on[-1] + 1:]
+    if before.size:
+        return float(np.median(before))
+    return float(np.median(after)) if after.size else np.inf
+
+
+def _continuous(q: np.ndarray) -> np.ndarray:
+    """Quaternions with the sign flipped where needed so that neighbours agree (q ~ -q)."""
+    flip = np.sum(q[1:] * q[:-1], axis=1) < 0
+    sign = np.concatenate([[1.0], np.where(np.cumsum(flip) % 2 == 1, -1.0, 1.0)])
+    return q * sign[:, None]
+
+
+def lagged_integrals(c: np.ndarray, h: float, tau_s: float, delay_s: float) -> np.ndarray:
+    r"""Exact integrals over each sample interval of a delayed, lagged piecewise-constant input.
+
+    ``c[k]`` acts from :math:`t_k + D` to :math:`t_{k+1} + D` (zero before ``c[0]``); the output
+    obeys :math:`\tau\dot f = c(t - D) - f`, :math:`f(t_0) = 0`. With :math:`D = nh + \delta`,
+    over :math:`[t_i, t_{i+1}]` the input is :math:`c_{i-n-1}` for :math:`\delta`, then
+    :math:`c_{i-n}`, so :math:`f_{i+1} = A f_i + (B - A) c_{i-n-1} + (1 - B) c_{i-n}` with
+    :math:`A = e^{-h/\tau}`, :math:`B = e^{-(h-\delta)/\tau}`, and the integral is
+    :math:`\int f = \delta c_{i-n-1} + (h-\delta) c_{i-n} - \tau (f_{i+1} - f_i)`.
+
+    Returns
+    -------
+    ndarray (len(c) - 1,)
+    """
+    n_int = int(np.floor(delay_s / h + 1e-9))
+    delta = max(0.0, delay_s - n_int * h)
+    m = c.size - 1
+    pad = np.concatenate([np.zeros(n_int + 1), c])
+    cp = pad[1:1 + m]               # c_{i-n}
+    cpp = pad[:m]                   # c_{i-n-1}
+    held = delta * cpp + (h - delta) * cp
+    if tau_s <= 0.0:
+        return held
+    A = np.exp(-h / tau_s)
+    B = np.exp(-(h - delta) / tau_s)
+    f_next = lfilter([1.0], [1.0, -A], (B - A) * cpp + (1.0 - B) * cp)
+    f = np.concatenate([[0.0], f_next[:-1]])
+    return held - tau_s * (f_next - f)
+
+
+class _Model:
+    """Least squares of one column set for any (tau, D): the fixed columns projected out once."""
+
+    def __init__(self, P: _Problem, cols: list[int]):
+        self.P, self.cols = P, list(cols)
+        self.Z = P.fixed[:, :, self.cols]                       # (rows, 3, k)
+        Zf = self.Z.reshape(-1, len(self.cols))
+        self.Q = np.linalg.qr(Zf)[0] if self.cols else np.zeros((Zf.shape[0], 0))
+        y = P.y.reshape(-1)
+        self.yt = y - self.Q @ (self.Q.T @ y)
+        self.yy = float(np.dot(self.yt, self.yt))
+
+    def rss(self, tau_s: float, delay_s: float) -> float:
+        """Residual sum of squares at (tau, D); with Q orthonormal and yt orthogonal to it,
+        |x - QQ'x|^2 = |x|^2 - |Q'x|^2 and (x - QQ'x).yt = x.yt (einsum: no threaded BLAS)."""
+        x = self.P.thrust_column(tau_s, delay_s).reshape(-1)
+        qx = np.einsum("ij,i->j", self.Q, x)
+        xx = float(np.einsum("i,i->", x, x) - np.einsum("j,j->", qx, qx))
+        xy = float(np.einsum("i,i->", x, self.yt))
+        return self.yy - xy * xy / xx if xx > 0 else self.yy
+
+    def solve(self, tau_s: float, delay_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """theta (thrust scale, then the fixed columns' coefficients) and residuals (rows, 3)."""
+        X = self.design(tau_s, delay_s)
+        theta = np.linalg.lstsq(X.reshape(-1, X.shape[-1]), self.P.y.reshape(-1), rcond=None)[0]
+        return theta, self.P.y - X @ theta
+
+    def design(self, tau_s: float, delay_s: float) -> np.ndarray:
+        return np.concatenate([self.P.thrust_column(tau_s, delay_s)[:, :, None], self.Z], axis=2)
+
+
+def _search(model: _Model, o: FitOptions) -> tuple[float, float]:
+    """(tau, D) of least residual: a coarse grid, then tau by bounded search on a fine D grid."""
+    taus = np.arange(0.0, o.tau_max_s + 1e-9, 0.005)
+    delays = (np.array([o.delay_s]) if o.delay_s is not None
+              else np.arange(0.0, o.delay_max_s + 1e-9, 0.002))
+    rss = np.array([[model.rss(ta, d) for d in delays] for ta in taus])
+    i, j = np.unravel_index(np.argmin(rss), rss.shape)
+    tau0, d0 = float(taus[i]), float(delays[j])
+    fine = ([d0] if o.delay_s is not None
+            else np.clip(d0 + np.arange(-0.002, 0.00201, 0.00025), 0.0, o.delay_max_s))
+    best = (rss[i, j], tau0, d0)
+    lo, hi = max(0.0, tau0 - 0.0075), min(o.tau_max_s, tau0 + 0.0075)
+    for d in np.unique(fine):
+        r = minimize_scalar(lambda ta: model.rss(ta, d), bounds=(lo, hi), method="bounded",
+                            options={"xatol": 1e-4})
+        cands = [(float(r.fun), float(r.x)), (model.rss(lo, d), lo)]
+        f, ta = min(cands)
+        if f < best[0]:
+            best = (f, ta, float(d))
+    return best[1], best[2]
+
+
+def _bootstrap(model: _Model, tau: float, delay: float, o: FitOptions, resid: np.ndarray):
+    """Replicates of (theta, tau, D) on a local (tau, D) grid; returns arrays and edge flags."""
+    P = model.P
+    taus = np.unique(np.clip(tau + 0.001 * np.arange(-12, 13), 0.0, o.tau_max_s))
+    delays = (np.array([delay]) if o.delay_s is not None
+              else np.unique(np.clip(delay + 0.0005 * np.arange(-10, 11), 0.0, o.delay_max_s)))
+    scores = np.einsum("rai,ra->ri", model.design(tau, delay), resid)
+    block = block_length_rows(scores, factor=3.0, min_rows=int(round(o.block_s / P.h)))
+    bs = BlockBootstrap(P.rows.size, max(1, int(round(0.1 / P.h))), block, o.replicates, o.seed)
+    Z, y = model.Z, P.y
+    k = Z.shape[2]
+    zz = bs.replicate_sums(bs.chunk_sums(np.einsum("rai,raj->rij", Z, Z)))      # (R, k, k)
+    zy = bs.replicate_sums(bs.chunk_sums(np.einsum("rai,ra->ri", Z, y)))        # (R, k)
+    yy = bs.replicate_sums(bs.chunk_sums(np.einsum("ra,ra->r", y, y)))          # (R,)
+    grid = [(ta, d) for ta in taus for d in delays]
+    cross = []
+    for ta, d in grid:
+        x = P.thrust_column(ta, d)
+        cross.append(np.concatenate([np.einsum("ra,ra->r", x, x)[:, None], np.einsum("ra,rai->ri", x, Z),
+                                     np.einsum("ra,ra->r", x, y)[:, None]], axis=1))
+    cr = bs.replicate_sums(bs.chunk_sums(np.stack(cross, axis=1)))              # (R, G, k + 2)
+    Rn, Gn = cr.shape[0], cr.shape[1]
+    A = np.empty((Rn, Gn, k + 1, k + 1))
+    A[:, :, 0, 0] = cr[:, :, 0]
+    A[:, :, 0, 1:] = cr[:, :, 1:k + 1]
+    A[:, :, 1:, 0] = cr[:, :, 1:k + 1]
+    A[:, :, 1:, 1:] = zz[:, None]
+    b = np.concatenate([cr[:, :, k + 1:], np.broadcast_to(zy[:, None], (Rn, Gn, k))], axis=2)
+    A += 1e-12 * np.trace(A, axis1=2, axis2=3)[..., None, None] * np.eye(k + 1)   # no singular replicate
+    theta = np.linalg.solve(A, b[..., None])[..., 0]
+    rss = yy[:, None] - np.einsum("rgi,rgi->rg", theta, b)
+    g = np.argmin(rss, axis=1)
+    surf = rss.reshape(Rn, taus.size, delays.size)
+    i, j = np.divmod(g, delays.size)
+    t_r = taus[i] + _vertex(surf, i, j, 1, taus)
+    d_r = delays[j] + _vertex(surf, i, j, 2, delays)
+    edge_tau = np.mean(((i == 0) & (taus[0] > 0)) | ((i == taus.size - 1) & (taus[-1] < o.tau_max_s)))
+    edge_d = np.mean(((j == 0) & (delays[0] > 0)) | ((j == delays.size - 1) & (delays[-1] < o.delay_max_s))) \
+        if o.delay_s is None else 0.0
+    return theta[np.arange(Rn), g], t_r, d_r, float(edge_tau), float(edge_d), bs
+
+
+def _vertex(surf: np.ndarray, i: np.ndarray, j: np.ndarray, axis: int, values: np.ndarray) -> np.ndarray:
+    """Sub-grid offset of each replicate's minimum along one axis (parabola through 3 points)."""
+    k = i if axis == 1 else j
+    n = values.size
+    if n < 3:
+        return np.zeros(k.size)
+    c = np.clip(k, 1, n - 2)
+    r = np.arange(k.size)
+    at = (lambda m: surf[r, m, j]) if axis == 1 else (lambda m: surf[r, i, m])
+    lo, mid, hi = at(c - 1), at(c), at(c + 1)
+    curv = lo - 2 * mid + hi
+    off = np.where(curv > 0, 0.5 * (lo - hi) / np.where(curv > 0, curv, 1.0), 0.0)
+    off = np.clip(off + (c - k), -0.5, 0.5) * ((k > 0) & (k < n - 1))
+    return off * (values[1] - values[0])
+
+
+def _interval(value: float, samples: np.ndarray) -> Estimate:
+    lo, hi = np.percentile(samples, [2.5, 97.5])
+    return Estimate(float(value), float(min(lo, value)), float(max(hi, value)))
+
+
+def _fit_model(P: _Problem, cols: list[int], o: FitOptions) -> dict:
+    model = _Model(P, cols)
+    tau, delay = _search(model, o)
+    theta, resid = model.solve(tau, delay)
+    th_r, t_r, d_r, edge_tau, edge_d, bs = _bootstrap(model, tau, delay, o, resid)
+    return {"cols": cols, "tau": tau, "delay": delay, "theta": theta, "resid": resid, "theta_r": th_r,
+            "tau_r": t_r, "delay_r": d_r, "edge_tau": edge_tau, "edge_delay": edge_d, "bs": bs}
+
+
+def identify(series: FlightSeries, mass_kg: float, max_rotor_thrust_n: float,
+             options: FitOptions | None = None) -> Identification:
+    """Fit thrust scale, drag, rotor time constant and delay to one flight (module docstring).
+
+    Parameters
+    ----------
+    series : FlightSeries
+    mass_kg, max_rotor_thrust_n : float
+        The vehicle file's values: the commands are fractions of the maximum rotor thrust and
+        the forces are divided by the mass (a wrong mass shows as a thrust scale).
+    options : FitOptions, optional
+
+    Raises
+    ------
+    IdentifyError
+        One line, when the flight has too little usable data.
+    """
+    o = options if options is not None else FitOptions()
+    if o.window < 5 or o.window % 2 == 0 or not 1 <= o.polyorder < o.window - 1:
+        raise IdentifyError(f"the filter window must be odd and at least 5 (got {o.window}), "
+                            f"its polynomial order 1..window-2 (got {o.polyorder})")
+    if o.parasitic not in ("auto", "yes", "no"):
+        raise IdentifyError(f"parasitic must be auto, yes or no, got {o.parasitic!r}")
+    P = _Problem(series, mass_kg, max_rotor_thrust_n, o)
+    speed = tuple(float(s) for s in np.sqrt(np.mean(P.vbody_rows ** 2, axis=0)))
+    axes = [k for k in range(3) if speed[k] >= _MIN_FIT_SPEED_M_S]
+    excited = any(speed[k] >= o.min_drag_speed_m_s for k in axes)
+    cols = axes + ([3] if excited and o.parasitic != "no" else [])
+    fit = _fit_model(P, cols, o)
+    if 3 in cols and o.parasitic == "auto" and np.percentile(fit["theta_r"][:, -1], 2.5) <= 0.0:
+        fit = _fit_model(P, axes, o)
+    return _result(P, fit, speed, o, series.link_delay_s)
+
+
+def _result(P: _Problem, fit: dict, speed, o: FitOptions, link_delay_s) -> Identification:
+    cols, theta, th_r = fit["cols"], fit["theta"], fit["theta_r"]
+    est = {c: _interval(theta[i + 1], th_r[:, i + 1]) for i, c in enumerate(cols)
+           if c == 3 or speed[c] >= o.min_drag_speed_m_s}
+    slow = [Estimate(None, why=f"body {a} speed RMS {speed[k]:.2f} m/s < {o.min_drag_speed_m_s:g} m/s")
+            for k, a in enumerate("xyz")]
+    drag = tuple(est.get(k, slow[k]) for k in range(3))
+    if 0 in est and 1 in est:
+        i, j = cols.index(0) + 1, cols.index(1) + 1
+        vx, vy = np.var(th_r[:, i]), np.var(th_r[:, j])
+        wx = vy / (vx + vy) if vx + vy > 0 else 0.5
+        drag_xy = _interval(wx * theta[i] + (1 - wx) * theta[j], wx * th_r[:, i] + (1 - wx) * th_r[:, j])
+    else:
+        drag_xy = next((drag[k] for k in (0, 1) if k in est),
+                       Estimate(None, why=f"{slow[0].why}, {slow[1].why}"))
+    if 3 in cols:
+        parasitic = est[3]
+        model = "linear body drag + parasitic |v| v"
+    else:
+        why = ("not fitted (--parasitic no)" if o.parasitic == "no" else
+               "no drag axis is excited" if 3 not in cols and not any(k in est for k in range(3))
+               else "not significant: its 95 % interval includes 0")
+        parasitic = Estimate(None, why=why)
+        model = "linear body drag" if any(k in est for k in range(3)) else "no drag (too slow)"
+    tau = _interval(fit["tau"], fit["tau_r"])
+    if fit["edge_tau"] > 0.025 or tau.high - tau.low > max(tau.value, 0.01):
+        tau = Estimate(None, why=f"the flight does not excite the rotor lag (95 % interval "
+                                 f"{1e3 * tau.low:.0f}-{1e3 * tau.high:.0f} ms or wider)")
+    if o.delay_s is not None:
+        delay = Estimate(o.delay_s, o.delay_s, o.delay_s, why="given")
+    elif tau.value is None:
+        delay = Estimate(None, why="searched with the rotor lag, which the flight does not excite")
+    else:
+        delay = _interval(fit["delay"], fit["delay_r"])
+    resid = fit["resid"]
+    rss = float(np.sum(resid ** 2))
+    tss = float(np.sum((P.y - P.y.mean(axis=0)) ** 2))
+    bs = fit["bs"]
+    return Identification(
+        thrust_scale=_interval(theta[0], th_r[:, 0]), drag_n_s_per_m=drag, drag_xy_n_s_per_m=drag_xy,
+        parasitic_n_s2_per_m2=parasitic, rotor_time_constant_s=tau, delay_s=delay, model=model,
+        residual_rms_m_s2=float(np.sqrt(rss / resid.size)), r_squared=1.0 - rss / tss if tss > 0 else 0.0,
+        samples=int(P.rows.size), duration_s=float(P.rows.size * P.h), rms_body_speed_m_s=speed,
+        intervals=(f"moving-block bootstrap, {o.replicates} replicates, blocks of {bs.block_rows * P.h:.2f} s "
+                   f"({bs.n_blocks} per replicate), every parameter re-estimated"),
+        link_delay_s=link_delay_s)
