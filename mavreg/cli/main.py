@@ -18,6 +18,7 @@ SUBCOMMANDS = {
     "fly": "mavreg.cli.fly_cmd",
     "serve": "mavreg.cli.serve_cmd",
     "upload": "mavreg.cli.upload_cmd",
+    "identify": "mavreg.cli.identify_cmd",
 }
 
 EXIT_USAGE = 2
