@@ -383,12 +383,13 @@ def _bootstrap(model: _Model, tau: float, delay: float, o: FitOptions, resid: np
     zy = bs.replicate_sums(bs.chunk_sums(np.einsum("rai,ra->ri", Z, y)))        # (R, k)
     yy = bs.replicate_sums(bs.chunk_sums(np.einsum("ra,ra->r", y, y)))          # (R,)
     grid = [(ta, d) for ta in taus for d in delays]
-    cross = []
+    cross = []                                    # per grid point, chunk sums of x'x, x'Z, x'y
     for ta, d in grid:
         x = P.thrust_column(ta, d)
-        cross.append(np.concatenate([np.einsum("ra,ra->r", x, x)[:, None], np.einsum("ra,rai->ri", x, Z),
-                                     np.einsum("ra,ra->r", x, y)[:, None]], axis=1))
-    cr = bs.replicate_sums(bs.chunk_sums(np.stack(cross, axis=1)))              # (R, G, k + 2)
+        cross.append(bs.chunk_sums(np.concatenate([np.einsum("ra,ra->r", x, x)[:, None],
+                                                   np.einsum("ra,rai->ri", x, Z),
+                                                   np.einsum("ra,ra->r", x, y)[:, None]], axis=1)))
+    cr = bs.replicate_sums(np.stack(cross, axis=1))                             # (R, G, k + 2)
     Rn, Gn = cr.shape[0], cr.shape[1]
     A = np.empty((Rn, Gn, k + 1, k + 1))
     A[:, :, 0, 0] = cr[:, :, 0]
