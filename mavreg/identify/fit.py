@@ -33,9 +33,13 @@ residual over a grid, then :math:`\tau` is refined by a bounded 1-D search on a 
 
 **Intervals.** The residuals are correlated in time (estimator errors, the filter), so the
 LS covariance is far too narrow. 95 % intervals come from a moving-block bootstrap: blocks of
-consecutive samples (length from the residual autocorrelation) drawn with replacement, every
-parameter, :math:`\tau` and :math:`D` included, re-estimated on each replicate (on a local
-:math:`(\tau, D)` grid around the estimate, from per-chunk sums of the normal equations).
+consecutive samples (at least ``block_s``, 1 s; three integrated autocorrelation times of
+the residuals' scores if longer) drawn with replacement, every parameter, :math:`\tau` and
+:math:`D` included, re-estimated on each replicate (on a local :math:`(\tau, D)` grid around
+the estimate with a parabolic vertex between grid points, from per-chunk sums of the normal
+equations). A parameter whose interval runs into the edge of that grid or is wider than
+itself (``tau``) is reported as not identified, as is a drag axis the flight did not move
+along (RMS body speed under ``min_drag_speed_m_s``).
 """
 from __future__ import annotations
 
@@ -43,41 +47,15 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import minimize_scalar
-from scipy.signal import lfilter, savgol_coeffs
 
-from ..sim.truth import quats_to_matrices
 from .bootstrap import BlockBootstrap, block_length_rows
+from .regressors import FlightSeries, IdentifyError, Regressors, lagged_integrals
 
 __all__ = ["FlightSeries", "FitOptions", "Estimate", "Identification", "IdentifyError", "identify",
-           "G"]
+           "lagged_integrals"]
 
-G = 9.81
 _MIN_FIT_SPEED_M_S = 0.05
 """A drag axis slower than this (RMS) is left out of the fit (its column would be all noise)."""
-
-
-class IdentifyError(ValueError):
-    """The flight cannot calibrate the vehicle (no usable data, too short); one line."""
-
-
-@dataclass(frozen=True)
-class FlightSeries:
-    """A flight as the fit needs it (numbers only; :func:`mavreg.identify.flightlog.read_flight`)."""
-
-    t_s: np.ndarray
-    """(N,) sample times on the vehicle clock, increasing."""
-    position_ned_m: np.ndarray
-    velocity_ned_m_s: np.ndarray
-    quaternion_wxyz: np.ndarray
-    """(N, 4) attitude, body FRD to NED, scalar first."""
-    controlled: np.ndarray
-    """(N,) bool: armed and in OFFBOARD (the vehicle obeys the commands)."""
-    command_t_s: np.ndarray
-    """(K,) vehicle time of the sample each command answered, in the order sent."""
-    command_controls: np.ndarray
-    """(K, 4) rotor commands as a fraction of the maximum rotor thrust."""
-    link_delay_s: float | None = None
-    """Sample-to-actuation delay measured by TIMESYNC, if the flight has it."""
 
 
 @dataclass(frozen=True)
@@ -85,7 +63,8 @@ class FitOptions:
     """Settings of :func:`identify` (defaults suit 500 Hz telemetry)."""
 
     min_height_m: float = 0.3
-    """Samples closer to the ground than this (above the first sample) are left out."""
+    """Samples closer to the ground than this are left out (the ground: the median height of
+    the samples before the vehicle first obeyed the commands)."""
     window: int = 21
     """Savitzky-Golay window (samples, odd)."""
     polyorder: int = 3
@@ -158,167 +137,10 @@ class Identification:
         }
 
 
-class _Problem:
-    """The flight on a uniform grid, the fixed regressors and the thrust column's ingredients."""
-
-    def __init__(self, s: FlightSeries, mass_kg: float, max_rotor_thrust_n: float, o: FitOptions):
-        t, p, v, q, ctrl = _clean(s)
-        if t.size < o.window + 2:
-            raise IdentifyError(f"only {t.size} usable telemetry samples; a calibration needs seconds of flight")
-        h = float(np.median(np.diff(t)))
-        idx = np.rint((t - t[0]) / h).astype(int)
-        keep = np.concatenate([[True], np.diff(idx) > 0])
-        idx, t, p, v, q, ctrl = idx[keep], t[keep], p[keep], v[keep], _continuous(q[keep]), ctrl[keep]
-        n = int(idx[-1]) + 1
-        self.h, self.n, self.mass = h, n, mass_kg
-        grid = np.arange(n)
-
-        def on_grid(a):
-            return np.stack([np.interp(grid, idx, a[:, k]) for k in range(a.shape[1])], axis=1)
-        v, pos, R = on_grid(v), on_grid(p), quats_to_matrices(on_grid(q))
-        # good: measured or inside a short gap, controlled, airborne, commands streaming
-        k = np.searchsorted(idx, grid, side="right") - 1
-        gap = np.append(np.diff(idx), 1)[k]
-        near = (grid == idx[k]) | (gap * h <= o.max_gap_s + 1e-9)
-        airborne = pos[:, 2] < _ground_z(p[:, 2], ctrl) - o.min_height_m
-        self.csum, alive = self._commands(s, t[0], max_rotor_thrust_n, o.command_timeout_s)
-        good = near & ctrl[k] & airborne & alive
-        # rows j whose whole window j-M-1 .. j+M is good, M = window // 2
-        W = o.window
-        self.M = M = W // 2
-        self.d = savgol_coeffs(W, o.polyorder, deriv=1, delta=h, use="dot")
-        self.E = np.cumsum(self.d[::-1])[::-1]
-        span = np.convolve(good.astype(int), np.ones(W + 1, int), mode="valid") == W + 1
-        rows = np.flatnonzero(span) + M + 1             # span[i] covers i .. i + W
-        self.rows = rows[rows <= n - 1 - M]
-        if self.rows.size * h < o.min_duration_s:
-            raise IdentifyError(
-                f"only {self.rows.size * h:.2f} s of usable flight (armed, OFFBOARD, {o.min_height_m:g} m "
-                f"above the ground, commanded); a calibration needs at least {o.min_duration_s:g} s")
-        self.dir = -(R[:-1, :, 2] + R[1:, :, 2]) / 2.0          # mean thrust direction per interval
-        vb = np.einsum("nji,nj->ni", R, v)                        # R^T v
-        self.vbody_rows = vb[self.rows]
-        self.y = self._deriv(v) - np.array([0.0, 0.0, G])
-        cols = [-R[:, :, k] * vb[:, k:k + 1] / mass_kg for k in range(3)]
-        cols.append(-np.linalg.norm(v, axis=1)[:, None] * v / mass_kg)
-        self.fixed = np.stack([self._filtered(h / 2 * (c[:-1] + c[1:])) for c in cols], axis=-1)
-
-    def _commands(self, s: FlightSeries, t0: float, fmax: float, timeout_s: float):
-        """Summed rotor command on the grid (zero-order hold in the order sent) and 'alive'."""
-        ct = np.asarray(s.command_t_s, float)
-        u = np.asarray(s.command_controls, float).reshape(ct.size, -1)
-        ok = np.isfinite(ct) & np.all(np.isfinite(u), axis=1)
-        slot = np.rint((ct[ok] - t0) / self.h).astype(int)
-        order = np.flatnonzero(ok)
-        inside = (slot >= 0) & (slot < self.n)
-        if not inside.any():
-            raise IdentifyError("no rotor command could be placed on the telemetry's clock")
-        last = np.full(self.n, -1)
-        np.maximum.at(last, slot[inside], order[inside])      # the last one sent wins a slot
-        which = np.maximum.accumulate(last)                   # the last sent among those due
-        total = np.clip(u, 0.0, 1.0).sum(axis=1) * fmax       # the vehicle clips each rotor
-        csum = np.where(which >= 0, total[np.maximum(which, 0)], 0.0)
-        grid = np.arange(self.n)
-        latest = np.maximum.accumulate(np.where(last >= 0, grid, -1))
-        alive = (latest >= 0) & ((grid - latest) * self.h <= timeout_s + 1e-9)
-        return csum, alive
-
-    def _deriv(self, v: np.ndarray) -> np.ndarray:
-        """The Savitzky-Golay derivative of v (n, 3) at the rows: (rows, 3)."""
-        return _correlate(v, self.d)[self.rows - self.M]
-
-    def _filtered(self, g: np.ndarray) -> np.ndarray:
-        """Interval integrals g (n-1, 3) filtered with E at the rows: (rows, 3)."""
-        return _correlate(g, self.E)[self.rows - self.M - 1]
-
-    def thrust_column(self, tau_s: float, delay_s: float) -> np.ndarray:
-        """(rows, 3): the filtered integral of (lagged, delayed thrust) (-R e3) / m."""
-        F = lagged_integrals(self.csum, self.h, tau_s, delay_s)
-        return self._filtered(F[:, None] * self.dir / self.mass)
-
-
-def _correlate(a: np.ndarray, kernel: np.ndarray) -> np.ndarray:
-    """out[i] = sum_k kernel[k] a[i + k] per column ('valid'). np.correlate, not BLAS: a
-    threaded BLAS on a loaded machine made this call ten times slower."""
-    return np.stack([np.correlate(a[:, c], kernel, mode="valid") for c in range(a.shape[1])], axis=1)
-
-
-def _clean(s: FlightSeries):
-    """Finite samples of increasing time with a usable quaternion; IdentifyError on bad shapes."""
-    t = np.asarray(s.t_s, float).ravel()
-    arrays = []
-    for name, a, w in (("position_ned_m", s.position_ned_m, 3), ("velocity_ned_m_s", s.velocity_ned_m_s, 3),
-                       ("quaternion_wxyz", s.quaternion_wxyz, 4)):
-        a = np.asarray(a, float)
-        if a.shape != (t.size, w):
-            raise IdentifyError(f"{name} has shape {a.shape}, expected ({t.size}, {w})")
-        arrays.append(a)
-    ctrl = np.asarray(s.controlled, bool).ravel()
-    if ctrl.size != t.size:
-        raise IdentifyError(f"controlled has {ctrl.size} values for {t.size} samples")
-    p, v, q = arrays
-    ok = (np.isfinite(t) & np.all(np.isfinite(p), axis=1) & np.all(np.isfinite(v), axis=1)
-          & np.all(np.isfinite(q), axis=1) & (np.linalg.norm(np.nan_to_num(q), axis=1) > 0.5))
-    t, p, v, q, ctrl = t[ok], p[ok], v[ok], q[ok], ctrl[ok]
-    if t.size:
-        later = np.concatenate([[True], t[1:] > np.maximum.accumulate(t)[:-1]])
-        t, p, v, q, ctrl = t[later], p[later], v[later], q[later], ctrl[later]
-    return t, p, v, q, ctrl
-
-
-def _ground_z(z: np.ndarray, controlled: np.ndarray) -> float:
-    """The ground's z: the median of the samples before the vehicle first obeyed the commands
-    (on the ground, disarmed), else of those after it last did; +inf (all airborne) if none."""
-    on = np.flatnonzero(controlled)
-    if on.size == 0:
-        return float(np.median(z))
-    before, after = z[:on[0]], z[on[-1] + 1:]
-    if before.size:
-        return float(np.median(before))
-    return float(np.median(after)) if after.size else np.inf
-
-
-def _continuous(q: np.ndarray) -> np.ndarray:
-    """Quaternions with the sign flipped where needed so that neighbours agree (q ~ -q)."""
-    flip = np.sum(q[1:] * q[:-1], axis=1) < 0
-    sign = np.concatenate([[1.0], np.where(np.cumsum(flip) % 2 == 1, -1.0, 1.0)])
-    return q * sign[:, None]
-
-
-def lagged_integrals(c: np.ndarray, h: float, tau_s: float, delay_s: float) -> np.ndarray:
-    r"""Exact integrals over each sample interval of a delayed, lagged piecewise-constant input.
-
-    ``c[k]`` acts from :math:`t_k + D` to :math:`t_{k+1} + D` (zero before ``c[0]``); the output
-    obeys :math:`\tau\dot f = c(t - D) - f`, :math:`f(t_0) = 0`. With :math:`D = nh + \delta`,
-    over :math:`[t_i, t_{i+1}]` the input is :math:`c_{i-n-1}` for :math:`\delta`, then
-    :math:`c_{i-n}`, so :math:`f_{i+1} = A f_i + (B - A) c_{i-n-1} + (1 - B) c_{i-n}` with
-    :math:`A = e^{-h/\tau}`, :math:`B = e^{-(h-\delta)/\tau}`, and the integral is
-    :math:`\int f = \delta c_{i-n-1} + (h-\delta) c_{i-n} - \tau (f_{i+1} - f_i)`.
-
-    Returns
-    -------
-    ndarray (len(c) - 1,)
-    """
-    n_int = int(np.floor(delay_s / h + 1e-9))
-    delta = max(0.0, delay_s - n_int * h)
-    m = c.size - 1
-    pad = np.concatenate([np.zeros(n_int + 1), c])
-    cp = pad[1:1 + m]               # c_{i-n}
-    cpp = pad[:m]                   # c_{i-n-1}
-    held = delta * cpp + (h - delta) * cp
-    if tau_s <= 0.0:
-        return held
-    A = np.exp(-h / tau_s)
-    B = np.exp(-(h - delta) / tau_s)
-    f_next = lfilter([1.0], [1.0, -A], (B - A) * cpp + (1.0 - B) * cp)
-    f = np.concatenate([[0.0], f_next[:-1]])
-    return held - tau_s * (f_next - f)
-
-
 class _Model:
     """Least squares of one column set for any (tau, D): the fixed columns projected out once."""
 
-    def __init__(self, P: _Problem, cols: list[int]):
+    def __init__(self, P: Regressors, cols: list[int]):
         self.P, self.cols = P, list(cols)
         self.Z = P.fixed[:, :, self.cols]                       # (rows, 3, k)
         Zf = self.Z.reshape(-1, len(self.cols))
@@ -368,12 +190,13 @@ def _search(model: _Model, o: FitOptions) -> tuple[float, float]:
     return best[1], best[2]
 
 
-def _bootstrap(model: _Model, tau: float, delay: float, o: FitOptions, resid: np.ndarray):
-    """Replicates of (theta, tau, D) on a local (tau, D) grid; returns arrays and edge flags."""
+def _bootstrap(model: _Model, tau: float, delay: float, o: FitOptions, resid: np.ndarray, zoom: float = 1.0):
+    """Replicates of (theta, tau, D) on a local (tau, D) grid (tau +- 12 ms, D +- 5 ms, times
+    ``zoom``); returns them, the shares of replicates at an edge of the grid, the bootstrap."""
     P = model.P
-    taus = np.unique(np.clip(tau + 0.001 * np.arange(-12, 13), 0.0, o.tau_max_s))
+    taus = np.unique(np.clip(tau + 0.001 * zoom * np.arange(-12, 13), 0.0, o.tau_max_s))
     delays = (np.array([delay]) if o.delay_s is not None
-              else np.unique(np.clip(delay + 0.0005 * np.arange(-10, 11), 0.0, o.delay_max_s)))
+              else np.unique(np.clip(delay + 0.0005 * zoom * np.arange(-10, 11), 0.0, o.delay_max_s)))
     scores = np.einsum("rai,ra->ri", model.design(tau, delay), resid)
     block = block_length_rows(scores, factor=3.0, min_rows=int(round(o.block_s / P.h)))
     bs = BlockBootstrap(P.rows.size, max(1, int(round(0.1 / P.h))), block, o.replicates, o.seed)
@@ -432,11 +255,14 @@ def _interval(value: float, samples: np.ndarray) -> Estimate:
     return Estimate(float(value), float(min(lo, value)), float(max(hi, value)))
 
 
-def _fit_model(P: _Problem, cols: list[int], o: FitOptions) -> dict:
+def _fit_model(P: Regressors, cols: list[int], o: FitOptions) -> dict:
     model = _Model(P, cols)
     tau, delay = _search(model, o)
     theta, resid = model.solve(tau, delay)
-    th_r, t_r, d_r, edge_tau, edge_d, bs = _bootstrap(model, tau, delay, o, resid)
+    for zoom in (1.0, 2.0, 4.0):               # widen the local grid until the replicates fit in
+        th_r, t_r, d_r, edge_tau, edge_d, bs = _bootstrap(model, tau, delay, o, resid, zoom)
+        if max(edge_tau, edge_d) <= 0.025:
+            break
     return {"cols": cols, "tau": tau, "delay": delay, "theta": theta, "resid": resid, "theta_r": th_r,
             "tau_r": t_r, "delay_r": d_r, "edge_tau": edge_tau, "edge_delay": edge_d, "bs": bs}
 
@@ -464,7 +290,7 @@ def identify(series: FlightSeries, mass_kg: float, max_rotor_thrust_n: float,
                             f"its polynomial order 1..window-2 (got {o.polyorder})")
     if o.parasitic not in ("auto", "yes", "no"):
         raise IdentifyError(f"parasitic must be auto, yes or no, got {o.parasitic!r}")
-    P = _Problem(series, mass_kg, max_rotor_thrust_n, o)
+    P = Regressors(series, mass_kg, max_rotor_thrust_n, o)
     speed = tuple(float(s) for s in np.sqrt(np.mean(P.vbody_rows ** 2, axis=0)))
     axes = [k for k in range(3) if speed[k] >= _MIN_FIT_SPEED_M_S]
     excited = any(speed[k] >= o.min_drag_speed_m_s for k in axes)
@@ -475,7 +301,7 @@ def identify(series: FlightSeries, mass_kg: float, max_rotor_thrust_n: float,
     return _result(P, fit, speed, o, series.link_delay_s)
 
 
-def _result(P: _Problem, fit: dict, speed, o: FitOptions, link_delay_s) -> Identification:
+def _result(P: Regressors, fit: dict, speed, o: FitOptions, link_delay_s) -> Identification:
     cols, theta, th_r = fit["cols"], fit["theta"], fit["theta_r"]
     est = {c: _interval(theta[i + 1], th_r[:, i + 1]) for i, c in enumerate(cols)
            if c == 3 or speed[c] >= o.min_drag_speed_m_s}
@@ -500,9 +326,10 @@ def _result(P: _Problem, fit: dict, speed, o: FitOptions, link_delay_s) -> Ident
         parasitic = Estimate(None, why=why)
         model = "linear body drag" if any(k in est for k in range(3)) else "no drag (too slow)"
     tau = _interval(fit["tau"], fit["tau_r"])
-    if fit["edge_tau"] > 0.025 or tau.high - tau.low > max(tau.value, 0.01):
+    if fit["edge_tau"] > 0.025 or fit["edge_delay"] > 0.025 or tau.high - tau.low > max(tau.value, 0.01):
         tau = Estimate(None, why=f"the flight does not excite the rotor lag (95 % interval "
-                                 f"{1e3 * tau.low:.0f}-{1e3 * tau.high:.0f} ms or wider)")
+                                 f"{1e3 * tau.low:.0f}-{1e3 * tau.high:.0f} ms or wider"
+                                 f"{', delay not pinned' if fit['edge_delay'] > 0.025 else ''})")
     if o.delay_s is not None:
         delay = Estimate(o.delay_s, o.delay_s, o.delay_s, why="given")
     elif tau.value is None:

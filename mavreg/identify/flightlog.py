@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .fit import FlightSeries
+from .regressors import FlightSeries
 
 __all__ = ["read_flight", "read_tlog"]
 
