@@ -172,9 +172,10 @@ class StatePredictor:
         ``rotation`` (3, 3) at ``t_s``. ``horizon_s`` is capped at ``max_horizon_s``.
 
         ``delay_s`` (default: the horizon) is when commands act after the sample they
-        answered; a shorter horizon predicts part of the way (the disturbance observer's
-        one-step prediction). ``external_force_n`` (NED) and ``thrust_scale`` (actual per
-        commanded rotor force) are the disturbance observer's estimates."""
+        answered; a longer horizon predicts past the first new command (a telemetry gap,
+        :meth:`Forecaster.ahead <mavreg.control.forecast.Forecaster.ahead>`).
+        ``external_force_n`` (NED) is a known external force; ``thrust_scale`` the rotors'
+        actual per commanded force (the vehicle file's calibration)."""
         H = min(max(float(horizon_s), 0.0), self.max_horizon_s)
         D = H if delay_s is None else min(max(float(delay_s), 0.0), self.max_horizon_s)
         f = self.rotor_forces(t_s, D)
