@@ -12,13 +12,15 @@ from .autopilot import Autopilot, AutopilotConfig
 from .clock import StopRun, run_lockstep, run_realtime
 from .engine import Engine
 from .link import Link
-from .params import START_KEYS, default_vehicle_path, load_sim_params, parse_start
+from mavreg.config.vehicle import EmulatorParams, load_vehicle
+
+from .params import START_KEYS, build_sim_params, default_vehicle_path, parse_start
 from .physics import G
 from .recorder import Recorder
 from .sim import Simulation
 from .stabilizer import Stabilizer
 from .status import ExitCode, SimStop
-from .wind import Wind, parse_wind
+from .wind import Wind, WindItem, parse_wind
 from .world import PRESET_NAMES, PRESETS, build_world
 
 __all__ = ["main", "build_parser", "build_engine"]
@@ -44,14 +46,15 @@ Exit status: 0 done or signalled, 1 internal error, 2 bad input, 3 crash,
 def _presets_epilog() -> str:
     lines = ["presets (--preset):"]
     for name in PRESET_NAMES:
-        text = PRESETS[name].describe().replace("world: preset ", "", 1)
+        text = PRESETS[name].describe(EmulatorParams()).replace("world: preset ", "", 1)
         lines.extend(textwrap.wrap(text, 88, initial_indent="  ", subsequent_indent="      "))
     lines.extend(textwrap.wrap(
         "Delays are uniform in [delay - jitter, delay + jitter]. Telemetry is released at "
         "control-period boundaries (every 2 ms at 500 Hz), commands act at the physics step "
         "where they fall due (1 ms at 1 kHz). In lockstep the loop waits for a target only "
         "in a period that released a complete sample (ATTITUDE_QUATERNION and "
-        "LOCAL_POSITION_NED of one time) to the peers.", 88))
+        "LOCAL_POSITION_NED of one time) to the peers. The airframe values shown for a "
+        "default vehicle file; 'ideal' keeps the vehicle file's drag and thrust scale.", 88))
     return "\n".join(lines)
 
 
@@ -171,6 +174,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the telemetry of time t describes the true state of t - MS")
     w.add_argument("--estimator-scale", type=_nonneg_float, default=None, metavar="X",
                    help="multiply every estimator error SD; 0 turns the errors off (latency kept)")
+    w.add_argument("--wind-speed-m-s", type=_nonneg_float, default=None, metavar="V",
+                   help="steady horizontal wind speed (acts through the drag)")
+    w.add_argument("--wind-from-deg", type=float, default=None, metavar="DEG",
+                   help="compass direction the steady wind blows from (0 north, 90 east)")
+    w.add_argument("--thrust-scale", type=_positive_float, default=None, metavar="X",
+                   help="thrust the rotors give per unit commanded, 0.5..1.5 (0.9: a sagging battery)")
+    w.add_argument("--drag-n-s-per-m", type=_nonneg_float, nargs=3, default=None,
+                   metavar=("CX", "CY", "CZ"), help="body-frame linear drag coefficients")
+    w.add_argument("--parasitic-drag-n-s2-per-m2", type=_nonneg_float, nargs=3, default=None,
+                   metavar=("CX", "CY", "CZ"), help="body-frame quadratic drag coefficients")
     return p
 
 
@@ -181,18 +194,27 @@ def build_engine(args) -> tuple[Engine, Recorder | None]:
                         telemetry_jitter_ms=args.telemetry_jitter_ms,
                         command_delay_ms=args.command_delay_ms, command_jitter_ms=args.command_jitter_ms,
                         loss=args.loss, estimate_latency_ms=args.estimate_latency_ms,
-                        estimator_scale=args.estimator_scale)
-    params = load_sim_params(
-        vehicle_path, rate_hz=args.rate_hz, physics_hz=args.physics_hz, seed=args.seed,
+                        estimator_scale=args.estimator_scale, wind_speed_m_s=args.wind_speed_m_s,
+                        wind_from_deg=args.wind_from_deg, thrust_scale=args.thrust_scale,
+                        linear_drag_n_s_per_m=args.drag_n_s_per_m,
+                        parasitic_drag_n_s2_per_m2=args.parasitic_drag_n_s2_per_m2)
+    vehicle = load_vehicle(vehicle_path)
+    vehicle = dataclasses.replace(vehicle, emulator=world.airframe.apply(vehicle.emulator))
+    params = build_sim_params(
+        vehicle, rate_hz=args.rate_hz, physics_hz=args.physics_hz, seed=args.seed,
         mass_kg=args.mass_kg, inertia_kg_m2=args.inertia_kg_m2, inertia_scale=args.inertia_scale,
         inertia_perturb_sd_kg_m2=args.inertia_perturb_sd_kg_m2,
         rotor_time_constant_s=args.rotor_time_constant_s, rotor_noise_sd_n=args.rotor_noise_sd_n,
         max_rotor_thrust_n=args.max_rotor_thrust_n)
     start = parse_start(args.start) if args.start is not None else None
-    wind = Wind(parse_wind(w) for w in (args.wind or ()))
+    items = [parse_wind(w) for w in (args.wind or ())]
+    if world.airframe.wind_speed_m_s:
+        items.append(WindItem("velocity", world.airframe.wind_ned_m_s))
+    wind = Wind(items)
     v = params.vehicle
-    if wind.has_velocity and not any(v.emulator.linear_drag_n_s_per_m):
-        print("firmware-sim: warning: --wind velocity has no effect with zero linear drag "
+    if wind.has_velocity and not (any(v.emulator.linear_drag_n_s_per_m)
+                                  or any(v.emulator.parasitic_drag_n_s2_per_m2)):
+        print("firmware-sim: warning: wind velocity has no effect with zero drag "
               "(emulator.linear_drag_n_s_per_m); use force: or a vehicle with drag", file=sys.stderr)
     recorder = Recorder(args.record) if args.record else None
     if recorder is not None:
@@ -229,7 +251,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"firmware-sim: error: {exc}", file=sys.stderr)
         return int(ExitCode.USAGE)
     print(f"firmware_sim listening on {engine.link.url}", flush=True)
-    print(f"firmware_sim {engine.world.describe()}", flush=True)
+    print(f"firmware_sim {engine.world.describe(engine.sim.params.vehicle.emulator)}", flush=True)
     code, reason = ExitCode.OK, "done"
     old = {s: signal.signal(s, _raise_stop) for s in (signal.SIGINT, signal.SIGTERM)}
     try:

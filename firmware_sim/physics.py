@@ -7,7 +7,7 @@ State ``s`` is a 13-tuple of floats::
 position (m, NED), attitude quaternion (scalar first, body FRD to NED), velocity
 (m/s, NED) and body rates (rad/s, FRD). Inputs held over a step: total thrust ``T``
 (N, along body -z), body torque ``(tx, ty, tz)`` (N m), wind velocity (m/s, NED; it
-only acts through the linear drag) and an external force (N, NED).
+only acts through the drag) and an external force (N, NED).
 
 Written independently of mavreg's Euler-angle design model: no singularity at any
 attitude, full (symmetric, positive definite) inertia matrix. Scalar math on tuples
@@ -77,16 +77,19 @@ class RigidBody:
         Symmetric positive-definite inertia matrix (see :func:`inertia_matrix`).
     linear_drag_n_s_per_m : 3 floats
         Body-frame drag coefficients: force = -c * (velocity relative to the air, body).
+    parasitic_drag_n_s2_per_m2 : 3 floats
+        Body-frame quadratic drag: force = -c * |v_air| * v_air (body), per axis.
     gravity_m_s2 : float
         Set 0 for torque-free tests.
     """
 
     def __init__(self, mass_kg: float, inertia_kg_m2, linear_drag_n_s_per_m,
-                 gravity_m_s2: float = G):
+                 gravity_m_s2: float = G, parasitic_drag_n_s2_per_m2=(0.0, 0.0, 0.0)):
         self.mass_kg = float(mass_kg)
         self.J = tuple(tuple(float(v) for v in row) for row in inertia_kg_m2)
         self.Jinv = _inv3(self.J)
         self.drag = tuple(float(c) for c in linear_drag_n_s_per_m)
+        self.parasitic = tuple(float(c) for c in parasitic_drag_n_s2_per_m2)
         self.gravity_m_s2 = float(gravity_m_s2)
 
     def derivative(self, s, T, tx, ty, tz, wind, fext):
@@ -100,14 +103,19 @@ class RigidBody:
         r10 = 2.0 * (xy + wz); r11 = 1.0 - 2.0 * (xx + zz); r12 = 2.0 * (yz - wx)
         r20 = 2.0 * (xz - wy); r21 = 2.0 * (yz + wx); r22 = 1.0 - 2.0 * (xx + yy)
         cx, cy, cz = self.drag
+        px, py, pz = self.parasitic
         fbx = 0.0
         fby = 0.0
         fbz = -T
-        if cx or cy or cz:
+        if cx or cy or cz or px or py or pz:
             ax, ay, az = vx - wind[0], vy - wind[1], vz - wind[2]
-            fbx -= cx * (r00 * ax + r10 * ay + r20 * az)
-            fby -= cy * (r01 * ax + r11 * ay + r21 * az)
-            fbz -= cz * (r02 * ax + r12 * ay + r22 * az)
+            bx = r00 * ax + r10 * ay + r20 * az        # air-relative velocity, body
+            by = r01 * ax + r11 * ay + r21 * az
+            bz = r02 * ax + r12 * ay + r22 * az
+            speed = math.sqrt(ax * ax + ay * ay + az * az)
+            fbx -= (cx + px * speed) * bx
+            fby -= (cy + py * speed) * by
+            fbz -= (cz + pz * speed) * bz
         m = self.mass_kg
         dvx = (r00 * fbx + r01 * fby + r02 * fbz + fext[0]) / m
         dvy = (r10 * fbx + r11 * fby + r12 * fbz + fext[1]) / m

@@ -46,11 +46,15 @@ class Rotors:
         Physics step.
     rng : numpy.random.Generator
         The simulation's noise generator (seeded once).
+    thrust_scale : float
+        Thrust given per unit commanded (a sagging battery: 0.9); it scales the lagged
+        thrust, so the saturation becomes ``thrust_scale * max_rotor_thrust_n``.
     """
 
     def __init__(self, max_rotor_thrust_n: float, time_constant_s: float, noise_sd_n: float,
-                 dt_s: float, rng: np.random.Generator):
+                 dt_s: float, rng: np.random.Generator, thrust_scale: float = 1.0):
         self.max_rotor_thrust_n = float(max_rotor_thrust_n)
+        self.thrust_scale = float(thrust_scale)
         self.alpha = 1.0 if time_constant_s <= 0 else 1.0 - math.exp(-dt_s / time_constant_s)
         self.noise_sd_n = float(noise_sd_n)
         self.rng = rng
@@ -71,10 +75,12 @@ class Rotors:
         fmax = self.max_rotor_thrust_n
         a = self.alpha
         lag = self.lagged_n
+        k = self.thrust_scale
         for i in range(4):
             c = cmd_n[i]
             c = 0.0 if c < 0.0 else (fmax if c > fmax else c)
-            lag[i] += a * (c - lag[i])
+            lag[i] += a * (k * c - lag[i])
+        fmax *= k
         if self.noise_sd_n > 0.0 and armed:
             n = self._next_noise()
             out = []

@@ -26,6 +26,13 @@ class EmulatorParams:
         default=(0.0, 0.0, 0.0), metadata={"length": 3, "min": 0.0}
     )
     """Body-frame linear drag coefficients (force = -c * v_air_body, per axis)."""
+    parasitic_drag_n_s2_per_m2: tuple[float, ...] = field(
+        default=(0.0, 0.0, 0.0), metadata={"length": 3, "min": 0.0}
+    )
+    """Body-frame quadratic (parasitic) drag: force = -c * |v_air| * v_air_body, per axis."""
+    thrust_scale: float = field(default=1.0, metadata={"min": 0.5, "max": 1.5})
+    """Thrust each rotor gives per unit commanded (0.9: a battery sagged to 90 %); the
+    saturation scales with it."""
     inertia_offdiag_kg_m2: tuple[float, ...] = field(default=(0.0, 0.0, 0.0), metadata={"length": 3})
     """Products of inertia (Jxy, Jxz, Jyz) the design model neglects."""
     crash_speed_m_s: float = field(default=3.0, metadata=_POS)

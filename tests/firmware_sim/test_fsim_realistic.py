@@ -102,7 +102,8 @@ def test_realistic_lockstep_is_deterministic_without_timeouts(tmp_path):
     assert meta["world"]["name"] == "realistic" and meta["world"]["link"]["loss_probability"] == 0.01
     # 1 % loss actually happened both ways (about 45 telemetry messages, 15 datagrams)
     assert counters["telemetry_lost"] >= 15 and counters["commands_lost"] >= 3
-    assert a["position_ned_m"][:, 2].min() < -1.0 and a["custom_mode"][-1] == modes.OFFBOARD
+    # it climbed (against the realistic preset's vertical drag) and stayed in OFFBOARD
+    assert a["position_ned_m"][:, 2].min() < -0.8 and a["custom_mode"][-1] == modes.OFFBOARD
     # TIMESYNC: tc1 - sample time = downlink (8..14 ms) + uplink (2..8 ms), both quantized
     delays_ms = [(tc1 - ts1) / 1e6 for tc1, ts1 in sa["timesync"]]
     assert min(delays_ms) >= 10.0 and max(delays_ms) <= 22.0
