@@ -24,7 +24,7 @@ from ..config.vehicle import VehicleParams
 from ..control.regulator import ManeuverRegulator
 from .ctrllog import ControlLog
 from .endpoint import EndpointServer
-from .link import MavlinkLink, open_link
+from .link import FastLink, MavlinkLink, open_link
 from .planner_pool import PlannerDied, PlannerPool
 from .supervisor import Output, Phase, Supervisor, SupervisorParams
 from .tlog import TlogWriter
@@ -84,7 +84,7 @@ class Daemon:
         self.uploads = {"accepted": 0, "rejected": 0}
         self.plans: list = []
         self.pool: PlannerPool | None = None
-        self.link: MavlinkLink | None = None
+        self.link: FastLink | MavlinkLink | None = None
         self.endpoint: EndpointServer | None = None
         self._tlog: TlogWriter | None = None
         self._tasks: list[asyncio.Task] = []
@@ -95,9 +95,8 @@ class Daemon:
     # ------------------------------------------------------------------ wiring
     def _emit(self, out: Output) -> bool:
         sent_actuator = False
-        for msg in out.messages:
-            if self.link is not None and self.link.send(msg):
-                sent_actuator |= msg.get_type() == "SET_ACTUATOR_CONTROL_TARGET"
+        if out.messages and self.link is not None and self.link.send_many(out.messages):
+            sent_actuator = any(m.get_type() == "SET_ACTUATOR_CONTROL_TARGET" for m in out.messages)
         for ev in out.events:
             self.ctrl_log.events.append(ev)
             self.log(ev.line())

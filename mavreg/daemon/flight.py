@@ -31,11 +31,30 @@ def smoothstep(t: float) -> float:
     return t * t * t * (10.0 - 15.0 * t + 6.0 * t)
 
 
+def _rpy_rows(phi: float, theta: float, psi: float) -> tuple:
+    """The nine entries of R = Rz(psi) Ry(theta) Rx(phi), row by row (scalar math: this runs
+    every control step, where numpy on 3x3 arrays cost about 9 µs)."""
+    cf, sf = math.cos(phi), math.sin(phi)
+    ct, st = math.cos(theta), math.sin(theta)
+    cp, sp = math.cos(psi), math.sin(psi)
+    return (cp * ct, -sp * cf + cp * st * sf, sp * sf + cp * st * cf,
+            sp * ct, cp * cf + sp * st * sf, -cp * sf + sp * st * cf,
+            -st, ct * sf, ct * cf)
+
+
 def angle_between(rpy_a, rpy_b) -> float:
     """Angle of the rotation between two attitudes given as roll, pitch, yaw (any attitude)."""
-    Ra, Rb = rpy_to_matrix(*rpy_a), rpy_to_matrix(*rpy_b)
-    c = (float(np.sum(Ra * Rb)) - 1.0) / 2.0        # (trace(Ra^T Rb) - 1) / 2
+    a = _rpy_rows(float(rpy_a[0]), float(rpy_a[1]), float(rpy_a[2]))
+    b = _rpy_rows(float(rpy_b[0]), float(rpy_b[1]), float(rpy_b[2]))
+    c = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] + a[4] * b[4] + a[5] * b[5]
+         + a[6] * b[6] + a[7] * b[7] + a[8] * b[8] - 1.0) / 2.0    # (trace(Ra^T Rb) - 1) / 2
     return math.acos(min(max(c, -1.0), 1.0))
+
+
+def _norm3(v, i: int) -> float:
+    """Euclidean norm of v[i:i+3]."""
+    a, b, c = float(v[i]), float(v[i + 1]), float(v[i + 2])
+    return math.sqrt(a * a + b * b + c * c)
 
 
 class FlightPhases:
@@ -108,8 +127,7 @@ class FlightPhases:
         ho, ramp_done = self._hover_control(sample, x)
         rotors = ho.rotor_forces_n
         e = ho.error
-        tracking = Tracking(float(np.linalg.norm(e[0:3])), angle_between(x[3:6], x[3:6] - e[3:6]),
-                            float(np.linalg.norm(e[9:12])))
+        tracking = Tracking(_norm3(e, 0), angle_between(x[3:6], x[3:6] - e[3:6]), _norm3(e, 9))
         if self.phase == Phase.TAKEOFF and t - self._phase_t0 < self.params.spool_s:
             rotors = rotors * smoothstep((t - self._phase_t0) / self.params.spool_s)
         elif self.phase == Phase.LAND:
@@ -138,7 +156,7 @@ class FlightPhases:
         rotors = np.asarray(r.rotor_forces_n, dtype=float)
         record = self._record(sample, r.s, w, r.u, rotors)
         tracking = Tracking(float(math.hypot(w[0], w[1])), angle_between(x[3:6], x[3:6] - w[2:5]),
-                            float(np.linalg.norm(w[8:11])), self._s, bool(r.in_tube))
+                            _norm3(w, 8), self._s, bool(r.in_tube))
         if r.finished and np.all(np.isfinite(rotors)):
             self._maneuvers_done.append(plan.name)
             self._active = None

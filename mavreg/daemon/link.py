@@ -1,19 +1,33 @@
-"""Thin asyncio UDP adapter: datagrams <-> pymavlink's generated MAVLink 2 codec.
+"""The UDP link to the vehicle: datagrams <-> MAVLink 2 messages.
 
-No flight logic here. :class:`MavlinkLink` is an :class:`asyncio.DatagramProtocol` that
+No flight logic here. Two implementations with one interface (``send``, ``send_many``,
+``counters``, ``connected``, ``close``), chosen by :func:`open_link`:
 
-- parses each datagram with ``pymavlink.dialects.v20.common.MAVLink`` (robust parsing,
-  bad data counted), logs every frame in and out to the ``.tlog``, and hands each decoded
-  message to a callback;
-- accepts datagrams only from the vehicle's address: fixed for ``udpout:HOST:PORT``,
+- :class:`FastLink` (default): a non-blocking socket watched with ``loop.add_reader``; each
+  wake-up reads every waiting datagram (``recvfrom`` until it would block) and decodes it
+  with the precompiled codec of :mod:`mavreg.daemon.wire`; the messages of one output
+  (a rotor command and the TIMESYNC request that travels with it) leave in **one**
+  datagram, one ``sendto``.
+- :class:`MavlinkLink` (the reference path, ``MAVREG_IO=reference``): an
+  :class:`asyncio.DatagramProtocol` with pymavlink's generated codec, one datagram per
+  message. Kept for the benchmarks' baseline and for agreement tests.
+
+Both
+
+- parse each datagram with robust parsing (bad data counted), log every frame in and out
+  to the ``.tlog``, and hand each decoded message to a callback with the time the
+  datagram was read (``time.perf_counter_ns``);
+- accept datagrams only from the vehicle's address: fixed for ``udpout:HOST:PORT``,
   learned from the first HEARTBEAT of the vehicle's system/component id for
   ``udpin:HOST:PORT``; everything else is dropped and counted;
-- packs outgoing messages with the daemon's own system id and component id 191
+- pack outgoing messages with the daemon's own system id and component id 191
   (MAV_COMP_ID_ONBOARD_COMPUTER).
 """
 from __future__ import annotations
 
 import asyncio
+import os
+import socket
 import time
 from dataclasses import dataclass, field
 from typing import Callable
@@ -21,8 +35,14 @@ from typing import Callable
 from pymavlink.dialects.v20 import common as mavlink2
 
 from .tlog import TlogWriter
+from .wire import Wire
 
-__all__ = ["parse_url", "LinkCounters", "MavlinkLink", "open_link", "OWN_COMPONENT_ID"]
+__all__ = ["parse_url", "LinkCounters", "MavlinkLink", "FastLink", "open_link", "OWN_COMPONENT_ID",
+           "IO_ENV", "io_impl"]
+
+IO_ENV = "MAVREG_IO"
+"""Environment variable choosing the link: ``fast`` (default) or ``reference``."""
+_MAX_DATAGRAM = 65535
 
 OWN_COMPONENT_ID = mavlink2.MAV_COMP_ID_ONBOARD_COMPUTER
 
@@ -136,6 +156,13 @@ class MavlinkLink(asyncio.DatagramProtocol):
         self.mav.send(msg)
         return True
 
+    def send_many(self, msgs) -> bool:
+        """Send each message in a datagram of its own; False while the vehicle's address is unknown."""
+        sent = False
+        for m in msgs:
+            sent = self.send(m) or sent
+        return sent
+
     def _write(self, buf: bytes) -> None:
         self.transport.sendto(buf, self.vehicle_addr)
         self.counters.messages_out += 1
@@ -147,15 +174,141 @@ class MavlinkLink(asyncio.DatagramProtocol):
             self.transport.close()
 
 
+def io_impl() -> str:
+    """The link implementation :envvar:`MAVREG_IO` asks for (``fast`` when unset).
+
+    Raises ValueError with a one-line reason on any other value.
+    """
+    impl = os.environ.get(IO_ENV, "fast")
+    if impl not in ("fast", "reference"):
+        raise ValueError(f"{IO_ENV}={impl!r}: expected 'fast' or 'reference'")
+    return impl
+
+
+class FastLink:
+    """MAVLink 2 over one non-blocking UDP socket, to one vehicle (see the module docstring).
+
+    Parameters are those of :class:`MavlinkLink`, plus the bound socket.
+    """
+
+    def __init__(self, kind: str, vehicle_addr, system_id: int, vehicle_component_id: int,
+                 on_message: Callable, tlog: TlogWriter | None, sock: socket.socket):
+        self.kind = kind
+        self.vehicle_addr = vehicle_addr
+        self.system_id = system_id
+        self.vehicle_component_id = vehicle_component_id
+        self.on_message = on_message
+        self.tlog = tlog
+        self.counters = LinkCounters()
+        self.sock = sock
+        self.wire = Wire(system_id, OWN_COMPONENT_ID)
+        self.connected = asyncio.Event()
+        if vehicle_addr is not None:
+            self.connected.set()
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._closed = False
+
+    def start(self, loop: asyncio.AbstractEventLoop) -> None:
+        """Watch the socket on ``loop``."""
+        self._loop = loop
+        loop.add_reader(self.sock.fileno(), self._readable)
+
+    def _readable(self) -> None:
+        """Read every datagram waiting (not only one per wake-up)."""
+        recv = self.sock.recvfrom
+        while not self._closed:
+            try:
+                data, addr = recv(_MAX_DATAGRAM)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError:                  # e.g. an ICMP error reported for an earlier send
+                self.counters.send_errors += 1
+                return
+            self.datagram_received(data, addr, time.perf_counter_ns())
+
+    def datagram_received(self, data: bytes, addr, t_ns: int) -> None:
+        """One datagram read at ``t_ns`` (``time.perf_counter_ns``)."""
+        c = self.counters
+        c.datagrams_in += 1
+        if self.vehicle_addr is not None and addr[:2] != self.vehicle_addr:
+            c.foreign_address += 1
+            return
+        try:
+            msgs = self.wire.parse(data)
+        except mavlink2.MAVError:
+            c.bad_data += 1
+            return
+        tlog = self.tlog
+        for msg in msgs:
+            if msg._type == "BAD_DATA":
+                c.bad_data += 1
+                continue
+            c.messages_in += 1
+            if tlog is not None:
+                tlog.write(msg._msgbuf)
+            if (self.vehicle_addr is None and msg._type == "HEARTBEAT"
+                    and msg.get_srcSystem() == self.system_id
+                    and msg.get_srcComponent() == self.vehicle_component_id):
+                self.vehicle_addr = tuple(addr[:2])
+                self.connected.set()
+            self.on_message(msg, t_ns)
+
+    def send(self, msg) -> bool:
+        """Pack and send one message to the vehicle; False while its address is unknown."""
+        return self.send_many((msg,))
+
+    def send_many(self, msgs) -> bool:
+        """Pack the messages into one datagram, one ``sendto``; False if nothing was sent."""
+        if self._closed or self.vehicle_addr is None or not msgs:
+            return False
+        pack = self.wire.pack
+        frames = [pack(m) for m in msgs]
+        try:
+            self.sock.sendto(frames[0] if len(frames) == 1 else b"".join(frames), self.vehicle_addr)
+        except (BlockingIOError, InterruptedError, OSError):
+            self.counters.send_errors += 1
+            return False
+        self.counters.messages_out += len(frames)
+        if self.tlog is not None:
+            for f in frames:
+                self.tlog.write(f)
+        return True
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        if self._loop is not None and not self._loop.is_closed():
+            self._loop.remove_reader(self.sock.fileno())
+        self.sock.close()
+
+
 async def open_link(url: str, system_id: int, vehicle_component_id: int, on_message: Callable,
-                    tlog: TlogWriter | None) -> MavlinkLink:
-    """Create the UDP endpoint for ``url`` and return its :class:`MavlinkLink`."""
+                    tlog: TlogWriter | None, impl: str | None = None):
+    """Create the UDP endpoint for ``url`` and return its link.
+
+    ``impl``: ``fast`` (:class:`FastLink`) or ``reference`` (:class:`MavlinkLink`);
+    default: :func:`io_impl` (the :envvar:`MAVREG_IO` environment variable).
+    """
     kind, host, port = parse_url(url)
+    impl = io_impl() if impl is None else impl
     loop = asyncio.get_running_loop()
-    if kind == "udpout":
-        proto = MavlinkLink(kind, (host, port), system_id, vehicle_component_id, on_message, tlog)
-        await loop.create_datagram_endpoint(lambda: proto, local_addr=(host, 0))
-    else:
-        proto = MavlinkLink(kind, None, system_id, vehicle_component_id, on_message, tlog)
-        await loop.create_datagram_endpoint(lambda: proto, local_addr=(host, port))
-    return proto
+    vehicle = (host, port) if kind == "udpout" else None
+    local = (host, 0) if kind == "udpout" else (host, port)
+    if impl == "reference":
+        proto = MavlinkLink(kind, vehicle, system_id, vehicle_component_id, on_message, tlog)
+        await loop.create_datagram_endpoint(lambda: proto, local_addr=local)
+        return proto
+    info = socket.getaddrinfo(local[0], local[1], type=socket.SOCK_DGRAM)[0]
+    sock = socket.socket(info[0], socket.SOCK_DGRAM)
+    try:
+        sock.setblocking(False)
+        sock.bind(info[4])
+    except OSError:
+        sock.close()
+        raise
+    if vehicle is not None:
+        vehicle = socket.getaddrinfo(host, port, family=info[0], type=socket.SOCK_DGRAM)[0][4][:2]
+    link = FastLink(kind, vehicle, system_id, vehicle_component_id, on_message, tlog, sock)
+    link.start(loop)
+    return link

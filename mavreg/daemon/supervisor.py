@@ -322,8 +322,8 @@ class Supervisor(FlightPhases, SafetyActions):
         if prev is not None:
             self._gap(t - prev.time_s, now_s - prev_now, out)
         if self.phase in AIRBORNE:
-            v = self.monitor.check_state(t, self.phase, self._s, sample.x[:3], sample.velocity_ned_m_s,
-                                         sample.rotation, sample.x[9:12]) or self._recovery_timeout(t)
+            v = self.monitor.check_state(t, self.phase, self._s, sample.position_ned, sample.velocity_ned,
+                                         sample.rows, sample.rates) or self._recovery_timeout(t)
             if v is not None:
                 self._violation(v, out)
         if self.phase not in AIRBORNE:

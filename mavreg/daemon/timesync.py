@@ -69,6 +69,7 @@ class TimesyncEstimator:
         self._rtts: deque = deque(maxlen=int(window))
         self._last_request_t = -np.inf
         self.dropped = 0
+        self._estimate: LinkDelay | None = None     # recomputed only when a reply changes it
 
     def due(self, sample_time_s: float) -> bool:
         """Whether a request should go out after answering the sample of this vehicle time."""
@@ -100,13 +101,17 @@ class TimesyncEstimator:
             return False
         self._delays.append(d)
         self._rtts.append((now_ns - ts1_ns) * 1e-9)
+        self._estimate = None
         return True
 
     def estimate(self) -> LinkDelay | None:
-        """The current estimate, or None before the first valid reply."""
-        if not self._delays:
-            return None
-        d = np.fromiter(self._delays, float)
-        med = float(np.median(d))
-        return LinkDelay(med, float(1.4826 * np.median(np.abs(d - med))),
-                         float(np.median(np.fromiter(self._rtts, float))), len(d))
+        """The current estimate, or None before the first valid reply.
+
+        The supervisor asks for it on every sample (the prediction's horizon); it changes
+        only with a reply (every 0.1 s), so it is computed once per reply and kept."""
+        if self._estimate is None and self._delays:
+            d = np.fromiter(self._delays, float)
+            med = float(np.median(d))
+            self._estimate = LinkDelay(med, float(1.4826 * np.median(np.abs(d - med))),
+                                       float(np.median(np.fromiter(self._rtts, float))), len(d))
+        return self._estimate

@@ -241,3 +241,26 @@ def test_violation_reads_in_one_line():
     got = track(monitor(), Phase.MANEUVER, t, s=12.3 + 0 * t, att=math.radians(40))
     line = got.describe()
     assert "\n" not in line and "attitude_error in maneuver at s=12.30 m" in line and "40 deg" in line
+
+
+def test_window_search_selects_exactly_the_rows_a_full_filter_selects():
+    """The bisection of the sliding windows against filtering every row (the old way)."""
+    from mavreg.daemon.monitor import _Series
+    rng = np.random.default_rng(4)
+    s = _Series()
+    t = 0.0
+    for _ in range(3000):
+        t += float(rng.choice([0.002, 0.001, 0.004, 0.0021]))
+        s.append(t, bool(rng.random() < 0.3), float(rng.uniform(0, 12)))
+        s.drop_older(t, 0.5)
+        assert s.ordered
+        for w, strict in ((0.1, False), (0.5, True), (0.02, False), (0.002, True)):
+            now = t + float(rng.choice([0.0, 0.002, 0.0005]))
+            k = s.within(now, w, strict)
+            rows = [i for i in range(s.head, len(s.t)) if (now - s.t[i] < w if strict else now - s.t[i] <= w)]
+            assert list(range(k, len(s.t))) == rows
+    s.append(t - 0.01, False, 1.0)                  # a row older than the one before it
+    assert not s.ordered
+    s.append(t + 0.002, False, 1.0)
+    s.drop_older(t + 0.002, 0.0)                   # both rows of the inverted pair are gone
+    assert s.ordered and len(s) == 1

@@ -91,3 +91,27 @@ def test_non_finite_parts_refused():
     assert a.add(pos(5, (np.nan, 0, 0))) is None
     a.add(att_q(5))
     assert a.counters.non_finite == 1
+
+
+def test_scalar_assembly_agrees_with_the_numpy_rotation_functions():
+    """The assembler's scalar formulas against mavreg.model.rotation (the reference path)."""
+    from mavreg.model.rotation import matrix_to_rpy, quat_to_matrix, rpy_to_matrix
+    rng = np.random.default_rng(3)
+    asm_q, asm_e = StateAssembler(), StateAssembler(euler_pitch_limit_rad=np.pi)
+    for k in range(1, 400):
+        q = rng.standard_normal(4)
+        q *= rng.uniform(0.6, 2.0) / np.linalg.norm(q)              # not unit: the assembler normalizes
+        rates, p, v = rng.uniform(-5, 5, 3), rng.uniform(-50, 50, 3), rng.uniform(-10, 10, 3)
+        rpy = rng.uniform(-np.pi, np.pi, 3) * (1.0, 0.45, 1.0)
+        lpn = mavlink2.MAVLink_local_position_ned_message(k, *p, *v)
+        aq = mavlink2.MAVLink_attitude_quaternion_message(k, *q, *rates, [0, 0, 0, 0])
+        att = mavlink2.MAVLink_attitude_message(k, *rpy, *rates)
+        assert asm_q.add(lpn) is None
+        sq = asm_q.add(aq)
+        assert asm_e.add(att) is None
+        se = asm_e.add(lpn)
+        for sample, R in ((sq, quat_to_matrix(q)), (se, rpy_to_matrix(*rpy))):
+            x = np.concatenate([p, matrix_to_rpy(R), R.T @ v, rates])
+            np.testing.assert_allclose(sample.rotation, R, rtol=0, atol=1e-14)
+            np.testing.assert_allclose(sample.x, x, rtol=1e-13, atol=1e-12)
+            assert sample.x.dtype == float and sample.x.shape == (12,) and sample.rotation.shape == (3, 3)

@@ -56,3 +56,16 @@ def test_requests_are_paced_in_vehicle_time():
     assert not est.due(5.05)
     assert est.due(5.1)
     assert est.due(1.0)          # vehicle clock went back (reboot): ask again
+
+
+def test_the_estimate_follows_every_reply_and_is_not_recomputed_between_them():
+    est = TimesyncEstimator(window=5)
+    delays = [0.012, 0.020, 0.011, 0.030, 0.015, 0.013, 0.040]
+    for k, d in enumerate(delays):
+        t = 0.1 * (k + 1)
+        ts1 = est.request(1_000_000 * k, t)
+        assert est.reply(int(round((t + d) * 1e9)), ts1, 1_000_000 * k + 500_000)
+        recent = np.array(delays[max(0, k - 4):k + 1])
+        e = est.estimate()
+        assert abs(e.delay_s - float(np.median(recent))) < 1e-12 and e.samples == len(recent)
+        assert est.estimate() is e            # asked again before the next reply: the same object
