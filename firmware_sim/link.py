@@ -1,20 +1,48 @@
-"""UDP socket plus pymavlink's MAVLink 2 codec (no blocking mavutil connection).
+"""UDP socket plus a MAVLink 2 codec (no blocking mavutil connection).
 
 Telemetry goes to every address a valid MAVLink message came from. Each datagram is
 parsed on its own: bytes of a datagram that do not form a complete message are counted
 as malformed and discarded, so one peer's garbage never corrupts another's message.
+
+Everything one :meth:`Link.send` is given (a control period's telemetry bundle, or the
+replies to a command) leaves in **one** datagram per peer, as PX4 fills its network
+buffer and flushes it once per loop (datagrams stay under :data:`MAX_DATAGRAM_BYTES`);
+the hot messages are packed and parsed by the precompiled codec of
+:mod:`firmware_sim.wire`. With ``MAVREG_IO=reference`` in the environment the link
+works as it did before (one message per datagram, pymavlink's codec, sequence number
+always 0): the benchmarks' baseline.
 """
 from __future__ import annotations
 
+import os
 import select
 import socket
 
 from pymavlink.dialects.v20 import common as mavlink2
 
-__all__ = ["Link", "parse_listen_url", "MAX_PEERS"]
+from .wire import Wire
+
+__all__ = ["Link", "parse_listen_url", "MAX_PEERS", "MAX_DATAGRAM_BYTES", "io_impl"]
 
 MAX_PEERS = 8
+MAX_DATAGRAM_BYTES = 1400
+"""Frames are packed together into datagrams up to this size (an Ethernet MTU with room)."""
 _MAX_DATAGRAM = 65535
+IO_ENV = "MAVREG_IO"
+
+
+def io_impl() -> str:
+    """``fast`` (default) or ``reference``, from the ``MAVREG_IO`` environment variable.
+
+    Raises
+    ------
+    ValueError
+        For any other value.
+    """
+    impl = os.environ.get(IO_ENV, "fast")
+    if impl not in ("fast", "reference"):
+        raise ValueError(f"{IO_ENV}={impl!r}: expected 'fast' or 'reference'")
+    return impl
 
 
 def parse_listen_url(url: str) -> tuple[str, int]:
@@ -47,10 +75,13 @@ class Link:
         ``udpin:HOST:PORT``.
     system_id, component_id : int
         Our identity in every message sent.
+    io : {"fast", "reference"}, optional
+        Default: :func:`io_impl`.
     """
 
-    def __init__(self, url: str, system_id: int, component_id: int):
+    def __init__(self, url: str, system_id: int, component_id: int, io: str | None = None):
         host, port = parse_listen_url(url)
+        self.fast = (io_impl() if io is None else io) == "fast"
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
             self.sock.bind((host, port))
@@ -59,8 +90,8 @@ class Link:
             raise ValueError(f"--listen {url!r}: cannot bind: {exc.strerror or exc}") from None
         self.sock.setblocking(False)
         self.host, self.port = self.sock.getsockname()[:2]
-        self.mav = mavlink2.MAVLink(None, srcSystem=system_id, srcComponent=component_id)
-        self.mav.robust_parsing = True
+        self.wire = Wire(system_id, component_id)
+        self.mav = self.wire.mav                      # the reference codec (robust parsing)
         self.peers: list = []
         self.bytes_in = 0
         self.send_errors = 0
@@ -89,7 +120,7 @@ class Link:
             return [], None
         self.bytes_in += len(data)
         try:
-            msgs = self.mav.parse_buffer(data) or []
+            msgs = self.wire.parse(data) if self.fast else (self.mav.parse_buffer(data) or [])
         except Exception as exc:  # pymavlink raises on some corrupt input even when robust
             msgs = [mavlink2.MAVLink_bad_data(bytearray(data), str(exc))]
             self._reset_parser()
@@ -103,14 +134,29 @@ class Link:
         return msgs, addr
 
     def send(self, msgs) -> None:
-        """Pack each message once and send it to every peer."""
+        """Pack each message once and send them all to every peer, in one datagram each."""
         if not msgs or not self.peers:
             return
-        for m in msgs:
-            buf = m.pack(self.mav)
+        if not self.fast:
+            datagrams = [m.pack(self.mav) for m in msgs]
+        else:
+            pack = self.wire.pack
+            frames = [pack(m) for m in msgs]
+            if len(frames) == 1:
+                datagrams = frames
+            else:
+                datagrams, cur = [], b""
+                for f in frames:
+                    if cur and len(cur) + len(f) > MAX_DATAGRAM_BYTES:
+                        datagrams.append(cur)
+                        cur = b""
+                    cur += f
+                datagrams.append(cur)
+        sendto = self.sock.sendto
+        for buf in datagrams:
             for addr in self.peers:
                 try:
-                    self.sock.sendto(buf, addr)
+                    sendto(buf, addr)
                 except OSError:
                     self.send_errors += 1
 

@@ -1,4 +1,4 @@
-"""The daemon's precompiled MAVLink codec agrees with pymavlink's, frame for frame."""
+"""The precompiled MAVLink codecs (the daemon's and the emulator's copy) agree with pymavlink's."""
 from __future__ import annotations
 
 import random
@@ -7,8 +7,10 @@ import struct
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavreg.daemon.wire import FAST_IDS, Wire, crc_is_fast, mcrf4xx
-from mavreg.daemon import wire as wire_mod
+import firmware_sim.wire
+import mavreg.daemon.wire
+
+CODECS = pytest.mark.parametrize("wire_mod", [mavreg.daemon.wire, firmware_sim.wire], ids=["daemon", "firmware_sim"])
 
 
 def _random_messages(rng: random.Random, n: int) -> list:
@@ -45,9 +47,10 @@ def _random_messages(rng: random.Random, n: int) -> list:
     return out
 
 
-def test_pack_is_byte_identical_to_pymavlink_with_the_same_sequence():
+@CODECS
+def test_pack_is_byte_identical_to_pymavlink_with_the_same_sequence(wire_mod):
     rng = random.Random(1)
-    wire = Wire(1, 191)
+    wire = wire_mod.Wire(1, 191)
     ref = mavlink2.MAVLink(None, srcSystem=1, srcComponent=191)
     msgs = _random_messages(rng, 600)                  # > 256: the sequence number wraps
     for m in msgs:
@@ -56,14 +59,15 @@ def test_pack_is_byte_identical_to_pymavlink_with_the_same_sequence():
         assert wire.pack(m) == expected, m.get_type()
 
 
-def test_parse_gives_the_same_messages_as_pymavlink():
+@CODECS
+def test_parse_gives_the_same_messages_as_pymavlink(wire_mod):
     rng = random.Random(2)
     src = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
     frames = []
     for m in _random_messages(rng, 400):
         frames.append(m.pack(src))
         src.seq = (src.seq + 1) % 256
-    wire = Wire(1, 191)
+    wire = wire_mod.Wire(1, 191)
     ref = mavlink2.MAVLink(None)
     ref.robust_parsing = True
     k = 0
@@ -86,8 +90,9 @@ def test_parse_gives_the_same_messages_as_pymavlink():
     assert wire.fast_in > 300 and wire.slow_in > 0   # statustext went the reference way
 
 
+@CODECS
 @pytest.mark.parametrize("damage", ["crc", "truncate", "garbage_prefix", "garbage_suffix", "mavlink1", "empty"])
-def test_damaged_datagrams_are_reported_as_pymavlink_reports_them(damage):
+def test_damaged_datagrams_are_reported_as_pymavlink_reports_them(damage, wire_mod):
     src = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
     good = [mavlink2.MAVLink_local_position_ned_message(10, 1, 2, 3, 4, 5, 6).pack(src),
             mavlink2.MAVLink_attitude_message(10, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6).pack(src)]
@@ -108,7 +113,7 @@ def test_damaged_datagrams_are_reported_as_pymavlink_reports_them(damage):
     ref = mavlink2.MAVLink(None)
     ref.robust_parsing = True
     want = ref.parse_buffer(data) or []
-    wire = Wire(1, 191)
+    wire = wire_mod.Wire(1, 191)
     got = wire.parse(data)
     assert [m.get_type() for m in got] == [m.get_type() for m in want]
     for g, w in zip(got, want):
@@ -119,14 +124,16 @@ def test_damaged_datagrams_are_reported_as_pymavlink_reports_them(damage):
     assert [m.get_type() for m in wire.parse(more)] == [m.get_type() for m in (ref.parse_buffer(more) or [])]
 
 
-def test_crc_matches_the_reference_algorithm_and_the_fast_path_is_detected():
+@CODECS
+def test_crc_matches_the_reference_algorithm_and_the_fast_path_is_detected(wire_mod):
     data = bytes(range(256)) * 3
-    assert mcrf4xx(data) == wire_mod._slow_mcrf4xx(data) == mavlink2.x25crc(data).crc
-    assert mcrf4xx(b"123456789") == 0x6F91                     # CRC-16/MCRF4XX check value
-    assert crc_is_fast() == (wire_mod._fast_mcrf4xx is not None)
+    assert wire_mod.mcrf4xx(data) == wire_mod._slow_mcrf4xx(data) == mavlink2.x25crc(data).crc
+    assert wire_mod.mcrf4xx(b"123456789") == 0x6F91                     # CRC-16/MCRF4XX check value
+    assert wire_mod.crc_is_fast() == (wire_mod._fast_mcrf4xx is not None)
 
 
-def test_the_hot_messages_have_precompiled_codecs():
+@CODECS
+def test_the_hot_messages_have_precompiled_codecs(wire_mod):
     for m in ("HEARTBEAT", "ATTITUDE", "ATTITUDE_QUATERNION", "LOCAL_POSITION_NED", "TIMESYNC",
               "SET_ACTUATOR_CONTROL_TARGET"):
-        assert getattr(mavlink2, f"MAVLINK_MSG_ID_{m}") in FAST_IDS
+        assert getattr(mavlink2, f"MAVLINK_MSG_ID_{m}") in wire_mod.FAST_IDS
