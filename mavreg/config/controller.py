@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .disturbance import DisturbanceParams
 from .envelope import EnvelopeParams
 from .loader import load_file
 
@@ -54,6 +55,8 @@ class ControllerParams:
     """A configured link delay (downlink + uplink, s) that overrides the measured one."""
     max_prediction_s: float = field(default=0.1, metadata={"min": 0.0, "max": 0.5})
     """Cap on the prediction horizon; past it a gap is not flown on the prediction."""
+    disturbance: DisturbanceParams = field(default_factory=DisturbanceParams)
+    """The disturbance observer (:mod:`mavreg.config.disturbance`); off by default."""
 
     @property
     def q(self) -> np.ndarray:

@@ -221,10 +221,16 @@ class HoverController:
             self._gains[key] = K
         return K
 
-    def reference(self, ramp: Ramp, t_s: float) -> tuple[np.ndarray, np.ndarray]:
-        """(x_ref (12,), u_ref (4,)) of a ramp at time ``t_s``, small-angle acceleration and jerk feed-forward."""
+    def reference(self, ramp: Ramp, t_s: float, disturbance=None) -> tuple[np.ndarray, np.ndarray]:
+        """(x_ref (12,), u_ref (4,)) of a ramp at time ``t_s``, small-angle acceleration and jerk
+        feed-forward. A :class:`~mavreg.control.disturbance.DisturbanceEstimate` is fed forward
+        too: the thrust is tilted and scaled as if the ramp asked for ``a - d/m``."""
         p, v, a, j, yaw, yaw_rate = ramp.sample_with_jerk(t_s)
         c, s = np.cos(yaw), np.sin(yaw)
+        if disturbance is not None:
+            level = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+            d = disturbance.extra_force_ned(level, v, self.vehicle.rotor_drag_n_s_per_m)
+            a = np.asarray(a, dtype=float) - d / self.vehicle.mass_kg
         # Heading frame: rotate NED by -yaw; level body velocity and acceleration.
         v_b = np.array([c * v[0] + s * v[1], -s * v[0] + c * v[1], v[2]])
         a_b = np.array([c * a[0] + s * a[1], -s * a[0] + c * a[1], a[2]])
@@ -241,9 +247,10 @@ class HoverController:
         u_ref = np.array([self.vehicle.mass_kg * (G - a[2]), 0.0, 0.0, 0.0])
         return x_ref, u_ref
 
-    def step(self, x: np.ndarray, ramp: Ramp, t_s: float) -> HoverOutput:
-        """Control ``u`` for state ``x`` (12,) following ``ramp`` at ramp time ``t_s``."""
-        x_ref, u_ref = self.reference(ramp, t_s)
+    def step(self, x: np.ndarray, ramp: Ramp, t_s: float, disturbance=None) -> HoverOutput:
+        """Control ``u`` for state ``x`` (12,) following ``ramp`` at ramp time ``t_s``, with an
+        estimated ``disturbance`` fed forward (see :meth:`reference`)."""
+        x_ref, u_ref = self.reference(ramp, t_s, disturbance)
         e = np.asarray(x, dtype=float) - x_ref
         e[3:6] = wrap_angle(e[3:6])
         u = u_ref - self.gain(x_ref[5]) @ e

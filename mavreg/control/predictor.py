@@ -167,7 +167,8 @@ class StatePredictor:
         return f
 
     def predict(self, t_s: float, x, rotation, horizon_s: float, delay_s: float | None = None,
-                external_force_n=(0.0, 0.0, 0.0), thrust_scale: float = 1.0) -> Prediction:
+                external_force_n=(0.0, 0.0, 0.0), thrust_scale: float = 1.0,
+                drag_n_s_per_m=None) -> Prediction:
         """The state at ``t_s + horizon_s`` from the sample ``x`` (12,) with body-to-NED
         ``rotation`` (3, 3) at ``t_s``. ``horizon_s`` is capped at ``max_horizon_s``.
 
@@ -175,7 +176,9 @@ class StatePredictor:
         answered; a longer horizon predicts past the first new command (a telemetry gap,
         :meth:`Forecaster.ahead <mavreg.control.forecast.Forecaster.ahead>`).
         ``external_force_n`` (NED) is a known external force; ``thrust_scale`` the rotors'
-        actual per commanded force (the vehicle file's calibration)."""
+        actual per commanded force (the vehicle file's calibration); ``drag_n_s_per_m`` a
+        linear body drag (c_xy, c_z) in place of the vehicle file's (an estimate of it)."""
+        drag = (self.cxy, self.cz) if drag_n_s_per_m is None else tuple(float(c) for c in drag_n_s_per_m)
         H = min(max(float(horizon_s), 0.0), self.max_horizon_s)
         D = H if delay_s is None else min(max(float(delay_s), 0.0), self.max_horizon_s)
         f = self.rotor_forces(t_s, D)
@@ -204,7 +207,7 @@ class StatePredictor:
                 f, fm = self._lag(f, c, dt)
                 if thrust_scale != 1.0:
                     fm = tuple(thrust_scale * fi for fi in fm)
-                R, p, v, w = self._body_step(R, p, v, w, fm, dt, external_force_n)
+                R, p, v, w = self._body_step(R, p, v, w, fm, dt, external_force_n, drag)
                 t += dt
             if nxt is not None:
                 c = nxt
@@ -213,7 +216,7 @@ class StatePredictor:
         xp = np.concatenate([p, matrix_to_rpy(Rm), vb_new, w])
         return Prediction(t_end, H, xp, Rm, thrust_scale * np.array(f))
 
-    def _body_step(self, R, p, v, w, f, dt, fext=(0.0, 0.0, 0.0)):
+    def _body_step(self, R, p, v, w, f, dt, fext=(0.0, 0.0, 0.0), drag_n_s_per_m=None):
         """One step of eqs 1-4 on (R, p, v_ned, w) with rotor forces ``f`` held."""
         m, l, k = self.mass_kg, self.l, self.k
         jx, jy, jz = self.jx, self.jy, self.jz
@@ -231,9 +234,10 @@ class StatePredictor:
         s = T / m
         a0 = [-s * R[2], -s * R[5], G - s * R[8]]       # g e3 - (T/m) R e3
         a1 = [-s * R1[2], -s * R1[5], G - s * R1[8]]
-        drag = self.cxy or self.cz or self.cp
+        cxy, cz = (self.cxy, self.cz) if drag_n_s_per_m is None else drag_n_s_per_m
+        drag = cxy or cz or self.cp
         for acc, Rm in ((a0, R), (a1, R1)):
-            d = self._drag(Rm, v) if drag else (0.0, 0.0, 0.0)   # at the step's start velocity
+            d = self._drag(Rm, v, cxy, cz) if drag else (0.0, 0.0, 0.0)   # at the step's start velocity
             for i in range(3):
                 acc[i] += (d[i] + fext[i]) / m
         p1 = [p[i] + dt * v[i] + dt * dt / 6.0 * (2.0 * a0[i] + a1[i]) for i in range(3)]
@@ -241,9 +245,10 @@ class StatePredictor:
         w1 = [w[i] + dt * dm[i] for i in range(3)]
         return R1, p1, v1, w1
 
-    def _drag(self, R, v):
-        """Drag force (NED) at velocity ``v``: -R C R^T v - c_p |v| v (quadrotor.py's model)."""
+    def _drag(self, R, v, cxy, cz):
+        """Drag force (NED) at velocity ``v``: -R C R^T v - c_p |v| v (quadrotor.py's model),
+        C = diag(cxy, cxy, cz)."""
         zx, zy, zz = R[2], R[5], R[8]
-        along = (self.cz - self.cxy) * (zx * v[0] + zy * v[1] + zz * v[2])
-        q = self.cxy + self.cp * math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+        along = (cz - cxy) * (zx * v[0] + zy * v[1] + zz * v[2])
+        q = cxy + self.cp * math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
         return (-q * v[0] - along * zx, -q * v[1] - along * zy, -q * v[2] - along * zz)

@@ -15,9 +15,14 @@ from ..config.vehicle import VehicleParams
 from ..geometry.projection import Projector
 from ..maneuver.plan import Plan
 from ..model.mixer import Mixer, lift_to_zero
+from ..model.rotation import rpy_to_matrix
+from .disturbance import DisturbanceEstimate, compensated_nominal
 from .transverse import transverse_coordinates
 
 __all__ = ["ManeuverRegulator", "RegulatorOutput"]
+
+_COMPENSATION_DT_S = 0.02
+"""Time step of the finite difference that gives the disturbance compensation's turn rate."""
 
 
 @dataclass(frozen=True)
@@ -64,6 +69,11 @@ class ManeuverRegulator:
     ``a = M f - u(s)``, with f the rotor forces when the command takes over: given to
     :meth:`step` (a :class:`~mavreg.control.predictor.StatePredictor` knows them), or else
     the regulator's own lag filter of its past commands (no transport delay assumed).
+
+    Given a :class:`~mavreg.control.disturbance.DisturbanceEstimate`, the step regulates about
+    the nominal compensated for the force the plan's model misses
+    (:func:`~mavreg.control.disturbance.compensated_nominal`): the same path and speed, with
+    the thrust turned and scaled to cancel that force.
     """
 
     def __init__(self, plan: Plan, vehicle: VehicleParams, control_period_s: float = 0.0,
@@ -84,7 +94,13 @@ class ManeuverRegulator:
         self._last = len(plan.s) - 2
         tau = vehicle.rotor_time_constant_s if rotor_time_constant_s is None else rotor_time_constant_s
         self._lead_s = control_period_s / 2 + tau
+        self._base_drag = tuple(float(c) for c in vehicle.rotor_drag_n_s_per_m)
         self.s = 0.0
+
+    def _extra_force(self, xbar, disturbance: DisturbanceEstimate) -> np.ndarray:
+        """The force the plan's model misses at nominal state ``xbar``."""
+        R = rpy_to_matrix(*xbar[3:6])
+        return disturbance.extra_force_ned(R, R @ xbar[6:9], self._base_drag)
 
     def _locate(self, s: float) -> tuple[int, float]:
         i = min(max(int(np.searchsorted(self._s, s)) - 1, 0), self._last)
@@ -99,9 +115,10 @@ class ManeuverRegulator:
             rotor_forces_n = self.mixer_inverse @ (self._u[i] + a * (self._u[i + 1] - self._u[i]))
         self._rotors_est = np.asarray(rotor_forces_n, dtype=float).copy()
 
-    def step(self, x, rotor_forces_n=None) -> RegulatorOutput:
+    def step(self, x, rotor_forces_n=None, disturbance: DisturbanceEstimate | None = None) -> RegulatorOutput:
         """One control step for state x (12,); ``rotor_forces_n`` (4,): the rotors' forces
-        when this command takes over (used only by lag-aware gains)."""
+        when this command takes over (used only by lag-aware gains); ``disturbance``: the
+        airframe's estimated force model, compensated."""
         x = np.asarray(x, dtype=float)
         proj = self.projector.update(x[:3])
         s = proj.s
@@ -116,6 +133,19 @@ class ManeuverRegulator:
             v = self._v[i] + a * (self._v[i + 1] - self._v[i])
             i, a = self._locate(s + v * self._lead_s)
         ubar = self._u[i] + a * (self._u[i + 1] - self._u[i])
+        if disturbance is not None:
+            # the compensation's turn rate from the nominal _COMPENSATION_DT_S ahead
+            j, b = self._locate(s + max(float(self._v[i] + a * (self._v[i + 1] - self._v[i])), 0.1)
+                                * _COMPENSATION_DT_S)
+            x_ahead = self._x[j] + b * (self._x[j + 1] - self._x[j])
+            t_ahead = float(self._u[j, 0] + b * (self._u[j + 1, 0] - self._u[j, 0]))
+            xbar, thrust = compensated_nominal(xbar, float(u_here[0]), self._extra_force(xbar, disturbance),
+                                               x_ahead, t_ahead, self._extra_force(x_ahead, disturbance),
+                                               _COMPENSATION_DT_S)
+            ubar = ubar.copy()
+            ubar[0] += thrust - u_here[0]
+            u_here = u_here.copy()
+            u_here[0] = thrust
         w = transverse_coordinates(x[:3], pt.frame, pt.position, x, xbar)
         if self._augmented:
             f_act = self._rotors_est if rotor_forces_n is None else np.asarray(rotor_forces_n, float)

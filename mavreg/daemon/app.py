@@ -73,7 +73,8 @@ class Daemon:
         ctl = config.controller
         forecaster = Forecaster(vehicle, 1.0 / config.control_rate_hz,
                                 predict=ctl is not None and ctl.predict_delay,
-                                max_horizon_s=0.1 if ctl is None else ctl.max_prediction_s)
+                                max_horizon_s=0.1 if ctl is None else ctl.max_prediction_s,
+                                disturbance=None if ctl is None else ctl.disturbance)
         self.supervisor = Supervisor(vehicle, config.supervisor, regulator_factory, envelope=config.envelope,
                                      forecaster=forecaster,
                                      fixed_delay_s=None if ctl is None else ctl.fixed_delay_s)
@@ -185,6 +186,11 @@ class Daemon:
             "round_trip_wall": est.round_trip_s * 1e3, "replies": est.samples,
             "used_for_prediction": self.supervisor.link_delay_s() * 1e3
             if self.supervisor.forecaster.predict else None}
+        fc = self.supervisor.forecaster
+        est = fc.disturbance
+        st["disturbance"] = None if est is None else {
+            "drag_n_s_per_m": list(est.drag_n_s_per_m), "force_ned_n": list(est.force_ned_n),
+            "thrust_scale": est.thrust_scale, "updates": fc.observer.updates}
         return st
 
     def latency_summary(self, maneuver_only: bool = False) -> dict:

@@ -10,6 +10,8 @@ Arrays of ``control.npz`` (N control steps, float32 unless said):
 ``u``             (N, 4)    commanded (f, g1, g2, g3), N and N m
 ``rotor_cmd_n``   (N, 4)    rotor forces asked by the controller, before clipping
 ``x``             (N, 12)   state used by the controller
+``disturbance``   (N, 6)    observer estimate: c_xy, c_z (N s/m), force NED (N), thrust
+                            scale (NaN without an observer; mavreg.control.disturbance)
 ``events_json``   ()        JSON list of the supervisor's events (time, kind, phase, s, detail)
 ================  ========  ==============================================================
 """
@@ -41,16 +43,17 @@ class ControlLog:
     def append(self, rec: LogRecord) -> None:
         self._t.append(rec.time_s)
         self._phase.append(PHASE_CODES[rec.phase])
-        self._rows.append(np.concatenate([[rec.s_m], rec.w, rec.u, rec.rotor_cmd_n, rec.x]).astype(np.float32))
+        self._rows.append(np.concatenate([[rec.s_m], rec.w, rec.u, rec.rotor_cmd_n, rec.x,
+                                          rec.disturbance]).astype(np.float32))
 
     def arrays(self) -> dict:
-        rows = np.array(self._rows, dtype=np.float32).reshape(-1, 1 + 11 + 4 + 4 + 12)
+        rows = np.array(self._rows, dtype=np.float32).reshape(-1, 1 + 11 + 4 + 4 + 12 + 6)
         return {
             "t_s": np.array(self._t, dtype=np.float64),
             "phase": np.array(self._phase, dtype=np.int8),
             "phase_names": np.array(json.dumps(list(PHASE_CODES))),
             "s_m": rows[:, 0], "w": rows[:, 1:12], "u": rows[:, 12:16],
-            "rotor_cmd_n": rows[:, 16:20], "x": rows[:, 20:32],
+            "rotor_cmd_n": rows[:, 16:20], "x": rows[:, 20:32], "disturbance": rows[:, 32:38],
             "events_json": np.array(json.dumps([
                 {"time_s": None if math.isnan(e.time_s) else e.time_s, "kind": e.kind, "phase": e.phase,
                  "s_m": None if math.isnan(e.s_m) else e.s_m, "detail": e.detail} for e in self.events])),

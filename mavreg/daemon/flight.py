@@ -25,6 +25,10 @@ __all__ = ["FlightPhases", "smoothstep", "angle_between"]
 _NAN11 = np.full(11, np.nan)
 
 
+_OBSERVE_ABOVE_GROUND_M = 0.5
+"""Height above the take-off point from which the disturbance observer learns."""
+
+
 def smoothstep(t: float) -> float:
     """C^2 blend 0 -> 1 on t in [0, 1]."""
     t = min(max(t, 0.0), 1.0)
@@ -110,12 +114,15 @@ class FlightPhases:
             t -= self._ramps[0].duration_s
             self._ramps.pop(0)
         ramp = self._ramps[0]
-        return self.hover.step(x, ramp, t), len(self._ramps) == 1 and ramp.finished(t)
+        return (self.hover.step(x, ramp, t, self.forecaster.disturbance),
+                len(self._ramps) == 1 and ramp.finished(t))
 
     def _record(self, sample, s, w, u, rotors) -> LogRecord:
         """The log keeps the measured state (the controllers may act on a prediction of it)."""
+        est = self.forecaster.disturbance
+        dist = (math.nan,) * 6 if est is None else (*est.drag_n_s_per_m, *est.force_ned_n, est.thrust_scale)
         return LogRecord(sample.time_s, self.phase, s, np.asarray(w, float), np.asarray(u, float),
-                         np.asarray(rotors, float), np.array(sample.x, dtype=float))
+                         np.asarray(rotors, float), np.array(sample.x, dtype=float), dist)
 
     def _control(self, sample, x, out):
         """(rotor forces, log record, tracking errors or None) of the current phase."""
@@ -124,6 +131,8 @@ class FlightPhases:
         if self.phase == Phase.RECOVER:
             return self._recover_control(sample, x, out)
         t = sample.time_s
+        if self.phase == Phase.TAKEOFF:     # the observer learns from lift-off (no ground force)
+            self.forecaster.observing = self._ground_z - float(x[2]) > _OBSERVE_ABOVE_GROUND_M
         ho, ramp_done = self._hover_control(sample, x)
         rotors = ho.rotor_forces_n
         e = ho.error
@@ -150,7 +159,7 @@ class FlightPhases:
 
     def _maneuver_control(self, sample, x, out):
         plan, reg = self._active
-        r = reg.step(x, self._forecast.rotor_forces_n)
+        r = reg.step(x, self._forecast.rotor_forces_n, self.forecaster.disturbance)
         self._s = float(r.s)
         w = np.asarray(r.w, dtype=float)
         rotors = np.asarray(r.rotor_forces_n, dtype=float)

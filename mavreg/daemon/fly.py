@@ -179,7 +179,7 @@ def _finish(opts, daemon, ctrl, record_path, emulator_code, wall_s) -> int:
     record = None
     if record_path is not None and record_path.exists() and man and plan is not None:
         with np.load(record_path) as z:
-            record = {k: z[k] for k in ("t_s", "position_ned_m", "quaternion_wxyz")}
+            record = {k: z[k] for k in ("t_s", "position_ned_m", "quaternion_wxyz", "velocity_ned_m_s")}
         t_end = after[0]["time_s"] if after else float(record["t_s"][-1])
         summary["ground_truth"] = ground_truth_errors(record, plan, man[0]["time_s"], t_end)
     (opts.out_dir / "summary.json").write_text(json.dumps(summary, indent=1, default=_plain))

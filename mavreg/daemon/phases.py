@@ -105,6 +105,9 @@ class LogRecord:
     rotor_cmd_n: np.ndarray
     """Rotor forces asked by the controller (unclipped)."""
     x: np.ndarray
+    disturbance: tuple = (math.nan,) * 6
+    """The disturbance observer's estimate (c_xy, c_z, F_n, F_e, F_d, thrust scale); NaN
+    without an observer."""
 
 
 @dataclass

@@ -38,13 +38,15 @@ def controller_metrics(ctrl: dict, plan, max_rotor_thrust_n: float) -> dict:
 
 
 def ground_truth_errors(record: dict, plan, t_begin_s: float, t_end_s: float) -> dict:
-    """True transverse (and, with ``quaternion_wxyz`` recorded, attitude) errors of the
-    recorded states within [t_begin, t_end] of vehicle time (:func:`mavreg.sim.truth.true_errors`)."""
+    """True transverse (and, with ``quaternion_wxyz`` and ``velocity_ned_m_s`` recorded,
+    attitude and speed) errors of the recorded states within [t_begin, t_end] of vehicle time (:func:`mavreg.sim.truth.true_errors`)."""
     t = record["t_s"]
     sel = np.flatnonzero((t >= t_begin_s) & (t <= t_end_s))
     quats = record.get("quaternion_wxyz")
+    vel = record.get("velocity_ned_m_s")
     return true_errors(plan, record["position_ned_m"][sel],
-                       None if quats is None else quats_to_matrices(quats[sel]))
+                       None if quats is None else quats_to_matrices(quats[sel]),
+                       None if vel is None else vel[sel])
 
 
 def _f(v, scale=1.0, fmt="{:8.4f}") -> str:

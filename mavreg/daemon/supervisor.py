@@ -262,6 +262,8 @@ class Supervisor(FlightPhases, SafetyActions):
 
     def _set_phase(self, out: Output, phase: str, detail: str) -> None:
         self.phase = phase
+        # The disturbance observer learns only in free flight (no ground reaction force).
+        self.forecaster.observing = phase in (Phase.HOLD, Phase.RUN_IN, Phase.MANEUVER)
         if self.last_sample is not None:
             self._phase_t0 = self.last_sample.time_s
         self.monitor.phase_changed(phase, self._phase_t0)

@@ -4,8 +4,9 @@ The controller's own errors (``w``) are measured on what it saw: an estimate, pe
 prediction. A simulator's or emulator's record has the truth. Each true position is
 projected on the path (warm-started, as the regulator does), giving the true transverse
 error at the true arc length s; the true attitude is compared with the nominal attitude at
-that s by the angle of the rotation between them, :math:`\\arccos((\\mathrm{tr}(\\bar R^T R) - 1)/2)`.
-Samples whose projection falls outside (0, length) are left out. Pure numpy.
+that s by the angle of the rotation between them, :math:`\\arccos((\\mathrm{tr}(\\bar R^T R) - 1)/2)`;
+the true speed with the profile's speed at that s (its excess over the profile is a
+catch-up). Samples whose projection falls outside (0, length) are left out. Pure numpy.
 """
 from __future__ import annotations
 
@@ -35,19 +36,22 @@ def _stats(e: np.ndarray, key: str) -> dict:
     return {f"max_{key}": float(e.max()), f"rms_{key}": float(np.sqrt(np.mean(e * e)))}
 
 
-def true_errors(plan, positions_m, rotations=None) -> dict:
-    """True transverse (m) and attitude (deg) errors, overall and per segment.
+def true_errors(plan, positions_m, rotations=None, velocities_m_s=None) -> dict:
+    """True transverse (m), attitude (deg) and speed (m/s) errors, overall and per segment.
 
     Parameters
     ----------
     plan : Plan
     positions_m : (K, 3) true NED positions, in time order.
     rotations : (K, 3, 3) true body-to-NED rotations, optional.
+    velocities_m_s : (K, 3) true NED velocities, optional.
 
     Returns
     -------
     dict
-        ``{"samples", "max_m", "rms_m", ["max_deg", "rms_deg"], "segments": {name: {...}}}``.
+        ``{"samples", "max_m", "rms_m", ["max_deg", "rms_deg"], ["max_speed_error_m_s",
+        "rms_speed_error_m_s", "max_overspeed_m_s"], "segments": {name: {...}}}``; the speed
+        error is ``| |v| - v(s) |``, the overspeed ``max(|v| - v(s))``.
     """
     proj = Projector(plan.path)
     pts = np.asarray(positions_m, dtype=float)
@@ -67,13 +71,23 @@ def true_errors(plan, positions_m, rotations=None) -> dict:
             Rn = rpy_to_matrix(*plan.nominal_state(s)[3:6])
             c = (float(np.sum(Rn * R)) - 1.0) / 2.0
             a_arr[j] = np.degrees(np.arccos(min(max(c, -1.0), 1.0)))
-    out = {"samples": int(e_arr.size), **_stats(e_arr, "m"), "segments": {}}
-    if a_arr is not None:
-        out.update(_stats(a_arr, "deg"))
+    dv_arr = None
+    if velocities_m_s is not None:
+        speed = np.linalg.norm(np.asarray(velocities_m_s, dtype=float)[keep], axis=1)
+        dv_arr = speed - np.interp(s_arr, plan.s, plan.speed_m_s) if keep else np.zeros(0)
+
+    def stats(mask):
+        d = _stats(e_arr[mask], "m")
+        if a_arr is not None:
+            d.update(_stats(a_arr[mask], "deg"))
+        if dv_arr is not None:
+            dv = dv_arr[mask]
+            d.update(_stats(np.abs(dv), "speed_error_m_s"))
+            d["max_overspeed_m_s"] = float(dv.max()) if dv.size else None
+        return d
+
+    out = {"samples": int(e_arr.size), **stats(np.ones(e_arr.size, bool)), "segments": {}}
     for name, a, b in plan.segments:
         mask = (s_arr >= a) & (s_arr < b) if s_arr.size else np.zeros(0, bool)
-        seg = _stats(e_arr[mask], "m")
-        if a_arr is not None:
-            seg.update(_stats(a_arr[mask], "deg"))
-        out["segments"][name] = seg
+        out["segments"][name] = stats(mask)
     return out

@@ -69,7 +69,7 @@ class FakeRegulator:
     def reset(self, x, s_guess=0.0, rotor_forces_n=None):
         self.resets.append((np.array(x), s_guess))
 
-    def step(self, x, rotor_forces_n=None):
+    def step(self, x, rotor_forces_n=None, disturbance=None):
         s = float(x[0] - self.plan.start[0])
         xn = self.plan.nominal_state(min(max(s, 0.0), self.plan.length_m))
         ramp = Ramp(np.zeros((4, 8)), 0.0, xn[:3], np.array([self.plan.speed, 0, 0]), 0.0)

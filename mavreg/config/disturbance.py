@@ -1,0 +1,62 @@
+"""The disturbance observer's settings: an optional ``disturbance:`` section of the controller YAML.
+
+What the observer estimates and why each default is what it is: docs/robustness.md,
+"Disturbances". Units are SI; the names carry them.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+__all__ = ["DisturbanceParams"]
+
+_POS = {"min_exclusive": 0.0}
+
+
+@dataclass(frozen=True)
+class DisturbanceParams:
+    """A Kalman filter on the airframe's unknown force model (:mod:`mavreg.control.disturbance`).
+
+    Each parameter is a random walk that wanders by its ``*_sd`` over its ``*_tau_s``; the
+    initial uncertainty is the same SD. The estimate is bounded by the ``max_*`` values.
+    """
+
+    enabled: bool = False
+    """Estimate, predict with, and compensate the disturbance (False: the design model only)."""
+    force_sd_n: float = field(default=1.0, metadata=_POS)
+    """A constant horizontal external force (the steady part of a wind), per axis."""
+    vertical_force_sd_n: float = field(default=0.0, metadata={"min": 0.0})
+    """A constant vertical force. 0 (the default) leaves it out: in hover it cannot be told
+    from a thrust scale error, and a battery's sag or a payload is far more common than a
+    steady vertical wind; the thrust scale, learned in hover, then holds at 4 g in a loop."""
+    force_tau_s: float = field(default=10.0, metadata=_POS)
+    drag_sd_n_s_per_m: float = field(default=0.3, metadata=_POS)
+    """Linear body drag, (c_xy, c_z), on top of the vehicle file's."""
+    drag_tau_s: float = field(default=20.0, metadata=_POS)
+    thrust_scale_sd: float = field(default=0.05, metadata=_POS)
+    """The rotors' thrust per unit commanded, on top of the vehicle file's calibration."""
+    thrust_scale_tau_s: float = field(default=20.0, metadata=_POS)
+    velocity_noise_m_s: float = field(default=0.004, metadata=_POS)
+    """SD of the error of one velocity sample's change over one period, the filter's
+    measurement (an estimate's velocity error of 2 cm/s correlated over 0.2 s changes by
+    about 3 mm/s per 2 ms period)."""
+    drag_learning_min_speed_m_s: float = field(default=2.0, metadata={"min": 0.0})
+    """The drag is learned only above this speed. Slower, the velocity is mostly the
+    estimator's error and the controller's answer to it, which biases a closed-loop fit
+    (in hover the drag estimate doubled in 20 s); the drag's force is small there anyway."""
+    max_force_rate_n_per_s: float = field(default=2.0, metadata=_POS)
+    """The compensation follows the estimate at most this fast (the prediction uses the
+    estimate as it is): a force estimate that settles in 0.1 s would tilt the hover
+    reference by 8 deg per newton at once, a rate error the envelope stops."""
+    max_drag_rate_n_s_per_m_per_s: float = field(default=0.5, metadata=_POS)
+    max_thrust_scale_rate_per_s: float = field(default=0.1, metadata=_POS)
+    max_force_n: float = field(default=4.0, metadata=_POS)
+    """Bound of each force component."""
+    max_drag_n_s_per_m: float = field(default=1.5, metadata=_POS)
+    thrust_scale_bounds: tuple[float, ...] = field(default=(0.7, 1.3), metadata={"length": 2, **_POS})
+    max_sample_gap_s: float = field(default=0.05, metadata=_POS)
+    """Samples further apart than this are not compared (a gap restarts the comparison)."""
+
+    def __post_init__(self):
+        lo, hi = self.thrust_scale_bounds
+        if not lo < 1.0 < hi:
+            raise ValueError(f"thrust_scale_bounds {self.thrust_scale_bounds} must bracket 1")

@@ -1,0 +1,224 @@
+r"""What the design model does not know about the airframe, estimated in flight and compensated.
+
+The force model
+---------------
+On top of the design model (eqs 6-17 with the vehicle file's drag and thrust calibration),
+the airframe feels
+
+.. math::
+    \Delta F = -\delta c_{xy}\,(v - (b_3^T v)\,b_3) - \delta c_z\,(b_3^T v)\,b_3 + F_w
+               - \delta k\,T\,b_3,
+
+with :math:`b_3 = R e_3` the body z axis (NED), :math:`v` the velocity, :math:`T` the
+commanded rotor thrust: a linear drag beyond the file's (:math:`\delta c_{xy}, \delta c_z`),
+a constant force (:math:`F_w`: the steady part of a wind, a payload) and a thrust scale
+error :math:`\delta k` (a sagging battery). A steady wind :math:`v_w` is the drag of the
+air-relative velocity, :math:`-C (v - v_w) = -C v + C v_w`: drag plus a constant force.
+The model is linear in :math:`\theta = (c_{xy}, c_z, F_w, k)`: a drag that turns with the
+vehicle through a loop is six numbers that stay constant, where a force estimate would
+have to chase it (a world-frame force observer lagged the loop's drag and made it worse).
+
+The filter
+----------
+A Kalman filter on :math:`\theta` (random walks). Its measurement is the velocity of each
+sample against the design model's prediction from the previous sample with the current
+estimate and the commands that acted in between (:class:`~mavreg.control.predictor.StatePredictor`):
+:math:`v_k - \hat v_k = \frac{h}{m}\,\Phi_{k-1}(\theta - \hat\theta) + \text{noise}`, with
+:math:`\Phi` the regressors above. The estimate is clipped to bounds.
+
+The compensation
+----------------
+Where a disturbance :math:`d` acts, the nominal's force :math:`-\bar T \bar R e_3` is kept by
+thrusting :math:`u = \bar T \bar R e_3 + d` instead: thrust :math:`|u|` along a body z axis
+turned by the smallest rotation onto :math:`u/|u|` (:func:`compensated_nominal`). The
+regulator then regulates about that attitude; the velocity along the path is untouched,
+so the compensation never makes the vehicle catch up with anything.
+
+Pure: numbers in, numbers out.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..config.disturbance import DisturbanceParams
+from ..config.vehicle import VehicleParams
+from ..model.rotation import matrix_to_rpy, rpy_to_matrix, wrap_angle
+
+__all__ = ["DisturbanceEstimate", "DisturbanceObserver", "compensated_nominal", "regressors"]
+
+
+@dataclass(frozen=True)
+class DisturbanceEstimate:
+    """The airframe's force model as estimated (totals, not corrections)."""
+
+    drag_n_s_per_m: tuple[float, float]
+    """Linear body drag (c_xy, c_z)."""
+    force_ned_n: tuple[float, float, float]
+    """Constant external force."""
+    thrust_scale: float
+    """Thrust per unit commanded."""
+
+    def extra_force_ned(self, R, v, base_drag_n_s_per_m) -> np.ndarray:
+        """The force the design model with drag ``base_drag_n_s_per_m`` misses, at attitude
+        ``R`` and velocity ``v`` (NED), excluding the thrust scale (the commands carry it)."""
+        b3 = np.asarray(R)[:, 2]
+        v = np.asarray(v, dtype=float)
+        along = float(b3 @ v)
+        dcxy = self.drag_n_s_per_m[0] - base_drag_n_s_per_m[0]
+        dcz = self.drag_n_s_per_m[1] - base_drag_n_s_per_m[1]
+        return -dcxy * (v - along * b3) - dcz * along * b3 + np.asarray(self.force_ned_n)
+
+
+def regressors(R, v, thrust_n: float) -> np.ndarray:
+    """:math:`\\Phi` (3, 6): the force (NED) per unit of (c_xy, c_z, F_n, F_e, F_d, k), at
+    attitude ``R``, velocity ``v`` and commanded thrust ``thrust_n``."""
+    b3 = np.asarray(R, dtype=float)[:, 2]
+    v = np.asarray(v, dtype=float)
+    along = float(b3 @ v)
+    phi = np.empty((3, 6))
+    phi[:, 0] = -(v - along * b3)
+    phi[:, 1] = -along * b3
+    phi[:, 2:5] = np.eye(3)
+    phi[:, 5] = -thrust_n * b3
+    return phi
+
+
+class DisturbanceObserver:
+    """Kalman filter on the airframe's force model (see the module docstring).
+
+    Parameters
+    ----------
+    params : DisturbanceParams
+    vehicle : VehicleParams
+        Mass, and the file's drag and thrust calibration (the initial estimate).
+    """
+
+    def __init__(self, params: DisturbanceParams, vehicle: VehicleParams):
+        self.params = params
+        self.mass_kg = float(vehicle.mass_kg)
+        self.base_drag = tuple(float(c) for c in vehicle.rotor_drag_n_s_per_m)
+        self._theta0 = np.array([*self.base_drag, 0.0, 0.0, 0.0, float(vehicle.thrust_scale)])
+        p = params
+        sd = np.array([p.drag_sd_n_s_per_m] * 2 + [p.force_sd_n] * 2 + [p.vertical_force_sd_n]
+                      + [p.thrust_scale_sd])
+        tau = np.array([p.drag_tau_s] * 2 + [p.force_tau_s] * 3 + [p.thrust_scale_tau_s])
+        self._P0 = np.diag(sd ** 2)
+        self._q_per_s = sd ** 2 / tau                 # wanders by sd over tau
+        self._r = p.velocity_noise_m_s ** 2
+        hi_c, hi_f = p.max_drag_n_s_per_m, p.max_force_n
+        self._rate = np.array([p.max_drag_rate_n_s_per_m_per_s] * 2 + [p.max_force_rate_n_per_s] * 3
+                              + [p.max_thrust_scale_rate_per_s])
+        self._lo = np.array([0.0, 0.0, -hi_f, -hi_f, -hi_f, p.thrust_scale_bounds[0]])
+        self._hi = np.array([hi_c, hi_c, hi_f, hi_f, hi_f, p.thrust_scale_bounds[1]])
+        self.updates = 0
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the vehicle file's model, with the initial uncertainty."""
+        self.theta = self._theta0.copy()
+        self.theta_applied = self._theta0.copy()
+        self.P = self._P0.copy()
+
+    @staticmethod
+    def _as_estimate(th) -> DisturbanceEstimate:
+        return DisturbanceEstimate((float(th[0]), float(th[1])), (float(th[2]), float(th[3]), float(th[4])),
+                                   float(th[5]))
+
+    @property
+    def estimate(self) -> DisturbanceEstimate:
+        """The filter's estimate (what predictions use)."""
+        return self._as_estimate(self.theta)
+
+    @property
+    def applied(self) -> DisturbanceEstimate:
+        """The estimate followed at bounded rates (what the compensation uses)."""
+        return self._as_estimate(self.theta_applied)
+
+    def update(self, dt_s: float, R, v, thrust_n: float, innovation_m_s) -> None:
+        """One measurement: ``innovation_m_s`` (3,) = the sample's velocity less its prediction
+        from the previous sample ``dt_s`` earlier (attitude ``R``, velocity ``v``, commanded
+        thrust ``thrust_n`` over the interval), predicted with the current estimate."""
+        if not (0.0 < dt_s <= self.params.max_sample_gap_s):
+            return
+        y = np.asarray(innovation_m_s, dtype=float)
+        if not np.all(np.isfinite(y)):
+            return
+        self.P += np.diag(self._q_per_s * dt_s)
+        H = (dt_s / self.mass_kg) * regressors(R, v, thrust_n)          # (3, 6)
+        p = self.params
+        if float(np.linalg.norm(v)) < p.drag_learning_min_speed_m_s:
+            H[:, 0:2] = 0.0                  # drag unobservable (and biased) at low speed
+        S = H @ self.P @ H.T + self._r * np.eye(3)
+        K = np.linalg.solve(S, H @ self.P).T                            # (6, 3)
+        self.theta = np.clip(self.theta + K @ y, self._lo, self._hi)
+        I_KH = np.eye(6) - K @ H
+        self.P = I_KH @ self.P @ I_KH.T + self._r * (K @ K.T)          # Joseph form
+        step = self._rate * dt_s
+        self.theta_applied += np.clip(self.theta - self.theta_applied, -step, step)
+        self.updates += 1
+
+
+def _turned(R: np.ndarray, thrust_n: float, force_ned) -> tuple[np.ndarray, float]:
+    """(R', T'): the attitude turned by the smallest rotation that aligns the body z axis with
+    ``thrust_n R e3 + force_ned``, and that vector's length."""
+    b3 = R[:, 2]
+    u = thrust_n * b3 + np.asarray(force_ned, dtype=float)
+    T = float(np.linalg.norm(u))
+    if T < 1e-9:
+        return R, thrust_n
+    n = u / T
+    axis = np.cross(b3, n)
+    s, c = float(np.linalg.norm(axis)), float(b3 @ n)
+    if s <= 1e-12:
+        return R, T
+    k = axis / s
+    Kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return (np.eye(3) + s * Kx + (1.0 - c) * (Kx @ Kx)) @ R, T      # Rodrigues, angle atan2(s, c)
+
+
+def _log_vee(R: np.ndarray) -> np.ndarray:
+    """The rotation vector of ``R`` (angle below pi)."""
+    c = min(max((float(np.trace(R)) - 1.0) / 2.0, -1.0), 1.0)
+    angle = float(np.arccos(c))
+    v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / 2.0
+    return v if angle < 1e-9 else v * (angle / np.sin(angle))
+
+
+def compensated_nominal(xbar, thrust_n: float, force_ned, xbar_ahead=None, thrust_ahead_n: float = 0.0,
+                        force_ahead_ned=None, dt_s: float = 0.0) -> tuple[np.ndarray, float]:
+    """The nominal state and thrust that keep the nominal's force when ``force_ned`` acts too.
+
+    The thrust vector becomes :math:`u = \\bar T \\bar R e_3 + d`; the body z axis turns by
+    the smallest rotation onto :math:`u/|u|`; the body velocity is the nominal's NED velocity
+    in the turned body frame. Given the nominal ``dt_s`` ahead (``xbar_ahead``,
+    ``thrust_ahead_n``, ``force_ahead_ned``), the rates gain the turn's own rate, the
+    difference of the compensated and the nominal attitude's finite-difference rates
+    (without it, a compensation that turns with the path, as a drag does through a loop,
+    is a rate error the regulator fights); else they are kept.
+
+    Parameters
+    ----------
+    xbar : (12,) array_like
+        Nominal state (position, roll-pitch-yaw, body velocity, body rates).
+    thrust_n : float
+        Nominal collective thrust.
+    force_ned : (3,) array_like
+        The extra force to cancel.
+
+    Returns
+    -------
+    (xbar', thrust')
+    """
+    xbar = np.asarray(xbar, dtype=float)
+    R = rpy_to_matrix(*xbar[3:6])
+    R2, T = _turned(R, thrust_n, force_ned)
+    out = xbar.copy()
+    out[3:6] = xbar[3:6] + wrap_angle(matrix_to_rpy(R2) - xbar[3:6])      # stay on xbar's branch
+    out[6:9] = R2.T @ (R @ xbar[6:9])
+    if xbar_ahead is not None and dt_s > 0.0:
+        Ra = rpy_to_matrix(*np.asarray(xbar_ahead, dtype=float)[3:6])
+        Ra2, _ = _turned(Ra, thrust_ahead_n, force_ahead_ned)
+        out[9:12] = xbar[9:12] + (_log_vee(R2.T @ Ra2) - _log_vee(R.T @ Ra)) / dt_s
+    return out, T
