@@ -16,8 +16,8 @@ Bounds come from :class:`mavreg.config.envelope.EnvelopeParams`; docs/safety.md 
 Altitudes and the geofence are relative to the take-off point (:meth:`set_origin`).
 
 The sliding windows (:class:`_Series`) are time-sorted lists searched by bisection and
-summed by C-level ``sum`` over a slice: the same numbers, in the same order, as filtering
-the whole window every sample, at a few microseconds instead of tens.
+summed by C-level ``sum`` over a slice: the rows a filter of the whole window would pick,
+at a few microseconds instead of tens.
 """
 from __future__ import annotations
 
@@ -73,38 +73,37 @@ class Tracking:
 
 
 class _Series:
-    """Rows ``(t, a, b)`` appended in time order, with the oldest dropped as time moves on.
+    """Rows ``(t, a, b)`` kept sorted by time, the oldest dropped as time moves on.
 
-    Kept as three lists and a head index (dropping is a pointer move; the lists are
-    compacted now and then). If a row ever comes with a time older than the one before it
-    (a gap-filling command that stands for a vehicle time later than the next sample),
-    :attr:`ordered` is False until one of that pair has left: the window queries then
-    filter the rows one by one, as the monitor always did.
+    Three parallel lists and a head index (dropping is a pointer move; the lists are
+    compacted now and then). Rows come in time order but for gap-filling commands, which
+    stand for a vehicle time that can be later than the next sample's: those are inserted
+    in place (a bisection), so the window queries can always bisect.
     """
 
-    __slots__ = ("t", "a", "b", "head", "_inversion")
+    __slots__ = ("t", "a", "b", "head")
 
     def __init__(self):
         self.t: list = []
         self.a: list = []
         self.b: list = []
         self.head = 0
-        self._inversion = 0      # largest index j with t[j] < t[j - 1] (0: none)
 
     def __len__(self) -> int:
         return len(self.t) - self.head
 
-    @property
-    def ordered(self) -> bool:
-        """The rows kept are in time order (no row older than the one before it)."""
-        return self._inversion <= self.head
-
-    def append(self, t: float, a, b) -> None:
-        if len(self.t) > self.head and t < self.t[-1]:
-            self._inversion = len(self.t)
-        self.t.append(t)
-        self.a.append(a)
-        self.b.append(b)
+    def add(self, t: float, a, b) -> None:
+        """Insert a row after every row of time ``<= t``."""
+        times = self.t
+        if not times or t >= times[-1]:
+            times.append(t)
+            self.a.append(a)
+            self.b.append(b)
+            return
+        k = max(bisect_right(times, t, self.head), self.head)
+        times.insert(k, t)
+        self.a.insert(k, a)
+        self.b.insert(k, b)
 
     def drop_older(self, t_s: float, horizon_s: float) -> None:
         """Drop rows while the oldest is more than ``horizon_s`` before ``t_s``."""
@@ -115,21 +114,19 @@ class _Series:
         if h > 4096 and h > n // 2:
             del self.t[:h], self.a[:h], self.b[:h]
             self.head = 0
-            self._inversion = max(0, self._inversion - h)
 
     def clear(self) -> None:
         self.t.clear()
         self.a.clear()
         self.b.clear()
         self.head = 0
-        self._inversion = 0
 
     def newest(self):
         return self.t[-1], self.a[-1], self.b[-1]
 
     def within(self, t_s: float, window_s: float, strict: bool) -> int:
-        """First index of the rows with ``t_s - t <= window_s`` (``<`` if strict), the list
-        being ordered: every row from there on is within, every row before is not."""
+        """First index of the rows with ``t_s - t <= window_s`` (``<`` if strict): every row
+        from there on is within, every row before is not."""
         t = self.t
         lo = self.head
         k = (bisect_right if strict else bisect_left)(t, t_s - window_s, lo)
@@ -205,7 +202,7 @@ class EnvelopeMonitor:
         vx, vy, vz = float(v[0]), float(v[1]), float(v[2])
         states = self._states
         prev = states.newest() if len(states) else None
-        states.append(t_s, (px, py, pz), (vx, vy, vz))
+        states.add(t_s, (px, py, pz), (vx, vy, vz))
         states.drop_older(t_s, 0.5)
         if phase not in _FLYING:
             return None
@@ -301,13 +298,9 @@ class EnvelopeMonitor:
         """(measured N, commanded N, lasted s) when the mismatch has lasted long enough."""
         prm = self.p
         c = self._commands
-        if c.ordered:
-            k = c.within(t_s, prm.thrust_window_s, strict=False)
-            n = len(c.t) - k
-            total = sum(c.b[k:]) if n else 0.0
-        else:
-            cmds = [b for t, b in zip(c.t[c.head:], c.b[c.head:]) if t_s - t <= prm.thrust_window_s]
-            n, total = len(cmds), sum(cmds)
+        k = c.within(t_s, prm.thrust_window_s, strict=False)
+        n = len(c.t) - k
+        total = sum(c.b[k:]) if n else 0.0
         acc = self._acceleration(t_s, prm.thrust_window_s)
         if not n or acc is None:
             self._mismatch_since = None
@@ -393,11 +386,7 @@ class EnvelopeMonitor:
         c = self._commands
         if t_s - self._phase_t0 < win or not len(c):
             return None
-        if c.ordered:
-            k = c.within(t_s, win, strict=True)
-            recent = c.a[k:]
-        else:
-            recent = [a for t, a in zip(c.t[c.head:], c.a[c.head:]) if t_s - t < win]
+        recent = c.a[c.within(t_s, win, strict=True):]
         share = sum(recent) / len(recent)
         self._peak(f"saturation.{self._phase}", share, share_limit, self._phase, t_s)
         if share > share_limit:
@@ -413,5 +402,5 @@ class EnvelopeMonitor:
         clipped = f0 < lo or f0 > hi or f1 < lo or f1 > hi or f2 < lo or f2 > hi or f3 < lo or f3 > hi
         collective = (min(max(f0, 0.0), fmax) + min(max(f1, 0.0), fmax) + min(max(f2, 0.0), fmax)
                       + min(max(f3, 0.0), fmax))
-        self._commands.append(t_s, clipped, collective)
+        self._commands.add(t_s, clipped, collective)
         self._commands.drop_older(t_s, max(self.p.saturation_window_s, self.p.thrust_window_s))
