@@ -1,12 +1,9 @@
 """End to end: calibrate the bundled emulator from one barrel roll (`mavreg identify`).
 
 The emulator is made to differ from the vehicle file the daemon flies with, by known amounts:
-body drag [0.3, 0.3, 0.15] N s/m (a copy of mk_quadro.yaml given to the emulator only), a
-30 ms rotor time constant (the file says 20 ms) and a mass 10 % above the file's. firmware-sim
-has no thrust-scale option, so the thrust scale is tested through the mass: the fit divides
-forces by the file's mass, so a heavier vehicle shows a thrust scale of m_file / m_true and
-drag coefficients scaled by the same ratio (what the design model needs). Realistic world
-(link delay and jitter, loss, EKF-like estimate), lockstep: deterministic.
+body drag [0.3, 0.3, 0.15] N s/m with no parasitic part, a 30 ms rotor time constant (the
+file says 20 ms) and rotors that give 90 % of the commanded thrust. Realistic world (link
+delay and jitter, loss, EKF-like estimate), lockstep: deterministic.
 """
 from __future__ import annotations
 
@@ -14,12 +11,11 @@ import json
 
 import pytest
 
-from sitl_helpers import BARREL, REPO, mavreg
+from sitl_helpers import BARREL, mavreg
 
 pytestmark = pytest.mark.sitl
 
-MASS_FILE_KG = 0.749
-MASS_TRUE_KG = round(1.1 * MASS_FILE_KG, 4)
+THRUST_SCALE = 0.9
 DRAG = (0.3, 0.3, 0.15)
 TAU_S = 0.03
 
@@ -27,18 +23,14 @@ TAU_S = 0.03
 @pytest.fixture(scope="module")
 def identified(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("identify")
-    text = (REPO / "params/vehicles/mk_quadro.yaml").read_text()
-    old = "linear_drag_n_s_per_m: [0.0, 0.0, 0.0]"
-    assert old in text
-    emulator_vehicle = tmp / "draggy.yaml"
-    emulator_vehicle.write_text(text.replace(old, f"linear_drag_n_s_per_m: {list(DRAG)}"))
     out = tmp / "flight"
     fly = mavreg("fly", str(BARREL), "--lockstep", "--out", str(out), "--timeout-s", "300",
-                 f"--emulator-arg=--vehicle={emulator_vehicle}", f"--emulator-arg=--rotor-time-constant-s={TAU_S}",
-                 f"--emulator-arg=--mass-kg={MASS_TRUE_KG}")
+                 "--emulator-arg=--drag-n-s-per-m", *(f"--emulator-arg={c}" for c in DRAG),
+                 "--emulator-arg=--parasitic-drag-n-s2-per-m2", *(["--emulator-arg=0"] * 3),
+                 f"--emulator-arg=--rotor-time-constant-s={TAU_S}",
+                 f"--emulator-arg=--thrust-scale={THRUST_SCALE}")
     fly_code = fly.wait(400)
-    # the uncompensated drag makes the maneuver leave its envelope (recovered, landed): the
-    # flight's outcome is not the point, its data is
+    # the flight's outcome is not the point, its data is
     assert fly_code in (0, 1) and (out / "flight.tlog").exists(), "\n".join(fly.lines[-20:])
     ident = mavreg("identify", str(out), "--json")
     assert ident.wait(120) == 0, "\n".join(ident.lines[-20:])
@@ -47,16 +39,16 @@ def identified(tmp_path_factory):
 
 def test_identify_recovers_drag_thrust_scale_and_rotor_lag(identified):
     d = identified
-    ratio = MASS_FILE_KG / MASS_TRUE_KG
+    ratio = THRUST_SCALE
     s_t = d["thrust_scale"]["value"]
     c_y, c_z = d["drag_n_s_per_m"]["y"]["value"], d["drag_n_s_per_m"]["z"]["value"]
     tau = d["rotor_time_constant_s"]["value"]
-    print(f"\nidentified: thrust scale {s_t:.4f} (true {ratio:.4f}), c_y {c_y:.3f} (true {DRAG[1] * ratio:.3f}), "
-          f"c_z {c_z:.3f} (true {DRAG[2] * ratio:.3f}), tau {1e3 * tau:.1f} ms (true {1e3 * TAU_S:.0f}), "
+    print(f"\nidentified: thrust scale {s_t:.4f} (true {ratio:.4f}), c_y {c_y:.3f} (true {DRAG[1]:.3f}), "
+          f"c_z {c_z:.3f} (true {DRAG[2]:.3f}), tau {1e3 * tau:.1f} ms (true {1e3 * TAU_S:.0f}), "
           f"delay {d['delay_source']}, residual {d['residual_rms_m_s2']:.3f} m/s2, R2 {d['r_squared']:.4f}")
     assert s_t == pytest.approx(ratio, rel=0.10)
-    assert c_y == pytest.approx(DRAG[1] * ratio, rel=0.10)
-    assert c_z == pytest.approx(DRAG[2] * ratio, rel=0.10)
+    assert c_y == pytest.approx(DRAG[1], rel=0.10)
+    assert c_z == pytest.approx(DRAG[2], rel=0.10)
     assert tau == pytest.approx(TAU_S, rel=0.20)
     assert d["delay_source"].startswith("TIMESYNC")
     # the barrel roll flies sideways: no speed along body x, so c_x is not claimed
