@@ -52,6 +52,7 @@ def crc_is_fast() -> bool:
 _STX = 0xFD
 _HEADER = struct.Struct("<BBBBBBBHB")
 _CRC = struct.Struct("<H")
+_Header = mavlink2.MAVLink_header
 _TEMPLATE_KEYS = ("_payload", "_msgbuf", "_crc", "_header")
 
 FAST_CLASSES = (
@@ -167,13 +168,14 @@ class Wire:
     def parse(self, data: bytes) -> list:
         """Decoded messages of one datagram, in order (``BAD_DATA`` for what is not a frame)."""
         mav = self.mav
-        if mav.buf_len() > 0:            # a frame cut short earlier: the reference parser owns it
+        if len(mav.buf) > mav.buf_index:  # a frame cut short earlier: the reference parser owns it
             self.slow_in += 1
             return mav.parse_buffer(data) or []
         out = []
         n = len(data)
         i = 0
         specs = _SPECS
+        view = memoryview(data)
         while i < n:
             if n - i < 12 or data[i] != _STX or data[i + 2] != 0:
                 break                    # MAVLink 1, signed, garbage or a short tail
@@ -182,15 +184,16 @@ class Wire:
             spec = specs.get(data[i + 7] | (data[i + 8] << 8) | (data[i + 9] << 16))
             if spec is None or end > n or plen > spec.size:
                 break
-            frame = bytearray(data[i:end])
-            crc = frame[-2] | (frame[-1] << 8)
-            if mcrf4xx(spec.crc_extra, mcrf4xx(frame[1:-2])) != crc:
+            crc = data[end - 2] | (data[end - 1] << 8)
+            if mcrf4xx(spec.crc_extra, mcrf4xx(view[i + 1:end - 2])) != crc:
                 break                    # pymavlink reports it (BAD_DATA) as the reference does
-            payload = bytes(frame[10:-2])
-            if plen < spec.size:
-                payload += bytes(spec.size - plen)
-            header = mavlink2.MAVLink_header(spec.id, 0, frame[3], plen, frame[4], frame[5], frame[6])
-            out.append(spec.message(spec.unpacker.unpack(payload), frame, header, plen, crc))
+            if plen == spec.size:
+                t = spec.unpacker.unpack_from(data, i + 10)
+            else:                        # MAVLink 2 dropped the payload's trailing zeros
+                t = spec.unpacker.unpack(bytes(view[i + 10:end - 2]) + bytes(spec.size - plen))
+            frame = bytearray(view[i:end])
+            header = _Header(spec.id, 0, data[i + 3], plen, data[i + 4], data[i + 5], data[i + 6])
+            out.append(spec.message(t, frame, header, plen, crc))
             i = end
         self.fast_in += len(out)
         if i < n:
