@@ -102,7 +102,9 @@ def realtime_flight(io: str, timeout_s: float, out: Path) -> dict:
         n0, c0 = len(daemon.latency_ns), ctl_ns[0]
         inner(msg, t_recv_ns)
         if len(daemon.latency_ns) > n0:       # a rotor command answered this message
-            lat[sup.phase].append((daemon.link.last_send_ns - t_recv_ns, ctl_ns[0] - c0, daemon.latency_ns[-1]))
+            full = daemon.latency_ns[-1]
+            sent = getattr(daemon.link, "last_send_ns", None)     # None: a link that does not say
+            lat[sup.phase].append((full if sent is None else sent - t_recv_ns, ctl_ns[0] - c0, full))
     daemon._on_message = on_message
     cpu = collections.defaultdict(lambda: [0.0, 0.0])  # phase -> [cpu s, wall s]
 

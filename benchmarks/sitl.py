@@ -41,7 +41,6 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from benchmarks.io_helpers import (BARREL, HOVER, PAPER_CONTROLLER, REPO, env_with_io, figure, percentile,
                                    read_tlog, start_emulator, stop)
-from mavreg.daemon.wire import Wire
 
 __all__ = ["run_sitl", "trivial_lockstep", "fly_lockstep", "engine_cpu_us"]
 
@@ -63,6 +62,7 @@ def trivial_lockstep(io: str, periods: int, preset: str = "realistic") -> dict:
         sock.settimeout(5.0)
         controls = [HOVER] * 4 + [0.0] * 4
         if io == "fast":
+            from mavreg.daemon.wire import Wire
             wire = Wire(1, 191)
             parse, pack = wire.parse, wire.pack
         else:
