@@ -7,7 +7,8 @@ No flight logic here. Two implementations with one interface (``send``, ``send_m
   wake-up reads every waiting datagram (``recvfrom`` until it would block) and decodes it
   with the precompiled codec of :mod:`mavreg.daemon.wire`; the messages of one output
   (a rotor command and the TIMESYNC request that travels with it) leave in **one**
-  datagram, one ``sendto``.
+  datagram, one ``sendto``. Once the vehicle has sent an ATTITUDE_QUATERNION, its
+  ATTITUDE frames (which the state assembler then ignores) are logged but not decoded.
 - :class:`MavlinkLink` (the reference path, ``MAVREG_IO=reference``): an
   :class:`asyncio.DatagramProtocol` with pymavlink's generated codec, one datagram per
   message. Kept for the benchmarks' baseline and for agreement tests.
@@ -41,6 +42,9 @@ __all__ = ["parse_url", "LinkCounters", "MavlinkLink", "FastLink", "open_link", 
            "IO_ENV", "io_impl"]
 
 IO_ENV = "MAVREG_IO"
+_AFTER_QUATERNION = frozenset({mavlink2.MAVLINK_MSG_ID_ATTITUDE})
+"""Not decoded once the vehicle has sent ATTITUDE_QUATERNION (the state assembler then
+ignores ATTITUDE): logged to the ``.tlog`` and counted under ``not_decoded`` only."""
 """Environment variable choosing the link: ``fast`` (default) or ``reference``."""
 _MAX_DATAGRAM = 65535
 
@@ -72,6 +76,8 @@ class LinkCounters:
     bad_data: int = 0
     foreign_address: int = 0
     send_errors: int = 0
+    not_decoded: int = 0
+    """Frames logged but not decoded (the fast link: ATTITUDE once quaternions come)."""
 
 
 class _Writer:
@@ -215,6 +221,7 @@ class FastLink:
         self._closed = False
         self.last_send_ns = 0
         """``time.perf_counter_ns`` when the last datagram was handed to ``sendto``."""
+        self._skip: frozenset = frozenset()
 
     def start(self, loop: asyncio.AbstractEventLoop) -> None:
         """Watch the socket on ``loop``."""
@@ -247,18 +254,27 @@ class FastLink:
             c.foreign_address += 1
             return
         try:
-            msgs = self.wire.parse(data)
+            msgs = self.wire.parse(data, self._skip)
         except mavlink2.MAVError:
             c.bad_data += 1
             return
         tlog = self.tlog
         for msg in msgs:
+            if type(msg) is bytes:           # a frame the daemon has no use for: logged only
+                c.messages_in += 1
+                c.not_decoded += 1
+                if tlog is not None:
+                    tlog.write(msg)
+                continue
             if msg._type == "BAD_DATA":
                 c.bad_data += 1
                 continue
             c.messages_in += 1
             if tlog is not None:
                 tlog.write(msg._msgbuf)
+            if msg._type == "ATTITUDE_QUATERNION" and not self._skip:
+                # the state assembler ignores ATTITUDE from now on (mavreg.daemon.state)
+                self._skip = _AFTER_QUATERNION
             if (self.vehicle_addr is None and msg._type == "HEARTBEAT"
                     and msg.get_srcSystem() == self.system_id
                     and msg.get_srcComponent() == self.vehicle_component_id):

@@ -6,9 +6,9 @@ Flight modes use PX4's custom_mode encoding ``(main << 16) | (sub << 24)``.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
+import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
 
 __all__ = ["mavlink2", "PX4_MAIN_OFFBOARD", "PX4_MAIN_AUTO", "PX4_SUB_LOITER", "PX4_SUB_LAND",
@@ -72,11 +72,13 @@ def actuator_target(time_usec: int, target_system: int, target_component: int, c
     Raises ValueError on a non-finite or out-of-range value: such a message must never
     be built, let alone sent.
     """
-    c = [float(v) for v in controls4]
-    if len(c) != 4 or not all(math.isfinite(v) and 0.0 <= v <= 1.0 for v in c):
+    c = controls4.tolist() if isinstance(controls4, np.ndarray) else [float(v) for v in controls4]
+    if len(c) != 4 or not (0.0 <= c[0] <= 1.0 and 0.0 <= c[1] <= 1.0 and 0.0 <= c[2] <= 1.0
+                           and 0.0 <= c[3] <= 1.0):        # NaN fails every comparison
         raise ValueError(f"actuator controls must be 4 finite values in [0, 1], got {c}")
-    return mavlink2.MAVLink_set_actuator_control_target_message(
-        int(time_usec), 0, target_system, target_component, c + [0.0, 0.0, 0.0, 0.0])
+    c.extend((0.0, 0.0, 0.0, 0.0))
+    return mavlink2.MAVLink_set_actuator_control_target_message(int(time_usec), 0, target_system,
+                                                                target_component, c)
 
 
 def arm_disarm(target_system: int, target_component: int, arm: bool) -> object:

@@ -397,7 +397,7 @@ class EnvelopeMonitor:
     def record_command(self, t_s: float, demand_n) -> None:
         """A rotor command about to be sent: the controller's forces, before clipping."""
         fmax = self.fmax
-        f0, f1, f2, f3 = (float(x) for x in demand_n)
+        f0, f1, f2, f3 = demand_n.tolist() if hasattr(demand_n, "tolist") else (float(x) for x in demand_n)
         lo, hi = -1e-9, fmax + 1e-9
         clipped = f0 < lo or f0 > hi or f1 < lo or f1 > hi or f2 < lo or f2 > hi or f3 < lo or f3 > hi
         collective = (min(max(f0, 0.0), fmax) + min(max(f1, 0.0), fmax) + min(max(f2, 0.0), fmax)

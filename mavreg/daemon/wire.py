@@ -169,8 +169,12 @@ class Wire:
         return body + _CRC.pack(crc)
 
     # ------------------------------------------------------------------ receiving
-    def parse(self, data: bytes) -> list:
-        """Decoded messages of one datagram, in order (``BAD_DATA`` for what is not a frame)."""
+    def parse(self, data: bytes, skip: frozenset | set = frozenset()) -> list:
+        """Decoded messages of one datagram, in order (``BAD_DATA`` for what is not a frame).
+
+        A whole, valid frame of a message id in ``skip`` is not decoded: its wire bytes
+        (``bytes``) stand in its place in the list.
+        """
         mav = self.mav
         if len(mav.buf) > mav.buf_index:  # a frame cut short earlier: the reference parser owns it
             self.slow_in += 1
@@ -191,6 +195,10 @@ class Wire:
             crc = data[end - 2] | (data[end - 1] << 8)
             if mcrf4xx(spec.crc_extra, mcrf4xx(view[i + 1:end - 2])) != crc:
                 break                    # pymavlink reports it (BAD_DATA) as the reference does
+            if spec.id in skip:
+                out.append(bytes(view[i:end]))
+                i = end
+                continue
             if plen == spec.size:
                 t = spec.unpacker.unpack_from(data, i + 10)
             else:                        # MAVLink 2 dropped the payload's trailing zeros

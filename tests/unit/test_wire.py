@@ -137,3 +137,12 @@ def test_the_hot_messages_have_precompiled_codecs(wire_mod):
     for m in ("HEARTBEAT", "ATTITUDE", "ATTITUDE_QUATERNION", "LOCAL_POSITION_NED", "TIMESYNC",
               "SET_ACTUATOR_CONTROL_TARGET"):
         assert getattr(mavlink2, f"MAVLINK_MSG_ID_{m}") in wire_mod.FAST_IDS
+
+
+def test_skipped_ids_come_back_as_their_wire_bytes_in_place():
+    src = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
+    frames = [m.pack(src) for m in (mavlink2.MAVLink_attitude_message(1, 0.1, 0.2, 0.3, 0, 0, 0),
+                                    mavlink2.MAVLink_local_position_ned_message(1, 1, 2, 3, 4, 5, 6),
+                                    mavlink2.MAVLink_attitude_message(2, 0.1, 0.2, 0.3, 0, 0, 0))]
+    got = mavreg.daemon.wire.Wire(1, 191).parse(b"".join(frames), {mavlink2.MAVLINK_MSG_ID_ATTITUDE})
+    assert got[0] == frames[0] and got[2] == frames[2] and got[1].get_type() == "LOCAL_POSITION_NED"
