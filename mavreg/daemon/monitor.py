@@ -164,6 +164,7 @@ class EnvelopeMonitor:
         self._stall_since: float | None = None
         self._out_of_tube_since: float | None = None
         self._mismatch_since: float | None = None
+        self._bounds = {ph: params.bounds(ph) for ph in _FLYING}
         self.peaks: dict[str, dict] = {}
         """Per bound, the closest the flight came to it: value / limit (limit / value for
         lower bounds), with the value, the limit, the phase and the time. Over 1 fires."""
@@ -207,28 +208,25 @@ class EnvelopeMonitor:
         if phase not in _FLYING:
             return None
 
-        def fail(bound, value, limit, unit, detail, impact=False):
-            return Violation(bound, phase, t_s, s_m, float(value), float(limit), unit, detail, impact)
-
         speed = math.sqrt(vx * vx + vy * vy + vz * vz)
-        alt = self.altitude_m(p)
+        alt = math.nan if self.origin is None else self.origin[2] - pz
         # 1. impact: at the ground at speed, or an acceleration no rotor can produce
         if alt <= prm.impact_altitude_m:
             self._peak("impact_descent", vz, prm.impact_descent_m_s, phase, t_s)
             self._peak("impact_speed", speed, prm.impact_speed_m_s, phase, t_s)
             if vz > prm.impact_descent_m_s:
-                return fail("impact", vz, prm.impact_descent_m_s, "m/s",
-                            f"descending at {vz:.2f} m/s at {alt:.2f} m above the take-off point", True)
+                return self._fail(phase, t_s, s_m, "impact", vz, prm.impact_descent_m_s, "m/s",
+                                  f"descending at {vz:.2f} m/s at {alt:.2f} m above the take-off point", True)
             if speed > prm.impact_speed_m_s:
-                return fail("impact", speed, prm.impact_speed_m_s, "m/s",
-                            f"moving at {speed:.2f} m/s at {alt:.2f} m above the take-off point", True)
+                return self._fail(phase, t_s, s_m, "impact", speed, prm.impact_speed_m_s, "m/s",
+                                  f"moving at {speed:.2f} m/s at {alt:.2f} m above the take-off point", True)
         acc = self._acceleration(t_s, prm.accel_window_s)
         if acc is not None:
             a = math.sqrt(acc[0] ** 2 + acc[1] ** 2 + acc[2] ** 2)
             self._peak("impact_accel", a, prm.impact_accel_m_s2, phase, t_s)
             if a > prm.impact_accel_m_s2:
-                return fail("impact", a, prm.impact_accel_m_s2, "m/s^2",
-                            f"acceleration spike {a:.0f} m/s^2 from the reported velocity", True)
+                return self._fail(phase, t_s, s_m, "impact", a, prm.impact_accel_m_s2, "m/s^2",
+                                  f"acceleration spike {a:.0f} m/s^2 from the reported velocity", True)
         # 2. telemetry that contradicts itself or the commands
         if prev is not None and 0.0 < t_s - prev[0] <= 0.5:
             dt = t_s - prev[0]
@@ -240,37 +238,47 @@ class EnvelopeMonitor:
             limit = prm.max_position_jump_m + 0.5 * self.max_accel_m_s2 * dt * dt
             self._peak("position_jump", jump, limit, phase, t_s)
             if jump > limit:
-                return fail("position_jump", jump, limit, "m",
-                            f"position moved {jump:.2f} m more than the velocity explains over {dt * 1e3:.0f} ms")
+                return self._fail(phase, t_s, s_m, "position_jump", jump, limit, "m",
+                                  f"position moved {jump:.2f} m more than the velocity explains over "
+                                  f"{dt * 1e3:.0f} ms")
         v_bad = self._thrust_check(t_s, R)
         if v_bad is not None:
             measured, commanded, lasted = v_bad
             near_ground = alt <= prm.impact_altitude_m
-            return fail("thrust_mismatch", measured / commanded, prm.min_thrust_ratio, "ratio",
-                        f"measured thrust {measured:.1f} N against {commanded:.1f} N commanded for "
-                        f"{lasted:.2f} s" + (" at the ground" if near_ground else ""), near_ground)
+            return self._fail(phase, t_s, s_m, "thrust_mismatch", measured / commanded, prm.min_thrust_ratio,
+                              "ratio",
+                              f"measured thrust {measured:.1f} N against {commanded:.1f} N commanded for "
+                              f"{lasted:.2f} s" + (" at the ground" if near_ground else ""), near_ground)
         # 3. where the vehicle may be
         w = math.sqrt(float(omega[0]) ** 2 + float(omega[1]) ** 2 + float(omega[2]) ** 2)
         w_max = prm.recovery.max_body_rate_rad_s if phase == Phase.RECOVER else prm.max_body_rate_rad_s
         self._peak("body_rate", w, w_max, phase, t_s)
         if w > w_max:
-            return fail("body_rate", w, w_max, "rad/s", "body rate beyond the envelope")
+            return self._fail(phase, t_s, s_m, "body_rate", w, w_max, "rad/s", "body rate beyond the envelope")
         if phase in _FLOOR:
             self._peak("altitude_floor", alt, prm.min_altitude_m, phase, t_s, lower=True)
         if phase in _FLOOR and alt < prm.min_altitude_m:
-            return fail("altitude_floor", alt, prm.min_altitude_m, "m", "below the altitude floor")
+            return self._fail(phase, t_s, s_m, "altitude_floor", alt, prm.min_altitude_m, "m",
+                              "below the altitude floor")
         if self.origin is not None:
             margin = prm.recovery.geofence_margin_m if phase == Phase.RECOVER else 0.0
             dn, de = abs(px - self.origin[0]), abs(py - self.origin[1])
-            hn, he = (h + margin for h in prm.geofence_half_width_m)
+            hn, he = prm.geofence_half_width_m[0] + margin, prm.geofence_half_width_m[1] + margin
             self._peak("geofence", max(dn / hn, de / he, alt / (prm.geofence_ceiling_m + margin)), 1.0, phase, t_s)
             if dn > hn:
-                return fail("geofence", dn, hn, "m", "north of or south of the geofence box")
+                return self._fail(phase, t_s, s_m, "geofence", dn, hn, "m",
+                                  "north of or south of the geofence box")
             if de > he:
-                return fail("geofence", de, he, "m", "east of or west of the geofence box")
+                return self._fail(phase, t_s, s_m, "geofence", de, he, "m",
+                                  "east of or west of the geofence box")
             if alt > prm.geofence_ceiling_m + margin:
-                return fail("geofence", alt, prm.geofence_ceiling_m + margin, "m", "above the geofence ceiling")
+                return self._fail(phase, t_s, s_m, "geofence", alt, prm.geofence_ceiling_m + margin, "m",
+                                  "above the geofence ceiling")
         return None
+
+    @staticmethod
+    def _fail(phase, t_s, s_m, bound, value, limit, unit, detail, impact=False) -> Violation:
+        return Violation(bound, phase, t_s, s_m, float(value), float(limit), unit, detail, impact)
 
     def _acceleration(self, t_s: float, window_s: float):
         """NED acceleration from the newest velocity and the newest one at least ``window_s``
@@ -324,7 +332,7 @@ class EnvelopeMonitor:
     # ------------------------------------------------------------------ control
     def check_tracking(self, t_s: float, phase: str, tr: Tracking) -> Violation | None:
         """The phase's tracking bounds, the tube, progress along s, the saturation share."""
-        b = self.p.bounds(phase)
+        b = self._bounds[phase] if phase in self._bounds else self.p.bounds(phase)
         if b is None:
             return None
         s_m = tr.s_m
