@@ -11,8 +11,9 @@ hover with the target yaw:
 with the yaw error wrapped to (-pi, pi]. The reference ``x_ref`` is either a fixed hover
 point or a point of a :class:`Ramp`: a degree-7 polynomial in time per axis (position
 and yaw) joining (p0, v0, a0) to (p1, v1, a1) with zero jerk at both ends, so position,
-velocity, acceleration and jerk are continuous (C^3) across chained ramps. The ramp's acceleration is fed forward as small-angle
-roll/pitch references and a thrust correction, so the hover LQR tracks it closely.
+velocity, acceleration and jerk are continuous (C^3) across chained ramps. The ramp's acceleration
+(less an estimated disturbance force) is fed forward as the roll/pitch and thrust that produce
+it, its jerk as small-angle rates, so the hover LQR tracks it closely.
 Its duration is the shortest that keeps speed and acceleration inside the limits of
 :class:`HoverParams`, which keeps every rotor well away from saturation.
 """
@@ -237,14 +238,19 @@ class HoverController:
         j_b = np.array([c * j[0] + s * j[1], -s * j[0] + c * j[1], j[2]])
         x_ref = np.zeros(NX)
         x_ref[0:3] = p
-        x_ref[3] = a_b[1] / G       # roll tilts the thrust to the right (east at yaw 0)
-        x_ref[4] = -a_b[0] / G      # pitch nose-down accelerates forward
+        # The thrust m (a - g e3) along -b3 (heading frame): b3 = (s_th c_ph, -s_ph, c_th c_ph).
+        # Exact, not small-angle: a wind's drag can ask for 20 deg of tilt and 5 % more thrust.
+        f_h = a_b - np.array([0.0, 0.0, G])
+        thrust = float(np.linalg.norm(f_h))
+        b3 = -f_h / thrust
+        x_ref[3] = np.arcsin(np.clip(-b3[1], -1.0, 1.0))   # roll tilts the thrust to the right (east at yaw 0)
+        x_ref[4] = np.arctan2(b3[0], b3[2])                # pitch nose-down accelerates forward
         x_ref[5] = yaw
         x_ref[6:9] = v_b
         x_ref[9] = j_b[1] / G       # rates of those small-angle references
         x_ref[10] = -j_b[0] / G
         x_ref[11] = yaw_rate
-        u_ref = np.array([self.vehicle.mass_kg * (G - a[2]), 0.0, 0.0, 0.0])
+        u_ref = np.array([self.vehicle.mass_kg * thrust, 0.0, 0.0, 0.0])
         return x_ref, u_ref
 
     def step(self, x: np.ndarray, ramp: Ramp, t_s: float, disturbance=None) -> HoverOutput:

@@ -7,6 +7,7 @@ a few small vectors.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -14,7 +15,7 @@ import numpy as np
 from ..config.vehicle import VehicleParams
 from ..geometry.projection import Projector
 from ..maneuver.plan import Plan
-from ..model.mixer import Mixer, lift_to_zero
+from ..model.mixer import Mixer, yaw_then_lift
 from ..model.rotation import rpy_to_matrix
 from .disturbance import DisturbanceEstimate, compensated_nominal
 from .transverse import transverse_coordinates
@@ -56,6 +57,8 @@ class ManeuverRegulator:
         First-order lag tau of the rotors' thrust (default: the vehicle's estimate,
         ``vehicle.rotor_time_constant_s``). A lagged force follows a slowly varying command
         about tau late.
+    max_compensation_turn_rad : float
+        Largest turn of the nominal attitude by the disturbance compensation.
 
     Notes
     -----
@@ -77,7 +80,7 @@ class ManeuverRegulator:
     """
 
     def __init__(self, plan: Plan, vehicle: VehicleParams, control_period_s: float = 0.0,
-                 rotor_time_constant_s: float | None = None):
+                 rotor_time_constant_s: float | None = None, max_compensation_turn_rad: float = math.pi):
         self.plan = plan
         mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
         self._fmax = float(vehicle.max_rotor_thrust_n)
@@ -95,6 +98,7 @@ class ManeuverRegulator:
         tau = vehicle.rotor_time_constant_s if rotor_time_constant_s is None else rotor_time_constant_s
         self._lead_s = control_period_s / 2 + tau
         self._base_drag = tuple(float(c) for c in vehicle.rotor_drag_n_s_per_m)
+        self._max_turn = float(max_compensation_turn_rad)
         self.s = 0.0
 
     def _extra_force(self, xbar, disturbance: DisturbanceEstimate) -> np.ndarray:
@@ -141,7 +145,7 @@ class ManeuverRegulator:
             t_ahead = float(self._u[j, 0] + b * (self._u[j + 1, 0] - self._u[j, 0]))
             xbar, thrust = compensated_nominal(xbar, float(u_here[0]), self._extra_force(xbar, disturbance),
                                                x_ahead, t_ahead, self._extra_force(x_ahead, disturbance),
-                                               _COMPENSATION_DT_S)
+                                               _COMPENSATION_DT_S, self._max_turn)
             ubar = ubar.copy()
             ubar[0] += thrust - u_here[0]
             u_here = u_here.copy()
@@ -154,7 +158,7 @@ class ManeuverRegulator:
             u = ubar - K[:, :11] @ w - K[:, 11:] @ (self._mixer @ f_act - u_here)
         else:
             u = ubar - K @ w
-        rotors = lift_to_zero(self.mixer_inverse @ u, self._fmax)
+        rotors = yaw_then_lift(self.mixer_inverse, u, self._fmax)
         if self._augmented:
             base = self._rotors_est if self._rotors_est is not None else rotors
             self._rotors_est = rotors + (base - rotors) * self._decay

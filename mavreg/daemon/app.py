@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Callable
 
 from ..config.controller import ControllerParams
+from ..config.disturbance import DisturbanceParams
 from ..config.envelope import EnvelopeParams
 from ..control.forecast import Forecaster
 from ..config.vehicle import VehicleParams
@@ -30,13 +31,17 @@ from .supervisor import Output, Phase, Supervisor, SupervisorParams
 from .tlog import TlogWriter
 
 
-def regulator_factory(vehicle: VehicleParams, control_rate_hz: float) -> Callable:
-    """plan -> ManeuverRegulator at the vehicle's control rate (for its feedforward lead)."""
+def regulator_factory(vehicle: VehicleParams, control_rate_hz: float,
+                      disturbance: DisturbanceParams | None = None) -> Callable:
+    """plan -> ManeuverRegulator at the vehicle's control rate (for its feedforward lead), its
+    disturbance compensation bounded by ``disturbance`` (the controller file's section)."""
     if not control_rate_hz > 0:
         raise ValueError(f"control rate must be positive, got {control_rate_hz} Hz")
+    d = disturbance if disturbance is not None else DisturbanceParams()
 
     def make(plan) -> ManeuverRegulator:
-        return ManeuverRegulator(plan, vehicle, control_period_s=1.0 / control_rate_hz)
+        return ManeuverRegulator(plan, vehicle, control_period_s=1.0 / control_rate_hz,
+                                 max_compensation_turn_rad=d.max_compensation_turn_rad)
     return make
 
 __all__ = ["DaemonConfig", "Daemon"]

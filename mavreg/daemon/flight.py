@@ -25,8 +25,12 @@ __all__ = ["FlightPhases", "smoothstep", "angle_between"]
 _NAN11 = np.full(11, np.nan)
 
 
-_OBSERVE_ABOVE_GROUND_M = 0.5
-"""Height above the take-off point from which the disturbance observer learns."""
+_OBSERVE_AFTER_LIFTOFF_M = 0.02
+"""Height above the take-off point from which the disturbance observer learns on take-off:
+at once (a 6 m/s wind tilts the vehicle 20 deg within half a second of lift-off)."""
+_OBSERVE_UNTIL_LANDING_M = 0.5
+"""Height above the take-off point down to which it learns while landing (a descent through
+a wind changes the drag; the ground's reaction near touchdown is no force to learn)."""
 
 
 def smoothstep(t: float) -> float:
@@ -131,8 +135,9 @@ class FlightPhases:
         if self.phase == Phase.RECOVER:
             return self._recover_control(sample, x, out)
         t = sample.time_s
-        if self.phase == Phase.TAKEOFF:     # the observer learns from lift-off (no ground force)
-            self.forecaster.observing = self._ground_z - float(x[2]) > _OBSERVE_ABOVE_GROUND_M
+        if self.phase in (Phase.TAKEOFF, Phase.LAND):     # the observer learns clear of the ground
+            floor = _OBSERVE_AFTER_LIFTOFF_M if self.phase == Phase.TAKEOFF else _OBSERVE_UNTIL_LANDING_M
+            self.forecaster.observing = self._ground_z - float(x[2]) > floor
         ho, ramp_done = self._hover_control(sample, x)
         rotors = ho.rotor_forces_n
         e = ho.error

@@ -127,7 +127,8 @@ def fly(opts: FlyOptions) -> int:
                                                       gap_fill=not (opts.lockstep or opts.vehicle_lockstep)),
                           envelope=controller.envelope,
                           controller=controller, control_rate_hz=opts.control_rate_hz)
-    daemon = Daemon(config, vehicle, regulator_factory(vehicle, opts.control_rate_hz))
+    make_regulator = regulator_factory(vehicle, opts.control_rate_hz, controller.disturbance)
+    daemon = Daemon(config, vehicle, make_regulator)
     proc = None
     emulator_code = None
     t0 = time.monotonic()

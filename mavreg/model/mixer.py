@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["mixer_matrix", "Mixer", "lift_to_zero"]
+__all__ = ["mixer_matrix", "Mixer", "lift_to_zero", "yaw_then_lift"]
 
 
 def mixer_matrix(arm_length_m: float, drag_torque_ratio_m: float) -> np.ndarray:
@@ -54,3 +54,27 @@ def lift_to_zero(rotor_forces_n, max_rotor_thrust_n: float) -> np.ndarray:
         return f
     room = max(max_rotor_thrust_n - float(f.max()), 0.0)
     return f + min(-low, room)
+
+
+def yaw_then_lift(mixer_inverse, u, max_rotor_thrust_n: float) -> np.ndarray:
+    """Rotor forces for ``u = (f, g1, g2, g3)`` when a rotor would have to pull: the yaw torque
+    gives way first, as far as it helps, then :func:`lift_to_zero` lifts all four.
+
+    The yaw torque is the expensive one (a yaw torque of 1 N m needs ``1/(4k)`` = 15.6 N of
+    rotor difference on the MK-Quadro, roll or pitch 1.7 N) and the least needed to stay on a
+    path; PX4's mixer also drops yaw first. The yaw torque is scaled by the largest
+    ``beta`` in [0, 1] that keeps every rotor that the roll, pitch and thrust alone leave
+    non-negative from going below zero.
+    """
+    Minv = np.asarray(mixer_inverse, dtype=float)
+    u = np.asarray(u, dtype=float)
+    base = Minv[:, :3] @ u[:3]
+    yaw = Minv[:, 3] * u[3]
+    f = base + yaw
+    if f.min() >= 0.0:
+        return f
+    beta = 1.0
+    for b, y in zip(base, yaw):
+        if b + y < 0.0:
+            beta = min(beta, max(b, 0.0) / -y)
+    return lift_to_zero(base + beta * yaw, max_rotor_thrust_n)

@@ -167,3 +167,16 @@ def test_disturbance_section_of_the_controller_file(tmp_path):
         load_controller(bad)
     with pytest.raises(ValueError, match="bracket 1"):
         dataclasses.replace(DisturbanceParams(), thrust_scale_bounds=(1.1, 1.3))
+
+
+def test_a_capped_turn_stops_at_its_limit_and_keeps_the_thrust_along_the_new_axis():
+    x = np.zeros(12)
+    T, d = 6.0, np.array([4.0, 0.0, 0.0])           # would tilt atan(4/6) = 33.7 deg
+    limit = math.radians(15.0)
+    xc, Tc = compensated_nominal(x, T, d, max_turn_rad=limit)
+    Rc = rpy_to_matrix(*xc[3:6])
+    assert math.acos(Rc[2, 2]) == pytest.approx(limit, abs=1e-12)
+    u = T * np.array([0.0, 0.0, 1.0]) + d
+    assert Tc == pytest.approx(u @ Rc[:, 2])
+    full, _ = compensated_nominal(x, T, d)
+    assert math.degrees(math.acos(rpy_to_matrix(*full[3:6])[2, 2])) == pytest.approx(33.69, abs=0.01)

@@ -135,3 +135,26 @@ def test_lift_to_zero_keeps_the_torques_and_only_adds_thrust():
     np.testing.assert_array_equal(lift_to_zero(ok, 12.0), ok)
     # No room at the top: lifted only as far as the limit allows
     np.testing.assert_allclose(lift_to_zero(np.array([11.5, -1.0, 5.0, 5.0]), 12.0), [12.0, -0.5, 5.5, 5.5])
+
+
+def test_yaw_gives_way_before_the_collective_is_lifted():
+    from mavreg.model.mixer import Mixer, yaw_then_lift
+    mix = Mixer(0.3, 0.016)
+    # roll, pitch and thrust alone keep every rotor >= 0; the yaw torque would pull rotor 1
+    u = np.array([6.0, 0.3, 0.2, -0.12])
+    assert (mix.inverse @ u).min() < 0
+    f = yaw_then_lift(mix.inverse, u, 12.0)
+    w = mix.to_wrench(f)
+    assert f.min() == pytest.approx(0.0, abs=1e-12)
+    np.testing.assert_allclose(w[:3], u[:3], atol=1e-12)          # thrust, roll, pitch kept
+    assert -0.12 < w[3] < 0.0                                       # yaw reduced, same sign
+    # enough margin: nothing changes
+    easy = np.array([20.0, 0.3, 0.2, -0.05])
+    np.testing.assert_allclose(yaw_then_lift(mix.inverse, easy, 12.0), mix.inverse @ easy, atol=1e-12)
+    # roll alone pulls a rotor: no yaw left, then the collective lifts, roll and pitch kept
+    hard = np.array([2.0, 1.0, 0.0, 0.05])
+    g = yaw_then_lift(mix.inverse, hard, 12.0)
+    wg = mix.to_wrench(g)
+    assert g.min() == pytest.approx(0.0, abs=1e-12) and wg[3] == pytest.approx(0.0, abs=1e-12)
+    np.testing.assert_allclose(wg[1:3], hard[1:3], atol=1e-12)
+    assert wg[0] > hard[0]
