@@ -28,7 +28,7 @@ from ..config.vehicle import G, VehicleParams
 from ..model.linearize import model_jacobians
 from ..model.mixer import Mixer
 from ..model.quadrotor import NX, QuadrotorModel
-from ..model.rotation import wrap_angle
+from ..model.rotation import rpy_to_matrix, wrap_angle
 
 __all__ = ["HoverParams", "HoverController", "HoverOutput", "Ramp", "plan_ramp", "hold_ramp"]
 
@@ -223,35 +223,43 @@ class HoverController:
         return K
 
     def reference(self, ramp: Ramp, t_s: float, disturbance=None) -> tuple[np.ndarray, np.ndarray]:
-        """(x_ref (12,), u_ref (4,)) of a ramp at time ``t_s``, small-angle acceleration and jerk
-        feed-forward. A :class:`~mavreg.control.disturbance.DisturbanceEstimate` is fed forward
-        too: the thrust is tilted and scaled as if the ramp asked for ``a - d/m``."""
+        """(x_ref (12,), u_ref (4,)) of a ramp at time ``t_s``: the attitude and thrust that give
+        the ramp's acceleration, its velocity in that body frame, and its jerk as small-angle
+        rates. A :class:`~mavreg.control.disturbance.DisturbanceEstimate` is fed forward too:
+        the attitude and thrust are those of ``a - d/m``, with the estimated drag taken at that
+        attitude (the hover model has none of its own)."""
         p, v, a, j, yaw, yaw_rate = ramp.sample_with_jerk(t_s)
-        c, s = np.cos(yaw), np.sin(yaw)
+        m = self.vehicle.mass_kg
+        roll, pitch, thrust, R = self._attitude_for(np.asarray(a, dtype=float), yaw)
         if disturbance is not None:
-            level = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-            d = disturbance.extra_force_ned(level, v, self.vehicle.rotor_drag_n_s_per_m)
-            a = np.asarray(a, dtype=float) - d / self.vehicle.mass_kg
-        # Heading frame: rotate NED by -yaw; level body velocity and acceleration.
-        v_b = np.array([c * v[0] + s * v[1], -s * v[0] + c * v[1], v[2]])
-        a_b = np.array([c * a[0] + s * a[1], -s * a[0] + c * a[1], a[2]])
+            for _ in range(3):           # the drag depends on the attitude it tilts (contracts 10x a pass)
+                d = disturbance.extra_force_ned(R, v, (0.0, 0.0))
+                roll, pitch, thrust, R = self._attitude_for(np.asarray(a, dtype=float) - d / m, yaw)
+        c, s = np.cos(yaw), np.sin(yaw)
         j_b = np.array([c * j[0] + s * j[1], -s * j[0] + c * j[1], j[2]])
         x_ref = np.zeros(NX)
         x_ref[0:3] = p
-        # The thrust m (a - g e3) along -b3 (heading frame): b3 = (s_th c_ph, -s_ph, c_th c_ph).
-        # Exact, not small-angle: a wind's drag can ask for 20 deg of tilt and 5 % more thrust.
-        f_h = a_b - np.array([0.0, 0.0, G])
-        thrust = float(np.linalg.norm(f_h))
-        b3 = -f_h / thrust
-        x_ref[3] = np.arcsin(np.clip(-b3[1], -1.0, 1.0))   # roll tilts the thrust to the right (east at yaw 0)
-        x_ref[4] = np.arctan2(b3[0], b3[2])                # pitch nose-down accelerates forward
-        x_ref[5] = yaw
-        x_ref[6:9] = v_b
-        x_ref[9] = j_b[1] / G       # rates of those small-angle references
+        x_ref[3:6] = roll, pitch, yaw
+        x_ref[6:9] = R.T @ np.asarray(v, dtype=float)
+        x_ref[9] = j_b[1] / G       # rates of the tilt, small-angle
         x_ref[10] = -j_b[0] / G
         x_ref[11] = yaw_rate
-        u_ref = np.array([self.vehicle.mass_kg * thrust, 0.0, 0.0, 0.0])
+        u_ref = np.array([m * thrust, 0.0, 0.0, 0.0])
         return x_ref, u_ref
+
+    @staticmethod
+    def _attitude_for(a_ned: np.ndarray, yaw: float):
+        """(roll, pitch, thrust per unit mass, R) whose thrust gives acceleration ``a_ned`` at
+        ``yaw``: exact, not small-angle (a wind's drag can ask for 20 deg and 5 % more thrust).
+        The body z axis in the heading frame is (s_th c_ph, -s_ph, c_th c_ph)."""
+        c, s = np.cos(yaw), np.sin(yaw)
+        f = a_ned - np.array([0.0, 0.0, G])
+        thrust = float(np.linalg.norm(f))
+        b3 = -f / thrust
+        b3_h = np.array([c * b3[0] + s * b3[1], -s * b3[0] + c * b3[1], b3[2]])
+        roll = float(np.arcsin(np.clip(-b3_h[1], -1.0, 1.0)))   # roll tilts the thrust right (east at yaw 0)
+        pitch = float(np.arctan2(b3_h[0], b3_h[2]))             # pitch nose-down accelerates forward
+        return roll, pitch, thrust, rpy_to_matrix(roll, pitch, yaw)
 
     def step(self, x: np.ndarray, ramp: Ramp, t_s: float, disturbance=None) -> HoverOutput:
         """Control ``u`` for state ``x`` (12,) following ``ramp`` at ramp time ``t_s``, with an

@@ -89,3 +89,25 @@ def test_moving_end_ramp_reaches_velocity(yaw):
     from mavreg.model.rotation import rpy_to_matrix
     v_ned = rpy_to_matrix(*x[3:6]) @ x[6:9]
     assert np.linalg.norm(v_ned - v1) < 0.03
+
+
+@pytest.mark.parametrize("yaw", [0.0, 1.0, -2.5])
+def test_reference_in_a_wind_balances_the_estimated_force_exactly(yaw):
+    """A descent in a strong wind: the reference attitude and thrust, with the estimated drag
+    taken at that attitude, give exactly the ramp's acceleration; its body velocity is the
+    ramp's velocity in that tilted frame."""
+    from mavreg.control.disturbance import DisturbanceEstimate
+    from mavreg.model.rotation import rpy_to_matrix
+    ctrl = HoverController(VEHICLE)
+    ramp = plan_ramp([0, 0, -10.0], [0, 0, 0], yaw, [0, 0, -1.0], [0, 0, 0], yaw, ctrl.params)
+    t = 0.4 * ramp.duration_s
+    est = DisturbanceEstimate((0.34, 0.65), (-2.4, 0.5, 0.0), 0.93)
+    x_ref, u_ref = ctrl.reference(ramp, t, est)
+    _, v, a, _, _, _ = ramp.sample_with_jerk(t)
+    R = rpy_to_matrix(*x_ref[3:6])
+    m = VEHICLE.mass_kg
+    force = -u_ref[0] * R[:, 2] + m * 9.81 * np.array([0, 0, 1.0]) + est.extra_force_ned(R, v, (0.0, 0.0))
+    np.testing.assert_allclose(force / m, a, atol=5e-3)          # three fixed-point passes: 2 mN
+    np.testing.assert_allclose(R @ x_ref[6:9], v, atol=1e-12)
+    assert np.degrees(np.arccos(R[2, 2])) > 15.0                    # leaning into 2.4 N of wind
+    assert x_ref[5] == pytest.approx(yaw)
