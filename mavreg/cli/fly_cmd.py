@@ -17,12 +17,16 @@ With no --vehicle, the bundled emulator (firmware_sim) is started on a free loop
 as a child process (real time; --lockstep for a deterministic faster-than-real-time run)
 and its ground-truth recording is used for the true tracking error. Its world is a real
 vehicle's by default (--world realistic: link delay, jitter and loss, an EKF-like estimate in
-telemetry, 20 ms rotor lag); --world ideal sends the true state at once (the paper's world).
+telemetry, 20 ms rotor lag, RotorPy-sized drag; wind3, wind6 and thrust90 add a wind or a
+thrust loss); --world ideal sends the true state at once (the paper's world).
 
 The default controller (params/controller/realistic.yaml) measures the link's delay with
 TIMESYNC, predicts every sample across it before regulating, flies gains designed with the
-rotor lag, and in real time flies short telemetry gaps on the prediction
-(docs/robustness.md). The paper's design: --controller params/controller/paper_lqr.yaml.
+rotor lag, estimates the airframe's drag, a steady wind force and its thrust scale in flight
+and flies the nominal compensated for them, and in real time flies short telemetry gaps on
+the prediction (docs/robustness.md). A vehicle calibrated by 'mavreg identify'
+(--vehicle-params) feeds a known drag forward in the plan itself. The paper's design:
+--controller params/controller/paper_lqr.yaml.
 
 Outputs go to --out DIR (default: flights/<YYYYmmdd-HHMMSS>/): summary.json, flight.png
 (path in the maneuver's plane, errors against arc length), flight.tlog (every MAVLink
@@ -63,12 +67,15 @@ def add_arguments(p):
                    help="the vehicle's telemetry/control rate; the bundled emulator is started "
                    "at it and the regulator leads its feedforward by half its period "
                    "(default %(default)s)")
-    p.add_argument("--world", choices=("realistic", "ideal"), default="realistic",
+    p.add_argument("--world", choices=("realistic", "wind3", "wind6", "thrust90", "ideal"),
+                   default="realistic",
                    help="bundled emulator only: 'realistic' (default) gives it a real vehicle's "
-                   "link (10 ms down, 5 ms up, +-3 ms, 1%% loss) and an EKF-like estimate in its "
-                   "telemetry; 'ideal' sends the true state at once, the paper's world "
-                   "(reproductions: with --controller params/controller/paper_lqr.yaml). "
-                   "See docs/firmware_sim.md and docs/robustness.md")
+                   "link (10 ms down, 5 ms up, +-3 ms, 1%% loss), an EKF-like estimate in its "
+                   "telemetry and RotorPy-sized drag; 'wind3' and 'wind6' add a steady 3 or 6 m/s "
+                   "wind from the north (turn it with --emulator-arg=--wind-from-deg=DEG), "
+                   "'thrust90' rotors that give 90%% of their command; 'ideal' sends the true "
+                   "state at once, no drag, the paper's world (reproductions: with --controller "
+                   "params/controller/paper_lqr.yaml). See docs/firmware_sim.md and docs/robustness.md")
     p.add_argument("--lockstep", action="store_true",
                    help="bundled emulator only: run it in lockstep (faster than real time)")
     p.add_argument("--stale-timeout-s", type=float, default=0.5, metavar="S",

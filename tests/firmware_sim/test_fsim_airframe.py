@@ -99,3 +99,13 @@ def test_cli_wind_preset_drifts_the_vehicle_downwind():
         assert sim.state[8] > 1.0 and abs(sim.state[7]) < 1e-9
     finally:
         engine.link.close()
+
+
+def test_fly_world_choices_are_the_emulator_presets():
+    import argparse
+    from firmware_sim.world import PRESET_NAMES
+    from mavreg.cli.fly_cmd import add_arguments
+    p = argparse.ArgumentParser()
+    add_arguments(p)
+    world = next(a for a in p._actions if a.dest == "world")
+    assert set(world.choices) == set(PRESET_NAMES)
