@@ -30,6 +30,7 @@ from ..config.vehicle import load_vehicle
 from .app import Daemon, DaemonConfig, regulator_factory
 from .ctrllog import load_control_log
 from .lifeline import wrap_command
+from .link import io_impl
 from .report import controller_metrics, format_summary, ground_truth_errors, plot_flight
 from .phases import Failure
 from .supervisor import Phase, SupervisorParams
@@ -115,6 +116,7 @@ def stop_process(proc: subprocess.Popen, timeout_s: float = 20.0) -> int:
 
 def fly(opts: FlyOptions) -> int:
     """Run the whole job; returns the process exit code (0 success, 1 flight failed)."""
+    io_impl()          # a bad MAVREG_IO is the user's mistake: one line before anything starts
     text = opts.maneuver_path.read_text()
     vehicle = load_vehicle(opts.vehicle_path)
     controller = load_controller(opts.controller_path)
