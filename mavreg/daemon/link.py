@@ -260,6 +260,8 @@ class FastLink:
             return
         tlog = self.tlog
         for msg in msgs:
+            # each frame is logged just before it is handled: the command answering a sample
+            # follows that sample in the .tlog (mavreg identify pairs them so)
             if type(msg) is bytes:           # a frame the daemon has no use for: logged only
                 c.messages_in += 1
                 c.not_decoded += 1
@@ -301,8 +303,7 @@ class FastLink:
             return False
         self.counters.messages_out += len(frames)
         if self.tlog is not None:
-            for f in frames:
-                self.tlog.write(f)
+            self.tlog.write_many(frames)
         return True
 
     def close(self) -> None:

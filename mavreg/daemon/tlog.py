@@ -41,6 +41,14 @@ class TlogWriter:
         self._f.write(_TS.pack(int(self._clock() * 1e6)) + bytes(msgbuf))
         self.count += 1
 
+    def write_many(self, frames) -> None:
+        """Log frames that went over the wire together (one datagram): one time stamp, one write."""
+        if self._f.closed or not frames:
+            return
+        ts = _TS.pack(int(self._clock() * 1e6))
+        self._f.write(b"".join(ts + bytes(f) for f in frames))
+        self.count += len(frames)
+
     def close(self) -> None:
         if not self._f.closed:
             self._f.close()

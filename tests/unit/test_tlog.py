@@ -34,3 +34,19 @@ def test_actuator_target_refuses_non_finite_and_out_of_range():
     for bad in ([math.nan, 0, 0, 0], [0, math.inf, 0, 0], [1.5, 0, 0, 0], [0, 0, 0]):
         with pytest.raises(ValueError):
             actuator_target(0, 1, 1, bad)
+
+
+def test_frames_sent_together_share_one_time_stamp(tmp_path):
+    from pymavlink.dialects.v20 import common as m2
+    mav = m2.MAVLink(None, srcSystem=1, srcComponent=191)
+    frames = [m2.MAVLink_set_actuator_control_target_message(1, 0, 1, 1, [0.5] * 4 + [0] * 4).pack(mav),
+              m2.MAVLink_timesync_message(0, 7).pack(mav)]
+    clock = iter([12.5, 13.0])
+    with TlogWriter(tmp_path / "m.tlog", clock_s=lambda: next(clock)) as w:
+        w.write_many(frames)
+        w.write_many([])
+        assert w.count == 2
+    raw = (tmp_path / "m.tlog").read_bytes()
+    n0 = len(frames[0])
+    assert raw == (12_500_000).to_bytes(8, "big") + frames[0] + (12_500_000).to_bytes(8, "big") + frames[1]
+    assert len(raw) == 16 + n0 + len(frames[1])
