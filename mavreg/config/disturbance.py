@@ -44,7 +44,7 @@ class DisturbanceParams:
     """The drag is learned only above this speed. Slower, the velocity is mostly the
     estimator's error and the controller's answer to it, which biases a closed-loop fit
     (in hover the drag estimate doubled in 20 s); the drag's force is small there anyway."""
-    max_force_rate_n_per_s: float = field(default=5.0, metadata=_POS)
+    max_force_rate_n_per_s: float = field(default=2.5, metadata=_POS)
     """The compensation follows the estimate at most this fast (the prediction uses the
     estimate as it is): a force estimate that settles in 0.1 s would tilt the hover
     reference by 8 deg per newton at once, a rate error the envelope stops."""
