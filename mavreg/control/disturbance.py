@@ -24,7 +24,8 @@ A Kalman filter on :math:`\theta` (random walks). Its measurement is the velocit
 sample against the design model's prediction from the previous sample with the current
 estimate and the commands that acted in between (:class:`~mavreg.control.predictor.StatePredictor`):
 :math:`v_k - \hat v_k = \frac{h}{m}\,\Phi_{k-1}(\theta - \hat\theta) + \text{noise}`, with
-:math:`\Phi` the regressors above. The estimate is clipped to bounds.
+:math:`\Phi` the regressors above. The estimate is clipped to bounds, and a measurement more than 6 sigma from its prediction
+(a telemetry stall, a bump) is refused and counted.
 
 The compensation
 ----------------
@@ -86,6 +87,11 @@ def regressors(R, v, thrust_n: float) -> np.ndarray:
     return phi
 
 
+_GATE_CHI2 = 36.0
+"""Innovation gate: a measurement farther than 6 sigma (Mahalanobis, 3 dof) from the
+prediction is refused (probability under the filter's own model: 1e-7)."""
+
+
 class DisturbanceObserver:
     """Kalman filter on the airframe's force model (see the module docstring).
 
@@ -114,6 +120,8 @@ class DisturbanceObserver:
         self._lo = np.array([0.0, 0.0, -hi_f, -hi_f, -hi_f, p.thrust_scale_bounds[0]])
         self._hi = np.array([hi_c, hi_c, hi_f, hi_f, hi_f, p.thrust_scale_bounds[1]])
         self.updates = 0
+        self.rejected = 0
+        """Measurements refused by the innovation gate."""
         self.reset()
 
     def reset(self) -> None:
@@ -152,6 +160,9 @@ class DisturbanceObserver:
         if float(np.linalg.norm(v)) < p.drag_learning_min_speed_m_s:
             H[:, 0:2] = 0.0                  # drag unobservable (and biased) at low speed
         S = H @ self.P @ H.T + self._r * np.eye(3)
+        if float(y @ np.linalg.solve(S, y)) > _GATE_CHI2:
+            self.rejected += 1           # an outlier (a telemetry stall, a bump): not a force
+            return
         K = np.linalg.solve(S, H @ self.P).T                            # (6, 3)
         self.theta = np.clip(self.theta + K @ y, self._lo, self._hi)
         I_KH = np.eye(6) - K @ H

@@ -26,7 +26,7 @@ from scipy.linalg import solve_continuous_are
 
 from ..config.vehicle import G, VehicleParams
 from ..model.linearize import model_jacobians
-from ..model.mixer import Mixer
+from ..model.mixer import Mixer, yaw_then_lift
 from ..model.quadrotor import NX, QuadrotorModel
 from ..model.rotation import rpy_to_matrix, wrap_angle
 
@@ -268,4 +268,5 @@ class HoverController:
         e = np.asarray(x, dtype=float) - x_ref
         e[3:6] = wrap_angle(e[3:6])
         u = u_ref - self.gain(x_ref[5]) @ e
-        return HoverOutput(u=u, rotor_forces_n=self.mixer.to_rotors(u), error=e)
+        return HoverOutput(u=u, rotor_forces_n=yaw_then_lift(self.mixer.inverse, u, self.vehicle.max_rotor_thrust_n),
+                           error=e)

@@ -34,8 +34,9 @@ class RegulatorOutput:
     u: np.ndarray
     """(f, g1, g2, g3) commanded."""
     rotor_forces_n: np.ndarray
-    """Rotor forces by the inverse of eq 34, lifted so that none pulls
-    (:func:`~mavreg.model.mixer.lift_to_zero`); not clipped at the top."""
+    """Rotor forces by the inverse of eq 34; where one would pull, the yaw torque gives way
+    and then all four are lifted (:func:`~mavreg.model.mixer.yaw_then_lift`); not clipped at
+    the top."""
     in_tube: bool
     finished: bool
     """s has reached the end of the maneuver."""
@@ -133,14 +134,13 @@ class ManeuverRegulator:
         xbar = self._x[i] + a * (self._x[i + 1] - self._x[i])
         K = self._K[i] + a * (self._K[i + 1] - self._K[i])
         u_here = self._u[i] + a * (self._u[i + 1] - self._u[i])
+        v = float(self._v[i] + a * (self._v[i + 1] - self._v[i]))
         if self._lead_s > 0.0:
-            v = self._v[i] + a * (self._v[i + 1] - self._v[i])
             i, a = self._locate(s + v * self._lead_s)
         ubar = self._u[i] + a * (self._u[i + 1] - self._u[i])
         if disturbance is not None:
             # the compensation's turn rate from the nominal _COMPENSATION_DT_S ahead
-            j, b = self._locate(s + max(float(self._v[i] + a * (self._v[i + 1] - self._v[i])), 0.1)
-                                * _COMPENSATION_DT_S)
+            j, b = self._locate(s + max(v, 0.1) * _COMPENSATION_DT_S)
             x_ahead = self._x[j] + b * (self._x[j + 1] - self._x[j])
             t_ahead = float(self._u[j, 0] + b * (self._u[j + 1, 0] - self._u[j, 0]))
             xbar, thrust = compensated_nominal(xbar, float(u_here[0]), self._extra_force(xbar, disturbance),

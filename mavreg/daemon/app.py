@@ -195,7 +195,8 @@ class Daemon:
         est = fc.disturbance
         st["disturbance"] = None if est is None else {
             "drag_n_s_per_m": list(est.drag_n_s_per_m), "force_ned_n": list(est.force_ned_n),
-            "thrust_scale": est.thrust_scale, "updates": fc.observer.updates}
+            "thrust_scale": est.thrust_scale, "updates": fc.observer.updates,
+            "rejected": fc.observer.rejected}
         return st
 
     def latency_summary(self, maneuver_only: bool = False) -> dict:

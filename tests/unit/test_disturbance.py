@@ -152,7 +152,7 @@ def test_observer_ignores_gaps_and_non_finite_samples():
 def test_estimate_is_bounded():
     obs = DisturbanceObserver(DisturbanceParams(enabled=True, max_force_n=1.0), VEHICLE)
     for _ in range(2000):
-        obs.update(0.002, np.eye(3), np.zeros(3), 7.0, np.array([0.05, 0.0, 0.0]))   # 25 m/s^2 north
+        obs.update(0.002, np.eye(3), np.zeros(3), 7.0, np.array([0.004, 0.0, 0.0]))   # 2 m/s^2 north, 1.5 N
     assert obs.estimate.force_ned_n[0] == pytest.approx(1.0)
 
 
@@ -180,3 +180,14 @@ def test_a_capped_turn_stops_at_its_limit_and_keeps_the_thrust_along_the_new_axi
     assert Tc == pytest.approx(u @ Rc[:, 2])
     full, _ = compensated_nominal(x, T, d)
     assert math.degrees(math.acos(rpy_to_matrix(*full[3:6])[2, 2])) == pytest.approx(33.69, abs=0.01)
+
+
+def test_an_outlier_is_refused_and_counted():
+    obs = DisturbanceObserver(DisturbanceParams(enabled=True), VEHICLE)
+    for _ in range(500):                           # settle: P shrinks to its steady size
+        obs.update(0.002, np.eye(3), np.array([5.0, 0.0, 0.0]), 7.35, np.zeros(3))
+    before = obs.theta.copy()
+    obs.update(0.002, np.eye(3), np.array([5.0, 0.0, 0.0]), 7.35, np.array([0.5, 0.0, 0.0]))   # 250 m/s^2
+    assert obs.rejected == 1 and np.array_equal(obs.theta, before)
+    obs.update(0.002, np.eye(3), np.array([5.0, 0.0, 0.0]), 7.35, np.array([0.004, 0.0, 0.0]))  # 1 sigma
+    assert obs.rejected == 1 and not np.array_equal(obs.theta, before)
