@@ -62,7 +62,8 @@ class HoverOutput:
     u: np.ndarray
     """(f, g1, g2, g3) commanded wrench."""
     rotor_forces_n: np.ndarray
-    """Rotor forces f1..f4 of ``u`` (unclipped)."""
+    """Rotor forces f1..f4 of ``u``; where one would pull, the yaw torque gives way, then all
+    four are lifted (:func:`~mavreg.model.mixer.yaw_then_lift`); not clipped at the top."""
     error: np.ndarray
     """x - x_ref, yaw wrapped (12,)."""
 
