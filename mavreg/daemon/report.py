@@ -64,6 +64,12 @@ def format_summary(summary: dict) -> str:
         top = sorted(peaks.items(), key=lambda kv: -kv[1]["ratio"])[:4]
         lines.append("closest to the envelope: " + ", ".join(
             f"{name} {100 * p['ratio']:.0f} %" for name, p in top))
+    est = (summary.get("status") or {}).get("disturbance")
+    if est:
+        lines.append(f"airframe as estimated: drag c_xy {est['drag_n_s_per_m'][0]:.3f} c_z "
+                     f"{est['drag_n_s_per_m'][1]:.3f} N s/m, steady force N {est['force_ned_n'][0]:+.2f} "
+                     f"E {est['force_ned_n'][1]:+.2f} N, thrust scale {est['thrust_scale']:.3f} "
+                     f"({est['updates']} samples, {est['rejected']} refused)")
     cm = summary.get("controller_metrics") or {}
     gt = summary.get("ground_truth") or {}
     lines.append(f"{'segment':<16}{'max e_t cm':>11}{'rms e_t cm':>11}{'true max cm':>12}"

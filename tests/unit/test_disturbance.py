@@ -191,3 +191,14 @@ def test_an_outlier_is_refused_and_counted():
     assert obs.rejected == 1 and np.array_equal(obs.theta, before)
     obs.update(0.002, np.eye(3), np.array([5.0, 0.0, 0.0]), 7.35, np.array([0.004, 0.0, 0.0]))  # 1 sigma
     assert obs.rejected == 1 and not np.array_equal(obs.theta, before)
+
+
+def test_the_flight_summary_prints_the_estimate():
+    from mavreg.daemon.report import format_summary
+    summary = {"result": "ok", "maneuver": "barrel_roll", "length_m": 40.47, "flight_time_s": 59.0,
+               "status": {"disturbance": {"drag_n_s_per_m": [0.381, 0.642], "force_ned_n": [-1.1, 0.02, 0.0],
+                                          "thrust_scale": 0.903, "updates": 27000, "rejected": 3}}}
+    text = format_summary(summary)
+    assert ("airframe as estimated: drag c_xy 0.381 c_z 0.642 N s/m, steady force N -1.10 E +0.02 N, "
+            "thrust scale 0.903 (27000 samples, 3 refused)") in text
+    assert "airframe as estimated" not in format_summary({**summary, "status": {"disturbance": None}})
