@@ -153,7 +153,11 @@ def build_parser() -> argparse.ArgumentParser:
       help="add Gaussian noise of this SD to each principal moment (drawn from --seed)")
     a("--rotor-time-constant-s", type=_nonneg_float, default=None, help="override the motor lag")
     a("--rotor-noise-sd-n", type=_nonneg_float, default=None, help="override the thrust noise SD")
-    a("--max-rotor-thrust-n", type=_positive_float, default=None, help="override rotor saturation")
+    a("--max-rotor-thrust-n", type=_positive_float, default=None,
+      help="override the rotor saturation and the thrust a control value of 1 asks for")
+    a("--rotor-saturation-n", type=_positive_float, default=None, metavar="F",
+      help="the rotors give at most F N while a control value of 1 still asks for the maximum "
+      "rotor thrust: a limit the offboard controller does not know of (the paper's 8.5 N and 7 N runs)")
     a("--duration-s", type=_positive_float, default=None, metavar="S",
       help="stop after this much simulation time (default: run until signalled)")
     a("--quiet", action="store_true", help="no status line every second")
@@ -205,7 +209,10 @@ def build_engine(args) -> tuple[Engine, Recorder | None]:
         mass_kg=args.mass_kg, inertia_kg_m2=args.inertia_kg_m2, inertia_scale=args.inertia_scale,
         inertia_perturb_sd_kg_m2=args.inertia_perturb_sd_kg_m2,
         rotor_time_constant_s=args.rotor_time_constant_s, rotor_noise_sd_n=args.rotor_noise_sd_n,
-        max_rotor_thrust_n=args.max_rotor_thrust_n)
+        max_rotor_thrust_n=(args.max_rotor_thrust_n if args.rotor_saturation_n is None
+                            else args.rotor_saturation_n))
+    command_scale_n = (args.max_rotor_thrust_n if args.max_rotor_thrust_n is not None
+                       else vehicle.max_rotor_thrust_n)     # thrust asked for by a control of 1
     start = parse_start(args.start) if args.start is not None else None
     items = [parse_wind(w) for w in (args.wind or ())]
     if world.airframe.wind_speed_m_s:
@@ -221,12 +228,13 @@ def build_engine(args) -> tuple[Engine, Recorder | None]:
         recorder.meta.update(vehicle=str(vehicle_path), params=repr(params), seed=args.seed,
                              rate_hz=args.rate_hz, physics_hz=args.physics_hz,
                              lockstep=args.lockstep, start=args.start, wind=args.wind,
+                             command_scale_n=command_scale_n,
                              world=dataclasses.asdict(world))
     sim = Simulation(params, start, wind, recorder)
     stab = Stabilizer(v.mass_kg, params.inertia_matrix_kg_m2, v.arm_length_m,
                       v.drag_torque_ratio_m, v.max_rotor_thrust_n)
     cfg = AutopilotConfig(system_id=args.system_id, gcs_system_id=args.gcs_system_id,
-                          max_rotor_thrust_n=v.max_rotor_thrust_n,
+                          max_rotor_thrust_n=command_scale_n,
                           offboard_loss_timeout_s=args.offboard_loss_timeout,
                           failsafe_hold_s=args.failsafe_hold_s)
     ap = Autopilot(cfg, stab, v.mass_kg * G / 4)
