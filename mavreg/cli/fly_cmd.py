@@ -1,10 +1,14 @@
 """``mavreg fly``: the main job, one maneuver from the ground back to the ground."""
 from __future__ import annotations
 
+import math
 import time
 from pathlib import Path
 
 from .common import REAL_CONTROLLER, add_model_arguments
+
+MAX_ENTRY_OFFSET_M = 2.0
+"""Longest --entry-offset: an experiment's start error, not a relocation of the maneuver."""
 
 HELP = "fly a maneuver YAML on a vehicle (default: the bundled firmware_sim) and report"
 DESCRIPTION = """\
@@ -88,6 +92,12 @@ def add_arguments(p):
     p.add_argument("--emulator-arg", action="append", default=[], metavar="ARG",
                    help="bundled emulator only: extra firmware_sim argument (repeatable), "
                    "e.g. --emulator-arg=--rotor-time-constant-s=0")
+    p.add_argument("--entry-offset", nargs=3, type=float, default=(0.0, 0.0, 0.0), metavar=("DN", "DE", "DD"),
+                   help="start the maneuver off its path: the hold point and the end of the run-in "
+                   "move by this NED offset (m, at most %(max)g m) from the entry, with the entry's "
+                   "velocity, and the regulator takes over there (the paper's Section 4: 0.6 0.6 0.6; "
+                   "more than 0.5 m across the path needs a controller file whose envelope allows "
+                   "it, see mavreg experiment) (default: 0 0 0)" % {"max": MAX_ENTRY_OFFSET_M})
     add_model_arguments(p, controller=REAL_CONTROLLER)
 
 
@@ -107,10 +117,14 @@ def run(args) -> int:
         raise ValueError(f"--stale-timeout-s must be positive, got {args.stale_timeout_s}")
     if args.timeout_s <= 0:
         raise ValueError(f"--timeout-s must be positive, got {args.timeout_s}")
+    offset = tuple(float(v) for v in args.entry_offset)
+    if not all(math.isfinite(v) for v in offset) or math.hypot(*offset) > MAX_ENTRY_OFFSET_M:
+        raise ValueError(f"--entry-offset must be finite and at most {MAX_ENTRY_OFFSET_M:g} m long, "
+                         f"got {' '.join(f'{v:g}' for v in offset)}")
     load_vehicle(args.vehicle_params)   # a bad vehicle file is a user error before anything starts
     out = Path(args.out) if args.out else Path("flights") / time.strftime("%Y%m%d-%H%M%S")
     opts = FlyOptions(maneuver, args.vehicle, Path(args.vehicle_params), Path(args.controller), out,
                       Path(args.socket) if args.socket else None, args.timeout_s, args.lockstep,
                       tuple(args.emulator_arg), args.control_rate_hz, args.vehicle_lockstep, args.world,
-                      args.stale_timeout_s)
+                      args.stale_timeout_s, offset)
     return fly(opts)

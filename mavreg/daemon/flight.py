@@ -101,7 +101,7 @@ class FlightPhases:
 
     def _start_takeoff(self, sample, out) -> None:
         plan = self._pending[0][0]
-        entry = fp.entry_of(plan, self.params.hover, self.params.run_in_m)
+        entry = fp.entry_of(plan, self.params.hover, self.params.run_in_m, self.params.entry_offset_m)
         p = sample.x[:3].copy()
         self._ground_z = float(p[2])
         self.monitor.set_origin(p)
@@ -239,7 +239,7 @@ class FlightPhases:
                 plan, reg, _ = self._pending.pop(0)
                 self._gate_wait_t0 = None
                 self._active = (plan, reg)
-                entry = fp.entry_of(plan, hp, self.params.run_in_m)
+                entry = fp.entry_of(plan, hp, self.params.run_in_m, self.params.entry_offset_m)
                 ramps = fp.run_in_ramps(hold_p, hold_yaw, entry, hp)
                 self._s = math.nan
                 self._set_phase(out, Phase.RUN_IN, f"health gate passed; run-in to the entry of "

@@ -21,9 +21,9 @@ _ZERO = np.zeros(3)
 class Entry:
     """Where and how a plan is entered: hold point, yaw, entry velocity and acceleration (NED)."""
 
-    def __init__(self, plan, hover: HoverParams, run_in_m: float):
+    def __init__(self, plan, hover: HoverParams, run_in_m: float, offset_m=(0.0, 0.0, 0.0)):
         x0 = np.asarray(plan.entry_state, dtype=float)
-        self.position_m = x0[:3].copy()
+        self.position_m = x0[:3] + np.asarray(offset_m, dtype=float)   # off the path: experiments
         self.yaw_rad = float(x0[5])
         self.velocity_m_s = rpy_to_matrix(*x0[3:6]) @ x0[6:9]
         speed = float(np.linalg.norm(self.velocity_m_s))
@@ -39,8 +39,10 @@ class Entry:
         self.hold_m = self.position_m - run_in * tangent
 
 
-def entry_of(plan, hover: HoverParams, run_in_m: float) -> Entry:
-    return Entry(plan, hover, run_in_m)
+def entry_of(plan, hover: HoverParams, run_in_m: float, offset_m=(0.0, 0.0, 0.0)) -> Entry:
+    """The entry of ``plan``; ``offset_m`` (NED) moves the run-in's end (and the hold point)
+    off the nominal entry position, the velocity and acceleration stay the entry's."""
+    return Entry(plan, hover, run_in_m, offset_m)
 
 
 def takeoff_ramps(ground_m: np.ndarray, yaw0: float, entry: Entry, spool_s: float,

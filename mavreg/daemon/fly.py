@@ -61,6 +61,9 @@ class FlyOptions:
     """Wall seconds without a complete sample before the link counts as lost."""
     """The bundled emulator's world preset: ``realistic`` (link delay, jitter and loss, an
     EKF-like estimate in telemetry) or ``ideal`` (the true state at once: the paper's world)."""
+    entry_offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """The run-in ends this far (NED) from the maneuver's entry: the regulator takes over off
+    the path (experiments; :attr:`mavreg.daemon.phases.SupervisorParams.entry_offset_m`)."""
 
 
 def spawn_emulator(vehicle_path: Path, record: Path | None, lockstep: bool, extra: tuple[str, ...] = (),
@@ -126,7 +129,8 @@ def fly(opts: FlyOptions) -> int:
                           controller_path=opts.controller_path, socket_path=opts.socket_path,
                           tlog_path=opts.out_dir / "flight.tlog",
                           supervisor=SupervisorParams(land_when_done=True, stale_timeout_s=opts.stale_timeout_s,
-                                                      gap_fill=not (opts.lockstep or opts.vehicle_lockstep)),
+                                                      gap_fill=not (opts.lockstep or opts.vehicle_lockstep),
+                                                      entry_offset_m=tuple(opts.entry_offset_m)),
                           envelope=controller.envelope,
                           controller=controller, control_rate_hz=opts.control_rate_hz)
     make_regulator = regulator_factory(vehicle, opts.control_rate_hz, controller.disturbance)

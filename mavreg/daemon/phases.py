@@ -64,6 +64,10 @@ class SupervisorParams:
     hold_after_s: float = 1.0
     run_in_m: float = 0.6
     """Distance of the hold point before the entry, along the entry velocity."""
+    entry_offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Experiments only (the paper's Section 4 starts 0.6 m off in each axis): the hold point
+    and the run-in's end move by this NED offset, so the regulator takes over off the path
+    with the entry's velocity. Zero in ordinary flight."""
     land_speed_m_s: float = 0.3
     land_slow_altitude_m: float = 0.4
     touchdown_altitude_m: float = 0.03
