@@ -19,6 +19,7 @@ SUBCOMMANDS = {
     "serve": "mavreg.cli.serve_cmd",
     "upload": "mavreg.cli.upload_cmd",
     "identify": "mavreg.cli.identify_cmd",
+    "experiment": "mavreg.cli.experiment_cmd",
 }
 
 EXIT_USAGE = 2

@@ -1,0 +1,96 @@
+"""``mavreg experiment``: rerun the paper's Section 4 and write its tables and figures."""
+from __future__ import annotations
+
+import os
+import shlex
+import time
+from pathlib import Path
+
+HELP = "rerun the paper's experiments (Section 4) on the design model or over MAVLink; tables and figures"
+DESCRIPTION = """\
+Fly every run of an experiment, in parallel over --jobs processes, and write into --out:
+PNG figures after the paper's, results.json (every number of every run) and results.md (the
+tables). A progress line goes to stderr. Runs are seeded from --seed and the results do not
+depend on --jobs.
+
+Experiments (NAME):
+  paper-group1  start 0.6 m off in each of p1, p2, p3 (1.04 m from the entry); one run on the
+                nominal inertia and 25 on jx, jy, jz drawn with SD 0.0102/3 kg m^2; the design
+                is always the nominal one. Table per run: converged (transverse error below
+                1 cm from then until the run-up ends), the arc length where it did, loop max
+                and RMS transverse error, loop max attitude error, peak thrust and torques.
+                Figures: fig2_inertia_paths, fig3_attitude_velocity, fig4_inputs, errors.
+  paper-group2  nominal start, 0.1 N Gaussian noise on each rotor force, rotor saturation
+                none / 8.5 N / 7 N, the loop flown 3 times. Table: stable (flown to the end and
+                back within 10 cm of the path), laps, max and RMS transverse error, max
+                attitude error, time saturated. Figures: fig5_rotor_forces, fig6_paths,
+                fig7_attitude_velocity, errors.
+
+--via sim (default) flies the design model (RK4 at 1 ms, regulator at 1 kHz; about 5 s of CPU
+a run). --via sitl flies each run with 'mavreg fly --lockstep --world ideal' against the
+bundled firmware_sim over MAVLink (about 15-40 s a run): the plant's inertia, rotor noise and
+saturation go to the emulator only (the daemon designs on the 12 N nominal), the start offset
+is 'mavreg fly --entry-offset', the laps a maneuver file written into --out, and the
+controller file is paper_lqr.yaml with a maneuver envelope wide enough for the paper's
+deliberate errors (controller_experiment.yaml in --out). Each flight's summary, plot and log
+stay in --out/runs/NNN/. Errors are always the truth's (the emulator's recording).
+
+Exit status: 0 every run met its criterion (converged before the loop / stable), 1 some run
+did not or could not be flown (the results are written all the same), 2 bad input.
+See docs/experiments.md and docs/results.md.
+"""
+
+
+def add_arguments(p):
+    from ..experiments.definitions import EXPERIMENTS
+    p.add_argument("name", metavar="NAME", help=f"the experiment: {', '.join(EXPERIMENTS)}")
+    p.add_argument("--out", metavar="DIR", default=None,
+                   help="output directory (default: experiments/NAME-VIA-<YYYYmmdd-HHMMSS>/)")
+    p.add_argument("--seed", metavar="N", default="0",
+                   help="seed of the inertia draws and the rotor noise (default 0)")
+    p.add_argument("--jobs", metavar="N", default=None,
+                   help="worker processes (default: the number of CPUs, here %d); on a 2-core machine "
+                   "use 1 or 2 with --via sitl" % (os.cpu_count() or 1))
+    p.add_argument("--via", metavar="sim|sitl", default="sim",
+                   help="sim: the design model (default); sitl: the daemon and firmware_sim in lockstep")
+    p.add_argument("--keep-flight-files", action="store_true",
+                   help="--via sitl: keep each flight's .tlog, control.npz and groundtruth.npz "
+                   "(about 17 MB a flight; by default only summary.json, flight.png and fly.log stay)")
+
+
+def _whole(text: str, what: str, minimum: int) -> int:
+    try:
+        n = int(text)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} must be a whole number, got {text!r}") from None
+    if n < minimum:
+        raise ValueError(f"{what} must be at least {minimum}, got {n}")
+    return n
+
+
+def run(args) -> int:
+    from ..experiments.campaign import run_campaign
+    from ..experiments.definitions import EXPERIMENTS, build_experiment
+    from ..experiments.runner import VIAS
+    if args.name not in EXPERIMENTS:
+        raise ValueError(f"unknown experiment {args.name!r}; choose one of {', '.join(EXPERIMENTS)}")
+    if args.via not in VIAS:
+        raise ValueError(f"--via must be one of {', '.join(VIAS)}, got {args.via!r}")
+    seed = _whole(args.seed, "--seed", 0)
+    jobs = (os.cpu_count() or 1) if args.jobs is None else _whole(args.jobs, "--jobs", 1)
+    if args.keep_flight_files and args.via != "sitl":
+        raise ValueError("--keep-flight-files applies only to --via sitl")
+    out = Path(args.out) if args.out else (Path("experiments")
+                                           / f"{args.name}-{args.via}-{time.strftime('%Y%m%d-%H%M%S')}")
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out} exists and is not a directory")
+    exp = build_experiment(args.name, seed)
+    command = (f"mavreg experiment {args.name} --via {args.via} --seed {seed} --jobs {jobs} "
+               f"--out {shlex.quote(str(out))}" + (" --keep-flight-files" if args.keep_flight_files else ""))
+    camp = run_campaign(exp, args.via, jobs, out, command, keep_flight_files=args.keep_flight_files)
+    sm = camp.results["summary"]
+    crit = "converged before the loop" if "converged" in sm else "stable"
+    print(f"{exp.name} via {args.via}: {sm['ok']} of {sm['runs']} runs {crit}"
+          + (f", {sm['errors']} could not be flown" if sm["errors"] else ""))
+    print(f"outputs: {out}/ (" + ", ".join(f.name for f in camp.files) + ")")
+    return 0 if camp.all_ok else 1

@@ -1,0 +1,59 @@
+"""One campaign from start to end: fly the runs, draw the figures, write the results."""
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from .definitions import CONVERGENCE, Experiment
+from .figures import group1_figures, group2_figures
+from .report import results_dict, write_results
+from .runner import RunOutcome, plan_for, run_experiment
+
+__all__ = ["Campaign", "run_campaign"]
+
+
+@dataclass(frozen=True)
+class Campaign:
+    """What a campaign produced."""
+
+    results: dict
+    """The content of ``results.json``."""
+    outcomes: list[RunOutcome]
+    files: list[Path]
+    """results.json, results.md and the figures."""
+
+    @property
+    def all_ok(self) -> bool:
+        """Every run met the experiment's criterion."""
+        return bool(self.outcomes) and all(o.ok for o in self.outcomes)
+
+
+def run_campaign(exp: Experiment, via: str, jobs: int, out_dir: Path, command: str,
+                 progress=sys.stderr, keep_flight_files: bool = False) -> Campaign:
+    """Fly ``exp`` (:func:`.runner.run_experiment`) and write its figures, ``results.json`` and
+    ``results.md`` into ``out_dir``. Tracebacks of runs that raised go to ``errors.log``."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    t0 = time.monotonic()
+    outcomes = run_experiment(exp, via, jobs, out_dir, progress, keep_flight_files)
+    wall = time.monotonic() - t0
+    failed = [o for o in outcomes if o.traceback]
+    if failed:
+        (out_dir / "errors.log").write_text("\n".join(f"run {o.spec.index} ({o.spec.label}):\n{o.traceback}"
+                                                      for o in failed))
+    laps = exp.runs[0].laps
+    plan = plan_for(Path(exp.maneuver_path), Path(exp.vehicle_path), Path(exp.controller_path), laps)
+    if exp.kind == CONVERGENCE:
+        figures = group1_figures(out_dir, plan, outcomes, via, plan.vehicle.inertia_kg_m2)
+    else:
+        figures = group2_figures(out_dir, plan, outcomes, via)
+    extra = {}
+    if via == "sitl":
+        from .via_sitl import EXPERIMENT_ENVELOPE
+        extra = {"sitl": {"world": "ideal", "lockstep": True, "controller_file": "controller_experiment.yaml",
+                          "envelope_changes": EXPERIMENT_ENVELOPE}}
+    res = results_dict(exp, via, outcomes, command, min(jobs, len(exp.runs)), wall, figures, extra)
+    files = [*write_results(out_dir, res), *figures]
+    return Campaign(res, outcomes, files)

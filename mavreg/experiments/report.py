@@ -1,0 +1,145 @@
+"""``results.json`` and ``results.md`` of a campaign: the tables, the summary, the figures."""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+from .definitions import CONVERGENCE
+from .metrics import BACK_ON_PATH_M, CONVERGED_M
+
+__all__ = ["summarize", "results_dict", "write_results", "markdown"]
+
+
+def _max(values):
+    v = [x for x in values if x is not None]
+    return max(v) if v else None
+
+
+def summarize(exp, outcomes) -> dict:
+    """The campaign in a few numbers: runs, how many met the criterion, the worst of each column."""
+    ms = [o.metrics for o in outcomes if o.metrics is not None]
+    loop_t = [(m["loop"]["transverse_error_m"] or {}).get("max") for m in ms]
+    loop_a = [(m["loop"]["attitude_error_deg"] or {}).get("max") for m in ms]
+    out = {"runs": len(outcomes), "errors": sum(o.metrics is None for o in outcomes),
+           "ok": sum(o.ok for o in outcomes),
+           "loop_max_transverse_error_m": _max(loop_t), "loop_max_attitude_error_deg": _max(loop_a)}
+    if exp.kind == CONVERGENCE:
+        conv = [m["converged_at_s_m"] for m in ms if m["converged"]]
+        out.update(converged=len(conv), converged_at_s_m={"min": min(conv), "max": max(conv)} if conv else None,
+                   converge_before_s_m=ms[0]["converge_before_s_m"] if ms else None)
+    else:
+        out.update(stable=sum(bool(m["stable"]) for m in ms))
+    return out
+
+
+def results_dict(exp, via: str, outcomes, command: str, jobs: int, wall_time_s: float,
+                 figures, extra: dict | None = None) -> dict:
+    """Everything ``results.json`` holds (JSON-ready)."""
+    runs = []
+    for o in outcomes:
+        if o.metrics is not None:
+            runs.append(o.metrics)
+        else:
+            runs.append({"index": o.spec.index, "label": o.spec.label, "ok": False, "error": o.error})
+    return {"experiment": exp.name, "title": exp.title, "kind": exp.kind, "via": via, "seed": exp.seed,
+            "jobs": jobs, "command": command, "maneuver": str(exp.maneuver_path),
+            "vehicle": str(exp.vehicle_path), "controller": str(exp.controller_path),
+            "definitions": {"converged_m": CONVERGED_M, "back_on_path_m": BACK_ON_PATH_M,
+                            "documentation": "mavreg/experiments/metrics.py"},
+            "summary": summarize(exp, outcomes), "runs": runs,
+            "figures": [Path(f).name for f in figures], "wall_time_s": wall_time_s, **(extra or {})}
+
+
+def _f(v, scale=1.0, fmt="{:.2f}") -> str:
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return "—"
+    return fmt.format(v * scale)
+
+
+def _stat(block, key, what, scale=1.0, fmt="{:.2f}"):
+    return _f(((block or {}).get(key) or {}).get(what), scale, fmt)
+
+
+def _table_group1(runs) -> list[str]:
+    lines = ["| run | jx, jy, jz (kg m²) | converged | s at convergence (m) | loop max (mm) | loop RMS (mm) "
+             "| loop max attitude (deg) | loop peak thrust (N) | loop peak \\|γ1\\|, \\|γ2\\|, \\|γ3\\| (N m) "
+             "| peak thrust, \\|γ1\\|, \\|γ2\\|, \\|γ3\\| overall |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for m in runs:
+        if "error" in m:
+            lines.append(f"| {m['index']} | {m['label']} | error: {m['error']} | | | | | | | |")
+            continue
+        J = "nominal" if m["inertia_kg_m2"] is None else ", ".join(f"{j:.4f}" for j in m["inertia_kg_m2"])
+        conv = "yes" if m["converged"] else f"**no** ({m['status']})"
+        tq = ", ".join(f"{x:.2f}" for x in m["loop_peak_torque_n_m"]) if m["loop_peak_torque_n_m"] else "—"
+        peaks = (f"{m['peak_thrust_n']:.1f}, " + ", ".join(f"{x:.2f}" for x in m["peak_torque_n_m"])
+                 if m["peak_torque_n_m"] else "—")
+        lines.append(f"| {m['index']} | {J} | {conv} | {_f(m['converged_at_s_m'])} "
+                     f"| {_stat(m['loop'], 'transverse_error_m', 'max', 1e3, '{:.3f}')} "
+                     f"| {_stat(m['loop'], 'transverse_error_m', 'rms', 1e3, '{:.3f}')} "
+                     f"| {_stat(m['loop'], 'attitude_error_deg', 'max', 1, '{:.3f}')} "
+                     f"| {_f(m['loop_peak_thrust_n'], 1, '{:.1f}')} | {tq} | {peaks} |")
+    return lines
+
+
+def _table_group2(runs) -> list[str]:
+    lines = ["| case | stable | laps | loop max (cm) | loop RMS (cm) | max over the maneuver (cm) "
+             "| loop max attitude (deg) | max attitude over the maneuver (deg) | time saturated "
+             "| error at the end (cm) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for m in runs:
+        if "error" in m:
+            lines.append(f"| {m['label']} | error: {m['error']} | | | | | | | | |")
+            continue
+        st = "yes" if m["stable"] else f"**no** ({m['status']}: {m['reason']})"
+        lines.append(f"| {m['label']} | {st} | {m['laps_flown']:.1f} of {m['laps']} "
+                     f"| {_stat(m['loop'], 'transverse_error_m', 'max', 100)} "
+                     f"| {_stat(m['loop'], 'transverse_error_m', 'rms', 100)} "
+                     f"| {_stat(m['overall'], 'transverse_error_m', 'max', 100)} "
+                     f"| {_stat(m['loop'], 'attitude_error_deg', 'max', 1, '{:.1f}')} "
+                     f"| {_stat(m['overall'], 'attitude_error_deg', 'max', 1, '{:.1f}')} "
+                     f"| {100 * m['saturated_share']:.1f} % ({m['saturated_s']:.2f} s) "
+                     f"| {_f(m['final_transverse_error_m'], 100)} |")
+    return lines
+
+
+def markdown(res: dict) -> str:
+    """``results.md`` from a :func:`results_dict`."""
+    sm = res["summary"]
+    lines = [f"# {res['title']}, via {res['via']}", "",
+             f"Command: `{res['command']}` (seed {res['seed']}, {res['jobs']} jobs, "
+             f"{res['wall_time_s']:.0f} s wall).", ""]
+    if res["kind"] == CONVERGENCE:
+        rng = sm.get("converged_at_s_m")
+        lines.append(f"**Converged before the loop in {sm['converged']} of {sm['runs']} runs** (transverse "
+                     f"error below {100 * res['definitions']['converged_m']:g} cm from then until s = "
+                     f"{_f(sm.get('converge_before_s_m'), 1, '{:.1f}')} m"
+                     + (f"; reached at s = {rng['min']:.2f} to {rng['max']:.2f} m" if rng else "") + "). "
+                     f"In the loop, over every run: transverse error at most "
+                     f"{_f(sm['loop_max_transverse_error_m'], 1e3, '{:.3f}')} mm, attitude error at most "
+                     f"{_f(sm['loop_max_attitude_error_deg'], 1, '{:.3f}')} deg.")
+        table = _table_group1(res["runs"])
+    else:
+        lines.append(f"**Stable in {sm['stable']} of {sm['runs']} cases** (flown to the end of the path, "
+                     f"every lap, and back within {100 * res['definitions']['back_on_path_m']:g} cm of it).")
+        table = _table_group2(res["runs"])
+    if sm["errors"]:
+        lines.append(f"{sm['errors']} run(s) could not be flown; see the table.")
+    lines += ["", *table, "",
+              "Errors are the truth's: each true position projected on the path, each true attitude "
+              "against the nominal one at that arc length (mavreg/experiments/metrics.py defines every "
+              "column).", ""]
+    for f in res["figures"]:
+        lines += [f"![{f}]({f})", ""]
+    return "\n".join(lines)
+
+
+def write_results(out_dir: Path, res: dict) -> tuple[Path, Path]:
+    """Write ``results.json`` and ``results.md`` into ``out_dir``."""
+    out_dir = Path(out_dir)
+    j = out_dir / "results.json"
+    j.write_text(json.dumps(res, indent=1))
+    md = out_dir / "results.md"
+    md.write_text(markdown(res))
+    return j, md

@@ -1,0 +1,187 @@
+"""Fly an experiment's runs over a process pool, with a progress line on stderr.
+
+Every run is complete in its :class:`~.definitions.RunSpec` (seeds included), is flown by
+one worker from scratch (each worker plans the maneuver once and keeps the plan), and comes
+back as a :class:`RunOutcome`; the outcomes are put back in run order. So the results
+depend on the experiment's seed alone, not on ``jobs`` nor on which worker finished first
+(tests/unit/test_experiment_runner.py). ``jobs = 1`` flies in this process.
+
+Workers are ``spawn``-ed processes bound to this one (:mod:`mavreg.daemon.lifeline`): they,
+and the ``mavreg fly`` of a ``sitl`` run with its emulator, die with it however it ends; on
+Ctrl-C they are killed at once. A run that raises is recorded with its error (one line, the
+traceback apart) and the campaign goes on; a worker process that dies stops the campaign
+(``BrokenProcessPool``).
+"""
+from __future__ import annotations
+
+import functools
+import multiprocessing
+import os
+import signal
+import sys
+import time
+import traceback
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from pathlib import Path
+
+from .definitions import Experiment, RunSpec
+from .metrics import run_metrics
+from .record import Trace, truth_trace
+
+__all__ = ["RunOutcome", "run_experiment", "plan_for", "VIAS", "TRACE_STEP"]
+
+VIAS = ("sim", "sitl")
+TRACE_STEP = 5
+"""The figures get every 5th true sample (200 Hz of the 1 kHz records)."""
+
+
+@dataclass(frozen=True)
+class RunOutcome:
+    """One run's numbers (:func:`~.metrics.run_metrics`), its decimated trace for the
+    figures, or the error that stopped it."""
+
+    spec: RunSpec
+    metrics: dict | None
+    trace: Trace | None
+    error: str | None = None
+    traceback: str | None = None
+
+    @property
+    def ok(self) -> bool:
+        """The run met its experiment's criterion (converged, or stable)."""
+        return self.metrics is not None and bool(self.metrics["ok"])
+
+
+@dataclass(frozen=True)
+class _Job:
+    exp: Experiment
+    spec: RunSpec
+    via: str
+    run_dir: Path | None
+    sitl_files: object
+    keep_flight_files: bool
+
+
+@functools.lru_cache(maxsize=4)
+def plan_for(maneuver_path: Path, vehicle_path: Path, controller_path: Path, laps: int):
+    """The plan of a maneuver file flown ``laps`` times (cached per process)."""
+    from ..config.controller import load_controller
+    from ..config.vehicle import load_vehicle
+    from ..maneuver.plan import plan_file
+    return plan_file(maneuver_path, load_vehicle(vehicle_path), load_controller(controller_path), laps=laps)
+
+
+def _execute(job: _Job) -> RunOutcome:
+    spec = job.spec
+    try:
+        exp = job.exp
+        plan = plan_for(Path(exp.maneuver_path), Path(exp.vehicle_path), Path(exp.controller_path), spec.laps)
+        if job.via == "sim":
+            from .via_sim import fly_sim
+            flight = fly_sim(plan, spec)
+        else:
+            from .via_sitl import fly_sitl
+            flight = fly_sitl(spec, job.sitl_files, job.run_dir, plan.vehicle.max_rotor_thrust_n,
+                              job.keep_flight_files)
+        trace = truth_trace(plan, flight)
+        return RunOutcome(spec, run_metrics(plan, trace, flight, spec, exp.kind), trace.decimated(TRACE_STEP))
+    except Exception as exc:                      # a bug or a broken run: recorded, the campaign goes on
+        first = str(exc).strip().splitlines()[:1] or [""]
+        return RunOutcome(spec, None, None, f"{type(exc).__name__}: {first[0]}", traceback.format_exc())
+
+
+def _init_worker(parent_pid: int) -> None:
+    from ..daemon.lifeline import die_with_parent
+    signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C is the parent's to handle
+    die_with_parent(parent_pid)
+
+
+class _Progress:
+    """``NAME via VIA: done/total runs, failed, elapsed, left`` on one line (a line per run
+    when the stream is not a terminal)."""
+
+    def __init__(self, exp: Experiment, via: str, stream):
+        self.head = f"{exp.name} via {via}"
+        self.total = len(exp.runs)
+        self.stream = stream
+        self.tty = bool(stream is not None and hasattr(stream, "isatty") and stream.isatty())
+        self.t0 = time.monotonic()
+        self.done = self.failed = 0
+
+    def update(self, out: RunOutcome) -> None:
+        self.done += 1
+        self.failed += 0 if out.ok else 1
+        if self.stream is None:
+            return
+        el = time.monotonic() - self.t0
+        left = el / self.done * (self.total - self.done)
+        line = (f"{self.head}: {self.done}/{self.total} runs, {self.failed} not ok, {el:.0f} s elapsed"
+                + (f", about {left:.0f} s left" if self.done < self.total else ""))
+        if self.tty:
+            self.stream.write("\r" + line.ljust(78) + ("\n" if self.done == self.total else ""))
+        else:
+            what = out.error if out.error else ("ok" if out.ok else "not ok")
+            self.stream.write(f"{line} (run {out.spec.index}, {out.spec.label}: {what})\n")
+        self.stream.flush()
+
+
+def run_experiment(exp: Experiment, via: str, jobs: int, out_dir: Path | None = None,
+                   progress=sys.stderr, keep_flight_files: bool = False) -> list[RunOutcome]:
+    """Fly every run of ``exp`` ``via`` ``sim`` or ``sitl`` on ``jobs`` processes.
+
+    Parameters
+    ----------
+    exp : Experiment
+    via : str
+        ``sim`` (the design model) or ``sitl`` (the daemon and firmware_sim in lockstep).
+    jobs : int
+        Worker processes (at most one per run); 1 flies in this process.
+    out_dir : Path, optional
+        Where ``sitl`` runs write their flights (``runs/NNN/``) and the files they fly with;
+        required for ``sitl``.
+    progress : text stream or None
+        Where the progress line goes.
+    keep_flight_files : bool
+        ``sitl``: keep each flight's tlog, control log and ground-truth recording.
+
+    Returns
+    -------
+    list of RunOutcome
+        In run order.
+    """
+    if via not in VIAS:
+        raise ValueError(f"unknown --via {via!r}; choose one of {', '.join(VIAS)}")
+    if jobs < 1:
+        raise ValueError(f"jobs must be at least 1, got {jobs}")
+    files = None
+    if via == "sitl":
+        if out_dir is None:
+            raise ValueError("a sitl campaign needs an output directory")
+        from .via_sitl import prepare_sitl_files
+        files = prepare_sitl_files(exp, Path(out_dir))
+    todo = [_Job(exp, spec, via, None if out_dir is None else Path(out_dir) / "runs" / f"{spec.index:03d}",
+                 files, keep_flight_files) for spec in exp.runs]
+    bar = _Progress(exp, via, progress)
+    outcomes: dict[int, RunOutcome] = {}
+    jobs = min(jobs, len(todo))
+    if jobs <= 1:
+        for job in todo:
+            out = _execute(job)
+            outcomes[out.spec.index] = out
+            bar.update(out)
+    else:
+        pool = ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn"),
+                                   initializer=_init_worker, initargs=(os.getpid(),))
+        try:
+            for fut in as_completed([pool.submit(_execute, job) for job in todo]):
+                out = fut.result()                 # a worker that died: BrokenProcessPool
+                outcomes[out.spec.index] = out
+                bar.update(out)
+        except BaseException:                      # Ctrl-C, a dead worker: stop the others now
+            for proc in list((getattr(pool, "_processes", None) or {}).values()):
+                proc.kill()
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
+        pool.shutdown()
+    return [outcomes[spec.index] for spec in exp.runs]

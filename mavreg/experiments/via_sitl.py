@@ -1,0 +1,183 @@
+"""Fly one run with the daemon against firmware_sim in lockstep over MAVLink (``--via sitl``).
+
+Each run is one ``mavreg fly --lockstep --world ideal`` (the paper's world: the true state
+at once, no link effects, the vehicle file's 20 ms rotor lag) with the paper's design
+(``paper_lqr.yaml``'s gains) on the vehicle file's nominal MK-Quadro (12 N rotors). The run's
+plant goes to the emulator alone: ``--inertia-kg-m2``, ``--rotor-noise-sd-n`` (drawn every
+1 ms physics step from ``--seed``) and ``--rotor-saturation-n`` (the rotors clip at the
+limit while the daemon's commands keep the 12 N scale; ``--max-rotor-thrust-n`` would
+rescale the commands too). The start offset is ``mavreg fly --entry-offset``: the run-in ends
+off the path with the entry's velocity and the regulator takes over there. Laps are the
+maneuver file's ``laps.count`` (a variant file is written).
+
+The daemon's flight envelope (docs/safety.md) would end these runs by design: the paper
+starts 0.85 m across the path and its 7 N runs leave it by 0.8 m with every rotor at its
+limit. The experiment's controller file (:func:`prepare_sitl_files`) is ``paper_lqr.yaml``
+with the maneuver bounds widened (:data:`EXPERIMENT_ENVELOPE`); gains and everything else
+are the paper's. The runs are judged by the emulator's ground truth (:mod:`.record`).
+"""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from ..config.controller import load_controller
+from ..config.maneuver import load_maneuver
+from ..daemon.lifeline import wrap_command
+from ..sim.truth import quats_to_matrices
+from .record import Flight
+
+__all__ = ["SitlFiles", "prepare_sitl_files", "fly_sitl", "EXPERIMENT_ENVELOPE", "FLIGHT_FILES"]
+
+EXPERIMENT_ENVELOPE = {
+    "maneuver": {"max_position_error_m": 1.5, "max_attitude_error_deg": 45.0,
+                 "max_rate_error_rad_s": 6.0, "max_saturated_share": 1.0},
+    "thrust_check_min_ratio": 100.0,
+}
+"""Envelope changes of the experiments' controller file. Maneuver: 1.5 m off the path (half
+the loop's diameter; the paper starts 0.85 m across it), 45 deg and 6 rad/s (its start
+transient reaches 18 deg and 3.0 rad/s on the emulator), saturation allowed all the time.
+The thrust check (measured thrust under half the commanded) is off: in the saturation runs the
+rotors by design do not give what they are told."""
+
+FLIGHT_FILES = ("flight.tlog", "control.npz", "groundtruth.npz")
+"""The large files of a flight (about 17 MB together), removed unless kept."""
+
+ENVELOPE_PEAKS_KEPT = 5
+"""The flight envelope's bounds a run came closest to, kept in its results (value / limit)."""
+
+FLY_TIMEOUT_S = 900.0
+"""Wall seconds one lockstep flight may take (about 15 s on an idle 2-core machine)."""
+
+
+@dataclass(frozen=True)
+class SitlFiles:
+    """The files the daemon flies with: maneuvers by laps, the experiment's controller."""
+
+    maneuvers: dict
+    """laps -> maneuver YAML path."""
+    controller_path: Path
+    vehicle_path: Path
+
+
+def prepare_sitl_files(exp, out_dir: Path) -> SitlFiles:
+    """Write the experiment's controller file and a maneuver file per laps count into ``out_dir``."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    ctrl = yaml.safe_load(Path(exp.controller_path).read_text())
+    env = ctrl.setdefault("envelope", {})
+    env.update(EXPERIMENT_ENVELOPE)
+    ctrl_path = out_dir / "controller_experiment.yaml"
+    ctrl_path.write_text(f"# {exp.controller_path} with the maneuver envelope of mavreg experiment\n"
+                         "# (mavreg/experiments/via_sitl.py, EXPERIMENT_ENVELOPE): the paper's runs\n"
+                         "# leave the path by more than the default 0.5 m on purpose.\n"
+                         + yaml.safe_dump(ctrl, sort_keys=False))
+    load_controller(ctrl_path)                      # validated by the one loader
+    file_laps = load_maneuver(exp.maneuver_path).laps
+    maneuvers = {}
+    for laps in sorted({r.laps for r in exp.runs}):
+        if file_laps is not None and file_laps.count == laps:
+            maneuvers[laps] = Path(exp.maneuver_path)
+            continue
+        raw = yaml.safe_load(Path(exp.maneuver_path).read_text())
+        if not isinstance(raw.get("laps"), dict):
+            raise ValueError(f"{exp.maneuver_path}: no laps section to fly it {laps} times")
+        raw["laps"]["count"] = laps
+        path = out_dir / f"{Path(exp.maneuver_path).stem}_laps{laps}.yaml"
+        path.write_text(f"# {exp.maneuver_path} flown {laps} times round its laps segment\n"
+                        + yaml.safe_dump(raw, sort_keys=False))
+        load_maneuver(path)
+        maneuvers[laps] = path
+    return SitlFiles(maneuvers, ctrl_path, Path(exp.vehicle_path))
+
+
+def fly_command(spec, files: SitlFiles, run_dir: Path) -> list[str]:
+    """The ``mavreg fly`` command line of one run."""
+    cmd = [sys.executable, "-m", "mavreg.cli.main", "fly", str(files.maneuvers[spec.laps]),
+           "--lockstep", "--world", "ideal", "--controller", str(files.controller_path),
+           "--vehicle-params", str(files.vehicle_path), "--out", str(run_dir),
+           "--timeout-s", f"{FLY_TIMEOUT_S:g}", "--entry-offset", *(repr(float(v)) for v in spec.offset_m),
+           f"--emulator-arg=--seed={spec.seed}", f"--emulator-arg=--rotor-noise-sd-n={float(spec.rotor_noise_sd_n)!r}"]
+    if spec.saturation_n is not None:                # floats as repr: the shortest exact decimal
+        cmd.append(f"--emulator-arg=--rotor-saturation-n={float(spec.saturation_n)!r}")
+    if spec.inertia_kg_m2 is not None:
+        cmd += ["--emulator-arg=--inertia-kg-m2", *(f"--emulator-arg={float(j)!r}" for j in spec.inertia_kg_m2)]
+    return cmd
+
+
+def _window(events) -> tuple[float | None, float | None, str | None]:
+    """(start, end, phase after) of the maneuver phase, from the flight's events."""
+    t0 = t1 = after = None
+    for ev in events:
+        if ev["kind"] != "phase" or ev["time_s"] is None:
+            continue
+        if t0 is None and ev["phase"] == "maneuver":
+            t0 = float(ev["time_s"])
+        elif t0 is not None and ev["phase"] != "maneuver":
+            t1, after = float(ev["time_s"]), ev["phase"]
+            break
+    return t0, t1, after
+
+
+def _empty(status: str, reason: str, limit: float, extra: dict) -> Flight:
+    z = np.zeros((0, 3))
+    return Flight(np.zeros(0), z, np.zeros((0, 3, 3)), z, np.zeros((0, 4)), np.zeros((0, 4)),
+                  status, reason, False, limit, extra)
+
+
+def fly_sitl(spec, files: SitlFiles, run_dir: Path, max_rotor_thrust_n: float,
+             keep_files: bool = False) -> Flight:
+    """Fly ``spec`` with ``mavreg fly`` into ``run_dir``; the emulator's true record of the maneuver.
+
+    ``max_rotor_thrust_n`` is the vehicle file's limit, the plant's when the run does not
+    saturate. The flight's output (``summary.json``, ``flight.png``, ``fly.log``) stays in
+    ``run_dir``; :data:`FLIGHT_FILES` too with ``keep_files``.
+    """
+    run_dir = Path(run_dir)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    limit = spec.saturation_n if spec.saturation_n is not None else max_rotor_thrust_n
+    t_wall = time.monotonic()
+    with open(run_dir / "fly.log", "w") as log:
+        try:
+            proc = subprocess.run(wrap_command(fly_command(spec, files, run_dir)), stdout=log,
+                                  stderr=subprocess.STDOUT, cwd=run_dir, timeout=FLY_TIMEOUT_S + 60)
+            code = proc.returncode
+        except subprocess.TimeoutExpired:
+            code = None
+    extra = {"wall_time_s": time.monotonic() - t_wall, "fly_exit_code": code}
+    try:
+        summary = json.loads((run_dir / "summary.json").read_text())
+        with np.load(run_dir / "groundtruth.npz") as z:
+            rec = {k: z[k] for k in ("t_s", "position_ned_m", "quaternion_wxyz", "velocity_ned_m_s",
+                                     "rotor_cmd_n", "rotor_applied_n")}
+    except (OSError, ValueError, KeyError) as exc:
+        tail = (run_dir / "fly.log").read_text().strip().splitlines()[-1:] or [""]
+        return _empty("not_flown", f"mavreg fly exit {code}: {tail[0] or exc}", limit, extra)
+    finally:
+        if not keep_files:
+            for name in FLIGHT_FILES:
+                (run_dir / name).unlink(missing_ok=True)
+    peaks = (summary.get("status") or {}).get("envelope_peaks") or {}
+    top = sorted(peaks.items(), key=lambda kv: -kv[1]["ratio"])[:ENVELOPE_PEAKS_KEPT]
+    extra.update(flight_result=summary["result"], flight_reason=summary["reason"],
+                 envelope_peaks={k: {f: v[f] for f in ("ratio", "value", "limit", "phase")} for k, v in top})
+    t0, t1, after = _window(summary["events"])
+    if t0 is None:
+        return _empty("not_flown", summary["reason"] or "the maneuver did not start", limit, extra)
+    t = rec["t_s"]
+    sel = (t >= t0) & (t <= (t1 if t1 is not None else t[-1]))
+    completed = after == "hold"          # the maneuver's end hands over to the exit hold
+    status = "completed" if completed else "failed"
+    reason = "end of the path reached" if completed else (summary["reason"] or f"maneuver ended in {after}")
+    return Flight(t_s=t[sel] - t0, position_m=rec["position_ned_m"][sel],
+                  rotation=quats_to_matrices(rec["quaternion_wxyz"][sel]),
+                  velocity_m_s=rec["velocity_ned_m_s"][sel], rotor_command_n=rec["rotor_cmd_n"][sel],
+                  rotor_applied_n=rec["rotor_applied_n"][sel], status=status, reason=reason,
+                  completed=completed, saturation_n=limit, extra=extra)

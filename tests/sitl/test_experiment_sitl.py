@@ -1,0 +1,54 @@
+"""One run of paper-group1 via sitl: the daemon and firmware_sim in lockstep, judged by the truth."""
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import pytest
+
+from mavreg.config.controller import load_controller
+from mavreg.experiments.campaign import run_campaign
+from mavreg.experiments.definitions import paper_group1, paper_group2
+from mavreg.experiments.via_sitl import FLIGHT_FILES, fly_command, prepare_sitl_files
+
+pytestmark = pytest.mark.sitl
+
+
+def test_the_fly_command_gives_the_plant_to_the_emulator_and_the_offset_to_the_daemon(tmp_path):
+    g1 = paper_group1(0, samples=1)
+    g2 = paper_group2(0)
+    files = prepare_sitl_files(replace(g2, runs=g2.runs + g1.runs), tmp_path)
+    cmd = fly_command(g1.runs[1], files, tmp_path / "r")
+    i = cmd.index("--entry-offset")
+    assert [float(v) for v in cmd[i + 1:i + 4]] == [0.6, 0.6, 0.6]
+    j = cmd.index("--emulator-arg=--inertia-kg-m2")
+    assert [float(a.split("=")[1]) for a in cmd[j + 1:j + 4]] == list(g1.runs[1].inertia_kg_m2)
+    assert f"--emulator-arg=--seed={g1.runs[1].seed}" in cmd and "--world" in cmd and "--lockstep" in cmd
+    assert not any("saturation" in a for a in cmd)
+    sat = fly_command(g2.runs[2], files, tmp_path / "r")
+    assert "--emulator-arg=--rotor-saturation-n=7.0" in sat and "--emulator-arg=--rotor-noise-sd-n=0.1" in sat
+    assert not any("max-rotor-thrust" in a for a in sat)            # the daemon's 12 N scale is kept
+    assert sat[4].endswith("barrel_roll_laps3.yaml") and cmd[4].endswith("barrel_roll.yaml")
+    ctrl = load_controller(files.controller_path)
+    assert ctrl.envelope.maneuver.max_position_error_m == 1.5
+    assert ctrl.q_position == load_controller(g1.controller_path).q_position     # the paper's gains
+
+
+def test_one_group1_run_via_sitl_converges_before_the_loop(tmp_path):
+    exp = paper_group1(0, samples=1)
+    exp = replace(exp, runs=exp.runs[1:])                  # a drawn inertia, 0.6 m off in each axis
+    camp = run_campaign(exp, "sitl", 1, tmp_path, "test command", progress=None)
+    (out,) = camp.outcomes
+    assert out.error is None, out.traceback
+    m = out.metrics
+    assert m["status"] == "completed" and m["extra"]["flight_result"] == "ok"
+    assert m["start_distance_m"] == pytest.approx(0.85, abs=0.02)   # the regulator took over off the path
+    assert m["converged"] and m["converged_at_s_m"] < 16.5 and camp.all_ok
+    assert m["loop"]["transverse_error_m"]["max"] < 0.005            # 20 ms rotor lag: about 1.4 mm
+    run_dir = tmp_path / "runs" / "001"
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["result"] == "ok"
+    assert (run_dir / "flight.png").exists() and (run_dir / "fly.log").exists()
+    assert not any((run_dir / f).exists() for f in FLIGHT_FILES)    # 17 MB a flight: not kept by default
+    res = json.loads((tmp_path / "results.json").read_text())
+    assert res["via"] == "sitl" and res["sitl"]["world"] == "ideal" and res["summary"]["converged"] == 1

@@ -1,0 +1,31 @@
+"""``mavreg experiment``: bad input is one line and exit 2; --help names what exists."""
+from __future__ import annotations
+
+import pytest
+
+from mavreg.cli.main import main
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["gust"], "unknown experiment 'gust'; choose one of paper-group1, paper-group2"),
+    (["paper-group1", "--jobs", "0"], "--jobs must be at least 1, got 0"),
+    (["paper-group1", "--jobs", "two"], "--jobs must be a whole number, got 'two'"),
+    (["paper-group1", "--seed", "-3"], "--seed must be at least 0, got -3"),
+    (["paper-group1", "--via", "hardware"], "--via must be one of sim, sitl, got 'hardware'"),
+    (["paper-group2", "--keep-flight-files"], "--keep-flight-files applies only to --via sitl"),
+])
+def test_bad_input_is_one_line_and_exit_2(argv, needle, capsys, tmp_path):
+    code = main(["experiment", *argv, "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.strip().count("\n") == 0 and needle in err and "Traceback" not in err
+    assert not (tmp_path / "out").exists()          # nothing was started
+
+
+def test_help_names_the_experiments_and_only_those(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["experiment", "--help"])
+    out = capsys.readouterr().out
+    assert exc.value.code == 0
+    assert "paper-group1" in out and "paper-group2" in out and "--via" in out and "--jobs" in out
+    assert "gust" not in out and "dask" not in out

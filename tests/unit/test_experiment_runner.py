@@ -1,0 +1,75 @@
+"""Small campaigns of each kind on the design model, end to end; results independent of --jobs."""
+from __future__ import annotations
+
+import io
+import json
+
+import pytest
+
+from mavreg.experiments.campaign import run_campaign
+from mavreg.experiments.definitions import paper_group1, paper_group2
+from mavreg.experiments.runner import run_experiment
+
+
+@pytest.fixture(scope="module")
+def group1(tmp_path_factory):
+    """Two runs of group 1 (nominal inertia and the first drawn one) over two processes."""
+    out = tmp_path_factory.mktemp("g1")
+    progress = io.StringIO()
+    camp = run_campaign(paper_group1(0, samples=1), "sim", 2, out, "test command", progress=progress)
+    return camp, out, progress.getvalue()
+
+
+def test_group1_campaign_converges_and_writes_its_tables_and_figures(group1):
+    camp, out, progress = group1
+    res = json.loads((out / "results.json").read_text())
+    assert res == camp.results and res["experiment"] == "paper-group1" and res["via"] == "sim"
+    assert [r["index"] for r in res["runs"]] == [0, 1]
+    for r in res["runs"]:
+        # the paper's claim on the design model: converged on the run-up, the loop within millimetres
+        assert r["converged"] and r["completed"] and r["ok"]
+        assert -0.6 < r["converged_at_s_m"] < 16.5
+        assert r["start_distance_m"] == pytest.approx(0.6 * 2 ** 0.5, abs=0.01)   # across the path
+        assert r["loop"]["transverse_error_m"]["max"] < 0.005
+        assert r["loop_peak_thrust_n"] == pytest.approx(39.1, abs=0.5)            # m (g + v^2 / r)
+    assert res["runs"][0]["inertia_kg_m2"] is None and res["runs"][1]["inertia_kg_m2"] is not None
+    assert res["summary"]["converged"] == 2 and camp.all_ok
+    md = (out / "results.md").read_text()
+    assert "Converged before the loop in 2 of 2 runs" in md and md.count("| yes |") == 2
+    for name in ("fig2_inertia_paths.png", "fig3_attitude_velocity.png", "fig3_start.png", "fig4_inputs.png",
+                 "errors.png"):
+        assert (out / name).stat().st_size > 10_000 and f"]({name})" in md
+    assert progress.count("\n") == 2 and "2/2 runs" in progress     # not a terminal: a line per run
+
+
+def test_results_do_not_depend_on_jobs(group1):
+    camp, _, _ = group1
+    inline = run_experiment(paper_group1(0, samples=1), "sim", 1, progress=None)
+    assert [o.metrics for o in inline] == [o.metrics for o in camp.outcomes]    # exact, float for float
+
+
+def test_group2_campaign_is_stable_and_saturates_only_with_a_limit(tmp_path):
+    exp = paper_group2(0, laps=1, saturations_n=(None, 7.0))
+    camp = run_campaign(exp, "sim", 1, tmp_path, "test command", progress=None)
+    free, sat = camp.results["runs"]
+    assert free["stable"] and sat["stable"] and camp.all_ok
+    assert free["laps_flown"] == 1.0 and sat["laps_flown"] == 1.0
+    assert free["saturated_share"] == 0.0 and 0.0 < sat["saturated_share"] < 0.5
+    # 0.1 N of noise alone keeps the loop within millimetres; 7 N pushes it out by decimetres
+    assert free["loop"]["transverse_error_m"]["max"] < 0.005
+    assert sat["loop"]["transverse_error_m"]["max"] > 0.1
+    assert max(max(o.trace.rotor_applied_n.max(axis=0)) for o in camp.outcomes[1:]) <= 7.0
+    md = (tmp_path / "results.md").read_text()
+    assert "Stable in 2 of 2 cases" in md and "saturation 7 N" in md
+    for name in ("fig5_rotor_forces.png", "fig6_paths.png", "fig7_attitude_velocity.png", "errors.png"):
+        assert (tmp_path / name).stat().st_size > 10_000
+
+
+def test_a_run_that_raises_is_recorded_and_the_campaign_goes_on(tmp_path):
+    from dataclasses import replace
+    exp = paper_group1(0, samples=0)
+    bad = replace(exp, runs=(replace(exp.runs[0], inertia_kg_m2=(-1.0, 0.02, 0.03)),))
+    outs = run_experiment(bad, "sim", 1, progress=None)
+    assert outs[0].metrics is None and not outs[0].ok
+    assert outs[0].error.startswith("ValueError: inertia_kg_m2 must be 3 positive numbers")
+    assert "Traceback" in outs[0].traceback
