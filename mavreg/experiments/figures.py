@@ -275,7 +275,8 @@ def group2_figures(out_dir: Path, plan, outcomes, via: str) -> list[Path]:
                 ax.set_ylabel(f"rotor {r + 1} (N)")
         axes[0, j].set_title(o.spec.label, fontsize=10)
         axes[-1, j].set_xlabel("arc length s (m)")
-    axes[0, 0].legend(fontsize=7, loc="upper left")
+    if styled:
+        axes[0, 0].legend(fontsize=7, loc="upper left")
     fig.suptitle(f"paper-group2 via {via}: rotor forces, commanded (grey) and applied (colour); "
                  "nominal black, limit dashed", fontsize=11)
     fig.tight_layout()

@@ -14,7 +14,9 @@ Definitions (every error is the truth's, :mod:`.record`):
 - **peaks**: of the commanded thrust and of each torque's magnitude (eq 34 of the rotor
   commands), over the whole maneuver (in group 1 the start's transient) and in the loop.
 - **saturated**: a sample with any rotor's applied force at the plant's limit
-  (``>= (1 - 1e-9) limit``); the share is over the samples of the maneuver.
+  (``>= (1 - 1e-9) limit``); the share is over the samples of the maneuver. Also the time
+  during which all four rotors are asked for at least the limit: they all give the limit (up
+  to the noise), so no differential thrust, hence no torque, is left whatever is asked.
 - **laps flown**: ``laps * clip((max s - loop start) / (loop end - loop start), 0, 1)``.
 - **stable**: the maneuver was flown to the end of its path (every lap, no divergence, not
   stopped by the daemon's envelope) and the vehicle is back within :data:`BACK_ON_PATH_M`
@@ -71,12 +73,14 @@ def convergence_arc_length(s_m, error_m, threshold_m: float, before_s_m: float) 
     return float(s[last + 1])
 
 
-def saturated_share(applied_n, limit_n: float | None) -> float:
-    """Share of samples (rows of ``applied_n``, (K, 4)) with any rotor at ``limit_n``."""
-    f = np.asarray(applied_n, dtype=float)
+def saturated_share(forces_n, limit_n: float | None, every_rotor: bool = False) -> float:
+    """Share of samples (rows of ``forces_n``, (K, 4)) with any rotor at or beyond ``limit_n``
+    (with ``every_rotor``: all four at once)."""
+    f = np.asarray(forces_n, dtype=float)
     if limit_n is None or f.size == 0:
         return 0.0
-    sat = np.any(f >= float(limit_n) * (1.0 - SATURATION_RTOL), axis=1)
+    at = f >= float(limit_n) * (1.0 - SATURATION_RTOL)
+    sat = np.all(at, axis=1) if every_rotor else np.any(at, axis=1)
     return float(np.count_nonzero(sat) / sat.size)
 
 
@@ -154,6 +158,8 @@ def run_metrics(plan, trace, flight, spec, kind: str) -> dict:
                                  if np.any(in_loop) else None),
         "peak_rotor_command_n": float(trace.rotor_command_n.max()) if n else None,
         "saturated_share": share, "saturated_s": share * n * dt,
+        "all_rotors_asked_beyond_limit_s": saturated_share(trace.rotor_command_n, flight.saturation_n,
+                                                           every_rotor=True) * n * dt,
         "laps_flown": laps_flown(s, loop_a, loop_b, plan.laps),
         "extra": flight.extra,
     }

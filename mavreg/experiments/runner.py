@@ -155,6 +155,8 @@ def run_experiment(exp: Experiment, via: str, jobs: int, out_dir: Path | None = 
     if jobs < 1:
         raise ValueError(f"jobs must be at least 1, got {jobs}")
     files = None
+    if out_dir is not None:
+        out_dir = Path(out_dir).resolve()          # a sitl run's ``mavreg fly`` works in its own directory
     if via == "sitl":
         if out_dir is None:
             raise ValueError("a sitl campaign needs an output directory")

@@ -43,7 +43,7 @@ EXPERIMENT_ENVELOPE = {
 }
 """Envelope changes of the experiments' controller file. Maneuver: 1.5 m off the path (half
 the loop's diameter; the paper starts 0.85 m across it), 45 deg and 6 rad/s (its start
-transient reaches 18 deg and 3.0 rad/s on the emulator), saturation allowed all the time.
+transient reaches 18 deg and 3.0-3.5 rad/s on the emulator), saturation allowed all the time.
 The thrust check (measured thrust under half the commanded) is off: in the saturation runs the
 rotors by design do not give what they are told."""
 
@@ -68,8 +68,9 @@ class SitlFiles:
 
 
 def prepare_sitl_files(exp, out_dir: Path) -> SitlFiles:
-    """Write the experiment's controller file and a maneuver file per laps count into ``out_dir``."""
-    out_dir = Path(out_dir)
+    """Write the experiment's controller file and a maneuver file per laps count into
+    ``out_dir``; every path returned is absolute."""
+    out_dir = Path(out_dir).resolve()
     out_dir.mkdir(parents=True, exist_ok=True)
     ctrl = yaml.safe_load(Path(exp.controller_path).read_text())
     env = ctrl.setdefault("envelope", {})
@@ -84,7 +85,7 @@ def prepare_sitl_files(exp, out_dir: Path) -> SitlFiles:
     maneuvers = {}
     for laps in sorted({r.laps for r in exp.runs}):
         if file_laps is not None and file_laps.count == laps:
-            maneuvers[laps] = Path(exp.maneuver_path)
+            maneuvers[laps] = Path(exp.maneuver_path).resolve()
             continue
         raw = yaml.safe_load(Path(exp.maneuver_path).read_text())
         if not isinstance(raw.get("laps"), dict):
@@ -95,7 +96,7 @@ def prepare_sitl_files(exp, out_dir: Path) -> SitlFiles:
                         + yaml.safe_dump(raw, sort_keys=False))
         load_maneuver(path)
         maneuvers[laps] = path
-    return SitlFiles(maneuvers, ctrl_path, Path(exp.vehicle_path))
+    return SitlFiles(maneuvers, ctrl_path, Path(exp.vehicle_path).resolve())
 
 
 def fly_command(spec, files: SitlFiles, run_dir: Path) -> list[str]:

@@ -14,10 +14,13 @@ from mavreg.experiments.via_sitl import FLIGHT_FILES, fly_command, prepare_sitl_
 pytestmark = pytest.mark.sitl
 
 
-def test_the_fly_command_gives_the_plant_to_the_emulator_and_the_offset_to_the_daemon(tmp_path):
+def test_the_fly_command_gives_the_plant_to_the_emulator_and_the_offset_to_the_daemon(tmp_path, monkeypatch):
     g1 = paper_group1(0, samples=1)
     g2 = paper_group2(0)
-    files = prepare_sitl_files(replace(g2, runs=g2.runs + g1.runs), tmp_path)
+    monkeypatch.chdir(tmp_path)
+    files = prepare_sitl_files(replace(g2, runs=g2.runs + g1.runs), "out")    # relative: made absolute
+    assert all(p.is_absolute() and p.exists() for p in (*files.maneuvers.values(), files.controller_path,
+                                                         files.vehicle_path))
     cmd = fly_command(g1.runs[1], files, tmp_path / "r")
     i = cmd.index("--entry-offset")
     assert [float(v) for v in cmd[i + 1:i + 4]] == [0.6, 0.6, 0.6]

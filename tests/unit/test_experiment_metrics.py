@@ -58,6 +58,7 @@ def test_saturated_share_counts_samples_with_any_rotor_at_the_limit():
     f[100:150, :] = 7.0                     # 5 % with all four
     f[150:160, 0] = 7.0 * (1 - 1e-6)        # just under: not saturated
     assert saturated_share(f, 7.0) == pytest.approx(0.15)
+    assert saturated_share(f, 7.0, every_rotor=True) == pytest.approx(0.05)
     assert saturated_share(f, None) == 0.0
     assert saturated_share(np.zeros((0, 4)), 7.0) == 0.0
 
