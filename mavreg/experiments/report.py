@@ -86,11 +86,12 @@ def _table_group1(runs) -> list[str]:
 def _table_group2(runs) -> list[str]:
     lines = ["| case | stable | laps | loop max (cm) | loop RMS (cm) | max over the maneuver (cm) "
              "| loop max attitude (deg) | max attitude over the maneuver (deg) | time saturated "
-             "| all four rotors asked for the limit or more | error at the end (cm) |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| all four rotors asked for the limit or more | loop torque shortfall \\|Δγ1\\|, \\|Δγ2\\|, "
+             "\\|Δγ3\\| (N m) | error at the end (cm) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for m in runs:
         if "error" in m:
-            lines.append(f"| {m['label']} | error: {m['error']} | | | | | | | | | |")
+            lines.append(f"| {m['label']} | error: {m['error']} | | | | | | | | | | |")
             continue
         st = "yes" if m["stable"] else f"**no** ({m['status']}: {m['reason']})"
         lines.append(f"| {m['label']} | {st} | {m['laps_flown']:.1f} of {m['laps']} "
@@ -101,6 +102,7 @@ def _table_group2(runs) -> list[str]:
                      f"| {_stat(m['overall'], 'attitude_error_deg', 'max', 1, '{:.1f}')} "
                      f"| {100 * m['saturated_share']:.1f} % ({m['saturated_s']:.2f} s) "
                      f"| {m['all_rotors_asked_beyond_limit_s']:.2f} s "
+                     f"| {', '.join(f'{x:.2f}' for x in m['loop_torque_shortfall_n_m'] or [])} "
                      f"| {_f(m['final_transverse_error_m'], 100)} |")
     return lines
 
