@@ -18,7 +18,7 @@ __all__ = ["group1_figures", "group2_figures", "nominal_curves"]
 _DESIRED = dict(color="tab:blue", lw=2.2, zorder=3)
 _NOMINAL_RUN = dict(color="tab:red", lw=1.6, zorder=4)
 _CASE_COLOURS = ("tab:blue", "tab:red", "tab:green", "tab:purple", "tab:orange")
-_DPI = 90
+_DPI = 85
 
 
 def _plt():
@@ -281,7 +281,7 @@ def group2_figures(out_dir: Path, plan, outcomes, via: str) -> list[Path]:
                  "nominal black, limit dashed", fontsize=11)
     fig.tight_layout()
     written.append(out_dir / "fig5_rotor_forces.png")
-    fig.savefig(written[-1], dpi=_DPI)
+    fig.savefig(written[-1], dpi=75)             # 12 panels of noisy lines: kept under 200 kB
     plt.close(fig)
     # Fig. 6: paths in the p2-p3 plane, whole and the loop
     fig, (ax, zoom) = plt.subplots(1, 2, figsize=(13, 5), gridspec_kw={"width_ratios": (2.0, 1.0)})

@@ -12,7 +12,8 @@ Definitions (every error is the truth's, :mod:`.record`):
 - **loop**: the samples whose s lies in the laps segment ``[start, end)`` (every lap); max
   and RMS transverse error, max attitude error there.
 - **peaks**: of the commanded thrust and of each torque's magnitude (eq 34 of the rotor
-  commands), over the whole maneuver (in group 1 the start's transient) and in the loop.
+  commands), over the whole maneuver (in group 1: the start's transient), from convergence
+  to the end (the maneuver's own) and in the loop.
 - **saturated**: a sample with any rotor's applied force at the plant's limit
   (``>= (1 - 1e-9) limit``); the share is over the samples of the maneuver. Also the time
   during which all four rotors are asked for at least the limit: they all give the limit (up
@@ -132,9 +133,12 @@ def run_metrics(plan, trace, flight, spec, kind: str) -> dict:
     first_end = plan.segments[0][2]
     s_conv = convergence_arc_length(s, e, CONVERGED_M, first_end)
     t_conv = None
-    if s_conv is not None:
-        t_conv = float(trace.t_s[np.flatnonzero(s == s_conv)[0]])
     wrench = np.abs(trace.wrench_command)
+    after = np.zeros(s.size, dtype=bool)
+    if s_conv is not None:
+        k_conv = int(np.flatnonzero(s == s_conv)[0])
+        t_conv = float(trace.t_s[k_conv])
+        after[k_conv:] = True
     M = mixer_matrix(plan.vehicle.arm_length_m, plan.vehicle.drag_torque_ratio_m)
     shortfall = np.abs(trace.wrench_command - trace.rotor_applied_n @ M.T)[in_loop, 1:]
     n = s.size
@@ -159,6 +163,9 @@ def run_metrics(plan, trace, flight, spec, kind: str) -> dict:
         "final_transverse_error_m": final_e,
         "peak_thrust_n": float(trace.wrench_command[:, 0].max()) if n else None,
         "peak_torque_n_m": [float(x) for x in wrench[:, 1:].max(axis=0)] if n else None,
+        "converged_peak_thrust_n": float(trace.wrench_command[after, 0].max()) if np.any(after) else None,
+        "converged_peak_torque_n_m": ([float(x) for x in wrench[after, 1:].max(axis=0)]
+                                      if np.any(after) else None),
         "loop_peak_thrust_n": float(trace.wrench_command[in_loop, 0].max()) if np.any(in_loop) else None,
         "loop_peak_torque_n_m": ([float(x) for x in wrench[in_loop, 1:].max(axis=0)]
                                  if np.any(in_loop) else None),

@@ -63,23 +63,23 @@ def _stat(block, key, what, scale=1.0, fmt="{:.2f}"):
 
 def _table_group1(runs) -> list[str]:
     lines = ["| run | jx, jy, jz (kg m²) | converged | s at convergence (m) | loop max (mm) | loop RMS (mm) "
-             "| loop max attitude (deg) | loop peak thrust (N) | loop peak \\|γ1\\|, \\|γ2\\|, \\|γ3\\| (N m) "
-             "| peak thrust, \\|γ1\\|, \\|γ2\\|, \\|γ3\\| overall |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             "| loop max attitude (deg) | peak thrust (N), \\|γ1\\|, \\|γ2\\|, \\|γ3\\| (N m) after convergence "
+             "| the same over the whole maneuver (the start) |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for m in runs:
         if "error" in m:
-            lines.append(f"| {m['index']} | {m['label']} | error: {m['error']} | | | | | | | |")
+            lines.append(f"| {m['index']} | {m['label']} | error: {m['error']} | | | | | | |")
             continue
         J = "nominal" if m["inertia_kg_m2"] is None else ", ".join(f"{j:.4f}" for j in m["inertia_kg_m2"])
         conv = "yes" if m["converged"] else f"**no** ({m['status']})"
-        tq = ", ".join(f"{x:.2f}" for x in m["loop_peak_torque_n_m"]) if m["loop_peak_torque_n_m"] else "—"
-        peaks = (f"{m['peak_thrust_n']:.1f}, " + ", ".join(f"{x:.2f}" for x in m["peak_torque_n_m"])
-                 if m["peak_torque_n_m"] else "—")
+        def peaks(thrust, torques):
+            return f"{thrust:.1f}, " + ", ".join(f"{x:.2f}" for x in torques) if torques else "—"
         lines.append(f"| {m['index']} | {J} | {conv} | {_f(m['converged_at_s_m'])} "
                      f"| {_stat(m['loop'], 'transverse_error_m', 'max', 1e3, '{:.3f}')} "
                      f"| {_stat(m['loop'], 'transverse_error_m', 'rms', 1e3, '{:.3f}')} "
                      f"| {_stat(m['loop'], 'attitude_error_deg', 'max', 1, '{:.3f}')} "
-                     f"| {_f(m['loop_peak_thrust_n'], 1, '{:.1f}')} | {tq} | {peaks} |")
+                     f"| {peaks(m['converged_peak_thrust_n'], m['converged_peak_torque_n_m'])} "
+                     f"| {peaks(m['peak_thrust_n'], m['peak_torque_n_m'])} |")
     return lines
 
 

@@ -32,6 +32,7 @@ def test_group1_campaign_converges_and_writes_its_tables_and_figures(group1):
         assert r["start_distance_m"] == pytest.approx(0.6 * 2 ** 0.5, abs=0.01)   # across the path
         assert r["loop"]["transverse_error_m"]["max"] < 0.005
         assert r["loop_peak_thrust_n"] == pytest.approx(39.1, abs=0.5)            # m (g + v^2 / r)
+        assert r["converged_peak_torque_n_m"][1] < 0.5 < r["peak_torque_n_m"][1]  # pitch: the start's
     assert res["runs"][0]["inertia_kg_m2"] is None and res["runs"][1]["inertia_kg_m2"] is not None
     assert res["summary"]["converged"] == 2 and camp.all_ok
     md = (out / "results.md").read_text()
