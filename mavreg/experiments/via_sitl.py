@@ -43,7 +43,7 @@ EXPERIMENT_ENVELOPE = {
 }
 """Envelope changes of the experiments' controller file. Maneuver: 1.5 m off the path (half
 the loop's diameter; the paper starts 0.85 m across it), 45 deg and 6 rad/s (its start
-transient reaches 18 deg and 3.0-3.5 rad/s on the emulator), saturation allowed all the time.
+transient reaches 18 deg and 3.1-3.6 rad/s on the emulator), saturation allowed all the time.
 The thrust check (measured thrust under half the commanded) is off: in the saturation runs the
 rotors by design do not give what they are told."""
 
