@@ -127,9 +127,9 @@ def _attitude_velocity(path: Path, plan, nominal, styled, desired, title: str, x
         _zoom(axes.ravel(), xlim)
     handles, labels = axes[0, 0].get_legend_handles_labels()
     if labels:
-        fig.legend(handles, labels, loc="upper right", fontsize=8)
+        fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8)
     fig.suptitle(title, fontsize=11)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0.0, 0.03 if labels else 0.0, 1.0, 1.0))
     fig.savefig(path, dpi=_DPI)
     plt.close(fig)
 
