@@ -82,8 +82,10 @@ def run(args) -> int:
         raise ValueError("--keep-flight-files applies only to --via sitl")
     out = Path(args.out) if args.out else (Path("experiments")
                                            / f"{args.name}-{args.via}-{time.strftime('%Y%m%d-%H%M%S')}")
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {out} exists and is not a directory")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"--out {out}: {exc.strerror or exc}") from None
     exp = build_experiment(args.name, seed)
     command = (f"mavreg experiment {args.name} --via {args.via} --seed {seed} --jobs {jobs} "
                f"--out {shlex.quote(str(out))}" + (" --keep-flight-files" if args.keep_flight_files else ""))

@@ -22,6 +22,14 @@ def test_bad_input_is_one_line_and_exit_2(argv, needle, capsys, tmp_path):
     assert not (tmp_path / "out").exists()          # nothing was started
 
 
+def test_an_out_that_is_a_file_is_one_line_and_exit_2(capsys, tmp_path):
+    f = tmp_path / "a_file"
+    f.write_text("")
+    assert main(["experiment", "paper-group1", "--out", str(f)]) == 2
+    err = capsys.readouterr().err
+    assert err.strip().count("\n") == 0 and f"--out {f}" in err
+
+
 def test_help_names_the_experiments_and_only_those(capsys):
     with pytest.raises(SystemExit) as exc:
         main(["experiment", "--help"])
