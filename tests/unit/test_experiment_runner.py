@@ -76,3 +76,20 @@ def test_a_run_that_raises_is_recorded_and_the_campaign_goes_on(tmp_path):
     assert outs[0].metrics is None and not outs[0].ok
     assert outs[0].error.startswith("ValueError: inertia_kg_m2 must be 3 positive numbers")
     assert "Traceback" in outs[0].traceback
+
+
+def test_progress_on_a_terminal_rewrites_one_line():
+    from mavreg.experiments.runner import RunOutcome, _Progress
+
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+
+    exp = paper_group1(0, samples=2)
+    tty = Tty()
+    bar = _Progress(exp, "sim", tty)
+    for spec, ok in zip(exp.runs, (True, False, True)):
+        bar.update(RunOutcome(spec, {"ok": ok}, None))
+    text = tty.getvalue()
+    assert text.count("\r") == 3 and text.endswith("\n") and text.count("\n") == 1
+    assert "3/3 runs, 1 not ok" in text.split("\r")[-1] and "left" not in text.split("\r")[-1]
