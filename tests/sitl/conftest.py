@@ -42,4 +42,4 @@ def fly_lockstep(tmp, emulator_args=(), fly_args=(), during=None, vehicle=VEHICL
 @pytest.fixture(scope="session")
 def ideal_flight(tmp_path_factory):
     """The barrel roll from the ground with ideal actuators (rotor time constant 0)."""
-    return fly_lockstep(tmp_path_factory.mktemp("ideal"), vehicle=VEHICLE_IDEAL)
+    return fly_lockstep(tmp_path_factory.mktemp("ideal"), ("--lockstep-timeout", "3"), vehicle=VEHICLE_IDEAL)
