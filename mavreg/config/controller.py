@@ -35,8 +35,9 @@ class ControllerParams:
     hover_q_position: tuple[float, ...] = field(
         default=(100.0, 100.0, 100.0), metadata={"length": 3, **_W})
     """The hover controller's position weights (N, E, D); its other weights are the above."""
-    riccati_step_s: float = field(default=0.001, metadata={"min_exclusive": 0.0, "max": 0.01})
-    """Step of the Riccati sweep, in nominal time (the s-step is speed times this)."""
+    riccati_step_s: float = field(default=0.002, metadata={"min_exclusive": 0.0, "max": 0.01})
+    """Step of the RK4 Riccati sweep, in nominal time (the s-step is speed times this); the
+    plan's tables hold its nodes and the midpoints between them, half a step apart."""
     envelope: EnvelopeParams = field(default_factory=EnvelopeParams)
     """The flight envelope the daemon holds flights to (:mod:`mavreg.config.envelope`)."""
     rotor_lag_in_design: bool = False

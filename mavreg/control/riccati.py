@@ -41,6 +41,8 @@ import warnings
 import numpy as np
 import scipy.linalg
 
+from .riccati_kernel import rk4_sweep
+
 __all__ = [
     "RK4_STABILITY_RADIUS",
     "care",
@@ -55,6 +57,9 @@ RK4_STABILITY_RADIUS = 2.5
 """Radius of a left half-disc inside RK4's absolute stability region (true minimum ~2.6)."""
 
 _BLOWUP_FACTOR = 1e12
+
+MAX_CHECKED_NODES = 1024
+"""Most nodes whose closed-loop eigenvalues :func:`check_step` computes."""
 
 
 def _validate_weights(Q, R, n: int, m: int) -> tuple[np.ndarray, np.ndarray]:
@@ -146,9 +151,10 @@ def care(A, B, Q, R) -> tuple[np.ndarray, np.ndarray]:
 
 
 def riccati_rhs(A: np.ndarray, S: np.ndarray, Q: np.ndarray, P: np.ndarray) -> np.ndarray:
-    r"""``F(P) = A^T P + P A - P S P + Q`` with ``S = B R^{-1} B^T``, so that ``-P' = F``."""
-    AtP = A.T @ P
-    return AtP + AtP.T - P @ S @ P + Q
+    r"""``F(P) = A^T P + P A - P S P + Q`` with ``S = B R^{-1} B^T``, so that ``-P' = F``.
+    Stacks ``(N, n, n)`` give a stack."""
+    AtP = np.swapaxes(A, -1, -2) @ P
+    return AtP + np.swapaxes(AtP, -1, -2) - P @ S @ P + Q
 
 
 def max_stable_step(A, B, K, safety: float = 0.5) -> float:
@@ -183,7 +189,12 @@ def _stable_step_per_node(A, B, K) -> np.ndarray:
 
 def check_step(A_nodes, B_nodes, K_nodes, h: float, safety: float = 0.5,
                mode: str = "raise") -> None:
-    """Check the step ``h`` against :func:`max_stable_step` at every node.
+    """Check the step ``h`` against :func:`max_stable_step` at every node, or at most
+    ``MAX_CHECKED_NODES`` nodes evenly spread (the first and last among them).
+
+    The eigenvalues of the closed loop cost more than the sweep itself; a long plan (10,000
+    nodes a few milliseconds of flight apart) is checked every few nodes, which the gains do
+    not outrun: they change on the time scale of the maneuver, not of one step.
 
     Beyond the stability edge (``safety = 1``) the sweep is meaningless: raise
     ``ValueError`` in ``mode="raise"``, warn in ``mode="warn"``. Between ``safety`` and the
@@ -194,21 +205,25 @@ def check_step(A_nodes, B_nodes, K_nodes, h: float, safety: float = 0.5,
         return
     if mode not in ("raise", "warn"):
         raise ValueError(f"mode must be 'raise', 'warn' or 'off', not {mode!r}")
-    h_edge = _stable_step_per_node(A_nodes, B_nodes, K_nodes)
-    steps = _node_steps(h, len(h_edge))
-    worst = int(np.argmax(steps / h_edge))
-    h = float(steps[worst])
-    if h > h_edge[worst]:
-        msg = (f"RK4 Riccati step h = {h:.4g} exceeds the stability limit {h_edge[worst]:.4g} "
+    n_nodes = len(K_nodes)
+    pick = np.unique(np.linspace(0, n_nodes - 1, min(n_nodes, MAX_CHECKED_NODES)).round().astype(int))
+    h_edge = _stable_step_per_node(np.asarray(A_nodes)[pick], np.asarray(B_nodes)[pick],
+                                   np.asarray(K_nodes)[pick])
+    steps = _node_steps(h, n_nodes)[pick]
+    i = int(np.argmax(steps / h_edge))
+    worst = int(pick[i])
+    h, edge = float(steps[i]), float(h_edge[i])
+    if h > edge:
+        msg = (f"RK4 Riccati step h = {h:.4g} exceeds the stability limit {edge:.4g} "
                f"at node {worst}; use a step below "
-               f"{safety * h_edge[worst]:.4g}")
+               f"{safety * edge:.4g}")
         if mode == "raise":
             raise ValueError(msg)
         warnings.warn(msg, RuntimeWarning, stacklevel=3)
-    elif h > safety * h_edge[worst]:
+    elif h > safety * edge:
         warnings.warn(
             f"RK4 Riccati step h = {h:.4g} is above {safety} of the stability limit "
-            f"{h_edge[worst]:.4g} at node {worst}: the fastest "
+            f"{edge:.4g} at node {worst}: the fastest "
             "closed-loop modes are resolved poorly", RuntimeWarning, stacklevel=3)
 
 
@@ -244,6 +259,10 @@ def _validate_grid(A_nodes, B_nodes, A_mid, B_mid, h):
     if not (np.all(np.isfinite(h_arr)) and np.all(h_arr > 0.0)):
         raise ValueError(f"step h must be positive and finite, not {h}")
     return A_nodes, B_nodes, A_mid, B_mid, N, n, m
+
+
+def _transposed(A: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(A.transpose(0, 2, 1))
 
 
 def sweep_backward(A_nodes, B_nodes, A_mid, B_mid, h: float, Q, R, P_terminal, *,
@@ -298,35 +317,21 @@ def sweep_backward(A_nodes, B_nodes, A_mid, B_mid, h: float, Q, R, P_terminal, *
     P_T = np.asarray(P_terminal, dtype=float)
     if P_T.shape != (n, n) or not np.all(np.isfinite(P_T)):
         raise ValueError(f"P_terminal must be a finite ({n}, {n}) matrix")
-    R_cho = scipy.linalg.cho_factor(R)
-    Rinv_Bt_nodes = np.stack([scipy.linalg.cho_solve(R_cho, Bk.T) for Bk in B_nodes])
+    Rinv = scipy.linalg.cho_solve(scipy.linalg.cho_factor(R), np.eye(m))
+    Rinv_Bt_nodes = Rinv @ B_nodes.transpose(0, 2, 1)
     S_nodes = B_nodes @ Rinv_Bt_nodes
-    S_mid = B_mid @ np.stack([scipy.linalg.cho_solve(R_cho, Bk.T) for Bk in B_mid])
+    S_mid = B_mid @ (Rinv @ B_mid.transpose(0, 2, 1))
     limit = _BLOWUP_FACTOR * max(1.0, np.abs(Q).max(), np.abs(P_T).max())
-
+    steps = np.ascontiguousarray(np.broadcast_to(np.asarray(h, dtype=float), (N - 1,)))
     P = np.empty((N, n, n))
-    P[-1] = 0.5 * (P_T + P_T.T)
-    steps = np.broadcast_to(np.asarray(h, dtype=float), (N - 1,))
-    offsets = np.concatenate([[0.0], np.cumsum(steps)])
-    for k in range(N - 2, -1, -1):
-        hk = steps[k]
-        half, sixth = 0.5 * hk, hk / 6.0
-        Pk1 = P[k + 1]
-        Am, Sm = A_mid[k], S_mid[k]
-        k1 = riccati_rhs(A_nodes[k + 1], S_nodes[k + 1], Q, Pk1)
-        k2 = riccati_rhs(Am, Sm, Q, Pk1 + half * k1)
-        k3 = riccati_rhs(Am, Sm, Q, Pk1 + half * k2)
-        k4 = riccati_rhs(A_nodes[k], S_nodes[k], Q, Pk1 + hk * k3)
-        Pk = Pk1 + sixth * (k1 + 2.0 * (k2 + k3) + k4)
-        Pk = 0.5 * (Pk + Pk.T)
-        peak = np.abs(Pk).max()
-        if not np.isfinite(peak):
-            raise ValueError(f"Riccati sweep became non-finite at node {k} "
-                             f"(s - s0 = {offsets[k]:.6g})")
-        if peak > limit:
-            raise ValueError(f"Riccati sweep blew up at node {k} (s - s0 = {offsets[k]:.6g}): "
-                             f"max |P| = {peak:.3g}; reduce the step h = {hk:.4g}")
-        P[k] = Pk
+    node, failure, peak = rk4_sweep(_transposed(A_nodes), S_nodes, _transposed(A_mid), S_mid, steps,
+                                    Q, 0.5 * (P_T + P_T.T), limit, P)
+    if failure:
+        offset = float(np.sum(steps[:node]))
+        if failure == 1:
+            raise ValueError(f"Riccati sweep became non-finite at node {node} (s - s0 = {offset:.6g})")
+        raise ValueError(f"Riccati sweep blew up at node {node} (s - s0 = {offset:.6g}): "
+                         f"max |P| = {peak:.3g}; reduce the step h = {steps[node]:.4g}")
     K = Rinv_Bt_nodes @ P
     check_step(A_nodes, B_nodes, K, h, safety=safety, mode=step_check)
     return P, K

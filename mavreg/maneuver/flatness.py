@@ -146,7 +146,7 @@ def nominal_from_flat(model: QuadrotorModel, F, k, dk, ddk, c, v4, yaw4):
     J = np.array(model.inertia_kg_m2)
     torque = J * domega + np.cross(omega, J * omega)
     thrust = m * tn - (cz - cxy) * _dot(zb[0], vel)
-    rpy = np.array([matrix_to_rpy(Ri) for Ri in R])
+    rpy = matrix_to_rpy(R)
     rpy = np.unwrap(rpy, axis=0)
     vbody = np.einsum("nji,nj->ni", R, vel)
     x = np.concatenate([c, rpy, vbody, omega], axis=1)

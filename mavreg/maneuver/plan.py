@@ -1,12 +1,16 @@
 """Everything a flight needs, built off the control loop: path, nominal, feasibility, gains.
 
-The nominal and the gain table share one grid of arc length whose nodes are evenly spaced
-in *nominal time* (``riccati_step_s`` apart): the s-domain Riccati equation is as stiff as
-the closed loop is fast divided by the speed, so steps in s proportional to the speed keep
-RK4 equally accurate at 0.5 m/s and at 8 m/s.
+The Riccati sweep steps through arc lengths evenly spaced in *nominal time*
+(``riccati_step_s`` apart): the s-domain Riccati equation is as stiff as the closed loop is
+fast divided by the speed, so steps in s proportional to the speed keep RK4 equally accurate
+at 0.5 m/s and at 8 m/s. The plan's tables (nominal and gains) hold those nodes and the
+midpoints in s between them, where RK4 evaluates A(s) and B(s) anyway: the nominal and the
+linearization are computed once, on that grid, and P at a midpoint is the cubic Hermite
+interpolant of its two nodes with the exact slopes ``P' = -F(P)`` (error O(h^4), as RK4's).
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 from pathlib import Path as FilePath
 
@@ -16,18 +20,19 @@ from ..config.controller import ControllerParams
 from ..config.maneuver import ManeuverSpec, load_maneuver, load_maneuver_text
 from ..config.vehicle import VehicleParams
 from ..control.actuator import augmented_jacobians
-from ..control.riccati import care, periodic_riccati, sweep_backward
+from ..control.riccati import care, periodic_riccati, riccati_rhs, sweep_backward
 from ..control.transverse import transverse_jacobians
 from ..errors import ManeuverError
 from ..geometry.build import build_path
 from ..geometry.path import Path
 from ..model.mixer import Mixer
 from ..model.quadrotor import QuadrotorModel
+from .cache import PlanCache, default_cache
 from .feasibility import Feasibility, check_feasibility
 from .flatness import nominal_from_flat
 from .profiles import Profile
 
-__all__ = ["Plan", "plan_spec", "plan_file", "plan_text", "segment_starts", "segment_ends",
+__all__ = ["Plan", "plan_spec", "plan_cached", "plan_file", "plan_text", "segment_starts", "segment_ends",
            "build_profiles"]
 
 
@@ -164,6 +169,14 @@ def _time_grid(path: Path, speed: Profile, step_s: float) -> np.ndarray:
     return np.interp(np.linspace(0.0, t_fine[-1], n), t_fine, s_fine)
 
 
+def _with_midpoints(nodes: np.ndarray) -> np.ndarray:
+    """Nodes at the even indices, the midpoints in s between them at the odd ones."""
+    s = np.empty(2 * len(nodes) - 1)
+    s[0::2] = nodes
+    s[1::2] = (nodes[:-1] + nodes[1:]) / 2
+    return s
+
+
 def _nominal(model, path, speed, yaw, s):
     c, F, k, dk, ddk = path.evaluate(s)
     v4 = speed.evaluate(s)
@@ -175,19 +188,39 @@ def _nominal(model, path, speed, yaw, s):
     return F, k, x, u, dx, v4[0]
 
 
+class _Stopwatch:
+    """Seconds spent in each stage, added into ``timings`` (a dict, or None: not kept)."""
+
+    def __init__(self, timings: dict | None):
+        self.timings = timings
+        self._t0 = self._last = time.perf_counter()
+
+    def lap(self, stage: str) -> None:
+        if self.timings is not None:
+            now = time.perf_counter()
+            self.timings[stage] = self.timings.get(stage, 0.0) + now - self._last
+            self.timings["total"] = now - self._t0
+            self._last = now
+
+
 def plan_spec(spec: ManeuverSpec, vehicle: VehicleParams, controller: ControllerParams,
-              strict: bool = True) -> Plan:
+              strict: bool = True, *, timings: dict | None = None) -> Plan:
     """Plan a loaded maneuver.
 
     With ``strict``, an infeasible nominal raises :class:`ManeuverError` naming where and
     by how much; otherwise the plan is returned with ``feasibility.feasible`` False (and
-    no gains are computed for an infeasible plan: ``K`` is zeros).
+    no gains are computed for an infeasible plan: ``K`` is zeros). ``timings``: a dict to
+    receive the seconds spent on the ``path`` (with the profiles and the grid), the
+    ``nominal`` (with its feasibility), the ``linearization``, the ``riccati`` sweep, and
+    the ``total``.
     """
+    clock = _Stopwatch(timings)
     model = QuadrotorModel.from_vehicle(vehicle)
     mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
     path = build_path(spec)
     speed, yaw = build_profiles(spec, path)
-    s = _time_grid(path, speed, controller.riccati_step_s)
+    s = _with_midpoints(_time_grid(path, speed, controller.riccati_step_s))
+    clock.lap("path")
     nominal = _nominal(model, path, speed, yaw, s)
     _, _, x, u, dx, v = nominal
     rotors = u @ mixer.inverse.T
@@ -195,6 +228,7 @@ def plan_spec(spec: ManeuverSpec, vehicle: VehicleParams, controller: Controller
                              spec.limits.min_speed_m_s, lambda q: path.segment_at(q).name)
     laps = spec.laps.count if spec.laps is not None else 1
     laps_seg = spec.laps.segment if spec.laps is not None else None
+    clock.lap("nominal")
     if not feas.feasible:
         if strict:
             raise ManeuverError(f"maneuver {spec.name!r} is infeasible: " + "; ".join(feas.violations))
@@ -205,32 +239,63 @@ def plan_spec(spec: ManeuverSpec, vehicle: VehicleParams, controller: Controller
         raise ManeuverError("the controller puts the rotor lag in the design "
                             "(rotor_lag_in_design: true) but the vehicle file's "
                             "rotor_time_constant_s is 0")
-    K, terminal = _gains(model, path, speed, yaw, s, controller, spec, tau, nominal)
+    K, terminal = _gains(model, path, speed, yaw, s, controller, spec, tau, nominal, clock)
     return Plan(spec.name, path, vehicle, s, x, dx, u, K, v, feas, terminal, laps, laps_seg, tau)
 
 
-def _du_ds(u: np.ndarray, s: np.ndarray, periodic: bool) -> tuple[np.ndarray, np.ndarray]:
-    """du/ds at the nodes (second order, non-uniform) and at the interval midpoints."""
-    h = np.diff(s)
-    mid = np.diff(u, axis=0) / h[:, None]
-    nodes = np.gradient(u, s, axis=0, edge_order=2)
-    if periodic:      # node 0 and node N-1 are the same point of the lap
-        nodes[0] = nodes[-1] = (u[1] - u[-2]) / (h[0] + h[-1])
-    return nodes, mid
+def _du_ds(u: np.ndarray, s: np.ndarray, periodic: bool) -> np.ndarray:
+    """du/ds on the grid s (second order, non-uniform)."""
+    du = np.gradient(u, s, axis=0, edge_order=2)
+    if periodic:      # the first and last points are the same point of the lap
+        du[0] = du[-1] = (u[1] - u[-2]) / (s[1] - s[0] + s[-1] - s[-2])
+    return du
 
 
-def _linearization(model, path, speed, yaw, s, tau: float, periodic: bool = False, nominal=None):
-    """(A, B) at the nodes ``s`` and at their midpoints; augmented with the rotor lag when
-    ``tau`` > 0. ``nominal``: :func:`_nominal` at ``s``, if already computed."""
-    mids = (s[:-1] + s[1:]) / 2
-    F, k, x, u, dx, v = nominal if nominal is not None else _nominal(model, path, speed, yaw, s)
-    Fm, km, xm, um, dxm, vm = _nominal(model, path, speed, yaw, mids)
+def _first_of_runs(rows: np.ndarray, rtol: float = 1e-12) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of the rows that differ from the row before (beyond ``rtol`` of each column's
+    scale), and for every row the index of its run's first row among them."""
+    scale = np.maximum(np.abs(rows).max(axis=0), 1.0)
+    new = np.ones(len(rows), dtype=bool)
+    new[1:] = (np.abs(np.diff(rows, axis=0)) > rtol * scale).any(axis=1)
+    return np.flatnonzero(new), np.cumsum(new) - 1
+
+
+def _linearization(model, tau: float, nominal, s, periodic: bool = False):
+    """(A, B) on the grid ``s`` of ``nominal`` (:func:`_nominal`), augmented with the rotor
+    lag when ``tau`` > 0.
+
+    A and B depend on the nominal through everything but its position; where that is the
+    same from one grid point to the next (a straight line flown at constant speed and
+    heading: a maneuver's run-up and its slow ends), they are computed once for the run.
+    """
+    F, k, x, u, dx, v = nominal
+    du = _du_ds(u, s, periodic)
+    rows = np.concatenate([F.reshape(len(s), -1), k, x[:, 3:], u, dx[:, 3:], v[:, None], du], axis=1)
+    first, run = _first_of_runs(rows)
+    pick = (F[first], k[first], x[first], u[first], dx[first])
     if tau <= 0:
-        return (*transverse_jacobians(model, F, k, x, u, dx),
-                *transverse_jacobians(model, Fm, km, xm, um, dxm))
-    du, dum = _du_ds(u, s, periodic)
-    return (*augmented_jacobians(model, tau, F, k, x, u, dx, du, v),
-            *augmented_jacobians(model, tau, Fm, km, xm, um, dxm, dum, vm))
+        A, B = transverse_jacobians(model, *pick)
+    else:
+        A, B = augmented_jacobians(model, tau, *pick, du[first], v[first])
+    return A[run], B[run]
+
+
+def _gains_on_grid(A, B, s, Q, R, P_T=None, periodic: bool = False):
+    """K (and P) on the grid ``s`` of nodes and midpoints (:func:`_with_midpoints`) from
+    A(s), B(s) there: RK4 through the nodes, cubic Hermite at the midpoints. ``P_T``: P at
+    the last node (None: the periodic solution, the grid being one period)."""
+    An, Bn, Am, Bm = A[0::2], B[0::2], A[1::2], B[1::2]
+    h = np.diff(s[0::2])
+    if periodic:
+        Pn, _ = periodic_riccati(An, Bn, Am, Bm, h, Q, R, step_check="warn")
+    else:
+        Pn, _ = sweep_backward(An, Bn, Am, Bm, h, Q, R, P_T, step_check="warn")
+    Rinv_Bt = np.linalg.solve(R, np.swapaxes(B, 1, 2))
+    dP = -riccati_rhs(An, Bn @ Rinv_Bt[0::2], Q, Pn)
+    P = np.empty((len(s),) + Pn.shape[1:])
+    P[0::2] = Pn
+    P[1::2] = (Pn[:-1] + Pn[1:]) / 2 + h[:, None, None] / 8 * (dP[:-1] - dP[1:])
+    return P, Rinv_Bt @ P
 
 
 def _weights(controller: ControllerParams, tau: float) -> tuple[np.ndarray, np.ndarray]:
@@ -238,9 +303,10 @@ def _weights(controller: ControllerParams, tau: float) -> tuple[np.ndarray, np.n
     return np.diag(q), np.diag(controller.r)
 
 
-def _gains(model, path, speed, yaw, s, controller, spec, tau, nominal):
+def _gains(model, path, speed, yaw, s, controller, spec, tau, nominal, clock: _Stopwatch):
     Q, R = _weights(controller, tau)
-    A, B, Am, Bm = _linearization(model, path, speed, yaw, s, tau, nominal=nominal)
+    A, B = _linearization(model, tau, nominal, s)
+    clock.lap("linearization")
     last = spec.segments[-1]
     try:
         if spec.laps is not None and spec.laps.segment == last.name:
@@ -250,9 +316,10 @@ def _gains(model, path, speed, yaw, s, controller, spec, tau, nominal):
         else:
             terminal = "steady (CARE at the end)"
             P_T, _ = care(A[-1], B[-1], Q, R)
-        _, K = sweep_backward(A, B, Am, Bm, np.diff(s), Q, R, P_T, step_check="warn")
+        _, K = _gains_on_grid(A, B, s, Q, R, P_T)
     except ValueError as exc:
         raise ManeuverError(f"gain schedule: {exc}") from None
+    clock.lap("riccati")
     return K, terminal
 
 
@@ -275,22 +342,33 @@ def _periodic_terminal(model, path, speed, yaw, lap_m, controller, Q, R, tau):
     s0 = s1 - lap_m
     v = float(speed.evaluate([s1])[0][0])
     n = max(16, int(np.ceil(lap_m / (v * controller.riccati_step_s)))) + 1
-    grid = np.linspace(s0, s1, n)
-    A, B, Am, Bm = _linearization(model, path, speed, yaw, grid, tau, periodic=True)
-    P, _ = periodic_riccati(A, B, Am, Bm, np.diff(grid), Q, R, step_check="warn")
+    grid = _with_midpoints(np.linspace(s0, s1, n))
+    A, B = _linearization(model, tau, _nominal(model, path, speed, yaw, grid), grid, periodic=True)
+    P, _ = _gains_on_grid(A, B, grid, Q, R, periodic=True)
     return P[-1]
 
 
+def plan_cached(spec: ManeuverSpec, vehicle: VehicleParams, controller: ControllerParams,
+                strict: bool = True, cache: PlanCache | None = None) -> Plan:
+    """:func:`plan_spec` through ``cache`` (None: plan without one)."""
+    if cache is None:
+        return plan_spec(spec, vehicle, controller, strict)
+    return cache.get_or_plan((spec, vehicle, controller, strict),
+                             lambda: plan_spec(spec, vehicle, controller, strict))
+
+
 def plan_file(path: str | FilePath, vehicle: VehicleParams, controller: ControllerParams,
-              laps: int | None = None, strict: bool = True) -> Plan:
-    """Load and plan a maneuver YAML file."""
+              laps: int | None = None, strict: bool = True, use_cache: bool = True) -> Plan:
+    """Load and plan a maneuver YAML file (through :func:`~mavreg.maneuver.cache.default_cache`
+    with ``use_cache``)."""
     spec = load_maneuver(path)
     if laps is not None:
         spec = spec.with_laps(laps)
-    return plan_spec(spec, vehicle, controller, strict)
+    return plan_cached(spec, vehicle, controller, strict, default_cache() if use_cache else None)
 
 
 def plan_text(text: str, source: str, vehicle: VehicleParams, controller: ControllerParams,
-              strict: bool = True) -> Plan:
+              strict: bool = True, use_cache: bool = True) -> Plan:
     """Load and plan maneuver YAML text (an upload); errors name ``source``."""
-    return plan_spec(load_maneuver_text(text, source), vehicle, controller, strict)
+    return plan_cached(load_maneuver_text(text, source), vehicle, controller, strict,
+                       default_cache() if use_cache else None)

@@ -27,11 +27,13 @@ def rpy_to_matrix(phi, theta, psi) -> np.ndarray:
 
 
 def matrix_to_rpy(R: np.ndarray) -> np.ndarray:
-    """Roll, pitch, yaw of a rotation matrix, pitch in [-pi/2, pi/2]."""
-    theta = -np.arcsin(np.clip(R[2, 0], -1.0, 1.0))
-    phi = np.arctan2(R[2, 1], R[2, 2])
-    psi = np.arctan2(R[1, 0], R[0, 0])
-    return np.array([phi, theta, psi])
+    """Roll, pitch, yaw of a rotation matrix (3, 3), or of a stack (..., 3, 3) giving
+    (..., 3); pitch in [-pi/2, pi/2]."""
+    R = np.asarray(R)
+    theta = -np.arcsin(np.clip(R[..., 2, 0], -1.0, 1.0))
+    phi = np.arctan2(R[..., 2, 1], R[..., 2, 2])
+    psi = np.arctan2(R[..., 1, 0], R[..., 0, 0])
+    return np.stack([phi, theta, psi], axis=-1)
 
 
 def rpy_to_quat(phi, theta, psi) -> np.ndarray:

@@ -25,7 +25,7 @@ def roll():
     speed, yaw = build_profiles(spec, path)
     s = np.linspace(0.5, path.length_m - 0.5, 400)
     F, k, x, u, dx, v = _nominal(MODEL, path, speed, yaw, s)
-    du, _ = _du_ds(u, s, periodic=False)
+    du = _du_ds(u, s, periodic=False)
     return F, k, x, u, dx, du, v
 
 
@@ -75,7 +75,7 @@ def test_steady_line_gain_is_the_augmented_care_and_lag_aware_plan_flies():
     speed, yaw = build_profiles(spec, path)
     s = plan.s[-3:]
     Fn, kn, xn, un, dxn, vn = _nominal(MODEL, path, speed, yaw, s)
-    dun, _ = _du_ds(un, s, periodic=False)
+    dun = _du_ds(un, s, periodic=False)
     A, B = augmented_jacobians(MODEL, TAU, Fn, kn, xn, un, dxn, dun, vn)
     Q = np.diag(np.concatenate([ctl.q, ctl.q_wrench]))
     _, K = care(A[-1], B[-1], Q, np.diag(ctl.r))
