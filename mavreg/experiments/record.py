@@ -91,7 +91,7 @@ def truth_trace(plan, flight: Flight) -> Trace:
         Rn = rpy_to_matrix(*nominal.T).transpose(2, 0, 1)
         c = (np.einsum("kij,kij->k", Rn, R) - 1.0) / 2.0
         att = np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
-        rpy = matrix_to_rpy(R.transpose(1, 2, 0)).T
+        rpy = matrix_to_rpy(R)                          # (K, 3)
         rpy[:, 0] = np.unwrap(rpy[:, 0])
         rpy[:, 2] = np.unwrap(rpy[:, 2])
         v_body = np.einsum("kji,kj->ki", R, np.asarray(flight.velocity_m_s, dtype=float))
