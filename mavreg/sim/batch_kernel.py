@@ -1,0 +1,276 @@
+r"""The batch closed loop's time loop, vectorized across runs, compiled by numba where available.
+
+Every array here has the runs on its **last** axis: a state batch is (12, N), rotor forces
+(4, N), the path's geometry at the runs' arc lengths (18, N); the tables keep one row per
+node, so that the rows of N runs are one gather. Each function is plain numpy on
+those arrays, in the subset of numpy that numba compiles (:func:`mavreg.accel.njit`): run
+as Python it is the pure-numpy batch simulator (a few hundred array operations per time
+step, whatever N is); compiled, the same operations without the interpreter between them.
+
+The maths is the sequential path's, operation for operation where that matters for
+rounding (the path's Hermite polynomials, the tables' linear interpolation, the RK4 stages,
+the yaw-then-lift allocation), and in the same order; sums of products (dot products,
+``K w``, the mixer) may round differently from BLAS, by an ulp:
+
+- :func:`path_point`: :meth:`mavreg.geometry.path.Path.point` (straight extensions included);
+- :func:`project`: :meth:`mavreg.geometry.projection.Projector.update` (Newton on
+  :math:`t^T(y - c(\sigma)) = 0`, at most 12 iterations, within the window);
+- :func:`regulator_step`: :meth:`mavreg.control.regulator.ManeuverRegulator.step` for the
+  paper's design (gains (4, 11), no disturbance compensation):
+  :math:`u = \bar u(s + v(s)\,\ell) - K(s)\,w`, rotor forces by
+  :func:`mavreg.model.mixer.yaw_then_lift`;
+- :func:`plant_rhs`: :meth:`mavreg.model.quadrotor.QuadrotorModel.f` with one inertia per run;
+- :func:`run`: the loop of :func:`mavreg.sim.closed_loop.simulate` (zero-order hold, rotor
+  forces clipped to [0, saturation], noise held over a control period, RK4, the divergence
+  checks, the regulator's "s has reached the end" as the stop condition).
+
+Status codes of :func:`run`: see :data:`RUNNING` ... :data:`TIMEOUT`.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..accel import njit
+
+__all__ = ["path_point", "project", "locate", "regulator_step", "plant_rhs", "run",
+           "RUNNING", "COMPLETED", "DIVERGED", "BAD_COMMAND", "TIMEOUT"]
+
+RUNNING, COMPLETED, DIVERGED, BAD_COMMAND, TIMEOUT = 0, 1, 2, 3, 4
+"""A run still flying; done (s reached the end); diverged (state); the controller returned
+non-finite rotor forces; the maximum duration was reached."""
+
+
+@njit
+def path_point(s, s_nodes, coef, length, ends):
+    """Path geometry at arc lengths ``s`` (N,): (18, N) rows c (3), frame row-major (9; column
+    0 is t, 1 is m1, 2 is m2), k, dk, ddk (2 each).
+
+    ``coef`` (M, 4, 18): the path's Hermite coefficients in u = (s - s_i)/h_i per interval;
+    ``ends`` (2, 18): the same 18 values at s = 0 and s = length, for the straight extensions.
+    """
+    n = s_nodes.shape[0]
+    i = np.minimum(np.maximum(np.searchsorted(s_nodes, s, side="right") - 1, 0), n - 2)
+    s0 = s_nodes[i]
+    u = ((s - s0) / (s_nodes[i + 1] - s0)).reshape(-1, 1)
+    a = coef[i]
+    v = (a[:, 0] + u * (a[:, 1] + u * (a[:, 2] + u * a[:, 3]))).T
+    for side in range(2):
+        ref = 0.0 if side == 0 else length
+        out = s <= ref if side == 0 else s >= ref
+        if out.any():
+            e = ends[side]
+            ext = np.empty_like(v)
+            for j in range(3):
+                ext[j] = e[j] + (s - ref) * e[3 + 3 * j]
+            for j in range(3, 12):
+                ext[j] = e[j]
+            for j in range(12, 18):
+                ext[j] = np.where(s == ref, e[j], 0.0)
+            v = np.where(out, ext, v)
+    return v
+
+
+@njit
+def project(y0, y1, y2, s_prev, window, s_nodes, coef, length, ends):
+    """Warm-started nearest points of positions (y0, y1, y2) (each (N,)) from ``s_prev``:
+    the new s (N,) and the path geometry there (18, N)."""
+    lo = s_prev - window
+    hi = s_prev + window
+    s = s_prev.copy()
+    v = path_point(s, s_nodes, coef, length, ends)
+    active = np.ones(s.shape[0], dtype=np.bool_)
+    for _ in range(12):
+        d0 = y0 - v[0]
+        d1 = y1 - v[1]
+        d2 = y2 - v[2]
+        g = v[3] * d0 + v[6] * d1 + v[9] * d2
+        # curvature vector K = m1 k1 + m2 k2, then dg = K.d - 1
+        dg = ((v[4] * v[12] + v[5] * v[13]) * d0 + (v[7] * v[12] + v[8] * v[13]) * d1
+              + (v[10] * v[12] + v[11] * v[13]) * d2) - 1.0
+        active = active & ~(dg > -1e-3)      # at or past the focal point: stop there
+        if not active.any():
+            break
+        step = np.minimum(np.maximum(-g / dg, -0.5), 0.5)
+        s_new = np.minimum(np.maximum(s + step, lo), hi)
+        converged = np.abs(s_new - s) < 1e-9
+        s = np.where(active, s_new, s)
+        v = path_point(s, s_nodes, coef, length, ends)
+        active = active & ~converged
+        if not active.any():
+            break
+    return s, v
+
+
+@njit
+def locate(s, s_tab, last):
+    """Table row i (N,) and blend a (N,) of arc lengths s, clamped to the table's ends."""
+    i = np.minimum(np.maximum(np.searchsorted(s_tab, s) - 1, 0), last)
+    s_i = s_tab[i]
+    a = np.minimum(np.maximum((s - s_i) / (s_tab[i + 1] - s_i), 0.0), 1.0)
+    return i, a
+
+
+@njit
+def wrap_angle(a):
+    """Angles wrapped to (-pi, pi] (:func:`mavreg.model.rotation.wrap_angle`)."""
+    return np.pi - np.mod(np.pi - a, 2 * np.pi)
+
+
+@njit
+def regulator_step(X, s_prev, path, table, Minv, fmax):
+    """Rotor forces (4, N) and arc lengths (N,) for states X (12, N).
+
+    ``path`` = (s_nodes, coef, length, ends, window); ``table`` = (s, x (n, 12), dx (n-1, 12),
+    v (n,), dv (n-1,), u (n, 4), du (n-1, 4), K (n, 4, 11), dK (n-1, 4, 11), lead_s): the
+    plan's tables and their differences between consecutive rows (the rows of N runs are
+    gathered, blended, then turned runs-last).
+    """
+    s_nodes, coef, length, ends, window = path
+    s_tab, xt, dxt, vt, dvt, ut, dut, Kt, dKt, lead = table
+    last = s_tab.shape[0] - 2
+    n = X.shape[1]
+    s, p = project(X[0], X[1], X[2], s_prev, window, s_nodes, coef, length, ends)
+    i, a = locate(s, s_tab, last)
+    xbar = (xt[i] + a.reshape(-1, 1) * dxt[i]).T
+    K = Kt[i] + a.reshape(-1, 1, 1) * dKt[i]
+    v = vt[i] + a * dvt[i]
+    if lead > 0.0:
+        i, a = locate(s + v * lead, s_tab, last)
+    ubar = (ut[i] + a.reshape(-1, 1) * dut[i]).T
+    d0 = X[0] - p[0]
+    d1 = X[1] - p[1]
+    d2 = X[2] - p[2]
+    w = np.empty((n, 11))
+    w[:, 0] = d0 * p[4] + d1 * p[7] + d2 * p[10]
+    w[:, 1] = d0 * p[5] + d1 * p[8] + d2 * p[11]
+    w[:, 2:5] = wrap_angle(X[3:6] - xbar[3:6]).T
+    w[:, 5:] = (X[6:] - xbar[6:]).T
+    u = ubar - (K * w.reshape(n, 1, 11)).sum(axis=2).T
+    return yaw_then_lift(Minv, u, fmax), s
+
+
+@njit
+def yaw_then_lift(Minv, u, fmax):
+    """:func:`mavreg.model.mixer.yaw_then_lift` for a batch u (4, N)."""
+    base = Minv[:, 0:1] * u[0] + Minv[:, 1:2] * u[1] + Minv[:, 2:3] * u[2]
+    yaw = Minv[:, 3:4] * u[3]
+    beta = np.ones(u.shape[1])
+    for r in range(4):
+        b, y = base[r], yaw[r]
+        ratio = np.maximum(b, 0.0) / -y
+        beta = np.where((b + y < 0.0) & (ratio < beta), ratio, beta)
+    f = base + beta * yaw
+    low = np.minimum(np.minimum(f[0], f[1]), np.minimum(f[2], f[3]))
+    high = np.maximum(np.maximum(f[0], f[1]), np.maximum(f[2], f[3]))
+    lift = np.minimum(-low, np.maximum(fmax - high, 0.0))
+    return np.where(low < 0.0, f + lift, f)
+
+
+@njit
+def plant_rhs(X, U, plant):
+    """dX/dt (12, N) of :meth:`~mavreg.model.quadrotor.QuadrotorModel.f` for states X (12, N)
+    and inputs U (4, N); ``plant`` = (mass, g, jx, jy, jz (each (N,)), c_xy, c_z, c_parasitic)."""
+    m, g, jx, jy, jz, cxy, cz, cpar = plant
+    phi, theta, psi = X[3], X[4], X[5]
+    v1, v2, v3 = X[6], X[7], X[8]
+    p, q, r = X[9], X[10], X[11]
+    cf, sf = np.cos(phi), np.sin(phi)
+    ct, st = np.cos(theta), np.sin(theta)
+    cp, sp = np.cos(psi), np.sin(psi)
+    tt = np.tan(theta)
+    out = np.empty_like(X)
+    out[0] = cp * ct * v1 + (-sp * cf + cp * st * sf) * v2 + (sp * sf + cp * st * cf) * v3
+    out[1] = sp * ct * v1 + (cp * cf + sp * st * sf) * v2 + (-cp * sf + sp * st * cf) * v3
+    out[2] = -st * v1 + ct * sf * v2 + ct * cf * v3
+    out[3] = p + sf * tt * q + cf * tt * r
+    out[4] = cf * q + -sf * r
+    out[5] = sf / ct * q + cf / ct * r
+    out[6] = r * v2 - q * v3 - g * st
+    out[7] = -r * v1 + p * v3 + g * sf * ct
+    out[8] = q * v1 - p * v2 + g * ct * cf - U[0] / m
+    if cxy != 0.0 or cz != 0.0 or cpar != 0.0:
+        quad = cpar * np.sqrt(v1 * v1 + v2 * v2 + v3 * v3)
+        out[6] = out[6] - (cxy + quad) * v1 / m
+        out[7] = out[7] - (cxy + quad) * v2 / m
+        out[8] = out[8] - (cz + quad) * v3 / m
+    out[9] = q * r * (jy - jz) / jx + U[1] / jx
+    out[10] = p * r * (jz - jx) / jy + U[2] / jy
+    out[11] = p * q * (jx - jy) / jz + U[3] / jz
+    return out
+
+
+@njit
+def diverged(X, limits):
+    """Runs (N,) whose state is non-finite or beyond ``limits`` = (max speed, max body rate,
+    max |position|, min |cos pitch|) (:func:`mavreg.sim.closed_loop._divergence`'s tests)."""
+    max_speed, max_rate, max_pos, min_cos = limits
+    finite = np.isfinite((X * 0.0).sum(axis=0))
+    speed = np.sqrt(X[6] * X[6] + X[7] * X[7] + X[8] * X[8])
+    rate = np.sqrt(X[9] * X[9] + X[10] * X[10] + X[11] * X[11])
+    dist = np.maximum(np.maximum(np.abs(X[0]), np.abs(X[1])), np.abs(X[2]))
+    return (~finite | (speed > max_speed) | (rate > max_rate) | (dist > max_pos)
+            | (np.abs(np.cos(X[4])) < min_cos))
+
+
+@njit
+def run(X, S, status, k_end, xs, cmd, app, path, table, Minv, M, fmax, plant, upper, noise, thrust_scale,
+        dt, period, limits):
+    """Fly every run with ``status`` RUNNING from state X (12, N) and arc length S (N,) until
+    it ends or ``xs`` is full: ``xs`` (K+1, 12, N) gets the states (row 0 must hold X),
+    ``cmd`` and ``app`` (K+1, 4, N) the rotor forces commanded and applied over each step;
+    ``status`` and ``k_end`` (N,) are set to how and at which row each run ended.
+
+    ``upper`` (N,): rotor saturation (inf: none); ``noise`` (C, 4, N): the noise of each
+    control call (C = 1: the same for every call); ``period``: physics steps per control
+    call; ``limits``: see :func:`diverged`.
+    """
+    n_steps = xs.shape[0] - 1
+    n = X.shape[1]
+    alive = status == RUNNING
+    command = np.zeros((4, n))
+    applied = np.zeros((4, n))
+    acting = np.zeros((4, n))
+    noise_now = np.zeros((4, n))
+    calls = 0
+    half, sixth = 0.5 * dt, dt / 6.0
+    for i in range(n_steps):
+        if not alive.any():
+            break
+        if i % period == 0:
+            new, s_new = regulator_step(X, S, path, table, Minv, fmax)
+            S = np.where(alive, s_new, S)
+            command = np.where(alive, new, command)
+            bad = alive & ~np.isfinite(command.sum(axis=0))
+            if bad.any():
+                for r in range(n):
+                    if bad[r]:
+                        cmd[i, :, r] = command[:, r]
+                        app[i, :, r] = applied[:, r]
+                        status[r] = BAD_COMMAND
+                        k_end[r] = i
+                alive = alive & ~bad
+            acting = np.minimum(np.maximum(command, 0.0), upper)
+            noise_now = noise[min(calls, noise.shape[0] - 1)]
+            calls += 1
+        applied = np.minimum(np.maximum(acting + noise_now, 0.0), upper)
+        cmd[i] = command
+        app[i] = applied
+        f = applied * thrust_scale
+        U = M[:, 0:1] * f[0] + M[:, 1:2] * f[1] + M[:, 2:3] * f[2] + M[:, 3:4] * f[3]
+        k1 = plant_rhs(X, U, plant)
+        k2 = plant_rhs(X + half * k1, U, plant)
+        k3 = plant_rhs(X + half * k2, U, plant)
+        k4 = plant_rhs(X + dt * k3, U, plant)
+        X = np.where(alive, X + sixth * (k1 + 2.0 * (k2 + k3) + k4), X)
+        xs[i + 1] = X
+        bad = alive & diverged(X, limits)
+        done = alive & ~bad & (S >= path[2] - 1e-6)
+        for r in range(n):
+            if bad[r] or done[r]:
+                status[r] = DIVERGED if bad[r] else COMPLETED
+                k_end[r] = i + 1
+        alive = alive & ~(bad | done)
+    for r in range(n):
+        if alive[r]:
+            status[r] = TIMEOUT
+            k_end[r] = n_steps

@@ -1,0 +1,176 @@
+"""The batch simulator against the sequential one: every run's record agrees to 1e-9.
+
+The reference is :func:`mavreg.sim.maneuver_run.fly_on_design_model` (what ``mavreg
+experiment --via sim`` flies, one run at a time); the batch is
+:func:`mavreg.sim.batch.fly_batch`, compiled when numba is installed. Its pure-numpy path
+(``MAVREG_PURE=1``) is checked in a child process, since the switch is read at import.
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mavreg.config.controller import load_controller
+from mavreg.config.maneuver import load_maneuver_text
+from mavreg.config.vehicle import load_vehicle
+from mavreg.experiments.definitions import paper_group1
+from mavreg.maneuver.plan import plan_file, plan_spec
+from mavreg.model.mixer import Mixer
+from mavreg.model.quadrotor import QuadrotorModel
+from mavreg.sim.batch import BatchRun, fly_batch
+from mavreg.sim.closed_loop import SimOptions, simulate
+from mavreg.sim.maneuver_run import fly_on_design_model
+
+REPO = Path(__file__).resolve().parents[2]
+VEHICLE = load_vehicle(REPO / "params/vehicles/mk_quadro.yaml")
+PAPER = load_controller(REPO / "params/controller/paper_lqr.yaml")
+BARREL = REPO / "params/maneuvers/barrel_roll.yaml"
+
+SHORT = """\
+kind: maneuver
+version: 1
+name: short
+start: {position_m: [0, 0, -3], heading_deg: 30}
+segments:
+  - name: a
+    line: {length_m: 3.0}
+  - name: b
+    arc: {radius_m: 3.0, angle_deg: 45, bend_deg: 90}
+    blend_m: 2.0
+  - name: c
+    line: {length_m: 3.0}
+    blend_m: 2.0
+speed: {initial_m_s: 3.0}
+"""
+
+
+def as_batch(spec) -> BatchRun:
+    return BatchRun(spec.offset_m, spec.inertia_kg_m2, spec.rotor_noise_sd_n, spec.saturation_n, spec.seed)
+
+
+def sequential(plan, run: BatchRun, extra_time_s: float):
+    return fly_on_design_model(plan, offset_m=run.offset_m, inertia_kg_m2=run.inertia_kg_m2,
+                               rotor_noise_sd_n=run.rotor_noise_sd_n, saturation_n=run.saturation_n,
+                               seed=run.seed, extra_time_s=extra_time_s).result
+
+
+def assert_agree(seq, bat, tol=1e-9):
+    assert (bat.status, bat.reason, bat.controller_calls) == (seq.status, seq.reason, seq.controller_calls)
+    np.testing.assert_array_equal(bat.t, seq.t)
+    np.testing.assert_allclose(bat.x, seq.x, rtol=0, atol=tol)
+    np.testing.assert_allclose(bat.rotor_command_n, seq.rotor_command_n, rtol=0, atol=tol)
+    np.testing.assert_allclose(bat.rotor_applied_n, seq.rotor_applied_n, rtol=0, atol=tol)
+
+
+@pytest.fixture(scope="module")
+def barrel():
+    return plan_file(BARREL, VEHICLE, PAPER)
+
+
+def test_group1_runs_agree_with_the_sequential_simulator_on_the_start_of_the_barrel_roll(barrel):
+    """The first 1.5 s (the 0.6 m start offset being taken out) of three group 1 runs: the
+    nominal inertia and two drawn ones."""
+    runs = [as_batch(r) for r in paper_group1(seed=0).runs[:3]]
+    extra = 1.5 - barrel.duration_s
+    for run, bat in zip(runs, fly_batch(barrel, runs, extra_time_s=extra)):
+        assert bat.status.value == "timeout" and len(bat.t) == 1501
+        assert_agree(sequential(barrel, run, extra), bat)
+
+
+def test_runs_that_end_at_different_times_noise_saturation_and_a_failed_start_agree():
+    """A short maneuver flown to its end from different offsets and inertias (the runs
+    complete at different steps), with rotor noise from a seed and with saturation, and a
+    run that starts beyond the position bound (diverged at t = 0)."""
+    plan = plan_spec(load_maneuver_text(SHORT, "short.yaml"), VEHICLE, PAPER)
+    runs = [BatchRun((0.2, 0.1, -0.1)), BatchRun((0.0, -0.3, 0.2), (0.02, 0.015, 0.03)),
+            BatchRun((0.1, 0.1, 0.1), None, 0.1, 7.0, 11), BatchRun((0.0, 0.0, 0.0), None, 0.1, None, 11),
+            BatchRun((2e4, 0.0, 0.0))]
+    batch = fly_batch(plan, runs, extra_time_s=1.0)
+    ends = {len(b.t) for b in batch[:4]}
+    assert len(ends) > 1 and all(b.status.value == "completed" for b in batch[:4])
+    for run, bat in zip(runs[:4], batch):
+        assert_agree(sequential(plan, run, 1.0), bat)
+    x0 = plan.entry_state + np.r_[2e4, np.zeros(11)]
+    ref = simulate(QuadrotorModel.from_vehicle(VEHICLE), Mixer(VEHICLE.arm_length_m, VEHICLE.drag_torque_ratio_m),
+                   lambda t, x: np.zeros(4), SimOptions(initial_state=x0))
+    assert ref.status.value == "diverged" and ref.reason.startswith("initial state: position")
+    assert_agree(ref, batch[4])
+
+
+def test_control_rate_below_the_physics_rate_holds_the_command(barrel):
+    """500 Hz control on 1 kHz physics: zero-order hold and the half-period feedforward lead."""
+    run = BatchRun((0.3, -0.2, 0.1), None, 0.1, None, 3)
+    extra = 0.5 - barrel.duration_s
+    bat = fly_batch(barrel, [run], control_rate_hz=500.0, extra_time_s=extra)[0]
+    seq = fly_on_design_model(barrel, offset_m=run.offset_m, rotor_noise_sd_n=0.1, seed=3, control_rate_hz=500.0,
+                              extra_time_s=extra).result
+    assert bat.controller_calls == 250
+    assert_agree(seq, bat)
+
+
+def test_lag_aware_gains_and_odd_control_rates_are_refused(barrel):
+    with pytest.raises(ValueError, match="whole number"):
+        fly_batch(barrel, [BatchRun()], control_rate_hz=300.0)
+    with pytest.raises(ValueError, match="at least one run"):
+        fly_batch(barrel, [])
+    lagged = load_controller(REPO / "params/controller/realistic.yaml")
+    with pytest.raises(ValueError, match="paper's design"):
+        fly_batch(plan_file(BARREL, VEHICLE, lagged), [BatchRun()])
+
+
+_PURE_SCRIPT = """
+import json, sys
+import numpy as np
+from mavreg import accel
+from mavreg.config.controller import load_controller
+from mavreg.config.vehicle import load_vehicle
+from mavreg.maneuver.plan import plan_file
+from mavreg.model.mixer import Mixer
+from mavreg.model.quadrotor import QuadrotorModel
+from mavreg.sim.batch import BatchRun, fly_batch
+from mavreg.sim.closed_loop import SimOptions, simulate
+assert not accel.ACCELERATED
+plan = plan_file(sys.argv[1], load_vehicle(sys.argv[2]), load_controller(sys.argv[3]))
+runs = [BatchRun((0.6, 0.6, 0.6)), BatchRun((0.6, 0.6, 0.6), (0.02, 0.016, 0.036), 0.1, 8.5, 4)]
+res = fly_batch(plan, runs, extra_time_s=0.4 - plan.duration_s)
+print(json.dumps([[r.x.tolist(), r.rotor_applied_n.tolist()] for r in res]))
+"""
+
+
+def test_the_pure_numpy_path_agrees_too(barrel):
+    """The kernels run as plain numpy (``MAVREG_PURE=1``), in a child process."""
+    env = dict(os.environ, MAVREG_PURE="1")
+    out = subprocess.run([sys.executable, "-c", _PURE_SCRIPT, str(BARREL), str(REPO / "params/vehicles/mk_quadro.yaml"),
+                          str(REPO / "params/controller/paper_lqr.yaml")], env=env, cwd=REPO, capture_output=True,
+                         text=True, timeout=300, check=True).stdout
+    runs = [BatchRun((0.6, 0.6, 0.6)), BatchRun((0.6, 0.6, 0.6), (0.02, 0.016, 0.036), 0.1, 8.5, 4)]
+    for run, (x, applied) in zip(runs, json.loads(out)):
+        seq = sequential(barrel, run, 0.4 - barrel.duration_s)
+        np.testing.assert_allclose(np.array(x), seq.x, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(np.array(applied), seq.rotor_applied_n, rtol=0, atol=1e-9)
+
+
+@pytest.mark.slow
+def test_all_of_group1_agrees_over_the_whole_maneuver(barrel):
+    """The 26 runs of the paper's group 1, the full barrel roll at 1 kHz (about 4 minutes
+    of the sequential simulator)."""
+    runs = [as_batch(r) for r in paper_group1(seed=0).runs]
+    for run, bat in zip(runs, fly_batch(barrel, runs)):
+        assert bat.status.value == "completed"
+        assert_agree(sequential(barrel, run, 5.0), bat)
+
+
+@pytest.mark.slow
+def test_a_run_that_falls_diverges_at_the_same_step():
+    """Rotors saturated at 0.3 N cannot hold the vehicle: it falls until the speed bound."""
+    plan = plan_spec(load_maneuver_text(SHORT, "short.yaml"), VEHICLE, PAPER)
+    run = BatchRun((0.0, 0.0, 0.0), None, 0.0, 0.3, 0)
+    bat = fly_batch(plan, [run], extra_time_s=8.0)[0]
+    assert bat.status.value == "diverged" and bat.reason.startswith("speed")
+    assert_agree(sequential(plan, run, 8.0), bat)
