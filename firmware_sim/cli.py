@@ -12,6 +12,7 @@ from .autopilot import Autopilot, AutopilotConfig
 from .clock import StopRun, run_lockstep, run_realtime
 from .engine import Engine
 from .link import Link
+from mavreg.cli.guard import run_guarded
 from mavreg.config.vehicle import EmulatorParams, load_vehicle
 
 from .params import START_KEYS, build_sim_params, default_vehicle_path, parse_start
@@ -251,7 +252,12 @@ def _raise_stop(signum, frame):
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point; returns the exit status (see :class:`firmware_sim.status.ExitCode`)."""
+    """Entry point; returns the exit status (see :class:`firmware_sim.status.ExitCode`); a
+    closed pipe exits 141 and a Ctrl-C before the run starts 130, without a traceback."""
+    return run_guarded("firmware-sim", lambda: _main(argv))
+
+
+def _main(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     try:
         engine, recorder = build_engine(args)

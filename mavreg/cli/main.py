@@ -2,13 +2,16 @@
 
 Each subcommand module defines ``HELP`` (one line), ``DESCRIPTION`` (the ``--help`` text),
 ``add_arguments(parser)`` and ``run(args) -> int``. User mistakes (``ValueError`` subclasses
-from the loader and the planner) print one line and exit 2, never a traceback.
+from the loader and the planner) print one line and exit 2, never a traceback; a closed
+pipe or a Ctrl-C neither (:mod:`mavreg.cli.guard`).
 """
 from __future__ import annotations
 
 import argparse
 import importlib
 import sys
+
+from .guard import run_guarded
 
 __all__ = ["main", "build_parser"]
 
@@ -43,7 +46,7 @@ def build_parser() -> tuple[argparse.ArgumentParser, dict]:
     return parser, modules
 
 
-def main(argv: list[str] | None = None) -> int:
+def _main(argv: list[str] | None) -> int:
     parser, modules = build_parser()
     args = parser.parse_args(argv)
     try:
@@ -51,9 +54,11 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:  # ConfigError, ManeuverError: the user's input is at fault
         print(f"mavreg {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
-    except KeyboardInterrupt:
-        print(f"mavreg {args.command}: interrupted", file=sys.stderr)
-        return 130
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run one subcommand; a closed pipe exits 141 and a Ctrl-C 130, without a traceback."""
+    return run_guarded("mavreg", lambda: _main(argv))
 
 
 if __name__ == "__main__":

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import sys
 
 from .common import add_laps_argument, add_model_arguments, load_model_params
 
@@ -54,6 +55,8 @@ def run(args) -> int:
         raise ValueError(f"--gust-window must be T0 <= T1, got {args.gust_window}")
     vehicle, controller = load_model_params(args)
     plan = plan_file(args.maneuver, vehicle, controller, laps=args.laps)
+    print(f"{plan.name}: planned, {plan.length_m:.1f} m in {plan.duration_s:.1f} s; simulating",
+          file=sys.stderr, flush=True)
     run_ = fly_on_design_model(plan, offset_m=args.offset, inertia_kg_m2=args.inertia_kg_m2,
                                rotor_noise_sd_n=args.noise_n, saturation_n=args.saturation_n,
                                seed=args.seed, control_rate_hz=args.rate_hz,
