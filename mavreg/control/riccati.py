@@ -45,6 +45,7 @@ from .riccati_kernel import rk4_sweep
 
 __all__ = [
     "RK4_STABILITY_RADIUS",
+    "SweepDivergence",
     "care",
     "riccati_rhs",
     "max_stable_step",
@@ -57,6 +58,16 @@ RK4_STABILITY_RADIUS = 2.5
 """Radius of a left half-disc inside RK4's absolute stability region (true minimum ~2.6)."""
 
 _BLOWUP_FACTOR = 1e12
+
+class SweepDivergence(ValueError):
+    """The backward sweep became non-finite or blew up at grid node ``node``, ``offset_m``
+    of s after the first node."""
+
+    def __init__(self, message: str, node: int, offset_m: float):
+        super().__init__(message)
+        self.node = node
+        self.offset_m = offset_m
+
 
 MAX_CHECKED_NODES = 1024
 """Most nodes whose closed-loop eigenvalues :func:`check_step` computes."""
@@ -329,9 +340,11 @@ def sweep_backward(A_nodes, B_nodes, A_mid, B_mid, h: float, Q, R, P_terminal, *
     if failure:
         offset = float(np.sum(steps[:node]))
         if failure == 1:
-            raise ValueError(f"Riccati sweep became non-finite at node {node} (s - s0 = {offset:.6g})")
-        raise ValueError(f"Riccati sweep blew up at node {node} (s - s0 = {offset:.6g}): "
-                         f"max |P| = {peak:.3g}; reduce the step h = {steps[node]:.4g}")
+            raise SweepDivergence(f"Riccati sweep became non-finite at node {node} "
+                                  f"(s - s0 = {offset:.6g})", node, offset)
+        raise SweepDivergence(f"Riccati sweep blew up at node {node} (s - s0 = {offset:.6g}): "
+                              f"max |P| = {peak:.3g}; reduce the step h = {steps[node]:.4g}",
+                              node, offset)
     K = Rinv_Bt_nodes @ P
     check_step(A_nodes, B_nodes, K, h, safety=safety, mode=step_check)
     return P, K

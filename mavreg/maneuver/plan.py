@@ -20,7 +20,7 @@ from ..config.controller import ControllerParams
 from ..config.maneuver import ManeuverSpec, load_maneuver, load_maneuver_text
 from ..config.vehicle import VehicleParams
 from ..control.actuator import augmented_jacobians
-from ..control.riccati import care, periodic_riccati, riccati_rhs, sweep_backward
+from ..control.riccati import SweepDivergence, care, periodic_riccati, riccati_rhs, sweep_backward
 from ..control.transverse import transverse_jacobians
 from ..errors import ManeuverError
 from ..geometry.build import build_path
@@ -28,6 +28,7 @@ from ..geometry.path import Path
 from ..model.mixer import Mixer
 from ..model.quadrotor import QuadrotorModel
 from .cache import PlanCache, default_cache
+from .diagnose import euler_singularity, explain_divergence
 from .feasibility import Feasibility, check_feasibility
 from .flatness import nominal_from_flat
 from .profiles import Profile
@@ -234,12 +235,21 @@ def plan_spec(spec: ManeuverSpec, vehicle: VehicleParams, controller: Controller
             raise ManeuverError(f"maneuver {spec.name!r} is infeasible: " + "; ".join(feas.violations))
         return Plan(spec.name, path, vehicle, s, x, dx, u, np.zeros((len(s), 4, 11)), v, feas,
                     "none (infeasible)", laps, laps_seg)
+    singular = euler_singularity(s, x[:, 4], lambda q: path.segment_at(q).name)
+    if singular:
+        raise ManeuverError(f"maneuver {spec.name!r}: {singular}")
     tau = vehicle.rotor_time_constant_s if controller.rotor_lag_in_design else 0.0
     if controller.rotor_lag_in_design and not tau > 0:
         raise ManeuverError("the controller puts the rotor lag in the design "
                             "(rotor_lag_in_design: true) but the vehicle file's "
                             "rotor_time_constant_s is 0")
-    K, terminal = _gains(model, path, speed, yaw, s, controller, spec, tau, nominal, clock)
+    try:
+        K, terminal = _gains(model, path, speed, yaw, s, controller, spec, tau, nominal, clock)
+    except SweepDivergence as exc:
+        k = nominal[1]
+        raise ManeuverError(f"maneuver {spec.name!r}: " + explain_divergence(
+            exc.s_m, s, x[:, 4], v, rotors, vehicle.max_rotor_thrust_n, np.hypot(k[:, 0], k[:, 1]),
+            lambda q: path.segment_at(q).name) + f" ({exc})") from None
     return Plan(spec.name, path, vehicle, s, x, dx, u, K, v, feas, terminal, laps, laps_seg, tau)
 
 
@@ -286,10 +296,14 @@ def _gains_on_grid(A, B, s, Q, R, P_T=None, periodic: bool = False):
     the last node (None: the periodic solution, the grid being one period)."""
     An, Bn, Am, Bm = A[0::2], B[0::2], A[1::2], B[1::2]
     h = np.diff(s[0::2])
-    if periodic:
-        Pn, _ = periodic_riccati(An, Bn, Am, Bm, h, Q, R, step_check="warn")
-    else:
-        Pn, _ = sweep_backward(An, Bn, Am, Bm, h, Q, R, P_T, step_check="warn")
+    try:
+        if periodic:
+            Pn, _ = periodic_riccati(An, Bn, Am, Bm, h, Q, R, step_check="warn")
+        else:
+            Pn, _ = sweep_backward(An, Bn, Am, Bm, h, Q, R, P_T, step_check="warn")
+    except SweepDivergence as exc:
+        exc.s_m = float(s[0::2][exc.node])      # where, for the diagnosis
+        raise
     Rinv_Bt = np.linalg.solve(R, np.swapaxes(B, 1, 2))
     dP = -riccati_rhs(An, Bn @ Rinv_Bt[0::2], Q, Pn)
     P = np.empty((len(s),) + Pn.shape[1:])
@@ -317,6 +331,8 @@ def _gains(model, path, speed, yaw, s, controller, spec, tau, nominal, clock: _S
             terminal = "steady (CARE at the end)"
             P_T, _ = care(A[-1], B[-1], Q, R)
         _, K = _gains_on_grid(A, B, s, Q, R, P_T)
+    except SweepDivergence:
+        raise
     except ValueError as exc:
         raise ManeuverError(f"gain schedule: {exc}") from None
     clock.lap("riccati")
