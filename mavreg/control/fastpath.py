@@ -1,0 +1,148 @@
+r"""The compiled step of the maneuver regulator: tables, state and the call of the kernel.
+
+:class:`FastStep` holds what :func:`mavreg.control.step_kernel.regulator_step` reads: the
+plan laid out as one contiguous (N, 17 + 4 n_K) table (x, u, v and K per node, so that one
+row blend gives them all), the path's Hermite tables, a parameter vector, and the state
+kept between steps (s, the rotor lag filter). A step costs one kernel call, one small
+array for the outputs (w, u and the rotor forces are views of it, fresh every step, so a
+caller may keep them) and the :class:`~mavreg.control.regulator.RegulatorOutput`.
+
+The compiled path is used when numba is available and ``MAVREG_PURE`` is not set
+(:data:`mavreg.accel.ACCELERATED`) and the regulator has no speed governor; otherwise the
+regulator's numpy step runs, the reference that the tests hold this one to
+(``tests/unit/test_fastpath.py``: rotor forces within 1e-9 N over closed-loop states).
+:meth:`FastStep.warm` compiles (or loads from numba's on-disk cache) the kernel when the
+regulator is built, so that no compilation falls inside a control loop.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..accel import ACCELERATED
+from ..geometry.projection_kernel import path_tables
+from . import step_kernel as sk
+
+__all__ = ["FastStep", "plan_table", "available", "compile_seconds"]
+
+compile_seconds: float | None = None
+"""Seconds the first :meth:`FastStep.warm` of this process took (compiling the kernel, or
+loading it from the cache); None before."""
+
+
+def available() -> bool:
+    """Whether the compiled step can be used (numba present, ``MAVREG_PURE`` unset)."""
+    return ACCELERATED
+
+
+def plan_table(plan) -> tuple[np.ndarray, np.ndarray]:
+    """``(s (N,), table (N, 17 + 4 n_K))``: the plan's nodes and, per node, x (12), u (4),
+    v and K (4, n_K) row-major, at the columns :data:`~mavreg.control.step_kernel.TABLE_X` ...
+    :data:`~mavreg.control.step_kernel.TABLE_K`."""
+    n = len(plan.s)
+    table = np.concatenate([plan.x, plan.u, np.asarray(plan.speed_m_s, float).reshape(n, 1),
+                            plan.K.reshape(n, -1)], axis=1)
+    return np.ascontiguousarray(plan.s, dtype=float), np.ascontiguousarray(table, dtype=float)
+
+
+class FastStep:
+    """The regulator's step without a speed governor, compiled.
+
+    Parameters
+    ----------
+    plan : Plan
+    mixer_matrix, mixer_inverse : (4, 4) arrays
+        Eq 34 and its inverse.
+    max_rotor_thrust_n : float
+        The allocation's rotor limit.
+    torques_first : bool
+        Allocate by :func:`~mavreg.model.mixer.torques_first` (else
+        :func:`~mavreg.model.mixer.yaw_then_lift`).
+    lead_s, decay : float
+        The feedforward's lead, and the rotor lag filter's decay per step.
+    base_drag_n_s_per_m : (2,) floats
+        The design's drag (c_xy, c_z), which the disturbance estimate's is compared with.
+    max_compensation_turn_rad : float
+    window_m, tube_margin : float
+        The projector's (:class:`~mavreg.geometry.projection.Projector`).
+    output : type
+        The output's class (:class:`~mavreg.control.regulator.RegulatorOutput`), called with
+        ``(s, w, u, rotor_forces_n, in_tube, finished, speed_ref_m_s)``.
+    """
+
+    def __init__(self, plan, mixer_matrix, mixer_inverse, max_rotor_thrust_n: float, torques_first: bool,
+                 lead_s: float, decay: float, base_drag_n_s_per_m, max_compensation_turn_rad: float,
+                 window_m: float, tube_margin: float, output):
+        self.s_tab, self.table = plan_table(plan)
+        self.s_nodes, self.coef, self.ends = path_tables(plan.path)
+        prm = np.zeros(sk.N_PARAMS)
+        prm[sk.P_LEAD] = lead_s
+        prm[sk.P_DECAY] = decay
+        prm[sk.P_FMAX] = max_rotor_thrust_n
+        prm[sk.P_WINDOW] = window_m
+        prm[sk.P_MARGIN] = tube_margin
+        prm[sk.P_MAX_TURN] = max_compensation_turn_rad
+        prm[sk.P_CXY], prm[sk.P_CZ] = (float(c) for c in base_drag_n_s_per_m)
+        prm[sk.P_TORQUES_FIRST] = 1.0 if torques_first else 0.0
+        prm[sk.P_AUGMENTED] = 1.0 if plan.K.shape[-1] > 11 else 0.0
+        prm[sk.P_END] = plan.length_m - 1e-6
+        prm[sk.P_MINV:sk.P_MINV + 16] = np.asarray(mixer_inverse, dtype=float).reshape(16)
+        prm[sk.P_MIX:sk.P_MIX + 16] = np.asarray(mixer_matrix, dtype=float).reshape(16)
+        self.prm = prm
+        self.state = np.zeros(6)
+        """s, 1.0 when the lag filter holds an estimate, the estimate (4)."""
+        self._no_forces = np.zeros(4)
+        self._output = output
+
+    def reset(self, s: float, rotor_forces_n=None) -> None:
+        """Continue from arc length s, the lag filter at ``rotor_forces_n`` (None: empty)."""
+        self.state[0] = s
+        if rotor_forces_n is None:
+            self.state[1:] = 0.0
+        else:
+            self.state[1] = 1.0
+            self.state[2:6] = rotor_forces_n
+
+    def step(self, x, rotor_forces_n=None, disturbance=None):
+        """The regulator's step (see :meth:`ManeuverRegulator.step`); returns its output."""
+        if x.__class__ is not np.ndarray or x.dtype != np.float64 or not x.flags.c_contiguous:
+            x = np.ascontiguousarray(x, dtype=np.float64)
+        if rotor_forces_n is None:
+            f, has_f = self._no_forces, False
+        else:
+            f, has_f = rotor_forces_n, True
+            if f.__class__ is not np.ndarray or f.dtype != np.float64 or not f.flags.c_contiguous:
+                f = np.ascontiguousarray(f, dtype=np.float64)
+        out = np.empty(sk.OUT_WIDTH)
+        if disturbance is None:
+            s, in_tube, finished, v_ref = sk.regulator_step(
+                x, f, has_f, False, 0.0, 0.0, 0.0, 0.0, 0.0, self.table, self.s_tab, self.s_nodes,
+                self.coef, self.ends, self.prm, self.state, out)
+        else:
+            cxy, cz = disturbance.drag_n_s_per_m
+            fx, fy, fz = disturbance.force_ned_n
+            s, in_tube, finished, v_ref = sk.regulator_step(
+                x, f, has_f, True, float(cxy), float(cz), float(fx), float(fy), float(fz), self.table,
+                self.s_tab, self.s_nodes, self.coef, self.ends, self.prm, self.state, out)
+        return self._output(s, out[1:12], out[12:16], out[16:20], in_tube, finished, v_ref)
+
+    def warm(self) -> float:
+        """Run the kernel once on a copy of the state (compiling it, or loading it from the
+        cache, on the first call in the process) with each kind of argument a step may
+        pass; returns the seconds it took."""
+        global compile_seconds
+        t0 = time.perf_counter()
+        saved = self.state.copy()
+        x = np.concatenate([self.table[0, sk.TABLE_X:sk.TABLE_X + 12]])
+        for forces in (None, np.zeros(4)):
+            for dist in (False, True):
+                self.state[:] = saved
+                sk.regulator_step(x, self._no_forces if forces is None else forces, forces is not None,
+                                  dist, 0.0, 0.0, 0.0, 0.0, 0.0, self.table, self.s_tab, self.s_nodes,
+                                  self.coef, self.ends, self.prm, self.state, np.empty(sk.OUT_WIDTH))
+        self.state[:] = saved
+        seconds = time.perf_counter() - t0
+        if compile_seconds is None:
+            compile_seconds = seconds
+        return seconds

@@ -1,0 +1,208 @@
+r"""The maneuver regulator's step as one scalar kernel that numba compiles
+(:func:`mavreg.accel.njit`): :meth:`mavreg.control.regulator.ManeuverRegulator.step` without
+a speed governor, state in, rotor forces out, nothing allocated but one scratch point.
+
+One step, as the regulator does it:
+
+1. s by the warm-started projection (:func:`mavreg.geometry.projection_kernel.project`);
+2. one row blend of the plan's table at s, :math:`r = T_i + a (T_{i+1} - T_i)`, giving
+   :math:`\bar x(s)`, :math:`\bar u(s)`, :math:`\bar v(s)` and :math:`K(s)` at once
+   (:data:`TABLE_X`, :data:`TABLE_U`, :data:`TABLE_V`, :data:`TABLE_K`);
+3. the feedforward at :math:`s + \bar v(s)\,\ell` (the lead), and with a disturbance
+   estimate the nominal compensated for it
+   (:func:`mavreg.control.compensation_kernel.compensate`, with the nominal
+   :data:`COMPENSATION_DT_S` ahead for the turn's rate);
+4. w (:func:`mavreg.control.transverse.transverse_coordinates`), then
+   :math:`u = \bar u - K_{:, 0:11} w - K_{:, 11:15} (M f - \bar u(s))` with lag-aware gains
+   (f: the rotor forces handed over, else the regulator's lag filter of its own commands,
+   else :math:`M^{-1} \bar u(s)`), or :math:`u = \bar u - K w`;
+5. rotor forces by the configured allocation (:func:`yaw_then_lift` or
+   :func:`torques_first`, :mod:`mavreg.model.mixer`'s, scalar), and the lag filter updated.
+
+The tables' layout and the parameter vector's slots are the constants below; the Python side
+(:mod:`mavreg.control.fastpath`) fills them.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..accel import njit
+from ..geometry.projection_kernel import POINT_WIDTH, project
+from .compensation_kernel import compensate, wrap
+
+__all__ = ["regulator_step", "yaw_then_lift", "torques_first", "TABLE_X", "TABLE_U", "TABLE_V",
+           "TABLE_K", "P_LEAD", "P_DECAY", "P_FMAX", "P_WINDOW", "P_MARGIN", "P_MAX_TURN", "P_CXY",
+           "P_CZ", "P_TORQUES_FIRST", "P_AUGMENTED", "P_END", "P_MINV", "P_MIX", "N_PARAMS",
+           "OUT_S", "OUT_W", "OUT_U", "OUT_ROTORS", "OUT_WIDTH", "COMPENSATION_DT_S"]
+
+TABLE_X, TABLE_U, TABLE_V, TABLE_K = 0, 12, 16, 17
+"""Columns of a table row: x (12), u (4), v (1), K row-major (4 x 11 or 4 x 15)."""
+(P_LEAD, P_DECAY, P_FMAX, P_WINDOW, P_MARGIN, P_MAX_TURN, P_CXY, P_CZ, P_TORQUES_FIRST,
+ P_AUGMENTED, P_END) = range(11)
+"""Slots of the parameter vector: lead (s), lag filter decay, rotor limit (N), projection
+window (m) and tube margin, largest compensating turn (rad), the design's drag (c_xy, c_z),
+1.0 for ``torques_first`` (else ``yaw_then_lift``), 1.0 for lag-aware gains, the arc length
+at which the maneuver is finished."""
+P_MINV, P_MIX = 16, 32
+"""M^{-1} and M (eq 34), row-major, 16 slots each."""
+N_PARAMS = 48
+OUT_S, OUT_W, OUT_U, OUT_ROTORS = 0, 1, 12, 16
+"""The output vector: s, w (11), u (4), rotor forces (4)."""
+OUT_WIDTH = 20
+COMPENSATION_DT_S = 0.02
+"""As the regulator's ``_COMPENSATION_DT_S``."""
+
+
+@njit
+def yaw_then_lift(Minv, u, F, f):
+    """:func:`mavreg.model.mixer.yaw_then_lift` of u (4,) into f (4,), Minv row-major (16,)."""
+    low = np.inf
+    for r in range(4):
+        f[r] = Minv[4 * r] * u[0] + Minv[4 * r + 1] * u[1] + Minv[4 * r + 2] * u[2] + Minv[4 * r + 3] * u[3]
+        low = min(low, f[r])
+    if low >= 0.0:
+        return
+    beta = 1.0
+    for r in range(4):
+        b = Minv[4 * r] * u[0] + Minv[4 * r + 1] * u[1] + Minv[4 * r + 2] * u[2]
+        y = Minv[4 * r + 3] * u[3]
+        if b + y < 0.0:
+            beta = min(beta, max(b, 0.0) / -y)
+    low, high = np.inf, -np.inf
+    for r in range(4):
+        f[r] = Minv[4 * r] * u[0] + Minv[4 * r + 1] * u[1] + Minv[4 * r + 2] * u[2] + beta * (Minv[4 * r + 3] * u[3])
+        low = min(low, f[r])
+        high = max(high, f[r])
+    if low < 0.0:
+        lift = min(-low, max(F - high, 0.0))
+        for r in range(4):
+            f[r] += lift
+
+
+@njit
+def torques_first(Minv, u, F, f):
+    """:func:`mavreg.model.mixer.torques_first` of u (4,) into f (4,), Minv row-major (16,)."""
+    low, high = np.inf, -np.inf
+    for r in range(4):
+        f[r] = Minv[4 * r] * u[0] + Minv[4 * r + 1] * u[1] + Minv[4 * r + 2] * u[2] + Minv[4 * r + 3] * u[3]
+        low = min(low, f[r])
+        high = max(high, f[r])
+    if low >= 0.0 and high <= F:
+        return
+    beta = 1.0
+    for r in range(4):
+        b = Minv[4 * r] * u[0] + Minv[4 * r + 1] * u[1] + Minv[4 * r + 2] * u[2]
+        y = Minv[4 * r + 3] * u[3]
+        if b + y < 0.0:
+            beta = min(beta, max(b, 0.0) / -y)
+        elif b + y > F:
+            beta = min(beta, max(F - b, 0.0) / y)
+    low, high = np.inf, -np.inf
+    for r in range(4):
+        f[r] = Minv[4 * r] * u[0] + Minv[4 * r + 1] * u[1] + Minv[4 * r + 2] * u[2] + beta * (Minv[4 * r + 3] * u[3])
+        low = min(low, f[r])
+        high = max(high, f[r])
+    if high - low <= F:
+        shift = low if low < 0.0 else (high - F if high > F else 0.0)
+        for r in range(4):
+            f[r] -= shift
+        return
+    for r in range(4):
+        f[r] = (f[r] - low) * (F / (high - low))
+
+
+@njit
+def _locate(s, s_tab):
+    """Row i and blend a of s in the table, clamped to its ends (the regulator's ``_locate``)."""
+    i = min(max(np.searchsorted(s_tab, s) - 1, 0), s_tab.shape[0] - 2)
+    return i, min(max((s - s_tab[i]) / (s_tab[i + 1] - s_tab[i]), 0.0), 1.0)
+
+
+@njit
+def _blend(table, i, a, c0, c1, out):
+    """Columns c0:c1 of the table blended between rows i and i + 1 into ``out``."""
+    for c in range(c0, c1):
+        lo = table[i, c]
+        out[c - c0] = lo + a * (table[i + 1, c] - lo)
+
+
+@njit
+def regulator_step(x, f_act, has_f, has_dist, dcxy, dcz, fx, fy, fz, table, s_tab, s_nodes, coef,
+                   ends, prm, st, out):
+    """One step for state x (12,); returns ``(s, in_tube, finished, v_ref)``.
+
+    ``f_act`` (4,): the rotor forces handed over (used when ``has_f``); ``dcxy ... fz``: the
+    disturbance estimate's drag less the design's and its constant force (used when
+    ``has_dist``). ``st`` (6,) is the state between steps: s, 1.0 when the lag filter holds
+    an estimate, the estimate (4). ``out`` (:data:`OUT_WIDTH`,) receives s, w, u and the
+    rotor forces.
+    """
+    p = np.empty(POINT_WIDTH)
+    s, inside, _ = project(x[0], x[1], x[2], st[0], prm[P_WINDOW], prm[P_MARGIN], s_nodes, coef, ends, p)
+    st[0] = s
+    width = table.shape[1]
+    row = np.empty(width + 16)
+    i, a = _locate(s, s_tab)
+    _blend(table, i, a, 0, width, row)
+    xbar = row[TABLE_X:TABLE_X + 12]
+    u_here = row[TABLE_U:TABLE_U + 4]
+    K = row[TABLE_K:width]
+    nk = (width - TABLE_K) // 4
+    v_ref = row[TABLE_V]
+    ubar = row[width:width + 4]
+    if prm[P_LEAD] > 0.0:
+        i, a = _locate(s + v_ref * prm[P_LEAD], s_tab)
+    _blend(table, i, a, TABLE_U, TABLE_U + 4, ubar)
+    if has_dist:
+        x_ahead = row[width + 4:width + 16]
+        j, b = _locate(s + max(v_ref, 0.1) * COMPENSATION_DT_S, s_tab)
+        _blend(table, j, b, TABLE_X, TABLE_X + 12, x_ahead)
+        t_ahead = table[j, TABLE_U] + b * (table[j + 1, TABLE_U] - table[j, TABLE_U])
+        thrust = compensate(xbar, u_here[0], x_ahead, t_ahead, dcxy - prm[P_CXY], dcz - prm[P_CZ],
+                            fx, fy, fz, COMPENSATION_DT_S, prm[P_MAX_TURN])
+        ubar[0] += thrust - u_here[0]
+        u_here[0] = thrust
+    w = out[OUT_W:OUT_W + 11]
+    d0, d1, d2 = x[0] - p[0], x[1] - p[1], x[2] - p[2]
+    w[0] = d0 * p[4] + d1 * p[7] + d2 * p[10]
+    w[1] = d0 * p[5] + d1 * p[8] + d2 * p[11]
+    for j in range(3):
+        w[2 + j] = wrap(x[3 + j] - xbar[3 + j])
+    for j in range(6):
+        w[5 + j] = x[6 + j] - xbar[6 + j]
+    u = out[OUT_U:OUT_U + 4]
+    for r in range(4):
+        acc = 0.0
+        for c in range(11):
+            acc += K[r * nk + c] * w[c]
+        u[r] = ubar[r] - acc
+    minv = prm[P_MINV:P_MINV + 16]
+    augmented = prm[P_AUGMENTED] > 0.0
+    if augmented:
+        fa = f_act if has_f else st[2:6]
+        if not has_f and st[1] == 0.0:
+            fa = np.empty(4)
+            for r in range(4):
+                fa[r] = (minv[4 * r] * u_here[0] + minv[4 * r + 1] * u_here[1]
+                         + minv[4 * r + 2] * u_here[2] + minv[4 * r + 3] * u_here[3])
+        mix = prm[P_MIX:P_MIX + 16]
+        for r in range(4):
+            acc = 0.0
+            for c in range(4):
+                dev = (mix[4 * c] * fa[0] + mix[4 * c + 1] * fa[1] + mix[4 * c + 2] * fa[2]
+                       + mix[4 * c + 3] * fa[3]) - u_here[c]
+                acc += K[r * nk + 11 + c] * dev
+            u[r] -= acc
+    rotors = out[OUT_ROTORS:OUT_ROTORS + 4]
+    if prm[P_TORQUES_FIRST] > 0.0:
+        torques_first(minv, u, prm[P_FMAX], rotors)
+    else:
+        yaw_then_lift(minv, u, prm[P_FMAX], rotors)
+    if augmented:
+        decay = prm[P_DECAY]
+        for r in range(4):
+            base = st[2 + r] if st[1] != 0.0 else rotors[r]
+            st[2 + r] = rotors[r] + (base - rotors[r]) * decay
+        st[1] = 1.0
+    out[OUT_S] = s
+    return s, inside, s >= prm[P_END], v_ref
