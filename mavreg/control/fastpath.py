@@ -11,7 +11,7 @@ The compiled path is used when numba is available and ``MAVREG_PURE`` is not set
 (:data:`mavreg.accel.ACCELERATED`) and the regulator has no speed governor; otherwise the
 regulator's numpy step runs, the reference that the tests hold this one to
 (``tests/unit/test_fastpath.py``: rotor forces within 1e-9 N over closed-loop states).
-:meth:`FastStep.warm` compiles (or loads from numba's on-disk cache) the kernel when the
+:func:`warm_up` compiles (or loads from numba's on-disk cache) the kernel when the
 regulator is built, so that no compilation falls inside a control loop.
 """
 from __future__ import annotations
@@ -24,16 +24,43 @@ from ..accel import ACCELERATED
 from ..geometry.projection_kernel import path_tables
 from . import step_kernel as sk
 
-__all__ = ["FastStep", "plan_table", "available", "compile_seconds"]
+__all__ = ["FastStep", "plan_table", "available", "warm_up", "compile_seconds"]
 
 compile_seconds: float | None = None
-"""Seconds the first :meth:`FastStep.warm` of this process took (compiling the kernel, or
-loading it from the cache); None before."""
+"""Seconds :func:`warm_up` took in this process (compiling the kernel, or loading it from
+numba's cache); None before it ran."""
 
 
 def available() -> bool:
     """Whether the compiled step can be used (numba present, ``MAVREG_PURE`` unset)."""
     return ACCELERATED
+
+
+def warm_up() -> float | None:
+    """Compile the kernel (or load it from numba's on-disk cache) once per process, by
+    running it on a two-node straight path; returns the seconds the first call took
+    (:data:`compile_seconds`), None without numba. Types, not values, select what numba
+    compiles, so this one call covers every step: the regulator calls it when it is built
+    (the daemon builds it before the maneuver), so that no compilation falls in the loop."""
+    global compile_seconds
+    if not ACCELERATED or compile_seconds is not None:
+        return compile_seconds
+    t0 = time.perf_counter()
+    coef = np.zeros((1, 4, 18))
+    coef[0, 0, 3:12] = np.eye(3).reshape(9)
+    coef[0, 1, 0] = 1.0
+    ends = np.zeros((2, 18))
+    ends[:, 3:12] = np.eye(3).reshape(9)
+    ends[1, 0] = 1.0
+    prm = np.zeros(sk.N_PARAMS)
+    prm[sk.P_MINV:sk.P_MINV + 16] = np.eye(4).reshape(16)
+    prm[sk.P_MIX:sk.P_MIX + 16] = np.eye(4).reshape(16)
+    table = np.zeros((2, sk.TABLE_K + 60))
+    sk.regulator_step(np.zeros(12), np.zeros(4), True, True, 0.0, 0.0, 0.0, 0.0, 0.0, table,
+                      np.array([0.0, 1.0]), np.array([0.0, 1.0]), coef, ends, prm, np.zeros(6),
+                      np.empty(sk.OUT_WIDTH))
+    compile_seconds = time.perf_counter() - t0
+    return compile_seconds
 
 
 def plan_table(plan) -> tuple[np.ndarray, np.ndarray]:
@@ -66,14 +93,11 @@ class FastStep:
     max_compensation_turn_rad : float
     window_m, tube_margin : float
         The projector's (:class:`~mavreg.geometry.projection.Projector`).
-    output : type
-        The output's class (:class:`~mavreg.control.regulator.RegulatorOutput`), called with
-        ``(s, w, u, rotor_forces_n, in_tube, finished, speed_ref_m_s)``.
     """
 
     def __init__(self, plan, mixer_matrix, mixer_inverse, max_rotor_thrust_n: float, torques_first: bool,
                  lead_s: float, decay: float, base_drag_n_s_per_m, max_compensation_turn_rad: float,
-                 window_m: float, tube_margin: float, output):
+                 window_m: float, tube_margin: float):
         self.s_tab, self.table = plan_table(plan)
         self.s_nodes, self.coef, self.ends = path_tables(plan.path)
         prm = np.zeros(sk.N_PARAMS)
@@ -93,7 +117,6 @@ class FastStep:
         self.state = np.zeros(6)
         """s, 1.0 when the lag filter holds an estimate, the estimate (4)."""
         self._no_forces = np.zeros(4)
-        self._output = output
 
     def reset(self, s: float, rotor_forces_n=None) -> None:
         """Continue from arc length s, the lag filter at ``rotor_forces_n`` (None: empty)."""
@@ -105,7 +128,9 @@ class FastStep:
             self.state[2:6] = rotor_forces_n
 
     def step(self, x, rotor_forces_n=None, disturbance=None):
-        """The regulator's step (see :meth:`ManeuverRegulator.step`); returns its output."""
+        """The regulator's step (see :meth:`ManeuverRegulator.step`): ``(s, w, u,
+        rotor_forces_n, in_tube, finished, speed_ref_m_s)``, the arrays views of one new
+        array."""
         if x.__class__ is not np.ndarray or x.dtype != np.float64 or not x.flags.c_contiguous:
             x = np.ascontiguousarray(x, dtype=np.float64)
         if rotor_forces_n is None:
@@ -125,24 +150,5 @@ class FastStep:
             s, in_tube, finished, v_ref = sk.regulator_step(
                 x, f, has_f, True, float(cxy), float(cz), float(fx), float(fy), float(fz), self.table,
                 self.s_tab, self.s_nodes, self.coef, self.ends, self.prm, self.state, out)
-        return self._output(s, out[1:12], out[12:16], out[16:20], in_tube, finished, v_ref)
-
-    def warm(self) -> float:
-        """Run the kernel once on a copy of the state (compiling it, or loading it from the
-        cache, on the first call in the process) with each kind of argument a step may
-        pass; returns the seconds it took."""
-        global compile_seconds
-        t0 = time.perf_counter()
-        saved = self.state.copy()
-        x = np.concatenate([self.table[0, sk.TABLE_X:sk.TABLE_X + 12]])
-        for forces in (None, np.zeros(4)):
-            for dist in (False, True):
-                self.state[:] = saved
-                sk.regulator_step(x, self._no_forces if forces is None else forces, forces is not None,
-                                  dist, 0.0, 0.0, 0.0, 0.0, 0.0, self.table, self.s_tab, self.s_nodes,
-                                  self.coef, self.ends, self.prm, self.state, np.empty(sk.OUT_WIDTH))
-        self.state[:] = saved
-        seconds = time.perf_counter() - t0
-        if compile_seconds is None:
-            compile_seconds = seconds
-        return seconds
+        return (s, out[sk.OUT_W:sk.OUT_W + 11], out[sk.OUT_U:sk.OUT_U + 4],
+                out[sk.OUT_ROTORS:sk.OUT_ROTORS + 4], in_tube, finished, v_ref)

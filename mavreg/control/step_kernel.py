@@ -24,10 +24,14 @@ The tables' layout and the parameter vector's slots are the constants below; the
 """
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from ..accel import njit
+from ..geometry import projection_kernel
 from ..geometry.projection_kernel import POINT_WIDTH, project
+from . import compensation_kernel
 from .compensation_kernel import compensate, wrap
 
 __all__ = ["regulator_step", "yaw_then_lift", "torques_first", "TABLE_X", "TABLE_U", "TABLE_V",
@@ -206,3 +210,21 @@ def regulator_step(x, f_act, has_f, has_dist, dcxy, dcz, fx, fy, fz, table, s_ta
         st[1] = 1.0
     out[OUT_S] = s
     return s, inside, s >= prm[P_END], v_ref
+
+
+def _cache_follows(dispatcher, *modules) -> None:
+    """Make the on-disk cache of a compiled ``dispatcher`` stale when any of ``modules`` changes.
+
+    numba keys a cached function by the stamp (mtime, size) of its own source file only, so
+    the callees it compiles in from other files would be loaded as they were after an edit of
+    theirs alone. The stamp is extended with theirs (nothing happens without numba, or where
+    its cache is laid out otherwise: then only this file's edits refresh it).
+    """
+    cache_file = getattr(getattr(dispatcher, "_cache", None), "_cache_file", None)
+    if cache_file is None or not hasattr(cache_file, "_source_stamp"):
+        return
+    stamps = tuple((os.stat(m.__file__).st_mtime, os.stat(m.__file__).st_size) for m in modules)
+    cache_file._source_stamp = (cache_file._source_stamp, stamps)
+
+
+_cache_follows(regulator_step, projection_kernel, compensation_kernel)
