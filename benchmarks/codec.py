@@ -17,15 +17,12 @@ Run alone: ``python -m benchmarks.codec [--quick]``.
 """
 from __future__ import annotations
 
-import argparse
-import json
 import statistics
 import time
 import warnings
-from pathlib import Path
-
 from pymavlink.dialects.v20 import common as mavlink2
 
+from benchmarks.report import standalone
 from benchmarks.io_helpers import figure
 from mavreg.daemon import wire as wire_mod
 
@@ -100,17 +97,7 @@ def run_codec(quick: bool) -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--quick", action="store_true", help="fewer calls per timing")
-    ap.add_argument("--json", metavar="FILE", default=None, help="also write the figures as JSON")
-    args = ap.parse_args()
-    figs = run_codec(args.quick)
-    for k, f in figs.items():
-        ratio = "" if f["ratio"] is None else f"{f['ratio']:.2f}x"
-        base = "-" if f["baseline"] is None else f"{f['baseline']:.2f}"
-        print(f"{k:46s} {f['value']:8.2f} {f['unit']:5s} baseline {base:>8s} {ratio:>7s}")
-    if args.json:
-        Path(args.json).write_text(json.dumps(figs, indent=1))
+    standalone(run_codec, __doc__, quick_help="fewer calls per timing")
 
 
 if __name__ == "__main__":

@@ -1,8 +1,9 @@
-"""Shared pieces of the I/O benchmarks (sitl, daemon_rt, codec): figure records, processes.
+"""Shared pieces of the benchmarks: figure records, the repository's files, processes.
 
-A figure is a dict ``{"value", "baseline", "ratio", "target", "unit", "note"}``; ``ratio`` is
-always "how many times better than the baseline" (value / baseline when higher is better,
-baseline / value when lower is better), None when either is missing.
+A figure is a dict ``{"value", "baseline", "ratio", "target", "met", "unit", "note"}``;
+``ratio`` is always "how many times better than the baseline" (value / baseline when higher
+is better, baseline / value when lower is better), None when either is missing; ``met``
+says whether the value reaches the target (None without a target).
 """
 from __future__ import annotations
 
@@ -24,10 +25,12 @@ HOVER = 0.749 * 9.81 / 4 / 12.0
 
 def figure(value, baseline=None, *, target=None, unit: str, note: str = "", higher_is_better: bool) -> dict:
     """One figure record (see the module docstring)."""
-    ratio = None
+    ratio = met = None
     if value is not None and baseline is not None and value > 0 and baseline > 0:
         ratio = value / baseline if higher_is_better else baseline / value
-    return {"value": value, "baseline": baseline, "ratio": ratio, "target": target, "unit": unit,
+    if value is not None and target is not None:
+        met = bool(value >= target if higher_is_better else value <= target)
+    return {"value": value, "baseline": baseline, "ratio": ratio, "target": target, "met": met, "unit": unit,
             "note": note}
 
 

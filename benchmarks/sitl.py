@@ -27,7 +27,6 @@ Run alone: ``python -m benchmarks.sitl [--quick]``.
 """
 from __future__ import annotations
 
-import argparse
 import json
 import socket
 import statistics
@@ -39,6 +38,7 @@ from pathlib import Path
 
 from pymavlink.dialects.v20 import common as mavlink2
 
+from benchmarks.report import standalone
 from benchmarks.io_helpers import (BARREL, HOVER, PAPER_CONTROLLER, REPO, env_with_io, figure, percentile,
                                    read_tlog, start_emulator, stop)
 
@@ -169,7 +169,7 @@ def run_sitl(quick: bool) -> dict:
     """All the figures of the module docstring (``quick``: fewer periods and repeats, the
     ideal-world flight only). Lockstep rates are medians over interleaved repeats (the
     machine is shared); cycle percentiles pool the repeats."""
-    n, repeats = (3000, 3) if quick else (10000, 5)
+    n, repeats = (2000, 2) if quick else (5000, 3)
     fig = {}
     for key, preset in (("trivial", "realistic"), ("trivial_ideal", "ideal")):
         runs = {"reference": [], "fast": []}
@@ -214,16 +214,7 @@ def run_sitl(quick: bool) -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--quick", action="store_true", help="fewer periods, the ideal-world flight only")
-    ap.add_argument("--json", metavar="FILE", default=None, help="also write the figures as JSON")
-    args = ap.parse_args()
-    figs = run_sitl(args.quick)
-    for k, f in figs.items():
-        ratio = "" if f["ratio"] is None else f"{f['ratio']:.2f}x"
-        print(f"{k:40s} {f['value']:10.1f} {f['unit']:10s} baseline {f['baseline']:10.1f}  {ratio:>7s}  {f['note']}")
-    if args.json:
-        Path(args.json).write_text(json.dumps(figs, indent=1))
+    standalone(run_sitl, __doc__, quick_help="fewer periods, the ideal-world flight only")
 
 
 if __name__ == "__main__":

@@ -18,7 +18,10 @@ def test_ratio_is_always_times_better_than_the_baseline():
     assert figure(20.0, 100.0, unit="us", higher_is_better=False)["ratio"] == pytest.approx(5.0)
     assert figure(20.0, None, unit="us", higher_is_better=False)["ratio"] is None
     f = figure(1.0, 2.0, target=3.0, unit="x", note="n", higher_is_better=True)
-    assert set(f) == {"value", "baseline", "ratio", "target", "unit", "note"} and f["target"] == 3.0
+    assert set(f) == {"value", "baseline", "ratio", "target", "met", "unit", "note"} and f["target"] == 3.0
+    assert f["met"] is False and figure(3.0, target=3.0, unit="x", higher_is_better=True)["met"] is True
+    assert figure(20.0, target=25.0, unit="us", higher_is_better=False)["met"] is True
+    assert figure(20.0, unit="us", higher_is_better=False)["met"] is None
 
 
 def test_tlog_reader_gives_time_component_and_id_of_every_frame(tmp_path):
