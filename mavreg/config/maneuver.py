@@ -102,8 +102,17 @@ class SpeedSpec:
 
 @dataclass(frozen=True)
 class YawSpec:
+    """Where the nose points (docs/maneuvers.md, "Yaw").
+
+    ``mode``: ``fixed`` -- the profile is the yaw itself; ``tangent`` -- the nose follows the
+    path's horizontal heading and the profile is an offset from it; ``velocity`` -- the nose
+    follows the velocity (the path's tangent, also when it climbs or dives) and the profile
+    turns it about the thrust axis.
+    """
+
     initial_rad: float = field(default=0.0, metadata={"deg": True, "min": -360.0, "max": 360.0})
     changes: tuple[YawChange, ...] = ()
+    mode: str = field(default="fixed", metadata={"choices": ("fixed", "tangent", "velocity")})
 
 
 @dataclass(frozen=True)

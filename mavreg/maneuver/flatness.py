@@ -39,7 +39,7 @@ import numpy as np
 from ..model.quadrotor import QuadrotorModel
 from ..model.rotation import matrix_to_rpy
 
-__all__ = ["path_derivatives", "nominal_from_flat"]
+__all__ = ["path_derivatives", "flat_nominal", "nominal_from_flat", "FlatnessError", "YAW_MODES"]
 
 
 def _dot(a, b):
@@ -105,13 +105,81 @@ def _vee(M):
                      M[:, 1, 0] - M[:, 0, 1]], axis=1) / 2
 
 
-def nominal_from_flat(model: QuadrotorModel, F, k, dk, ddk, c, v4, yaw4):
-    """Nominal states (N,12) and inputs (N,4) at path samples.
+class FlatnessError(ValueError):
+    """The flat map is undefined at sample ``index``; ``remedy`` says what to change."""
 
-    ``yaw4`` (4,N) is yaw and its s-derivatives. Roll, pitch and yaw are unwrapped along
-    the samples, which must be in increasing s. Raises ValueError where the thrust would
-    vanish (free fall: the attitude is not defined by the path).
+    def __init__(self, what: str, index: int, remedy: str):
+        super().__init__(f"{what} at sample {index}")
+        self.what, self.index, self.remedy = what, index, remedy
+
+
+YAW_MODES = ("fixed", "tangent", "velocity")
+_MIN_HORIZONTAL = 1e-3
+"""tangent: the path's horizontal heading is undefined where the horizontal share of the
+velocity is below this (a vertical path)."""
+_MIN_SINE = 1e-3
+"""The nose reference must not lie along the thrust axis: |z_b x n| / |n| above this."""
+
+
+def _jscale(a, v):
+    """Scalar jet a times vector jet v."""
+    return (a[0][:, None] * v[0], a[1][:, None] * v[0] + a[0][:, None] * v[1],
+            a[2][:, None] * v[0] + 2 * a[1][:, None] * v[1] + a[0][:, None] * v[2])
+
+
+def _jcos_sin(a):
+    """Jets of cos(a) and sin(a) for a scalar jet a."""
+    c, s = np.cos(a[0]), np.sin(a[0])
+    return ((c, -s * a[1], -c * a[1] ** 2 - s * a[2]),
+            (s, c * a[1], -s * a[1] ** 2 + c * a[2]))
+
+
+def _heading_jet(vel, acc, jerk):
+    """Jet of the horizontal heading atan2(v_e, v_n) of the velocity, and the horizontal
+    share of the speed (where it is small the heading is undefined)."""
+    vn, ve, an, ae, jn, je = vel[:, 0], vel[:, 1], acc[:, 0], acc[:, 1], jerk[:, 0], jerk[:, 1]
+    D = vn * vn + ve * ve
+    share = np.sqrt(D / np.maximum(np.sum(vel * vel, axis=1), 1e-300))
+    D = np.maximum(D, 1e-300)
+    N = vn * ae - ve * an
+    dN = vn * je - ve * jn
+    dD = 2 * (vn * an + ve * ae)
+    return (np.arctan2(ve, vn), N / D, (dN * D - N * dD) / D ** 2), share
+
+
+def _nose_reference(mode, yaw_jet, zb, vel, acc, jerk):
+    """The jet of the vector the nose is turned towards (projected on the rotor plane)."""
+    if mode == "velocity":           # the velocity, turned about the thrust axis by the offset
+        V = (vel, acc, jerk)
+        c, s = _jcos_sin(yaw_jet)
+        return tuple(a + b for a, b in zip(_jscale(c, V), _jscale(s, _jcross(zb, V))))
+    if mode == "tangent":            # the path's horizontal heading plus the offset
+        heading, share = _heading_jet(vel, acc, jerk)
+        if share.min() < _MIN_HORIZONTAL:
+            raise FlatnessError("the path is vertical, so its heading is undefined",
+                                int(np.argmin(share)),
+                                "use yaw mode velocity, or keep the path off the vertical")
+        yaw_jet = tuple(a + b for a, b in zip(heading, yaw_jet))
+    c, s = _jcos_sin(yaw_jet)
+    zero = np.zeros_like(c[0])
+    return tuple(np.stack([ci, si, zero], axis=1) for ci, si in zip(c, s))
+
+
+def flat_nominal(model: QuadrotorModel, F, k, dk, ddk, c, v4, yaw4, mode: str = "fixed"):
+    r"""Nominal states (N,12), inputs (N,4) and attitudes R (N,3,3) at path samples.
+
+    ``yaw4`` (4,N) is the yaw profile and its s-derivatives: the yaw itself in mode
+    ``fixed``, the offset from the path's horizontal heading in ``tangent``, the turn of the
+    nose from the velocity about the thrust axis in ``velocity``. The nose reference n (a
+    horizontal unit vector at the yaw, or the velocity) gives
+    :math:`y_b = z_b\times n/|\cdot|`, :math:`x_b = y_b\times z_b`. Roll, pitch and yaw
+    (columns 3-5 of x) are unwrapped along the samples, which must be in increasing s; they
+    are singular at pitch +-90 deg, R is not. Raises :class:`FlatnessError` where the thrust
+    vanishes (free fall), where n lies along the thrust axis, or (``tangent``) where the path
+    is vertical.
     """
+    if mode not in YAW_MODES:
+        raise ValueError(f"yaw mode must be one of {YAW_MODES}, not {mode!r}")
     vel, acc, jerk, snap = path_derivatives(F, k, dk, ddk, v4)
     g = model.g
     m = model.mass_kg
@@ -126,18 +194,19 @@ def nominal_from_flat(model: QuadrotorModel, F, k, dk, ddk, c, v4, yaw4):
         T = tuple(Ti - (cxy / m) * Vi - (cp / m) * Qi for Ti, Vi, Qi in zip(T, V, Vq))
     tn = np.linalg.norm(T[0], axis=1)
     if np.min(tn) < 1e-6:
-        i = int(np.argmin(tn))
-        raise ValueError(f"thrust vanishes at sample {i}: the attitude is undefined there")
+        raise FlatnessError("the thrust vanishes (free fall), so the attitude is undefined",
+                            int(np.argmin(tn)), "change the speed or the curve there")
     zb = _jnormalize(T)
     v, v1 = v4[0], v4[1]
-    psi, dpsi, ddpsi = yaw4[0], v * yaw4[1], v * (v1 * yaw4[1] + v * yaw4[2])
-    cps, sps = np.cos(psi), np.sin(psi)
-    zero = np.zeros_like(psi)
-    xc = (np.stack([cps, sps, zero], axis=1),
-          dpsi[:, None] * np.stack([-sps, cps, zero], axis=1),
-          ddpsi[:, None] * np.stack([-sps, cps, zero], axis=1)
-          - (dpsi ** 2)[:, None] * np.stack([cps, sps, zero], axis=1))
-    yb = _jnormalize(_jcross(zb, xc))
+    yaw_jet = (yaw4[0], v * yaw4[1], v * (v1 * yaw4[1] + v * yaw4[2]))
+    n = _nose_reference(mode, yaw_jet, zb, vel, acc, jerk)
+    cross = np.linalg.norm(np.cross(zb[0], n[0]), axis=1) / np.linalg.norm(n[0], axis=1)
+    if cross.min() < _MIN_SINE:
+        raise FlatnessError("the nose reference lies along the thrust axis, so the yaw is "
+                            "undefined", int(np.argmin(cross)),
+                            "use another yaw mode (tangent or velocity let the nose follow "
+                            "the path), or another yaw")
+    yb = _jnormalize(_jcross(zb, n))
     xb = _jcross(yb, zb)
     R, dR, ddR = (np.stack([x, y, z], axis=2) for x, y, z in zip(xb, yb, zb))
     Rt = np.transpose(R, (0, 2, 1))
@@ -151,4 +220,10 @@ def nominal_from_flat(model: QuadrotorModel, F, k, dk, ddk, c, v4, yaw4):
     vbody = np.einsum("nji,nj->ni", R, vel)
     x = np.concatenate([c, rpy, vbody, omega], axis=1)
     u = np.concatenate([thrust[:, None], torque], axis=1)
+    return x, u, R
+
+
+def nominal_from_flat(model: QuadrotorModel, F, k, dk, ddk, c, v4, yaw4):
+    """:func:`flat_nominal` in mode ``fixed``: states (N,12) and inputs (N,4)."""
+    x, u, _ = flat_nominal(model, F, k, dk, ddk, c, v4, yaw4)
     return x, u

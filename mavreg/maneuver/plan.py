@@ -30,7 +30,7 @@ from ..model.quadrotor import QuadrotorModel
 from .cache import PlanCache, default_cache
 from .diagnose import euler_singularity, explain_divergence
 from .feasibility import Feasibility, check_feasibility
-from .flatness import nominal_from_flat
+from .flatness import FlatnessError, flat_nominal
 from .profiles import Profile
 
 __all__ = ["Plan", "plan_spec", "plan_cached", "plan_file", "plan_text", "segment_starts", "segment_ends",
@@ -178,13 +178,15 @@ def _with_midpoints(nodes: np.ndarray) -> np.ndarray:
     return s
 
 
-def _nominal(model, path, speed, yaw, s):
+def _nominal(model, path, speed, yaw, s, yaw_mode: str):
     c, F, k, dk, ddk = path.evaluate(s)
     v4 = speed.evaluate(s)
     try:
-        x, u = nominal_from_flat(model, F, k, dk, ddk, c, v4, yaw.evaluate(s))
-    except ValueError as exc:
-        raise ManeuverError(f"nominal: {exc}") from None
+        x, u, _ = flat_nominal(model, F, k, dk, ddk, c, v4, yaw.evaluate(s), yaw_mode)
+    except FlatnessError as exc:
+        q = float(s[exc.index])
+        raise ManeuverError(f"nominal: {exc.what} at s = {q:.2f} m in "
+                            f"{path.segment_at(q).name!r} (yaw mode {yaw_mode}): {exc.remedy}") from None
     dx = model.f(x.T, u.T).T / v4[0][:, None]
     return F, k, x, u, dx, v4[0]
 
@@ -222,7 +224,7 @@ def plan_spec(spec: ManeuverSpec, vehicle: VehicleParams, controller: Controller
     speed, yaw = build_profiles(spec, path)
     s = _with_midpoints(_time_grid(path, speed, controller.riccati_step_s))
     clock.lap("path")
-    nominal = _nominal(model, path, speed, yaw, s)
+    nominal = _nominal(model, path, speed, yaw, s, spec.yaw.mode)
     _, _, x, u, dx, v = nominal
     rotors = u @ mixer.inverse.T
     feas = check_feasibility(s, u, rotors, v, vehicle.max_rotor_thrust_n,
@@ -326,7 +328,8 @@ def _gains(model, path, speed, yaw, s, controller, spec, tau, nominal, clock: _S
         if spec.laps is not None and spec.laps.segment == last.name:
             # The maneuver ends going round: the terminal condition is the periodic solution.
             terminal = "periodic (the last lap repeats)"
-            P_T = _periodic_terminal(model, path, speed, yaw, _lap_length(last), controller, Q, R, tau)
+            P_T = _periodic_terminal(model, path, speed, yaw, spec.yaw.mode, _lap_length(last),
+                                     controller, Q, R, tau)
         else:
             terminal = "steady (CARE at the end)"
             P_T, _ = care(A[-1], B[-1], Q, R)
@@ -347,7 +350,7 @@ def _lap_length(seg) -> float:
     return 2 * np.pi * float(np.hypot(shp.radius_m, shp.pitch_m / (2 * np.pi)))
 
 
-def _periodic_terminal(model, path, speed, yaw, lap_m, controller, Q, R, tau):
+def _periodic_terminal(model, path, speed, yaw, yaw_mode, lap_m, controller, Q, R, tau):
     """P at the end of a path whose last lap repeats: the periodic solution over that lap.
 
     The lap gets a grid of its own, whose first and last nodes are one lap apart, so that
@@ -359,7 +362,8 @@ def _periodic_terminal(model, path, speed, yaw, lap_m, controller, Q, R, tau):
     v = float(speed.evaluate([s1])[0][0])
     n = max(16, int(np.ceil(lap_m / (v * controller.riccati_step_s)))) + 1
     grid = _with_midpoints(np.linspace(s0, s1, n))
-    A, B = _linearization(model, tau, _nominal(model, path, speed, yaw, grid), grid, periodic=True)
+    A, B = _linearization(model, tau, _nominal(model, path, speed, yaw, grid, yaw_mode), grid,
+                          periodic=True)
     P, _ = _gains_on_grid(A, B, grid, Q, R, periodic=True)
     return P[-1]
 

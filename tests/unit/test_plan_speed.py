@@ -51,12 +51,12 @@ def test_hermite_midpoints_match_the_sweep_through_them():
     path = pm.build_path(SPEC)
     speed, yaw = pm.build_profiles(SPEC, path)
     s = pm._with_midpoints(pm._time_grid(path, speed, controller.riccati_step_s))
-    A, B = pm._linearization(model, 0.0, pm._nominal(model, path, speed, yaw, s), s)
+    A, B = pm._linearization(model, 0.0, pm._nominal(model, path, speed, yaw, s, "fixed"), s)
     Q, R = pm._weights(controller, 0.0)
     P_T, _ = pm.care(A[-1], B[-1], Q, R)
     P, K = pm._gains_on_grid(A, B, s, Q, R, P_T)
     s2 = pm._with_midpoints(s)      # every point of s a node, with midpoints of its own
-    A2, B2 = pm._linearization(model, 0.0, pm._nominal(model, path, speed, yaw, s2), s2)
+    A2, B2 = pm._linearization(model, 0.0, pm._nominal(model, path, speed, yaw, s2, "fixed"), s2)
     P2, _ = pm._gains_on_grid(A2, B2, s2, Q, R, P_T)
     assert np.abs(P[1::2] - P2[2::4]).max() < 1e-5 * np.abs(P).max()
 
@@ -67,7 +67,7 @@ def test_merged_linearization_equals_every_row():
     path = pm.build_path(SPEC)
     speed, yaw = pm.build_profiles(SPEC, path)
     s = pm._with_midpoints(pm._time_grid(path, speed, controller.riccati_step_s))
-    nominal = pm._nominal(model, path, speed, yaw, s)
+    nominal = pm._nominal(model, path, speed, yaw, s, "fixed")
     tau = VEHICLE.rotor_time_constant_s
     A, B = pm._linearization(model, tau, nominal, s)
     F, k, x, u, dx, v = nominal
