@@ -66,11 +66,11 @@ def _path_tables(plan: Plan, window_m: float) -> tuple:
 
 
 def _gain_tables(plan: Plan, lead_s: float) -> tuple:
-    """The plan's tables, each with its row differences (see ``regulator_step``)."""
-    tables = []
-    for a in (plan.x, plan.speed_m_s, plan.u, plan.K):
-        tables += [np.ascontiguousarray(a), np.ascontiguousarray(np.diff(a, axis=0))]
-    return (np.ascontiguousarray(plan.s), *tables, float(lead_s))
+    """The plan's nodes, its table (x, u, v, K per node) and the table's row differences
+    (see :func:`batch_kernel.regulator_step`)."""
+    n = len(plan.s)
+    T = np.concatenate([plan.x, plan.u, np.reshape(plan.speed_m_s, (n, 1)), plan.K.reshape(n, 44)], axis=1)
+    return np.ascontiguousarray(plan.s), np.ascontiguousarray(T), np.diff(T, axis=0), float(lead_s)
 
 
 def fly_batch(plan: Plan, runs: Sequence[BatchRun], *, control_rate_hz: float = 1000.0,

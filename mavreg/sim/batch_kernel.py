@@ -120,23 +120,25 @@ def wrap_angle(a):
 def regulator_step(X, s_prev, path, table, Minv, fmax):
     """Rotor forces (4, N) and arc lengths (N,) for states X (12, N).
 
-    ``path`` = (s_nodes, coef, length, ends, window); ``table`` = (s, x (n, 12), dx (n-1, 12),
-    v (n,), dv (n-1,), u (n, 4), du (n-1, 4), K (n, 4, 11), dK (n-1, 4, 11), lead_s): the
-    plan's tables and their differences between consecutive rows (the rows of N runs are
-    gathered, blended, then turned runs-last).
+    ``path`` = (s_nodes, coef, length, ends, window); ``table`` = (s (n,), T (n, 61),
+    D (n - 1, 61), lead_s): the plan's nodes, a row per node of x (12), u (4), v (1) and K
+    (4 x 11, row-major), and the differences between consecutive rows (the rows of N runs
+    are gathered and blended in one operation).
     """
     s_nodes, coef, length, ends, window = path
-    s_tab, xt, dxt, vt, dvt, ut, dut, Kt, dKt, lead = table
+    s_tab, T, D, lead = table
     last = s_tab.shape[0] - 2
     n = X.shape[1]
     s, p = project(X[0], X[1], X[2], s_prev, window, s_nodes, coef, length, ends)
     i, a = locate(s, s_tab, last)
-    xbar = (xt[i] + a.reshape(-1, 1) * dxt[i]).T
-    K = Kt[i] + a.reshape(-1, 1, 1) * dKt[i]
-    v = vt[i] + a * dvt[i]
+    row = T[i] + a.reshape(-1, 1) * D[i]
+    xbar = row[:, 0:12].T
+    v = row[:, 16]
     if lead > 0.0:
         i, a = locate(s + v * lead, s_tab, last)
-    ubar = (ut[i] + a.reshape(-1, 1) * dut[i]).T
+        ubar = (T[i, 12:16] + a.reshape(-1, 1) * D[i, 12:16]).T
+    else:
+        ubar = row[:, 12:16].T
     d0 = X[0] - p[0]
     d1 = X[1] - p[1]
     d2 = X[2] - p[2]
@@ -145,7 +147,9 @@ def regulator_step(X, s_prev, path, table, Minv, fmax):
     w[:, 1] = d0 * p[5] + d1 * p[8] + d2 * p[11]
     w[:, 2:5] = wrap_angle(X[3:6] - xbar[3:6]).T
     w[:, 5:] = (X[6:] - xbar[6:]).T
-    u = ubar - (K * w.reshape(n, 1, 11)).sum(axis=2).T
+    u = np.empty((4, n))
+    for r in range(4):
+        u[r] = ubar[r] - (row[:, 17 + 11 * r:28 + 11 * r] * w).sum(axis=1)
     return yaw_then_lift(Minv, u, fmax), s
 
 
@@ -154,6 +158,9 @@ def yaw_then_lift(Minv, u, fmax):
     """:func:`mavreg.model.mixer.yaw_then_lift` for a batch u (4, N)."""
     base = Minv[:, 0:1] * u[0] + Minv[:, 1:2] * u[1] + Minv[:, 2:3] * u[2]
     yaw = Minv[:, 3:4] * u[3]
+    f = base + yaw
+    if not (f < 0.0).any():
+        return f
     beta = np.ones(u.shape[1])
     for r in range(4):
         b, y = base[r], yaw[r]
@@ -236,32 +243,40 @@ def run(X, S, status, k_end, xs, cmd, app, path, table, Minv, M, fmax, plant, up
     for i in range(n_steps):
         if not alive.any():
             break
+        everyone = alive.all()
+        bad_any = False
         if i % period == 0:
             new, s_new = regulator_step(X, S, path, table, Minv, fmax)
-            S = np.where(alive, s_new, S)
-            command = np.where(alive, new, command)
+            S = s_new if everyone else np.where(alive, s_new, S)
+            command = new if everyone else np.where(alive, new, command)
             bad = alive & ~np.isfinite(command.sum(axis=0))
-            if bad.any():
+            bad_any = bad.any()
+            if bad_any:                 # the run ends at this step, its row k as simulate fills it
+                last_applied = applied
                 for r in range(n):
                     if bad[r]:
-                        cmd[i, :, r] = command[:, r]
-                        app[i, :, r] = applied[:, r]
                         status[r] = BAD_COMMAND
                         k_end[r] = i
                 alive = alive & ~bad
+                everyone = False
             acting = np.minimum(np.maximum(command, 0.0), upper)
             noise_now = noise[min(calls, noise.shape[0] - 1)]
             calls += 1
         applied = np.minimum(np.maximum(acting + noise_now, 0.0), upper)
         cmd[i] = command
         app[i] = applied
+        if bad_any:
+            for r in range(n):
+                if bad[r]:
+                    app[i, :, r] = last_applied[:, r]
         f = applied * thrust_scale
         U = M[:, 0:1] * f[0] + M[:, 1:2] * f[1] + M[:, 2:3] * f[2] + M[:, 3:4] * f[3]
         k1 = plant_rhs(X, U, plant)
         k2 = plant_rhs(X + half * k1, U, plant)
         k3 = plant_rhs(X + half * k2, U, plant)
         k4 = plant_rhs(X + dt * k3, U, plant)
-        X = np.where(alive, X + sixth * (k1 + 2.0 * (k2 + k3) + k4), X)
+        X_new = X + sixth * (k1 + 2.0 * (k2 + k3) + k4)
+        X = X_new if everyone else np.where(alive, X_new, X)
         xs[i + 1] = X
         bad = alive & diverged(X, limits)
         done = alive & ~bad & (S >= path[2] - 1e-6)

@@ -7,6 +7,7 @@ experiment --via sim`` flies, one run at a time); the batch is
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import subprocess
@@ -19,6 +20,7 @@ import pytest
 from mavreg.config.controller import load_controller
 from mavreg.config.maneuver import load_maneuver_text
 from mavreg.config.vehicle import load_vehicle
+from mavreg.control.regulator import ManeuverRegulator
 from mavreg.experiments.definitions import paper_group1
 from mavreg.maneuver.plan import plan_file, plan_spec
 from mavreg.model.mixer import Mixer
@@ -101,6 +103,27 @@ def test_runs_that_end_at_different_times_noise_saturation_and_a_failed_start_ag
                    lambda t, x: np.zeros(4), SimOptions(initial_state=x0))
     assert ref.status.value == "diverged" and ref.reason.startswith("initial state: position")
     assert_agree(ref, batch[4])
+
+
+def test_a_controller_that_returns_nan_ends_the_run_as_simulate_ends_it():
+    """Gains that are NaN past s = 3.5 m: the command there is not finite; the run ends at
+    that step with the previous applied forces in its last row, the other runs go on."""
+    plan = plan_spec(load_maneuver_text(SHORT, "short.yaml"), VEHICLE, PAPER)
+    K = plan.K.copy()
+    K[plan.s > 3.5] = np.nan
+    broken = dataclasses.replace(plan, K=K)
+    runs = [BatchRun((0.1, 0.0, 0.0)), BatchRun((0.0, 0.2, 0.0), (0.02, 0.02, 0.03))]
+    batch = fly_batch(broken, runs, extra_time_s=1.0)
+    model, mixer = QuadrotorModel.from_vehicle(VEHICLE), Mixer(VEHICLE.arm_length_m, VEHICLE.drag_torque_ratio_m)
+    for run, bat in zip(runs, batch):
+        reg = ManeuverRegulator(broken, VEHICLE, control_period_s=1e-3, rotor_time_constant_s=0.0)
+        x0 = broken.entry_state + np.r_[run.offset_m, np.zeros(9)]
+        reg.reset(x0)
+        ref = simulate(model, mixer, lambda t, x: reg.step(x).rotor_forces_n,
+                       SimOptions(initial_state=x0, max_duration_s=broken.duration_s + 1.0,
+                                  inertia_kg_m2=run.inertia_kg_m2))
+        assert ref.reason.startswith("controller returned non-finite rotor forces")
+        assert_agree(ref, bat)
 
 
 def test_control_rate_below_the_physics_rate_holds_the_command(barrel):
