@@ -41,23 +41,25 @@ NZ = NW + 4
 
 
 def augmented_rhs(model: QuadrotorModel, tau_s: float, F, k, xbar, ubar, dxbar, dubar, speed,
-                  z, nu):
+                  z, nu, Rbar=None):
     """z' for a batch: z (N,15) = (w, a), nu (N,4) commanded wrench deviation, dubar (N,4)
-    = u-bar'(s), speed (N,) nominal v(s). Returns (N,15). Complex-safe."""
+    = u-bar'(s), speed (N,) nominal v(s). Returns (N,15). Complex-safe. ``Rbar``: the SO(3)
+    attitude error (:func:`~mavreg.control.transverse.transverse_rhs`)."""
     w, a = z[:, :NW], z[:, NW:]
-    wdot, sdot = transverse_rhs(model, F, k, xbar, ubar, dxbar, w, a, with_sdot=True)
+    wdot, sdot = transverse_rhs(model, F, k, xbar, ubar, dxbar, w, a, with_sdot=True, Rbar=Rbar)
     lead = tau_s * speed[:, None] * dubar
     adot = (lead + nu - a) / (tau_s * sdot[:, None]) - dubar
     return np.concatenate([wdot, adot], axis=1)
 
 
-def augmented_jacobians(model: QuadrotorModel, tau_s: float, F, k, xbar, ubar, dxbar, dubar, speed):
+def augmented_jacobians(model: QuadrotorModel, tau_s: float, F, k, xbar, ubar, dxbar, dubar, speed,
+                        Rbar=None):
     """A_z (N,15,15) and B_z (N,15,4) at z = 0, nu = 0, by complex step."""
     if not tau_s > 0:
         raise ValueError(f"the rotor time constant must be positive, got {tau_s}")
     z0 = np.zeros((len(xbar), NZ))
     n0 = np.zeros((len(xbar), 4))
     args = (model, tau_s, F, k, xbar, ubar, dxbar, dubar, speed)
-    A = complex_step_jacobian(lambda z: augmented_rhs(*args, z, n0), z0)
-    B = complex_step_jacobian(lambda nu: augmented_rhs(*args, z0, nu), n0)
+    A = complex_step_jacobian(lambda z: augmented_rhs(*args, z, n0, Rbar), z0)
+    B = complex_step_jacobian(lambda nu: augmented_rhs(*args, z0, nu, Rbar), n0)
     return A, B

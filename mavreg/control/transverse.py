@@ -29,16 +29,24 @@ import numpy as np
 from ..model.linearize import complex_step_jacobian
 from ..model.quadrotor import QuadrotorModel
 from ..model.rotation import rpy_to_matrix, wrap_angle
+from ..model.so3 import attitude_error, exp_so3, right_jacobian_inv
 
-__all__ = ["NW", "transverse_rhs", "transverse_jacobians", "transverse_coordinates"]
+__all__ = ["NW", "transverse_rhs", "transverse_rhs_so3", "transverse_jacobians", "transverse_coordinates"]
 
 NW = 11
 
 
-def transverse_rhs(model: QuadrotorModel, F, k, xbar, ubar, dxbar, w, uw, with_sdot: bool = False):
+def transverse_rhs(model: QuadrotorModel, F, k, xbar, ubar, dxbar, w, uw, with_sdot: bool = False,
+                   Rbar=None):
     """F(s, w, u_w) for a batch: F (N,3,3), k (N,2), xbar (N,12), ubar (N,4),
     dxbar (N,12) = x-bar'(s), w (N,11), uw (N,4). Returns (N,11), and ds/dt (N,) too with
-    ``with_sdot``. Complex-safe."""
+    ``with_sdot``. Complex-safe.
+
+    ``Rbar`` (N,3,3), the nominal attitude, selects the SO(3) attitude error
+    (:func:`transverse_rhs_so3`); None, the paper's roll-pitch-yaw differences.
+    """
+    if Rbar is not None:
+        return transverse_rhs_so3(model, F, k, Rbar, xbar, ubar, dxbar, w, uw, with_sdot)
     x_r = xbar[:, 3:] + w[:, 2:]           # angles, body velocity, body rates
     u = ubar + uw
     R = rpy_to_matrix(x_r[:, 0], x_r[:, 1], x_r[:, 2])   # (3,3,N)
@@ -54,25 +62,66 @@ def transverse_rhs(model: QuadrotorModel, F, k, xbar, ubar, dxbar, w, uw, with_s
     return (out, sdot) if with_sdot else out
 
 
-def transverse_jacobians(model: QuadrotorModel, F, k, xbar, ubar, dxbar):
+def transverse_rhs_so3(model: QuadrotorModel, F, k, Rbar, xbar, ubar, dxbar, w, uw,
+                       with_sdot: bool = False):
+    r"""The transverse dynamics with the attitude error on SO(3): ``w[2:5] = e`` with
+    :math:`R = \bar R(s)\,\mathrm{Exp}(e)`.
+
+    The nominal turns at :math:`\bar R' = \bar R\hat{\bar\omega}/\bar v` (its body rates
+    over its speed, :math:`\bar v = |\bar v_b|`), so (:mod:`mavreg.model.so3`)
+
+    .. math::
+        e' = \frac{1}{\dot s} J_r^{-1}(e)\Big(\omega - \mathrm{Exp}(e)^T\bar\omega
+             \frac{\dot s}{\bar v}\Big),
+
+    the position and velocity rows as in :func:`transverse_rhs`; gravity enters the body
+    dynamics through :math:`R^T e_3` alone. Defined for every attitude: no roll-pitch-yaw
+    kinematics. Complex-safe.
+    """
+    E = exp_so3(w[:, 2:5])
+    R = Rbar @ E
+    vb = xbar[:, 6:9] + w[:, 5:8]
+    wb = xbar[:, 9:12] + w[:, 8:11]
+    Rv = np.einsum("nij,nj->ni", R, vb)
+    t, m1, m2 = F[:, :, 0], F[:, :, 1], F[:, :, 2]
+    sdot = np.sum(t * Rv, axis=1) / (1 - k[:, 0] * w[:, 0] - k[:, 1] * w[:, 1])
+    vbar = np.sqrt(np.sum(xbar[:, 6:9] ** 2, axis=1))
+    wnom = np.einsum("nji,nj->ni", E, xbar[:, 9:12]) * (sdot / vbar)[:, None]
+    edot = np.einsum("nij,nj->ni", right_jacobian_inv(w[:, 2:5]), wb - wnom)
+    vdot, wdot = model.body_derivatives(R[:, 2, :].T, vb.T, wb.T, (ubar + uw).T)
+    out = np.empty((len(w), NW), dtype=np.result_type(w, uw, Rbar, float))
+    out[:, 0] = np.sum(m1 * Rv, axis=1) / sdot
+    out[:, 1] = np.sum(m2 * Rv, axis=1) / sdot
+    out[:, 2:5] = edot / sdot[:, None]
+    out[:, 5:8] = vdot.T / sdot[:, None] - dxbar[:, 6:9]
+    out[:, 8:11] = wdot.T / sdot[:, None] - dxbar[:, 9:12]
+    return (out, sdot) if with_sdot else out
+
+
+def transverse_jacobians(model: QuadrotorModel, F, k, xbar, ubar, dxbar, Rbar=None):
     """A(s) = dF/dw and B(s) = dF/du_w at w = 0, u_w = 0, by complex step (exact to
-    machine precision). Returns A (N,11,11), B (N,11,4)."""
+    machine precision). Returns A (N,11,11), B (N,11,4). ``Rbar``: the SO(3) form."""
     w0 = np.zeros((len(xbar), NW))
     u0 = np.zeros((len(xbar), 4))
-    A = complex_step_jacobian(lambda w: transverse_rhs(model, F, k, xbar, ubar, dxbar, w, u0), w0)
-    B = complex_step_jacobian(lambda uw: transverse_rhs(model, F, k, xbar, ubar, dxbar, w0, uw), u0)
+    A = complex_step_jacobian(lambda w: transverse_rhs(model, F, k, xbar, ubar, dxbar, w, u0, Rbar=Rbar), w0)
+    B = complex_step_jacobian(lambda uw: transverse_rhs(model, F, k, xbar, ubar, dxbar, w0, uw, Rbar=Rbar), u0)
     return A, B
 
 
-def transverse_coordinates(position, frame, c, x, xbar):
+def transverse_coordinates(position, frame, c, x, xbar, Rbar=None, R=None):
     """w (11,) of state x at the path point (c, frame) whose nominal is xbar.
 
-    Angle errors are wrapped to (-pi, pi].
+    Attitude error: with ``Rbar`` (the nominal attitude), the rotation vector
+    Log(Rbar^T R) with R the state's attitude (``R``, or from its roll-pitch-yaw); else the
+    roll-pitch-yaw differences wrapped to (-pi, pi].
     """
     d = np.asarray(position) - c
     w = np.empty(NW)
     w[0] = d @ frame[:, 1]
     w[1] = d @ frame[:, 2]
-    w[2:5] = wrap_angle(x[3:6] - xbar[3:6])
+    if Rbar is None:
+        w[2:5] = wrap_angle(x[3:6] - xbar[3:6])
+    else:
+        w[2:5] = attitude_error(Rbar, rpy_to_matrix(*x[3:6]) if R is None else R)
     w[5:] = x[6:] - xbar[6:]
     return w

@@ -61,19 +61,29 @@ class QuadrotorModel:
         """State derivative dx/dt = f(x, u) (eqs 6-17); x (12,) or (12, N), u (4,) or (4, N)."""
         phi, theta, psi = x[3], x[4], x[5]
         v = x[6:9]
-        p, q, r = x[9], x[10], x[11]
-        jx, jy, jz = self.inertia_kg_m2
         R = rpy_to_matrix(phi, theta, psi)
         # einsum so that x may also be a batch (12, N) of states.
         pdot = np.einsum("ij...,j...->i...", R, v)
         eul = np.einsum("ij...,j...->i...", euler_rates_matrix(phi, theta), x[9:12])
+        vdot, wdot = self.body_derivatives(R[2], v, x[9:12], u)
+        return np.concatenate([pdot, eul, vdot, wdot])
+
+    def body_derivatives(self, down_row, v, w, u) -> tuple[np.ndarray, np.ndarray]:
+        """dv/dt and dw/dt of the body velocity and rates (eqs 7, 12-14 with drag).
+
+        ``down_row`` is the third row of R, :math:`R^T e_3` (gravity's direction in the body
+        frame): (3,) or (3, N); v, w (3,) or (3, N); u (4,) or (4, N). The attitude enters
+        only through it, so these dynamics hold for any parametrization of the attitude.
+        """
+        p, q, r = w[0], w[1], w[2]
+        jx, jy, jz = self.inertia_kg_m2
         thrust, g1, g2, g3 = u[0], u[1], u[2], u[3]
         m, g = self.mass_kg, self.g
         v1, v2, v3 = v[0], v[1], v[2]
         vdot = np.array([
-            r * v2 - q * v3 - g * np.sin(theta),
-            -r * v1 + p * v3 + g * np.sin(phi) * np.cos(theta),
-            q * v1 - p * v2 + g * np.cos(theta) * np.cos(phi) - thrust / m,
+            r * v2 - q * v3 + g * down_row[0],
+            -r * v1 + p * v3 + g * down_row[1],
+            q * v1 - p * v2 + g * down_row[2] - thrust / m,
         ])
         if self.has_drag:
             cxy, cz = self.rotor_drag_n_s_per_m
@@ -84,7 +94,7 @@ class QuadrotorModel:
             p * r * (jz - jx) / jy + g2 / jy,
             p * q * (jx - jy) / jz + g3 / jz,
         ])
-        return np.concatenate([pdot, eul, vdot, wdot])
+        return vdot, wdot
 
     def hover_input(self) -> np.ndarray:
         """Input that holds a level hover: f = m g, no torque."""

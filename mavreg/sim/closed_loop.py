@@ -39,7 +39,8 @@ import numpy as np
 
 from ..model.mixer import Mixer
 from ..model.quadrotor import NX, QuadrotorModel
-from ..model.rotation import rpy_to_matrix
+from ..model.rotation import matrix_to_rpy, rpy_to_matrix
+from ..model.so3 import hat
 
 __all__ = ["SimOptions", "SimResult", "SimStatus", "simulate", "window_force"]
 
@@ -96,7 +97,13 @@ class SimOptions:
     max_rate_rad_s: float = 100.0
     max_position_m: float = 1e4
     min_cos_pitch: float = 1e-3
-    """Diverged when |cos(theta)| falls below this (Euler-angle singularity at +-90 deg)."""
+    """Diverged when |cos(theta)| falls below this (Euler-angle singularity at +-90 deg);
+    ``attitude="rpy"`` only."""
+    attitude: str = "rpy"
+    """How the plant integrates its attitude: ``rpy``, the paper's Euler kinematics (eqs
+    9-11), singular at pitch +-90 deg; ``so3``, the rotation matrix (R' = R hat(w),
+    re-orthonormalized every step), for maneuvers through any attitude. The state handed to
+    the controller and recorded keeps roll-pitch-yaw either way."""
 
     def __post_init__(self):
         x0 = tuple(float(v) for v in np.asarray(self.initial_state, dtype=float).ravel())
@@ -117,6 +124,8 @@ class SimOptions:
             raise ValueError(f"max_duration_s must be positive, not {self.max_duration_s}")
         if not self.rotor_noise_sd_n >= 0.0:
             raise ValueError(f"rotor_noise_sd_n must be >= 0, not {self.rotor_noise_sd_n}")
+        if self.attitude not in ("rpy", "so3"):
+            raise ValueError(f"attitude must be 'rpy' or 'so3', not {self.attitude!r}")
         if self.noise_redraw not in ("control", "physics"):
             raise ValueError(f"noise_redraw must be 'control' or 'physics', not {self.noise_redraw!r}")
         if self.saturation_n is not None and not self.saturation_n > 0.0:
@@ -183,9 +192,48 @@ def _divergence(x: np.ndarray, opt: SimOptions) -> Optional[str]:
     dist = np.abs(x[0:3]).max()
     if dist > opt.max_position_m:
         return f"position {dist:.3g} m from the origin > {opt.max_position_m:g} m"
-    if abs(np.cos(x[4])) < opt.min_cos_pitch:
+    if opt.attitude == "rpy" and abs(np.cos(x[4])) < opt.min_cos_pitch:
         return f"pitch {np.degrees(x[4]):.2f} deg at the Euler-angle singularity"
     return None
+
+
+class _So3Step:
+    """One RK4 step of the plant with its attitude as a rotation matrix.
+
+    The step integrates y = (p, R, v, w) with p' = R v, R' = R hat(w) and the body dynamics
+    of the design model (:meth:`QuadrotorModel.body_derivatives`); R is then brought back to
+    SO(3) by one Newton step of the polar decomposition, R (3 I - R^T R) / 2 (the RK4 drift
+    is O(dt^5) per step). The state in and out is the usual x, roll-pitch-yaw included; the
+    rotation is carried between steps, so roll-pitch-yaw is only ever read out, never
+    integrated.
+    """
+
+    def __init__(self, plant: QuadrotorModel):
+        self.plant = plant
+        self.R: Optional[np.ndarray] = None
+        self._x_last: Optional[np.ndarray] = None
+
+    def _deriv(self, R, v, w, u, F):
+        vdot, wdot = self.plant.body_derivatives(R[2], v, w, u)
+        if F is not None:
+            vdot = vdot + R.T @ F
+        return R @ v, R @ hat(w), vdot, wdot
+
+    def __call__(self, x: np.ndarray, u: np.ndarray, F, dt: float) -> np.ndarray:
+        if self.R is None or self._x_last is None or not np.array_equal(x, self._x_last):
+            self.R = rpy_to_matrix(x[3], x[4], x[5])
+        R, v, w = self.R, x[6:9], x[9:12]
+        k1 = self._deriv(R, v, w, u, F)
+        k2 = self._deriv(R + 0.5 * dt * k1[1], v + 0.5 * dt * k1[2], w + 0.5 * dt * k1[3], u, F)
+        k3 = self._deriv(R + 0.5 * dt * k2[1], v + 0.5 * dt * k2[2], w + 0.5 * dt * k2[3], u, F)
+        k4 = self._deriv(R + dt * k3[1], v + dt * k3[2], w + dt * k3[3], u, F)
+        d = [(a + 2.0 * (b + c) + e) * (dt / 6.0) for a, b, c, e in zip(k1, k2, k3, k4)]
+        R = R + d[1]
+        R = R @ (3.0 * np.eye(3) - R.T @ R) / 2.0
+        self.R = R
+        out = np.concatenate([x[0:3] + d[0], matrix_to_rpy(R), v + d[2], w + d[3]])
+        self._x_last = out
+        return out
 
 
 def simulate(model: QuadrotorModel, mixer: Mixer, controller: Controller,
@@ -237,6 +285,10 @@ def simulate(model: QuadrotorModel, mixer: Mixer, controller: Controller,
             dx[6:9] += rpy_to_matrix(x[3], x[4], x[5]).T @ F
         return dx
 
+    so3 = opt.attitude == "so3"
+    if so3:
+        step = _So3Step(plant)
+
     x = np.array(opt.initial_state, dtype=float)
     xs[0] = x
     meas_lag = int(round(opt.measurement_delay_s / dt))
@@ -285,11 +337,14 @@ def simulate(model: QuadrotorModel, mixer: Mixer, controller: Controller,
             app[i] = applied
             u = M @ (applied * opt.thrust_scale)
             F = None if force_fn is None else np.asarray(force_fn(t, x), dtype=float) * inv_mass
-            k1 = deriv(x, u, F)
-            k2 = deriv(x + 0.5 * dt * k1, u, F)
-            k3 = deriv(x + 0.5 * dt * k2, u, F)
-            k4 = deriv(x + dt * k3, u, F)
-            x = x + (dt / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
+            if so3:
+                x = step(x, u, F, dt)
+            else:
+                k1 = deriv(x, u, F)
+                k2 = deriv(x + 0.5 * dt * k1, u, F)
+                k3 = deriv(x + 0.5 * dt * k2, u, F)
+                k4 = deriv(x + dt * k3, u, F)
+                x = x + (dt / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
             xs[i + 1] = x
             why = _divergence(x, opt)
             if why is not None:
