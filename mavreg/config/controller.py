@@ -38,6 +38,10 @@ class ControllerParams:
     riccati_step_s: float = field(default=0.002, metadata={"min_exclusive": 0.0, "max": 0.01})
     """Step of the RK4 Riccati sweep, in nominal time (the s-step is speed times this); the
     plan's tables hold its nodes and the midpoints between them, half a step apart."""
+    attitude_error: str = field(default="rpy", metadata={"choices": ("rpy", "so3")})
+    """The regulator's attitude error: ``rpy``, the paper's roll-pitch-yaw differences
+    (singular at pitch +-90 deg), or ``so3``, the rotation vector Log(Rbar^T R) of the body
+    relative to the nominal, defined at every attitude (docs/transverse.md)."""
     envelope: EnvelopeParams = field(default_factory=EnvelopeParams)
     """The flight envelope the daemon holds flights to (:mod:`mavreg.config.envelope`)."""
     rotor_lag_in_design: bool = False

@@ -13,6 +13,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 from pathlib import Path as FilePath
+from typing import NamedTuple
 
 import numpy as np
 
@@ -27,6 +28,8 @@ from ..geometry.build import build_path
 from ..geometry.path import Path
 from ..model.mixer import Mixer
 from ..model.quadrotor import QuadrotorModel
+from ..model.rotation import rpy_to_matrix
+from ..model.so3 import exp_so3, log_so3
 from .cache import PlanCache, default_cache
 from .diagnose import euler_singularity, explain_divergence
 from .feasibility import Feasibility, check_feasibility
@@ -62,6 +65,20 @@ class Plan:
     laps_segment: str | None
     rotor_time_constant_s: float = 0.0
     """The rotor lag the gains were designed with (0: the paper's design)."""
+    R: np.ndarray | None = None
+    """Nominal attitude (N, 3, 3), body to NED, on the grid s: the reference of the SO(3)
+    attitude error, and everywhere the roll-pitch-yaw columns of x are singular."""
+    attitude_error: str = "rpy"
+    """The gains' attitude error: ``rpy`` (the paper's roll-pitch-yaw differences) or
+    ``so3`` (the rotation vector Log(Rbar^T R), :mod:`mavreg.model.so3`)."""
+
+    def nominal_attitude(self, s: float) -> np.ndarray:
+        """Rbar(s) (3, 3): along the geodesic between the grid rows around s (clamped)."""
+        R = self.R if self.R is not None else np.moveaxis(rpy_to_matrix(*self.x[:, 3:6].T), -1, 0)
+        s = float(np.clip(s, self.s[0], self.s[-1]))
+        i = int(np.clip(np.searchsorted(self.s, s) - 1, 0, len(self.s) - 2))
+        a = (s - self.s[i]) / (self.s[i + 1] - self.s[i])
+        return R[i] @ exp_so3(a * log_so3(R[i].T @ R[i + 1]))
 
     @property
     def length_m(self) -> float:
@@ -117,6 +134,7 @@ class Plan:
                               "limit": self.vehicle.max_rotor_thrust_n},
             "torque_nm": {"max_abs": list(f.torque_max_abs_nm)},
             "gain_schedule": {"nodes": int(len(self.s)), "terminal": self.terminal,
+                              "attitude_error": self.attitude_error,
                               "max_abs_gain": float(np.abs(self.K).max())},
             "segments": [{"name": n, "s_start_m": a, "s_end_m": b} for n, a, b in self.segments],
         }
@@ -178,17 +196,32 @@ def _with_midpoints(nodes: np.ndarray) -> np.ndarray:
     return s
 
 
-def _nominal(model, path, speed, yaw, s, yaw_mode: str):
+class _Nominal(NamedTuple):
+    """The nominal on a grid: path frames F, curvature k, state x, input u, dx = x'(s),
+    speed v and attitude R."""
+
+    F: np.ndarray
+    k: np.ndarray
+    x: np.ndarray
+    u: np.ndarray
+    dx: np.ndarray
+    v: np.ndarray
+    R: np.ndarray
+
+
+def _nominal(model, path, speed, yaw, s, yaw_mode: str) -> _Nominal:
     c, F, k, dk, ddk = path.evaluate(s)
     v4 = speed.evaluate(s)
     try:
-        x, u, _ = flat_nominal(model, F, k, dk, ddk, c, v4, yaw.evaluate(s), yaw_mode)
+        x, u, R = flat_nominal(model, F, k, dk, ddk, c, v4, yaw.evaluate(s), yaw_mode)
     except FlatnessError as exc:
         q = float(s[exc.index])
         raise ManeuverError(f"nominal: {exc.what} at s = {q:.2f} m in "
                             f"{path.segment_at(q).name!r} (yaw mode {yaw_mode}): {exc.remedy}") from None
-    dx = model.f(x.T, u.T).T / v4[0][:, None]
-    return F, k, x, u, dx, v4[0]
+    with np.errstate(all="ignore"):      # roll-pitch-yaw rates are singular at pitch +-90 deg
+        dx = model.f(x.T, u.T).T / v4[0][:, None]
+    dx[:, 3:6] = np.where(np.isfinite(dx[:, 3:6]), dx[:, 3:6], 0.0)
+    return _Nominal(F, k, x, u, dx, v4[0], R)
 
 
 class _Stopwatch:
@@ -225,7 +258,7 @@ def plan_spec(spec: ManeuverSpec, vehicle: VehicleParams, controller: Controller
     s = _with_midpoints(_time_grid(path, speed, controller.riccati_step_s))
     clock.lap("path")
     nominal = _nominal(model, path, speed, yaw, s, spec.yaw.mode)
-    _, _, x, u, dx, v = nominal
+    x, u, dx, v = nominal.x, nominal.u, nominal.dx, nominal.v
     rotors = u @ mixer.inverse.T
     feas = check_feasibility(s, u, rotors, v, vehicle.max_rotor_thrust_n,
                              spec.limits.min_speed_m_s, lambda q: path.segment_at(q).name)
@@ -236,8 +269,10 @@ def plan_spec(spec: ManeuverSpec, vehicle: VehicleParams, controller: Controller
         if strict:
             raise ManeuverError(f"maneuver {spec.name!r} is infeasible: " + "; ".join(feas.violations))
         return Plan(spec.name, path, vehicle, s, x, dx, u, np.zeros((len(s), 4, 11)), v, feas,
-                    "none (infeasible)", laps, laps_seg)
-    singular = euler_singularity(s, x[:, 4], lambda q: path.segment_at(q).name)
+                    "none (infeasible)", laps, laps_seg, R=nominal.R,
+                    attitude_error=controller.attitude_error)
+    so3 = controller.attitude_error == "so3"
+    singular = None if so3 else euler_singularity(s, x[:, 4], lambda q: path.segment_at(q).name)
     if singular:
         raise ManeuverError(f"maneuver {spec.name!r}: {singular}")
     tau = vehicle.rotor_time_constant_s if controller.rotor_lag_in_design else 0.0
@@ -248,11 +283,13 @@ def plan_spec(spec: ManeuverSpec, vehicle: VehicleParams, controller: Controller
     try:
         K, terminal = _gains(model, path, speed, yaw, s, controller, spec, tau, nominal, clock)
     except SweepDivergence as exc:
-        k = nominal[1]
+        k = nominal.k
+        pitch = np.zeros(len(s)) if so3 else x[:, 4]     # no singularity in the SO(3) form
         raise ManeuverError(f"maneuver {spec.name!r}: " + explain_divergence(
-            exc.s_m, s, x[:, 4], v, rotors, vehicle.max_rotor_thrust_n, np.hypot(k[:, 0], k[:, 1]),
+            exc.s_m, s, pitch, v, rotors, vehicle.max_rotor_thrust_n, np.hypot(k[:, 0], k[:, 1]),
             lambda q: path.segment_at(q).name) + f" ({exc})") from None
-    return Plan(spec.name, path, vehicle, s, x, dx, u, K, v, feas, terminal, laps, laps_seg, tau)
+    return Plan(spec.name, path, vehicle, s, x, dx, u, K, v, feas, terminal, laps, laps_seg, tau,
+                R=nominal.R, attitude_error=controller.attitude_error)
 
 
 def _du_ds(u: np.ndarray, s: np.ndarray, periodic: bool) -> np.ndarray:
@@ -272,23 +309,27 @@ def _first_of_runs(rows: np.ndarray, rtol: float = 1e-12) -> tuple[np.ndarray, n
     return np.flatnonzero(new), np.cumsum(new) - 1
 
 
-def _linearization(model, tau: float, nominal, s, periodic: bool = False):
+def _linearization(model, tau: float, nominal: _Nominal, s, periodic: bool = False,
+                   so3: bool = False):
     """(A, B) on the grid ``s`` of ``nominal`` (:func:`_nominal`), augmented with the rotor
-    lag when ``tau`` > 0.
+    lag when ``tau`` > 0; the attitude error on SO(3) with ``so3``, else the paper's
+    roll-pitch-yaw differences.
 
     A and B depend on the nominal through everything but its position; where that is the
     same from one grid point to the next (a straight line flown at constant speed and
     heading: a maneuver's run-up and its slow ends), they are computed once for the run.
     """
-    F, k, x, u, dx, v = nominal
+    F, k, x, u, dx, v, R = nominal
     du = _du_ds(u, s, periodic)
-    rows = np.concatenate([F.reshape(len(s), -1), k, x[:, 3:], u, dx[:, 3:], v[:, None], du], axis=1)
+    rows = np.concatenate([F.reshape(len(s), -1), R.reshape(len(s), -1), k, x[:, 3:], u, dx[:, 3:],
+                           v[:, None], du], axis=1)
     first, run = _first_of_runs(rows)
     pick = (F[first], k[first], x[first], u[first], dx[first])
+    Rbar = R[first] if so3 else None
     if tau <= 0:
-        A, B = transverse_jacobians(model, *pick)
+        A, B = transverse_jacobians(model, *pick, Rbar=Rbar)
     else:
-        A, B = augmented_jacobians(model, tau, *pick, du[first], v[first])
+        A, B = augmented_jacobians(model, tau, *pick, du[first], v[first], Rbar=Rbar)
     return A[run], B[run]
 
 
@@ -321,7 +362,7 @@ def _weights(controller: ControllerParams, tau: float) -> tuple[np.ndarray, np.n
 
 def _gains(model, path, speed, yaw, s, controller, spec, tau, nominal, clock: _Stopwatch):
     Q, R = _weights(controller, tau)
-    A, B = _linearization(model, tau, nominal, s)
+    A, B = _linearization(model, tau, nominal, s, so3=controller.attitude_error == "so3")
     clock.lap("linearization")
     last = spec.segments[-1]
     try:
@@ -363,7 +404,7 @@ def _periodic_terminal(model, path, speed, yaw, yaw_mode, lap_m, controller, Q, 
     n = max(16, int(np.ceil(lap_m / (v * controller.riccati_step_s)))) + 1
     grid = _with_midpoints(np.linspace(s0, s1, n))
     A, B = _linearization(model, tau, _nominal(model, path, speed, yaw, grid, yaw_mode), grid,
-                          periodic=True)
+                          periodic=True, so3=controller.attitude_error == "so3")
     P, _ = _gains_on_grid(A, B, grid, Q, R, periodic=True)
     return P[-1]
 

@@ -24,7 +24,7 @@ def roll():
     path = build_path(spec)
     speed, yaw = build_profiles(spec, path)
     s = np.linspace(0.5, path.length_m - 0.5, 400)
-    F, k, x, u, dx, v = _nominal(MODEL, path, speed, yaw, s, "fixed")
+    F, k, x, u, dx, v, _ = _nominal(MODEL, path, speed, yaw, s, "fixed")
     du = _du_ds(u, s, periodic=False)
     return F, k, x, u, dx, du, v
 
@@ -74,7 +74,7 @@ def test_steady_line_gain_is_the_augmented_care_and_lag_aware_plan_flies():
     path = build_path(spec)
     speed, yaw = build_profiles(spec, path)
     s = plan.s[-3:]
-    Fn, kn, xn, un, dxn, vn = _nominal(MODEL, path, speed, yaw, s, "fixed")
+    Fn, kn, xn, un, dxn, vn, _ = _nominal(MODEL, path, speed, yaw, s, "fixed")
     dun = _du_ds(un, s, periodic=False)
     A, B = augmented_jacobians(MODEL, TAU, Fn, kn, xn, un, dxn, dun, vn)
     Q = np.diag(np.concatenate([ctl.q, ctl.q_wrench]))

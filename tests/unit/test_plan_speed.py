@@ -70,7 +70,7 @@ def test_merged_linearization_equals_every_row():
     nominal = pm._nominal(model, path, speed, yaw, s, "fixed")
     tau = VEHICLE.rotor_time_constant_s
     A, B = pm._linearization(model, tau, nominal, s)
-    F, k, x, u, dx, v = nominal
+    F, k, x, u, dx, v, _ = nominal
     sel = np.arange(0, len(s), 97)
     A_all, B_all = pm.augmented_jacobians(model, tau, F[sel], k[sel], x[sel], u[sel], dx[sel],
                                           pm._du_ds(u, s, False)[sel], v[sel])
