@@ -6,12 +6,13 @@ import shlex
 import time
 from pathlib import Path
 
-HELP = "rerun the paper's experiments (Section 4) on the design model or over MAVLink; tables and figures"
+HELP = ("rerun the paper's experiments (Section 4) and its Fig. 1 against time-indexed trackers, "
+        "on the design model or over MAVLink; tables and figures")
 DESCRIPTION = """\
-Fly every run of an experiment, in parallel over --jobs processes, and write into --out:
-PNG figures after the paper's, results.json (every number of every run) and results.md (the
-tables). A progress line goes to stderr. Runs are seeded from --seed and the results do not
-depend on --jobs.
+Fly every run of an experiment, in parallel over --jobs processes (or on a Dask cluster,
+--dask), and write into --out: PNG figures, results.json (every number of every run) and
+results.md (the tables). A progress line goes to stderr. Runs are seeded from --seed and the
+results depend on neither --jobs nor --dask.
 
 Experiments (NAME):
   paper-group1  start 0.6 m off in each of p1, p2, p3 (1.04 m from the entry); one run on the
@@ -25,6 +26,16 @@ Experiments (NAME):
                 back within 10 cm of the path), laps, max and RMS transverse error, max
                 attitude error, time saturated. Figures: fig5_rotor_forces, fig6_paths,
                 fig7_attitude_velocity, errors.
+  gust          the scenario of the paper's Fig. 1: a force of 5, 8 or 10 N against the path's
+                tangent for 1 s, on the run-up at speed (s = 11 m), early in the run-up at low
+                speed (s = 2 m) and at the start of the loop; maneuver regulation (paper_lqr.yaml)
+                against two time-indexed trackers of the same nominal, a time-varying LQR and
+                the SE(3) tracker of Lee, Leok and McClamroch; ideal rotors and 12 N rotors.
+                Table: max distance from the path, time outside a 0.5 m tube, peak
+                acceleration, min distance to the loop's centre, overspeed against the
+                profile, diverged. Figures per place: paths, distance and speed against time.
+  lag           the trackers' timed reference 1, 2 or 4 m ahead of a vehicle on the nominal at
+                s = 11 m (as after a gust that held it back); the same table and figures.
 
 --via sim (default) flies the design model (RK4 at 1 ms, regulator at 1 kHz; about 5 s of CPU
 a run). --via sitl flies each run with 'mavreg fly --lockstep --world ideal' against the
@@ -35,8 +46,18 @@ controller file is paper_lqr.yaml with a maneuver envelope wide enough for the p
 deliberate errors (controller_experiment.yaml in --out). Each flight's summary, plot and log
 stay in --out/runs/NNN/. Errors are always the truth's (the emulator's recording).
 
-Exit status: 0 every run met its criterion (converged before the loop / stable), 1 some run
-did not or could not be flown (the results are written all the same), 2 bad input.
+Via sitl only maneuver regulation flies (the daemon flies the regulator): gust is its nine
+runs on the emulator's 12 N rotors, the force window given to firmware_sim (--wind
+force:...@T0:T1) at the maneuver's start measured by a gust-free reference flight; lag does
+not fly via sitl.
+
+--dask ADDRESS runs on an existing Dask cluster (pip install 'mavreg[dask]'); the workers need
+the same mavreg and the experiment's files at the same paths (checked before any run), and
+via sitl --out on a shared filesystem.
+
+Exit status: 0 every run met its criterion (converged before the loop / stable / reached the
+path's end), 1 some run did not or could not be flown (the results are written all the same),
+2 bad input.
 See docs/experiments.md and docs/results.md.
 """
 
@@ -53,6 +74,9 @@ def add_arguments(p):
                    "use 1 or 2 with --via sitl" % (os.cpu_count() or 1))
     p.add_argument("--via", metavar="sim|sitl", default="sim",
                    help="sim: the design model (default); sitl: the daemon and firmware_sim in lockstep")
+    p.add_argument("--dask", metavar="ADDRESS", default=None,
+                   help="run on the Dask cluster whose scheduler is at ADDRESS (e.g. tcp://host:8786) "
+                   "instead of a local process pool; needs dask.distributed")
     p.add_argument("--keep-flight-files", action="store_true",
                    help="--via sitl: keep each flight's .tlog, control.npz and groundtruth.npz "
                    "(about 17 MB a flight; by default only summary.json, flight.png and fly.log stay)")
@@ -80,18 +104,26 @@ def run(args) -> int:
     jobs = (os.cpu_count() or 1) if args.jobs is None else _whole(args.jobs, "--jobs", 1)
     if args.keep_flight_files and args.via != "sitl":
         raise ValueError("--keep-flight-files applies only to --via sitl")
+    exp = build_experiment(args.name, seed, args.via)
+    if args.dask is not None and args.jobs is not None:
+        raise ValueError("--jobs sizes the local process pool; with --dask the cluster's workers fly the runs")
+    if args.dask is not None:
+        from ..experiments.on_dask import require_dask
+        require_dask()
     out = Path(args.out) if args.out else (Path("experiments")
                                            / f"{args.name}-{args.via}-{time.strftime('%Y%m%d-%H%M%S')}")
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ValueError(f"--out {out}: {exc.strerror or exc}") from None
-    exp = build_experiment(args.name, seed)
-    command = (f"mavreg experiment {args.name} --via {args.via} --seed {seed} --jobs {jobs} "
-               f"--out {shlex.quote(str(out))}" + (" --keep-flight-files" if args.keep_flight_files else ""))
-    camp = run_campaign(exp, args.via, jobs, out, command, keep_flight_files=args.keep_flight_files)
+    command = (f"mavreg experiment {args.name} --via {args.via} --seed {seed} "
+               + (f"--dask {shlex.quote(args.dask)} " if args.dask else f"--jobs {jobs} ")
+               + f"--out {shlex.quote(str(out))}" + (" --keep-flight-files" if args.keep_flight_files else ""))
+    camp = run_campaign(exp, args.via, jobs, out, command, keep_flight_files=args.keep_flight_files,
+                        dask_address=args.dask)
     sm = camp.results["summary"]
-    crit = "converged before the loop" if "converged" in sm else "stable"
+    crit = ("converged before the loop" if "converged" in sm else "stable" if "stable" in sm
+            else "flown to the path's end")
     print(f"{exp.name} via {args.via}: {sm['ok']} of {sm['runs']} runs {crit}"
           + (f", {sm['errors']} could not be flown" if sm["errors"] else ""))
     print(f"outputs: {out}/ (" + ", ".join(f.name for f in camp.files) + ")")

@@ -6,8 +6,9 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from .definitions import CONVERGENCE, Experiment
+from .definitions import CONVERGENCE, DISTURBANCE, Experiment
 from .figures import group1_figures, group2_figures
+from .figures_disturbance import disturbance_figures
 from .report import results_dict, write_results
 from .runner import RunOutcome, plan_for, run_experiment
 
@@ -31,13 +32,15 @@ class Campaign:
 
 
 def run_campaign(exp: Experiment, via: str, jobs: int, out_dir: Path, command: str,
-                 progress=sys.stderr, keep_flight_files: bool = False) -> Campaign:
-    """Fly ``exp`` (:func:`.runner.run_experiment`) and write its figures, ``results.json`` and
-    ``results.md`` into ``out_dir``. Tracebacks of runs that raised go to ``errors.log``."""
+                 progress=sys.stderr, keep_flight_files: bool = False,
+                 dask_address: str | None = None) -> Campaign:
+    """Fly ``exp`` (:func:`.runner.run_experiment`, locally or on the Dask cluster at
+    ``dask_address``) and write its figures, ``results.json`` and ``results.md`` into
+    ``out_dir``. Tracebacks of runs that raised go to ``errors.log``."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     t0 = time.monotonic()
-    outcomes = run_experiment(exp, via, jobs, out_dir, progress, keep_flight_files)
+    outcomes = run_experiment(exp, via, jobs, out_dir, progress, keep_flight_files, dask_address)
     wall = time.monotonic() - t0
     failed = [o for o in outcomes if o.traceback]
     if failed:
@@ -45,7 +48,9 @@ def run_campaign(exp: Experiment, via: str, jobs: int, out_dir: Path, command: s
                                                       for o in failed))
     laps = exp.runs[0].laps
     plan = plan_for(Path(exp.maneuver_path), Path(exp.vehicle_path), Path(exp.controller_path), laps)
-    if exp.kind == CONVERGENCE:
+    if exp.kind == DISTURBANCE:
+        figures = disturbance_figures(out_dir, plan, exp.name, outcomes, via)
+    elif exp.kind == CONVERGENCE:
         figures = group1_figures(out_dir, plan, outcomes, via, plan.vehicle.inertia_kg_m2)
     else:
         figures = group2_figures(out_dir, plan, outcomes, via)
@@ -54,6 +59,8 @@ def run_campaign(exp: Experiment, via: str, jobs: int, out_dir: Path, command: s
         from .via_sitl import EXPERIMENT_ENVELOPE
         extra = {"sitl": {"world": "ideal", "lockstep": True, "controller_file": "controller_experiment.yaml",
                           "envelope_changes": EXPERIMENT_ENVELOPE}}
+    if dask_address is not None:
+        extra["dask"] = dask_address
     res = results_dict(exp, via, outcomes, command, min(jobs, len(exp.runs)), wall, figures, extra)
     files = [*write_results(out_dir, res), *figures]
     return Campaign(res, outcomes, files)

@@ -14,6 +14,24 @@ The paper's Section 4 (Spedicato et al.):
 - ``paper-group2``: nominal start, 0.1 N of Gaussian noise on each rotor force, rotor
   saturation none / 8.5 N / 7 N, the loop flown 3 times. The three runs share one noise
   seed, so they differ only by the saturation.
+
+The scenario of the paper's Fig. 1, measured: maneuver regulation against two time-indexed
+trackers of the same nominal (:mod:`mavreg.trackers`), each with ideal rotors and with the
+vehicle's 12 N rotors (the plant clips at 12 N):
+
+- ``gust``: a force of 5, 8 or 10 N against the path's tangent at the gust's onset, held
+  for 1 s in that direction (a gust has a direction; it does not turn with the path), at
+  three places of the nominal: on the run-up at speed (s = 11 m, 8 m/s), early in the run-up
+  at low speed (s = 2 m, 0.75 m/s, 1.45 m/s a second later) and at the start of the loop
+  (s = 19.5 m, where the circle begins). The window is in time from the start at the
+  entry: the nominal's time at that s, which every controller reaches on time (they all
+  fly the unperturbed nominal to within millimetres until then).
+- ``lag``: the vehicle starts on the nominal state at s = 11 m (the run-up at speed, where
+  the gust would have struck) and the trackers' timed reference 1, 2 or 4 m further along
+  the path (as after a gust that held the vehicle back). Maneuver regulation has no timed
+  reference: for it every lead is the same start.
+
+No noise: the seed only names the runs.
 """
 from __future__ import annotations
 
@@ -26,9 +44,11 @@ import numpy as np
 from ..cli.common import DEFAULT_VEHICLE, PAPER_CONTROLLER, PARAMS_DIR
 
 __all__ = ["RunSpec", "Experiment", "EXPERIMENTS", "build_experiment", "draw_inertia", "run_seed",
-           "paper_group1", "paper_group2", "PAPER_INERTIA_SD_KG_M2", "PAPER_OFFSET_M",
+           "paper_group1", "paper_group2", "gust", "lag", "PAPER_INERTIA_SD_KG_M2", "PAPER_OFFSET_M",
            "PAPER_ROTOR_NOISE_SD_N", "PAPER_SATURATIONS_N", "PAPER_LAPS", "MIN_INERTIA_KG_M2",
-           "CONVERGENCE", "SATURATION"]
+           "CONVERGENCE", "SATURATION", "DISTURBANCE", "REGULATOR", "TVLQR", "SE3", "CONTROLLERS",
+           "GUST_FORCES_N", "GUST_DURATION_S", "GUST_PLACES", "LAG_LEADS_M", "LAG_START_S_M",
+           "ROTOR_LIMITS_N", "rotors_label", "nominal_clock"]
 
 PAPER_INERTIA_SD_KG_M2 = 0.0102 / 3
 """SD of each drawn moment of inertia: 95 % of the draws within +-jz (the largest moment)."""
@@ -46,6 +66,26 @@ CONVERGENCE = "convergence"
 """Kind of experiment judged by convergence to the path before the loop (group 1)."""
 SATURATION = "saturation"
 """Kind of experiment judged by stability under noise and saturation (group 2)."""
+DISTURBANCE = "disturbance"
+"""Kind of experiment that compares the controllers after a disturbance (gust, lag), judged
+by whether each run reaches the path's end."""
+
+REGULATOR = "regulator"
+"""Maneuver regulation (:class:`mavreg.control.regulator.ManeuverRegulator`), the plan's gains."""
+TVLQR = "tvlqr"
+"""The time-varying LQR of :mod:`mavreg.trackers.tvlqr`, on the regulator's weights."""
+SE3 = "se3"
+"""The SE(3) geometric tracker of :mod:`mavreg.trackers.se3`."""
+CONTROLLERS = (REGULATOR, TVLQR, SE3)
+
+GUST_FORCES_N = (5.0, 8.0, 10.0)
+GUST_DURATION_S = 1.0
+GUST_PLACES = {"run-up": 11.0, "slow": 2.0, "loop": 19.5}
+"""Where the gust strikes: the arc length of the nominal at its onset (m)."""
+LAG_LEADS_M = (1.0, 2.0, 4.0)
+LAG_START_S_M = 11.0
+ROTOR_LIMITS_N = (None, 12.0)
+"""Ideal rotors, and the plant clipping at the vehicle's 12 N."""
 
 
 @dataclass(frozen=True)
@@ -64,6 +104,22 @@ class RunSpec:
     laps: int = 1
     seed: int = 0
     """Seed of this run's rotor noise."""
+    controller: str = REGULATOR
+    """:data:`REGULATOR`, :data:`TVLQR` or :data:`SE3`."""
+    group: str = ""
+    """The runs of a group share a figure (gust: where it strikes; lag: ``lag``)."""
+    case: str = ""
+    """Within a group, the runs that differ only by controller and rotors (``8 N``)."""
+    gust_force_n: tuple[float, float, float] | None = None
+    """External force (NED) during ``gust_window_s``."""
+    gust_window_s: tuple[float, float] | None = None
+    """(start, end) in time from the run's start."""
+    start_s_m: float = 0.0
+    """The run starts on the nominal state at this arc length (plus ``offset_m``); 0: the entry."""
+    reference_lead_m: float = 0.0
+    """A time-indexed tracker's reference starts this far ahead along the path."""
+    max_time_s: float | None = None
+    """Stop this long after the start at the latest; None: the nominal time left plus a margin."""
 
 
 @dataclass(frozen=True)
@@ -132,21 +188,118 @@ def paper_group2(seed: int = 0, laps: int = PAPER_LAPS, saturations_n=PAPER_SATU
                       SATURATION, int(seed), runs, vehicle_path=vehicle_path)
 
 
+def rotors_label(saturation_n: float | None) -> str:
+    return "ideal rotors" if saturation_n is None else f"{saturation_n:g} N rotors"
+
+
+def nominal_clock(maneuver_path: Path):
+    """``(t_of_s, tangent)`` of a maneuver's nominal: the time it reaches arc length s,
+    ``int_0^s ds / v(s)`` (trapezoid on 0.2 mm steps), and the path's unit tangent at s.
+    Path and speed profile only: no nominal, no gains."""
+    from ..config.maneuver import load_maneuver
+    from ..geometry.build import build_path
+    from ..maneuver.plan import build_profiles
+    spec = load_maneuver(maneuver_path)
+    path = build_path(spec)
+    speed, _ = build_profiles(spec, path)
+    s = np.linspace(0.0, path.length_m, int(np.ceil(path.length_m / 2e-4)) + 1)
+    inv_v = 1.0 / speed.evaluate(s)[0]
+    t = np.concatenate([[0.0], np.cumsum(np.diff(s) * (inv_v[1:] + inv_v[:-1]) / 2)])
+
+    def t_of_s(sq: float) -> float:
+        return float(np.interp(sq, s, t))
+
+    def tangent(sq: float) -> np.ndarray:
+        return path.evaluate(np.array([float(sq)]))[1][0][:, 0]
+
+    return t_of_s, tangent
+
+
+def _runs_by_case(seed, cases, saturations_n, controllers):
+    """(group, case, spec fields) x rotors x controllers, in that order, indexed."""
+    runs = []
+    for group, case, fields in cases:
+        for sat in saturations_n:
+            for ctrl in controllers:
+                i = len(runs)
+                runs.append(RunSpec(i, f"{group} {case}, {rotors_label(sat)}, {ctrl}",
+                                    saturation_n=None if sat is None else float(sat), seed=run_seed(seed, i),
+                                    controller=ctrl, group=group, case=case, **fields))
+    return tuple(runs)
+
+
+def _check_controllers(controllers) -> None:
+    bad = [c for c in controllers if c not in CONTROLLERS]
+    if bad or not controllers:
+        raise ValueError(f"controllers must be some of {', '.join(CONTROLLERS)}, got {list(controllers)}")
+
+
+def gust(seed: int = 0, forces_n=GUST_FORCES_N, places=tuple(GUST_PLACES), controllers=CONTROLLERS,
+         saturations_n=ROTOR_LIMITS_N, max_time_s: float | None = None, start_s_m: float = 0.0) -> Experiment:
+    """A gust against the path's tangent for :data:`GUST_DURATION_S` at each place of
+    :data:`GUST_PLACES` and force, for each controller and rotor limit; start at the entry
+    (or on the nominal at ``start_s_m``, before every place: a shorter run)."""
+    _check_controllers(controllers)
+    t_of_s, tangent = nominal_clock(BARREL_ROLL)
+    cases = []
+    for place in places:
+        if place not in GUST_PLACES:
+            raise ValueError(f"unknown gust place {place!r}; known: {', '.join(GUST_PLACES)}")
+        s_on = GUST_PLACES[place]
+        if not 0.0 <= start_s_m < s_on:
+            raise ValueError(f"the runs must start before the gust at s = {s_on:g} m, not at {start_s_m:g} m")
+        t_on = round(t_of_s(s_on) - t_of_s(start_s_m), 3)     # on the 1 ms grid of the simulations
+        direction = -tangent(s_on)
+        for F in forces_n:
+            cases.append((place, f"{F:g} N", {
+                "gust_force_n": tuple(float(v) for v in np.round(F * direction, 12) + 0.0),
+                "gust_window_s": (t_on, round(t_on + GUST_DURATION_S, 3)), "max_time_s": max_time_s,
+                "start_s_m": float(start_s_m)}))
+    return Experiment("gust", "Gust against the path's tangent: maneuver regulation and two time-indexed trackers",
+                      DISTURBANCE, int(seed), _runs_by_case(seed, cases, saturations_n, controllers))
+
+
+def lag(seed: int = 0, leads_m=LAG_LEADS_M, controllers=CONTROLLERS, saturations_n=ROTOR_LIMITS_N,
+        max_time_s: float | None = None) -> Experiment:
+    """The trackers' reference ``leads_m`` ahead of a vehicle on the nominal at
+    :data:`LAG_START_S_M`, for each controller and rotor limit."""
+    _check_controllers(controllers)
+    cases = [("lag", f"{d:g} m ahead", {"start_s_m": LAG_START_S_M, "reference_lead_m": float(d),
+                                        "max_time_s": max_time_s}) for d in leads_m]
+    return Experiment("lag", "Timed reference ahead of the vehicle: maneuver regulation and two time-indexed "
+                      "trackers", DISTURBANCE, int(seed), _runs_by_case(seed, cases, saturations_n, controllers))
+
+
 EXPERIMENTS: dict[str, Callable[..., Experiment]] = {
     "paper-group1": paper_group1,
     "paper-group2": paper_group2,
+    "gust": gust,
+    "lag": lag,
 }
 """Every experiment ``mavreg experiment`` knows, by name."""
 
 
-def build_experiment(name: str, seed: int = 0) -> Experiment:
-    """The experiment ``name`` with its default settings, drawn from ``seed``.
+SITL_ROTOR_LIMIT_N = 12.0
+"""The emulator's rotors always clip at the vehicle file's limit: no ideal rotors via sitl."""
+
+
+def build_experiment(name: str, seed: int = 0, via: str = "sim") -> Experiment:
+    """The experiment ``name`` with its default settings, drawn from ``seed``, as flown ``via``.
+
+    Via ``sitl`` only maneuver regulation flies (the daemon flies the regulator): ``gust`` is
+    its runs on the emulator's 12 N rotors; ``lag`` has nothing to fly there (for the
+    regulator a reference ahead is no disturbance).
 
     Raises
     ------
     ValueError
-        On an unknown name (the message lists the known ones).
+        On an unknown name (the message lists the known ones), or ``lag`` via ``sitl``.
     """
     if name not in EXPERIMENTS:
         raise ValueError(f"unknown experiment {name!r}; known: {', '.join(EXPERIMENTS)}")
+    if via == "sitl" and name == "lag":
+        raise ValueError("lag flies only on the design model (--via sim): the daemon flies maneuver "
+                         "regulation alone, which has no timed reference to lag behind")
+    if via == "sitl" and name == "gust":
+        return gust(seed, controllers=(REGULATOR,), saturations_n=(SITL_ROTOR_LIMIT_N,))
     return EXPERIMENTS[name](seed)

@@ -5,7 +5,8 @@ import json
 import math
 from pathlib import Path
 
-from .definitions import CONVERGENCE
+from .definitions import CONTROLLERS, CONVERGENCE, DISTURBANCE, rotors_label
+from .disturbance_metrics import TUBE_M
 from .metrics import BACK_ON_PATH_M, CONVERGED_M
 
 __all__ = ["summarize", "results_dict", "write_results", "markdown"]
@@ -16,9 +17,28 @@ def _max(values):
     return max(v) if v else None
 
 
+def _summarize_disturbance(ms) -> dict:
+    """Per controller: runs, completed, diverged, and the worst of each column."""
+    out = {}
+    for ctrl in CONTROLLERS:
+        mine = [m for m in ms if m["controller"] == ctrl]
+        if mine:
+            out[ctrl] = {"runs": len(mine), "completed": sum(m["completed"] for m in mine),
+                         "diverged": sum(m["diverged"] for m in mine),
+                         "max_distance_m": _max([m["max_distance_m"] for m in mine]),
+                         "outside_tube_s": _max([m["outside_tube_s"] for m in mine]),
+                         "overspeed_m_s": _max([m["overspeed_m_s"] for m in mine]),
+                         "min_centre_distance_m": min((m["min_centre_distance_m"] for m in mine
+                                                       if m["min_centre_distance_m"] is not None), default=None)}
+    return out
+
+
 def summarize(exp, outcomes) -> dict:
     """The campaign in a few numbers: runs, how many met the criterion, the worst of each column."""
     ms = [o.metrics for o in outcomes if o.metrics is not None]
+    if exp.kind == DISTURBANCE:
+        return {"runs": len(outcomes), "errors": sum(o.metrics is None for o in outcomes),
+                "ok": sum(o.ok for o in outcomes), "by_controller": _summarize_disturbance(ms)}
     loop_t = [(m["loop"]["transverse_error_m"] or {}).get("max") for m in ms]
     loop_a = [(m["loop"]["attitude_error_deg"] or {}).get("max") for m in ms]
     out = {"runs": len(outcomes), "errors": sum(o.metrics is None for o in outcomes),
@@ -45,8 +65,10 @@ def results_dict(exp, via: str, outcomes, command: str, jobs: int, wall_time_s: 
     return {"experiment": exp.name, "title": exp.title, "kind": exp.kind, "via": via, "seed": exp.seed,
             "jobs": jobs, "command": command, "maneuver": str(exp.maneuver_path),
             "vehicle": str(exp.vehicle_path), "controller": str(exp.controller_path),
-            "definitions": {"converged_m": CONVERGED_M, "back_on_path_m": BACK_ON_PATH_M,
-                            "documentation": "mavreg/experiments/metrics.py"},
+            "definitions": ({"tube_m": TUBE_M, "documentation": "mavreg/experiments/disturbance_metrics.py"}
+                            if exp.kind == DISTURBANCE else
+                            {"converged_m": CONVERGED_M, "back_on_path_m": BACK_ON_PATH_M,
+                             "documentation": "mavreg/experiments/metrics.py"}),
             "summary": summarize(exp, outcomes), "runs": runs,
             "figures": [Path(f).name for f in figures], "wall_time_s": wall_time_s, **(extra or {})}
 
@@ -107,13 +129,50 @@ def _table_group2(runs) -> list[str]:
     return lines
 
 
+CONTROLLER_NAMES = {"regulator": "maneuver regulation", "tvlqr": "TVLQR", "se3": "SE(3)"}
+
+
+def _table_disturbance(runs) -> list[str]:
+    lines = ["| case | rotors | controller | outcome | max distance from the path (cm) "
+             f"| time outside the {TUBE_M:g} m tube (s) | peak acceleration (m/s²) "
+             "| min distance to the loop's centre (m) | overspeed (m/s) | max attitude error (deg) "
+             "| late at the end (s) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for m in runs:
+        if "error" in m:
+            lines.append(f"| {m['label']} | | | error: {m['error']} | | | | | | | |")
+            continue
+        outcome = ("**diverged**" if m["diverged"] else "completed" if m["completed"]
+                   else f"**{m['status']}**")
+        lines.append(f"| {m['group']} {m['case']} | {rotors_label(m['saturation_n'])} "
+                     f"| {CONTROLLER_NAMES.get(m['controller'], m['controller'])} | {outcome} "
+                     f"| {_f(m['max_distance_m'], 100, '{:.1f}')} | {_f(m['outside_tube_s'])} "
+                     f"| {_f(m['peak_acceleration_m_s2'], 1, '{:.1f}')} | {_f(m['min_centre_distance_m'])} "
+                     f"| {_f(m['overspeed_m_s'])} | {_f(m['max_attitude_error_deg'], 1, '{:.1f}')} "
+                     f"| {_f(m['late_s'])} |")
+    return lines
+
+
+def _summary_disturbance(sm) -> str:
+    parts = []
+    for ctrl, c in sm["by_controller"].items():
+        parts.append(f"{CONTROLLER_NAMES.get(ctrl, ctrl)}: {c['completed']} of {c['runs']} completed, "
+                     f"{c['diverged']} diverged, at most {_f(c['max_distance_m'], 100, '{:.0f}')} cm from the "
+                     f"path, {_f(c['overspeed_m_s'])} m/s over the profile, as close as "
+                     f"{_f(c['min_centre_distance_m'])} m to the loop's centre (1.5 m on the path)")
+    return "**" + "; ".join(parts) + ".**"
+
+
 def markdown(res: dict) -> str:
     """``results.md`` from a :func:`results_dict`."""
     sm = res["summary"]
     lines = [f"# {res['title']}, via {res['via']}", "",
              f"Command: `{res['command']}` (seed {res['seed']}, {res['jobs']} jobs, "
              f"{res['wall_time_s']:.0f} s wall).", ""]
-    if res["kind"] == CONVERGENCE:
+    if res["kind"] == DISTURBANCE:
+        lines.append(_summary_disturbance(sm))
+        table = _table_disturbance(res["runs"])
+    elif res["kind"] == CONVERGENCE:
         rng = sm.get("converged_at_s_m")
         lines.append(f"**Converged before the loop in {sm['converged']} of {sm['runs']} runs** (transverse "
                      f"error below {100 * res['definitions']['converged_m']:g} cm from then until s = "
@@ -131,8 +190,8 @@ def markdown(res: dict) -> str:
         lines.append(f"{sm['errors']} run(s) could not be flown; see the table.")
     lines += ["", *table, "",
               "Errors are the truth's: each true position projected on the path, each true attitude "
-              "against the nominal one at that arc length (mavreg/experiments/metrics.py defines every "
-              "column).", ""]
+              f"against the nominal one at that arc length ({res['definitions']['documentation']} defines "
+              "every column).", ""]
     for f in res["figures"]:
         lines += [f"![{f}]({f})", ""]
     return "\n".join(lines)

@@ -25,7 +25,8 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 
-from .definitions import Experiment, RunSpec
+from .definitions import DISTURBANCE, Experiment, RunSpec
+from .disturbance_metrics import disturbance_metrics
 from .metrics import run_metrics
 from .record import Trace, truth_trace
 
@@ -79,13 +80,15 @@ def _execute(job: _Job) -> RunOutcome:
         plan = plan_for(Path(exp.maneuver_path), Path(exp.vehicle_path), Path(exp.controller_path), spec.laps)
         if job.via == "sim":
             from .via_sim import fly_sim
-            flight = fly_sim(plan, spec)
+            flight = fly_sim(plan, spec, Path(exp.controller_path))
         else:
             from .via_sitl import fly_sitl
             flight = fly_sitl(spec, job.sitl_files, job.run_dir, plan.vehicle.max_rotor_thrust_n,
                               job.keep_flight_files)
         trace = truth_trace(plan, flight)
-        return RunOutcome(spec, run_metrics(plan, trace, flight, spec, exp.kind), trace.decimated(TRACE_STEP))
+        metrics = (disturbance_metrics(plan, trace, flight, spec) if exp.kind == DISTURBANCE
+                   else run_metrics(plan, trace, flight, spec, exp.kind))
+        return RunOutcome(spec, metrics, trace.decimated(TRACE_STEP))
     except Exception as exc:                      # a bug or a broken run: recorded, the campaign goes on
         first = str(exc).strip().splitlines()[:1] or [""]
         return RunOutcome(spec, None, None, f"{type(exc).__name__}: {first[0]}", traceback.format_exc())
@@ -127,8 +130,10 @@ class _Progress:
 
 
 def run_experiment(exp: Experiment, via: str, jobs: int, out_dir: Path | None = None,
-                   progress=sys.stderr, keep_flight_files: bool = False) -> list[RunOutcome]:
-    """Fly every run of ``exp`` ``via`` ``sim`` or ``sitl`` on ``jobs`` processes.
+                   progress=sys.stderr, keep_flight_files: bool = False,
+                   dask_address: str | None = None) -> list[RunOutcome]:
+    """Fly every run of ``exp`` ``via`` ``sim`` or ``sitl`` on ``jobs`` processes, or on the
+    Dask cluster at ``dask_address`` (:mod:`.on_dask`; ``jobs`` is then unused).
 
     Parameters
     ----------
@@ -144,6 +149,8 @@ def run_experiment(exp: Experiment, via: str, jobs: int, out_dir: Path | None = 
         Where the progress line goes.
     keep_flight_files : bool
         ``sitl``: keep each flight's tlog, control log and ground-truth recording.
+    dask_address : str, optional
+        A Dask scheduler's address (``tcp://host:8786``); None: the local process pool.
 
     Returns
     -------
@@ -154,6 +161,9 @@ def run_experiment(exp: Experiment, via: str, jobs: int, out_dir: Path | None = 
         raise ValueError(f"unknown --via {via!r}; choose one of {', '.join(VIAS)}")
     if jobs < 1:
         raise ValueError(f"jobs must be at least 1, got {jobs}")
+    if via == "sitl" and any(s.controller != "regulator" for s in exp.runs):
+        raise ValueError("only maneuver regulation flies via sitl (the daemon flies the regulator); "
+                         "the time-indexed trackers fly on the design model")
     files = None
     if out_dir is not None:
         out_dir = Path(out_dir).resolve()          # a sitl run's ``mavreg fly`` works in its own directory
@@ -166,20 +176,24 @@ def run_experiment(exp: Experiment, via: str, jobs: int, out_dir: Path | None = 
                  files, keep_flight_files) for spec in exp.runs]
     bar = _Progress(exp, via, progress)
     outcomes: dict[int, RunOutcome] = {}
+
+    def done(out: RunOutcome) -> None:
+        outcomes[out.spec.index] = out
+        bar.update(out)
+
     jobs = min(jobs, len(todo))
-    if jobs <= 1:
+    if dask_address is not None:
+        from .on_dask import run_on_dask
+        run_on_dask(dask_address, exp, todo, _execute, done, Path(out_dir) if via == "sitl" else None)
+    elif jobs <= 1:
         for job in todo:
-            out = _execute(job)
-            outcomes[out.spec.index] = out
-            bar.update(out)
+            done(_execute(job))
     else:
         pool = ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn"),
                                    initializer=_init_worker, initargs=(os.getpid(),))
         try:
             for fut in as_completed([pool.submit(_execute, job) for job in todo]):
-                out = fut.result()                 # a worker that died: BrokenProcessPool
-                outcomes[out.spec.index] = out
-                bar.update(out)
+                done(fut.result())                 # a worker that died: BrokenProcessPool
         except BaseException:                      # Ctrl-C, a dead worker: stop the others now
             for proc in list((getattr(pool, "_processes", None) or {}).values()):
                 proc.kill()

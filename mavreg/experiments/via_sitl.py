@@ -15,9 +15,17 @@ starts 0.85 m across the path and its 7 N runs leave it by 0.8 m with every roto
 limit. The experiment's controller file (:func:`prepare_sitl_files`) is ``paper_lqr.yaml``
 with the maneuver bounds widened (:data:`EXPERIMENT_ENVELOPE`); gains and everything else
 are the paper's. The runs are judged by the emulator's ground truth (:mod:`.record`).
+
+A gust (``gust`` via sitl) is firmware_sim's own force window, ``--wind force:FN,FE,FD@T0:T1``
+in the emulator's time. A lockstep flight is deterministic, so the maneuver begins at the same
+vehicle time in every flight of a campaign: :func:`prepare_sitl_files` flies one gust-free
+reference flight to measure it, each gust run's window is that start plus the run's window,
+and each run checks that its maneuver began there (a run whose maneuver began elsewhere is an
+error, not a result).
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import subprocess
 import sys
@@ -34,7 +42,8 @@ from ..daemon.lifeline import wrap_command
 from ..sim.truth import quats_to_matrices
 from .record import Flight
 
-__all__ = ["SitlFiles", "prepare_sitl_files", "fly_sitl", "EXPERIMENT_ENVELOPE", "FLIGHT_FILES"]
+__all__ = ["SitlFiles", "prepare_sitl_files", "fly_sitl", "EXPERIMENT_ENVELOPE", "FLIGHT_FILES",
+           "START_TOLERANCE_S"]
 
 EXPERIMENT_ENVELOPE = {
     "maneuver": {"max_position_error_m": 1.5, "max_attitude_error_deg": 45.0,
@@ -56,6 +65,10 @@ ENVELOPE_PEAKS_KEPT = 5
 FLY_TIMEOUT_S = 900.0
 """Wall seconds one lockstep flight may take (about 15 s on an idle 2-core machine)."""
 
+START_TOLERANCE_S = 0.0015
+"""A gust run's maneuver must begin within this of the reference flight's (under a physics step
+of 1 ms and a control period of 2 ms: the same sample)."""
+
 
 @dataclass(frozen=True)
 class SitlFiles:
@@ -65,6 +78,8 @@ class SitlFiles:
     """laps -> maneuver YAML path."""
     controller_path: Path
     vehicle_path: Path
+    maneuver_start_s: float | None = None
+    """Emulator time at which the maneuver begins (the reference flight's), for gust windows."""
 
 
 def prepare_sitl_files(exp, out_dir: Path) -> SitlFiles:
@@ -96,7 +111,31 @@ def prepare_sitl_files(exp, out_dir: Path) -> SitlFiles:
                         + yaml.safe_dump(raw, sort_keys=False))
         load_maneuver(path)
         maneuvers[laps] = path
-    return SitlFiles(maneuvers, ctrl_path, Path(exp.vehicle_path).resolve())
+    files = SitlFiles(maneuvers, ctrl_path, Path(exp.vehicle_path).resolve())
+    if any(r.gust_force_n is not None for r in exp.runs):
+        files = dataclasses.replace(files, maneuver_start_s=_reference_start(exp, files, out_dir))
+    return files
+
+
+def _reference_start(exp, files: SitlFiles, out_dir: Path) -> float:
+    """Fly the first run without its gust into ``out_dir/runs/reference``; its maneuver's start
+    in emulator time."""
+    spec = dataclasses.replace(exp.runs[0], gust_force_n=None, gust_window_s=None)
+    run_dir = out_dir / "runs" / "reference"
+    run_dir.mkdir(parents=True, exist_ok=True)
+    with open(run_dir / "fly.log", "w") as log:
+        subprocess.run(wrap_command(fly_command(spec, files, run_dir)), stdout=log, stderr=subprocess.STDOUT,
+                       cwd=run_dir, timeout=FLY_TIMEOUT_S + 60)
+    for name in FLIGHT_FILES:
+        (run_dir / name).unlink(missing_ok=True)
+    try:
+        summary = json.loads((run_dir / "summary.json").read_text())
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"the gust-free reference flight failed ({run_dir / 'fly.log'}): {exc}") from None
+    t0 = _window(summary["events"])[0]
+    if t0 is None:
+        raise ValueError(f"the gust-free reference flight never began its maneuver: {summary['reason']}")
+    return t0
 
 
 def fly_command(spec, files: SitlFiles, run_dir: Path) -> list[str]:
@@ -110,6 +149,12 @@ def fly_command(spec, files: SitlFiles, run_dir: Path) -> list[str]:
         cmd.append(f"--emulator-arg=--rotor-saturation-n={float(spec.saturation_n)!r}")
     if spec.inertia_kg_m2 is not None:
         cmd += ["--emulator-arg=--inertia-kg-m2", *(f"--emulator-arg={float(j)!r}" for j in spec.inertia_kg_m2)]
+    if spec.gust_force_n is not None:
+        if files.maneuver_start_s is None:
+            raise ValueError("a gust run needs the maneuver's start time of a reference flight")
+        a, b = (files.maneuver_start_s + w for w in spec.gust_window_s)
+        cmd.append("--emulator-arg=--wind=force:" + ",".join(repr(float(f)) for f in spec.gust_force_n)
+                   + f"@{a!r}:{b!r}")
     return cmd
 
 
@@ -172,6 +217,11 @@ def fly_sitl(spec, files: SitlFiles, run_dir: Path, max_rotor_thrust_n: float,
     t0, t1, after = _window(summary["events"])
     if t0 is None:
         return _empty("not_flown", summary["reason"] or "the maneuver did not start", limit, extra)
+    if spec.gust_force_n is not None:
+        if abs(t0 - files.maneuver_start_s) > START_TOLERANCE_S:
+            raise ValueError(f"the maneuver began at {t0:.4f} s of emulator time, not at {files.maneuver_start_s:.4f} s "
+                             "as in the reference flight: the gust missed its place")
+        extra["gust_window_emulator_s"] = [files.maneuver_start_s + w for w in spec.gust_window_s]
     t = rec["t_s"]
     sel = (t >= t0) & (t <= (t1 if t1 is not None else t[-1]))
     completed = after == "hold"          # the maneuver's end hands over to the exit hold

@@ -39,8 +39,10 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
                         gust_force_n=None, gust_window_s=(0.0, 0.0),
                         rotor_time_constant_s: float = 0.0, measurement_delay_s: float = 0.0,
                         command_delay_s: float = 0.0, estimate_noise: EstimateNoise | None = None,
-                        predict: bool = False, assumed_delay_s: float | None = None) -> ManeuverRun:
-    """Start at the nominal entry state plus ``offset_m`` and fly to the end of the path.
+                        predict: bool = False, assumed_delay_s: float | None = None,
+                        start_s_m: float = 0.0) -> ManeuverRun:
+    """Start at the nominal entry state plus ``offset_m`` and fly to the end of the path
+    (with ``start_s_m``: at the nominal state at that arc length plus ``offset_m``).
 
     The plant may differ from the design (``inertia_kg_m2``); the controller always uses
     the plan's nominal design. ``gust_force_n`` (NED, N) pushes on the vehicle during
@@ -58,9 +60,9 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
     period = 1.0 / control_rate_hz
     reg = ManeuverRegulator(plan, vehicle, control_period_s=period,
                             rotor_time_constant_s=rotor_time_constant_s)
-    x0 = plan.entry_state
+    x0 = plan.nominal_state(start_s_m) if start_s_m else plan.entry_state
     x0[:3] += np.asarray(offset_m, dtype=float)
-    reg.reset(x0)
+    reg.reset(x0, s_guess=start_s_m)
     steps = int(round(1.0 / (control_rate_hz * dt_s)))
     if steps < 1 or abs(steps * dt_s * control_rate_hz - 1.0) > 1e-9:
         raise ValueError(f"control rate {control_rate_hz} Hz is not a whole number of "

@@ -7,7 +7,9 @@ from mavreg.cli.main import main
 
 
 @pytest.mark.parametrize("argv, needle", [
-    (["gust"], "unknown experiment 'gust'; choose one of paper-group1, paper-group2"),
+    (["wind"], "unknown experiment 'wind'; choose one of paper-group1, paper-group2, gust, lag"),
+    (["lag", "--via", "sitl"], "lag flies only on the design model"),
+    (["gust", "--dask", "tcp://127.0.0.1:1", "--jobs", "2"], "--jobs sizes the local process pool"),
     (["paper-group1", "--jobs", "0"], "--jobs must be at least 1, got 0"),
     (["paper-group1", "--jobs", "two"], "--jobs must be a whole number, got 'two'"),
     (["paper-group1", "--seed", "-3"], "--seed must be at least 0, got -3"),
@@ -30,10 +32,10 @@ def test_an_out_that_is_a_file_is_one_line_and_exit_2(capsys, tmp_path):
     assert err.strip().count("\n") == 0 and f"--out {f}" in err
 
 
-def test_help_names_the_experiments_and_only_those(capsys):
+def test_help_names_the_experiments_and_the_options(capsys):
     with pytest.raises(SystemExit) as exc:
         main(["experiment", "--help"])
     out = capsys.readouterr().out
     assert exc.value.code == 0
-    assert "paper-group1" in out and "paper-group2" in out and "--via" in out and "--jobs" in out
-    assert "gust" not in out and "dask" not in out
+    for name in ("paper-group1", "paper-group2", "gust", "lag", "--via", "--jobs", "--dask"):
+        assert name in out

@@ -5,8 +5,11 @@ import numpy as np
 import pytest
 
 from mavreg.config.vehicle import load_vehicle
-from mavreg.experiments.definitions import (CONVERGENCE, MIN_INERTIA_KG_M2, PAPER_INERTIA_SD_KG_M2, SATURATION,
-                                            build_experiment, draw_inertia, paper_group1, paper_group2, run_seed)
+from mavreg.experiments.definitions import (BARREL_ROLL, CONTROLLERS, CONVERGENCE, DISTURBANCE, GUST_DURATION_S,
+                                            GUST_FORCES_N, GUST_PLACES, LAG_LEADS_M, LAG_START_S_M,
+                                            MIN_INERTIA_KG_M2, PAPER_INERTIA_SD_KG_M2, REGULATOR, ROTOR_LIMITS_N,
+                                            SATURATION, build_experiment, draw_inertia, gust, lag, nominal_clock,
+                                            paper_group1, paper_group2, run_seed)
 from mavreg.cli.common import DEFAULT_VEHICLE
 
 J0 = np.array(load_vehicle(DEFAULT_VEHICLE).inertia_kg_m2)
@@ -66,6 +69,49 @@ def test_a_draw_below_the_floor_is_drawn_again():
 
 
 def test_unknown_experiment_names_the_known_ones():
-    with pytest.raises(ValueError, match="paper-group1, paper-group2"):
-        build_experiment("gust")
+    with pytest.raises(ValueError, match="paper-group1, paper-group2, gust, lag"):
+        build_experiment("wind")
     assert build_experiment("paper-group2", 5) == paper_group2(5)
+
+
+def test_gust_cases_are_every_place_force_rotor_limit_and_controller():
+    e = gust(3)
+    assert e == gust(3) and e.kind == DISTURBANCE and len(e.runs) == 3 * 3 * 2 * 3
+    assert [r.index for r in e.runs] == list(range(54))
+    assert len({r.seed for r in e.runs}) == 54 and gust(4).runs[0].seed != e.runs[0].seed
+    cells = {(r.group, r.case, r.saturation_n, r.controller) for r in e.runs}
+    assert cells == {(g, f"{F:g} N", sat, c) for g in GUST_PLACES for F in GUST_FORCES_N
+                     for sat in ROTOR_LIMITS_N for c in CONTROLLERS}
+    for r in e.runs:
+        assert r.start_s_m == 0.0 and r.reference_lead_m == 0.0 and r.rotor_noise_sd_n == 0.0
+        assert r.gust_window_s[1] - r.gust_window_s[0] == pytest.approx(GUST_DURATION_S)
+        assert np.linalg.norm(r.gust_force_n) == pytest.approx(float(r.case.split()[0]))
+    t_of_s, tangent = nominal_clock(BARREL_ROLL)
+    by = {(r.group, r.case): r for r in e.runs}
+    # on the run-up the path flies west: the gust pushes east, when the nominal is at s = 11 m
+    assert by[("run-up", "8 N")].gust_force_n == (0.0, 8.0, 0.0)
+    assert by[("run-up", "8 N")].gust_window_s[0] == pytest.approx(t_of_s(11.0), abs=5e-4)
+    assert t_of_s(11.0) == pytest.approx(6.311, abs=1e-3) and t_of_s(2.0) == pytest.approx(3.653, abs=1e-3)
+    # in the loop it is held in the direction against the tangent where the circle begins
+    np.testing.assert_allclose(by[("loop", "10 N")].gust_force_n, -10.0 * tangent(19.5), atol=1e-9)
+    assert by[("loop", "10 N")].gust_force_n[2] > 5.0            # the loop climbs: the gust pushes down
+
+
+def test_lag_cases_start_on_the_run_up_with_the_reference_ahead():
+    e = lag(1)
+    assert e.kind == DISTURBANCE and len(e.runs) == 3 * 2 * 3
+    assert {r.reference_lead_m for r in e.runs} == set(LAG_LEADS_M)
+    assert all(r.start_s_m == LAG_START_S_M and r.gust_force_n is None for r in e.runs)
+    assert [r.controller for r in e.runs[:3]] == list(CONTROLLERS)
+    with pytest.raises(ValueError, match="controllers"):
+        lag(0, controllers=("pid",))
+
+
+def test_via_sitl_only_the_regulator_flies_the_gust_and_lag_does_not_fly():
+    e = build_experiment("gust", 0, via="sitl")
+    assert len(e.runs) == 9 and {r.controller for r in e.runs} == {REGULATOR}
+    assert {r.saturation_n for r in e.runs} == {12.0}
+    assert [r.gust_force_n for r in e.runs] == [r.gust_force_n for r in gust(0).runs
+                                                if r.controller == REGULATOR and r.saturation_n == 12.0]
+    with pytest.raises(ValueError, match="design model"):
+        build_experiment("lag", 0, via="sitl")

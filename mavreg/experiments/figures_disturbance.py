@@ -1,0 +1,173 @@
+"""The gust and lag experiments' figures: the three controllers side by side, case by case.
+
+One set of figures per group of runs (gust: where it strikes; lag: all of it), each a grid
+with a row per case (the force, or the reference's lead) and a column per rotor limit:
+
+- ``NAME_GROUP_paths.png``: the paths in the plane of the loop (east against altitude),
+  zoomed on where any run is more than 2 cm off the path, with the loop;
+- ``NAME_GROUP_distance.png``: the distance from the path against time, the 0.5 m tube
+  dashed, the gust's window shaded;
+- ``NAME_GROUP_speed.png``: the speed minus the profile's at the vehicle's own arc length
+  against time (above zero: faster than the maneuver prescribes where the vehicle is).
+
+Colours: desired black, maneuver regulation blue, the TVLQR red, the SE(3) tracker green.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .definitions import REGULATOR, SE3, TVLQR, rotors_label
+from .disturbance_metrics import TUBE_M
+from .figures import _plt, nominal_curves
+
+__all__ = ["disturbance_figures", "CONTROLLER_STYLE"]
+
+CONTROLLER_STYLE = {
+    REGULATOR: dict(color="tab:blue", lw=1.3, label="maneuver regulation", zorder=4),
+    TVLQR: dict(color="tab:red", lw=1.0, label="TVLQR (time-indexed)", zorder=3),
+    SE3: dict(color="tab:green", lw=1.0, label="SE(3) tracker (time-indexed)", zorder=3),
+}
+_DPI = 80
+_OFF_PATH_M = 0.02
+_SHOWN_S = 7.0
+"""The time figures show 7 s from 1 s before the gust (from the start without a gust): every
+run is back on its path or its reference by then, or has gone for good."""
+
+
+def _grid(outcomes):
+    """groups -> (cases, rotor limits, {(case, limit): [outcomes]}), in run order."""
+    groups: dict = {}
+    for o in outcomes:
+        sp = o.spec
+        cases, limits, cells = groups.setdefault(sp.group, ([], [], {}))
+        if sp.case not in cases:
+            cases.append(sp.case)
+        if sp.saturation_n not in limits:
+            limits.append(sp.saturation_n)
+        cells.setdefault((sp.case, sp.saturation_n), []).append(o)
+    return groups
+
+
+def _window(ax, outs) -> None:
+    w = next((o.spec.gust_window_s for o in outs if o.spec.gust_window_s), None)
+    if w is not None:
+        ax.axvspan(*w, color="0.9", zorder=0)
+
+
+def _focus(plan, cells) -> tuple[tuple[float, float], tuple[float, float]]:
+    """East and altitude limits: the loop and every stretch more than 2 cm off the path."""
+    name = plan.laps_segment or "loop"
+    pts = [np.concatenate([plan.path.evaluate(np.linspace(a, b, 200))[0] for n, a, b in plan.segments
+                           if n == name])]
+    for outs in cells.values():
+        for o in outs:
+            tr = o.trace
+            if tr is not None and tr.t_s.size:
+                pts.append(tr.position_m[tr.transverse_error_m > _OFF_PATH_M])
+    p = np.concatenate(pts)
+    e, z = p[:, 1], -p[:, 2]
+    return (e.min() - 1.0, e.max() + 1.0), (z.min() - 0.7, z.max() + 0.7)
+
+
+def _figure(plt, cases, limits, panel_size):
+    fig, axes = plt.subplots(len(cases), len(limits), figsize=(panel_size[0] * len(limits),
+                                                               panel_size[1] * len(cases)),
+                             squeeze=False)
+    return fig, axes
+
+
+def _finish(plt, fig, axes, path: Path, title: str) -> None:
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    if labels:
+        fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8)
+    fig.suptitle(title, fontsize=11)
+    fig.tight_layout(rect=(0.0, 0.04 if labels else 0.0, 1.0, 1.0))
+    fig.savefig(path, dpi=_DPI)
+    plt.close(fig)
+
+
+def _paths(path: Path, plan, name: str, group: str, cases, limits, cells, via: str) -> None:
+    plt = _plt()
+    nominal = nominal_curves(plan, step=5)
+    xlim, ylim = _focus(plan, cells)
+    aspect = (xlim[1] - xlim[0]) / (ylim[1] - ylim[0])
+    fig, axes = _figure(plt, cases, limits, (min(3.2 * aspect, 9.0), 3.4))
+    for i, case in enumerate(cases):
+        for j, lim in enumerate(limits):
+            ax = axes[i, j]
+            ax.plot(nominal["position"][:, 1], -nominal["position"][:, 2], color="k", lw=0.8, label="desired",
+                    zorder=2)
+            for o in cells.get((case, lim), []):
+                if o.trace is None:
+                    continue
+                p = o.trace.position_m
+                st = CONTROLLER_STYLE[o.spec.controller]
+                ax.plot(p[:, 1], -p[:, 2], **st)
+                w = o.spec.gust_window_s
+                if w is not None:
+                    k = np.searchsorted(o.trace.t_s, w)
+                    k = k[k < len(p)]
+                    ax.plot(p[k, 1], -p[k, 2], "o", ms=3, color=st["color"], zorder=5)
+            ax.set_xlim(*xlim)
+            ax.set_ylim(*ylim)
+            ax.set_aspect("equal")
+            ax.grid(alpha=0.3)
+            ax.set_title(f"{case}, {rotors_label(lim)}", fontsize=9)
+            ax.set_xlabel("east (m)", fontsize=8)
+            ax.set_ylabel("altitude (m)", fontsize=8)
+    gust = " (dots: the gust's start and end)" if name == "gust" else ""
+    _finish(plt, fig, axes, path, f"{name} via {via}, {group}: paths in the plane of the loop{gust}")
+
+
+def _against_time(path: Path, plan, name: str, group: str, cases, limits, cells, via: str, what: str) -> None:
+    plt = _plt()
+    fig, axes = _figure(plt, cases, limits, (6.5, 2.6))
+    t0 = min((o.spec.gust_window_s[0] for outs in cells.values() for o in outs if o.spec.gust_window_s),
+             default=0.0)
+    t0 = max(t0 - 1.0, 0.0)
+    t1 = t0 + _SHOWN_S
+    for i, case in enumerate(cases):
+        for j, lim in enumerate(limits):
+            ax = axes[i, j]
+            outs = cells.get((case, lim), [])
+            _window(ax, outs)
+            for o in outs:
+                tr = o.trace
+                if tr is None:
+                    continue
+                if what == "distance":
+                    y = tr.transverse_error_m
+                else:
+                    s = np.clip(tr.s_m, plan.s[0], plan.s[-1])
+                    y = np.linalg.norm(tr.velocity_body_m_s, axis=1) - np.interp(s, plan.s, plan.speed_m_s)
+                ax.plot(tr.t_s, y, **CONTROLLER_STYLE[o.spec.controller])
+            if what == "distance":
+                ax.axhline(TUBE_M, color="k", lw=0.7, ls="--")
+                ax.set_ylabel("distance from path (m)", fontsize=8)
+            else:
+                ax.axhline(0.0, color="k", lw=0.6)
+                ax.set_ylabel("speed - v(s) (m/s)", fontsize=8)
+            ax.set_xlim(t0, t1)
+            ax.grid(alpha=0.3)
+            ax.set_title(f"{case}, {rotors_label(lim)}", fontsize=9)
+            ax.set_xlabel("time from the start (s)", fontsize=8)
+    head = ("distance from the path (dashed: the 0.5 m tube)" if what == "distance"
+            else "speed above the profile at the vehicle's arc length")
+    _finish(plt, fig, axes, path, f"{name} via {via}, {group}: {head}" + ("; grey: the gust" if name == "gust" else ""))
+
+
+def disturbance_figures(out_dir: Path, plan, name: str, outcomes, via: str) -> list[Path]:
+    """Paths, distance and speed figures of a gust or lag campaign, per group; the paths written."""
+    out_dir = Path(out_dir)
+    written = []
+    runs = [o for o in outcomes if o.trace is not None and o.trace.t_s.size]
+    for group, (cases, limits, cells) in _grid(runs).items():
+        stem = f"{name}_{group}".replace(" ", "_")
+        written.append(out_dir / f"{stem}_paths.png")
+        _paths(written[-1], plan, name, group, cases, limits, cells, via)
+        for what in ("distance", "speed"):
+            written.append(out_dir / f"{stem}_{what}.png")
+            _against_time(written[-1], plan, name, group, cases, limits, cells, via, what)
+    return written
