@@ -8,7 +8,7 @@ import pytest
 
 from mavreg.config.controller import load_controller
 from mavreg.experiments.campaign import run_campaign
-from mavreg.experiments.definitions import paper_group1, paper_group2
+from mavreg.experiments.definitions import build_experiment, paper_group1, paper_group2
 from mavreg.experiments.via_sitl import FLIGHT_FILES, fly_command, prepare_sitl_files
 
 pytestmark = pytest.mark.sitl
@@ -55,3 +55,36 @@ def test_one_group1_run_via_sitl_converges_before_the_loop(tmp_path):
     assert not any((run_dir / f).exists() for f in FLIGHT_FILES)    # 17 MB a flight: not kept by default
     res = json.loads((tmp_path / "results.json").read_text())
     assert res["via"] == "sitl" and res["sitl"]["world"] == "ideal" and res["summary"]["converged"] == 1
+
+
+def test_a_gust_goes_to_the_emulator_as_a_force_window_from_the_maneuvers_start(tmp_path):
+    from mavreg.experiments.definitions import gust
+    from mavreg.experiments.via_sitl import SitlFiles
+    exp = build_experiment("gust", 0, via="sitl")
+    files = SitlFiles({1: exp.maneuver_path}, tmp_path / "c.yaml", exp.vehicle_path, maneuver_start_s=23.808)
+    by = {r.label: r for r in exp.runs}
+    cmd = fly_command(by["run-up 8 N, 12 N rotors, regulator"], files, tmp_path / "r")
+    (wind,) = [a for a in cmd if a.startswith("--emulator-arg=--wind=")]
+    assert wind == f"--emulator-arg=--wind=force:0.0,8.0,0.0@{23.808 + 6.311!r}:{23.808 + 7.311!r}"
+    assert "--emulator-arg=--rotor-saturation-n=12.0" in cmd          # the vehicle file's own limit
+    with pytest.raises(ValueError, match="reference flight"):
+        fly_command(by["run-up 8 N, 12 N rotors, regulator"], replace(files, maneuver_start_s=None), tmp_path)
+    assert {r.controller for r in exp.runs} == {"regulator"} and len(gust(0).runs) == 54
+
+
+@pytest.mark.slow
+def test_one_gust_run_via_sitl_strikes_on_the_run_up_at_speed(tmp_path):
+    from mavreg.experiments.definitions import REGULATOR, gust
+    exp = gust(0, forces_n=(8.0,), places=("run-up",), controllers=(REGULATOR,), saturations_n=(12.0,))
+    camp = run_campaign(exp, "sitl", 1, tmp_path, "test command", progress=None)
+    (out,) = camp.outcomes
+    assert out.error is None, out.traceback
+    m = out.metrics
+    assert (tmp_path / "runs" / "reference" / "summary.json").exists()
+    assert m["extra"]["gust_window_emulator_s"][1] - m["extra"]["gust_window_emulator_s"][0] == pytest.approx(1.0)
+    tr = out.trace
+    before = tr.t_s < 6.3
+    assert tr.transverse_error_m[before].max() < 0.01                 # on the path until the gust
+    speed = (tr.velocity_body_m_s ** 2).sum(axis=1) ** 0.5
+    k = (tr.t_s > 6.3) & (tr.t_s < 6.5)
+    assert speed[k].min() < 7.5 < 7.9 < speed[tr.t_s < 6.3][-1]       # the gust slows it down from 8 m/s
