@@ -9,7 +9,10 @@ __all__ = ["PARAMS_DIR", "add_model_arguments", "add_laps_argument", "load_model
 PARAMS_DIR = Path(__file__).resolve().parents[2] / "params"
 DEFAULT_VEHICLE = PARAMS_DIR / "vehicles" / "mk_quadro.yaml"
 PAPER_CONTROLLER = PARAMS_DIR / "controller" / "paper_lqr.yaml"
-"""The paper's design: the default of the design-model commands (plan, simulate)."""
+"""The paper's design, roll-pitch-yaw attitude error included: for reproductions."""
+DESIGN_CONTROLLER = PARAMS_DIR / "controller" / "design.yaml"
+"""The paper's weights on the SO(3) attitude error: the default of the design-model commands
+(plan, simulate)."""
 REAL_CONTROLLER = PARAMS_DIR / "controller" / "realistic.yaml"
 """Lag-aware gains, delay prediction, weights for estimator noise: the default of the commands
 that fly a vehicle (fly, serve)."""

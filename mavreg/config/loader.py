@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 import types
 import typing
 from pathlib import Path
@@ -96,10 +97,15 @@ def _check_range(ctx: _Ctx, node, key: str, value: float, meta: dict) -> None:
         ctx.fail(node, key, f"expected a value <= {hi}, got {value!r}")
 
 
+_EXPONENT = re.compile(r"[-+]?[0-9]+(\.[0-9]*)?[eE][-+]?[0-9]+")
+
+
 def _load_number(ctx: _Ctx, node, key: str, tp: type, meta: dict) -> float | int:
     if not isinstance(node, yaml.ScalarNode):
         ctx.fail(node, key, f"expected a number, got {_describe(node)}")
     value = _scalar(node)
+    if isinstance(value, str) and node.style is None and _EXPONENT.fullmatch(value):
+        value = float(value)      # YAML 1.1 reads 1e-3 (no dot) as a string; unquoted, a number
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         ctx.fail(node, key, f"expected {'an integer' if tp is int else 'a number'}, got {_describe(node)}")
     if tp is int and not isinstance(value, int):

@@ -202,10 +202,16 @@ def flat_nominal(model: QuadrotorModel, F, k, dk, ddk, c, v4, yaw4, mode: str = 
     n = _nose_reference(mode, yaw_jet, zb, vel, acc, jerk)
     cross = np.linalg.norm(np.cross(zb[0], n[0]), axis=1) / np.linalg.norm(n[0], axis=1)
     if cross.min() < _MIN_SINE:
+        if mode == "velocity":
+            raise FlatnessError("the thrust axis lies along the velocity, so the nose cannot "
+                                "follow it", int(np.argmin(cross)),
+                                "in a loop this happens where it is flown slower than sqrt(g r) "
+                                "(the top below 1 g): fly it faster or wider, or use yaw mode "
+                                "fixed")
         raise FlatnessError("the nose reference lies along the thrust axis, so the yaw is "
                             "undefined", int(np.argmin(cross)),
-                            "use another yaw mode (tangent or velocity let the nose follow "
-                            "the path), or another yaw")
+                            "use yaw mode velocity or tangent (the nose follows the path), "
+                            "or another yaw")
     yb = _jnormalize(_jcross(zb, n))
     xb = _jcross(yb, zb)
     R, dR, ddR = (np.stack([x, y, z], axis=2) for x, y, z in zip(xb, yb, zb))

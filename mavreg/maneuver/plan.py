@@ -218,10 +218,41 @@ def _nominal(model, path, speed, yaw, s, yaw_mode: str) -> _Nominal:
         q = float(s[exc.index])
         raise ManeuverError(f"nominal: {exc.what} at s = {q:.2f} m in "
                             f"{path.segment_at(q).name!r} (yaw mode {yaw_mode}): {exc.remedy}") from None
+    _check_attitude_continuity(s, R, x[:, 9:12], v4[0], path, yaw_mode)
     with np.errstate(all="ignore"):      # roll-pitch-yaw rates are singular at pitch +-90 deg
         dx = model.f(x.T, u.T).T / v4[0][:, None]
     dx[:, 3:6] = np.where(np.isfinite(dx[:, 3:6]), dx[:, 3:6], 0.0)
     return _Nominal(F, k, x, u, dx, v4[0], R)
+
+
+_MAX_TURN_BETWEEN_SAMPLES_RAD = 0.2
+
+
+def _check_attitude_continuity(s, R, omega, v, path, yaw_mode: str) -> None:
+    """Refuse a nominal whose attitude jumps between two samples.
+
+    Where the nose reference crosses the thrust axis (fixed yaw in a loop flown in the
+    reference's plane) or the path's heading reverses (tangent yaw through the vertical), the
+    flat map's attitude flips by 180 deg about the thrust axis between two samples; the body
+    rates at the samples do not show it, the turn between them does. A turn larger than
+    ``_MAX_TURN_BETWEEN_SAMPLES_RAD`` and than 3 times the body rate over the sample interval
+    is such a jump.
+    """
+    if len(s) < 2:
+        return
+    cos_turn = (np.einsum("nji,nji->n", R[:-1], R[1:]) - 1.0) / 2.0
+    turn = np.arccos(np.clip(cos_turn, -1.0, 1.0))
+    dt = np.diff(s) / ((v[:-1] + v[1:]) / 2)
+    rate = np.maximum(np.linalg.norm(omega[:-1], axis=1), np.linalg.norm(omega[1:], axis=1))
+    jump = (turn > _MAX_TURN_BETWEEN_SAMPLES_RAD) & (turn > 3.0 * rate * dt)
+    if np.any(jump):
+        i = int(np.argmax(jump))
+        q = float(s[i])
+        raise ManeuverError(
+            f"nominal: the attitude flips by {np.degrees(turn[i]):.0f} deg at s = {q:.2f} m in "
+            f"{path.segment_at(q).name!r} (yaw mode {yaw_mode}): the nose reference crosses the "
+            "thrust axis there (or the path's heading reverses); use yaw mode velocity for a "
+            "loop flown nose-first, or another yaw")
 
 
 class _Stopwatch:

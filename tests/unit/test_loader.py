@@ -196,3 +196,18 @@ def test_plan_command_bad_file_via_shim(tmp_path):
     assert "\n" not in msg
     line = _line_of(p.read_text(), "radius_m: -1.5")
     assert msg.startswith(f"{p}:{line}: segments[1].arc.radius_m: expected a value > 0")
+
+
+def test_a_number_in_exponent_notation_without_a_dot_is_a_number(tmp_path):
+    """YAML 1.1 (PyYAML) resolves 1e-3 as a string; unquoted, the loader takes it as the
+    number it says. Quoted, it stays a string and is refused."""
+    from mavreg.config.controller import load_controller
+    from mavreg.config.loader import ConfigError
+    from mavreg.cli.common import PAPER_CONTROLLER
+    text = PAPER_CONTROLLER.read_text().replace("riccati_step_s: 0.002", "riccati_step_s: 2e-3")
+    f = tmp_path / "c.yaml"
+    f.write_text(text)
+    assert load_controller(f).riccati_step_s == 0.002
+    f.write_text(text.replace("2e-3", '"2e-3"'))
+    with pytest.raises(ConfigError, match="riccati_step_s: expected a number, got str"):
+        load_controller(f)
