@@ -47,8 +47,9 @@ import numpy as np
 from ..config.disturbance import DisturbanceParams
 from ..config.vehicle import VehicleParams
 from ..model.rotation import matrix_to_rpy, rpy_to_matrix, wrap_angle
+from ..model.so3 import log_so3
 
-__all__ = ["DisturbanceEstimate", "DisturbanceObserver", "compensated_nominal", "regressors"]
+__all__ = ["DisturbanceEstimate", "DisturbanceObserver", "compensated_nominal", "compensate", "regressors"]
 
 
 @dataclass(frozen=True)
@@ -197,14 +198,6 @@ def _turned(R: np.ndarray, thrust_n: float, force_ned, max_turn_rad: float = mat
     return R2, (float(u @ R2[:, 2]) if capped else T)
 
 
-def _log_vee(R: np.ndarray) -> np.ndarray:
-    """The rotation vector of ``R`` (angle below pi)."""
-    c = min(max((float(np.trace(R)) - 1.0) / 2.0, -1.0), 1.0)
-    angle = float(np.arccos(c))
-    v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / 2.0
-    return v if angle < 1e-9 else v * (angle / np.sin(angle))
-
-
 def compensated_nominal(xbar, thrust_n: float, force_ned, xbar_ahead=None, thrust_ahead_n: float = 0.0,
                         force_ahead_ned=None, dt_s: float = 0.0,
                         max_turn_rad: float = math.pi) -> tuple[np.ndarray, float]:
@@ -235,13 +228,24 @@ def compensated_nominal(xbar, thrust_n: float, force_ned, xbar_ahead=None, thrus
     (xbar', thrust')
     """
     xbar = np.asarray(xbar, dtype=float)
-    R = rpy_to_matrix(*xbar[3:6])
+    R_ahead = None if xbar_ahead is None else rpy_to_matrix(*np.asarray(xbar_ahead, dtype=float)[3:6])
+    out, T, _ = compensate(xbar, rpy_to_matrix(*xbar[3:6]), thrust_n, force_ned, R_ahead,
+                           thrust_ahead_n, force_ahead_ned, dt_s, max_turn_rad)
+    return out, T
+
+
+def compensate(xbar, R, thrust_n: float, force_ned, R_ahead=None, thrust_ahead_n: float = 0.0,
+               force_ahead_ned=None, dt_s: float = 0.0,
+               max_turn_rad: float = math.pi) -> tuple[np.ndarray, float, np.ndarray]:
+    """:func:`compensated_nominal` given the nominal attitude ``R`` (and ``R_ahead``, the
+    nominal's ``dt_s`` ahead) as rotation matrices, as the SO(3) form keeps them; returns
+    the turned attitude too: ``(xbar', thrust', R')``."""
+    xbar = np.asarray(xbar, dtype=float)
     R2, T = _turned(R, thrust_n, force_ned, max_turn_rad)
     out = xbar.copy()
     out[3:6] = xbar[3:6] + wrap_angle(matrix_to_rpy(R2) - xbar[3:6])      # stay on xbar's branch
     out[6:9] = R2.T @ (R @ xbar[6:9])
-    if xbar_ahead is not None and dt_s > 0.0:
-        Ra = rpy_to_matrix(*np.asarray(xbar_ahead, dtype=float)[3:6])
-        Ra2, _ = _turned(Ra, thrust_ahead_n, force_ahead_ned, max_turn_rad)
-        out[9:12] = xbar[9:12] + (_log_vee(R2.T @ Ra2) - _log_vee(R.T @ Ra)) / dt_s
-    return out, T
+    if R_ahead is not None and dt_s > 0.0:
+        Ra2, _ = _turned(R_ahead, thrust_ahead_n, force_ahead_ned, max_turn_rad)
+        out[9:12] = xbar[9:12] + (log_so3(R2.T @ Ra2) - log_so3(R.T @ R_ahead)) / dt_s
+    return out, T, R2
