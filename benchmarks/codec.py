@@ -60,7 +60,7 @@ def _per_call_us(fn, n: int) -> float:
 
 def run_codec(quick: bool) -> dict:
     """All the figures of the module docstring."""
-    n = 2000 if quick else 20000
+    n = 2000 if quick else 5000
     fig = {}
     for msg in hot_messages():
         name = msg.get_type()

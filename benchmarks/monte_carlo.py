@@ -8,30 +8,27 @@
   whole barrel roll, regulator at 1 kHz, RK4 at 1 ms). The plan is made beforehand, and
   one tiny batch first loads (or compiles, on a fresh checkout) the numba kernels.
   Baseline: the sequential simulator (:func:`mavreg.sim.maneuver_run.fly_on_design_model`,
-  what ``mavreg experiment --via sim`` flies), timed on the first 2 runs (quick: the first
-  2 s of one) and scaled by the number of physics steps to all 26;
+  what ``mavreg experiment --via sim`` flies), timed on the first run (quick: its first
+  2 s) and scaled by the number of physics steps to all 26;
 - ``monte_carlo_sim_s_per_wall_s.group1``: simulated seconds (summed over runs) per wall
   second, batch against sequential;
 - ``monte_carlo_agreement_m.group1``: the largest difference of any state between the batch
-  and the sequential runs timed (the tests hold it under 1e-9);
+  and the sequential run timed (the tests hold it under 1e-9);
 - ``monte_carlo_s.group2`` and ``monte_carlo_s.paper``: group 2 (3 runs of 3 laps, 0.1 N
   rotor noise, saturation none / 8.5 / 7 N, one batch) and both groups (29 runs), planning
   excluded; baseline scaled from the sequential rate above;
-- ``monte_carlo_s.group1_pure`` (full run only): group 1 on the pure-numpy path
-  (``MAVREG_PURE=1``, in a child process), against the same baseline.
+- ``monte_carlo_s.group1_numpy`` (full run with numba only): group 1 on the batch's numpy
+  path, the one taken without numba, against the same baseline.
 
 Run alone: ``python -m benchmarks.monte_carlo [--quick]``.
 """
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 import time
 
 import numpy as np
 
-from benchmarks.io_helpers import BARREL, PAPER_CONTROLLER, REPO, VEHICLE, figure
+from benchmarks.io_helpers import BARREL, PAPER_CONTROLLER, VEHICLE, figure
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
 from mavreg.experiments.definitions import paper_group1, paper_group2
@@ -49,50 +46,24 @@ def _batch_runs(experiment) -> list[BatchRun]:
             for r in experiment.runs]
 
 
-def time_batch(plan, runs) -> tuple[float, list]:
+def time_batch(plan, runs, compiled: bool | None = None) -> tuple[float, list]:
     """Wall seconds of one :func:`fly_batch` of ``runs`` (after a tiny one that loads the
     compiled kernels), and its results."""
-    fly_batch(plan, runs[:1], extra_time_s=0.01 - plan.duration_s)
+    fly_batch(plan, runs[:1], extra_time_s=0.01 - plan.duration_s, compiled=compiled)
     t0 = time.perf_counter()
-    results = fly_batch(plan, runs)
+    results = fly_batch(plan, runs, compiled=compiled)
     return time.perf_counter() - t0, results
 
 
-def _sequential(plan, runs, results, quick: bool) -> tuple[float, float]:
-    """(seconds per physics step, largest state difference from the batch) of the sequential
-    simulator on the first runs (quick: the first 2 s of one)."""
-    chosen = runs[:1] if quick else runs[:2]
-    extra = 2.0 - plan.duration_s if quick else 5.0
-    steps, wall, diff = 0, 0.0, 0.0
-    for run, bat in zip(chosen, results):
-        t0 = time.perf_counter()
-        seq = fly_on_design_model(plan, offset_m=run.offset_m, inertia_kg_m2=run.inertia_kg_m2,
-                                  rotor_noise_sd_n=run.rotor_noise_sd_n, saturation_n=run.saturation_n,
-                                  seed=run.seed, extra_time_s=extra).result
-        wall += time.perf_counter() - t0
-        steps += len(seq.t) - 1
-        diff = max(diff, float(np.abs(seq.x - bat.x[:len(seq.x)]).max()))
-    return wall / steps, diff
-
-
-_PURE = """
-import json, sys, time
-from mavreg import accel
-from benchmarks.monte_carlo import paper_group1, _batch_runs, time_batch
-from mavreg.config.controller import load_controller
-from mavreg.config.vehicle import load_vehicle
-from mavreg.maneuver.plan import plan_file
-assert not accel.ACCELERATED
-plan = plan_file(sys.argv[1], load_vehicle(sys.argv[2]), load_controller(sys.argv[3]))
-print(json.dumps(time_batch(plan, _batch_runs(paper_group1(seed=0)))[0]))
-"""
-
-
-def _pure_group1_s() -> float:
-    env = dict(os.environ, MAVREG_PURE="1")
-    out = subprocess.run([sys.executable, "-c", _PURE, str(BARREL), str(VEHICLE), str(PAPER_CONTROLLER)],
-                         env=env, cwd=REPO, capture_output=True, text=True, timeout=600, check=True)
-    return float(out.stdout.strip().splitlines()[-1])
+def _sequential(plan, run, batch_result, quick: bool) -> tuple[float, float]:
+    """(seconds per physics step, largest state difference from the batch's record) of the
+    sequential simulator flying ``run`` (quick: its first 2 s)."""
+    t0 = time.perf_counter()
+    seq = fly_on_design_model(plan, offset_m=run.offset_m, inertia_kg_m2=run.inertia_kg_m2,
+                              rotor_noise_sd_n=run.rotor_noise_sd_n, saturation_n=run.saturation_n, seed=run.seed,
+                              extra_time_s=2.0 - plan.duration_s if quick else 5.0).result
+    wall = time.perf_counter() - t0
+    return wall / (len(seq.t) - 1), float(np.abs(seq.x - batch_result.x[:len(seq.x)]).max())
 
 
 def _steps(results) -> int:
@@ -107,11 +78,11 @@ def run_monte_carlo(quick: bool) -> dict:
     plan = plan_file(BARREL, vehicle, controller)
     runs = _batch_runs(paper_group1(seed=0))
     wall, results = time_batch(plan, runs)
-    per_step, diff = _sequential(plan, runs, results, quick)
+    per_step, diff = _sequential(plan, runs[0], results[0], quick)
     steps = _steps(results)
     sim_s = sum(float(r.t[-1]) for r in results)
-    path = "compiled by numba" if accel.ACCELERATED else f"pure numpy ({accel.reason})"
-    subset = "the first 2 s of run 0" if quick else "runs 0 and 1"
+    path = "compiled (numba)" if accel.ACCELERATED else f"numpy ({accel.reason})"
+    subset = "the first 2 s of run 0" if quick else "run 0"
     note = (f"{len(runs)} runs, {sim_s:.0f} s simulated, {steps} physics steps, batch {path}; baseline: "
             f"fly_on_design_model timed on {subset} ({per_step * 1e6:.0f} us a step) and scaled to all steps")
     fig = {
@@ -133,9 +104,9 @@ def run_monte_carlo(quick: bool) -> dict:
         wall + wall2, per_step * (steps + steps2), target=TARGETS_S["paper"], unit="s", higher_is_better=False,
         note="groups 1 and 2 (29 runs), planning excluded; baseline scaled as group 1's")
     if not quick and accel.ACCELERATED:
-        fig["monte_carlo_s.group1_pure"] = figure(
-            _pure_group1_s(), per_step * steps, target=TARGETS_S["group1"], unit="s", higher_is_better=False,
-            note="group 1 on the batch's pure-numpy path (MAVREG_PURE=1, a child process)")
+        fig["monte_carlo_s.group1_numpy"] = figure(
+            time_batch(plan, runs, compiled=False)[0], per_step * steps, target=TARGETS_S["group1"], unit="s",
+            higher_is_better=False, note="group 1 on the batch's numpy path (the one without numba)")
     return fig
 
 

@@ -10,13 +10,17 @@ rotor noise drawn once per control call from the run's seed, and the same exit r
 nominal duration plus ``extra_time_s``). The runs differ by their :class:`BatchRun`: start
 offset, plant inertia, rotor noise, saturation, seed.
 
-Instead of N passes of a Python loop over time, one loop over time advances all N runs with
-array operations (:mod:`mavreg.sim.batch_kernel`; compiled by numba where available, see
-:mod:`mavreg.accel`): the Newton projection of every run at once (runs that have
-converged wait for the others), the tables interpolated by gathering rows, the rotor
-allocation with per-run masks, the plant's derivative on (12, N) arrays. A run that ends
-is frozen and recorded up to its end. Each run's :class:`~mavreg.sim.closed_loop.SimResult`
-agrees with the sequential one to rounding (``tests/unit/test_batch_sim.py``: 1e-9).
+Two paths, the same maths, each run's :class:`~mavreg.sim.closed_loop.SimResult` agreeing
+with the sequential one to rounding (``tests/unit/test_batch_sim.py``: 1e-9):
+
+- compiled (numba, :mod:`mavreg.sim.batch_compiled`): each run a scalar loop in time, the
+  regulator's step the project's compiled kernel
+  (:func:`mavreg.control.step_kernel.regulator_step`), RK4 on plain floats;
+- numpy (:mod:`mavreg.sim.batch_numpy`, without numba or with ``MAVREG_PURE=1``): one loop
+  over time advances all N runs with array operations: the Newton projection of every run
+  at once (runs that have converged wait for the others), the tables interpolated by one
+  gather of rows, the allocation with per-run masks, the plant's derivative on (12, N)
+  arrays; a run that ends is frozen and recorded up to its end.
 
 Scope: the paper's design (gains (4, 11)), ideal rotors (no lag), no delays, no external
 force: what the paper's Section 4 flies on the design model (``mavreg experiment --via sim``).
@@ -28,12 +32,17 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from ..accel import ACCELERATED
+from ..accel import reason as accel_reason
 from ..config.vehicle import G
+from ..control.fastpath import FastStep, plan_table
 from ..geometry.projection import Projector
+from ..geometry.projection_kernel import path_tables
 from ..maneuver.plan import Plan
 from ..model.mixer import Mixer
 from ..model.quadrotor import NX
-from . import batch_kernel as kernel
+from . import batch_numpy
+from .batch_numpy import BAD_COMMAND, COMPLETED, DIVERGED, RUNNING
 from .closed_loop import SimOptions, SimResult, SimStatus, _divergence
 
 __all__ = ["BatchRun", "fly_batch"]
@@ -55,26 +64,8 @@ class BatchRun:
     """Seed of the rotor noise."""
 
 
-def _path_tables(plan: Plan, window_m: float) -> tuple:
-    """(s_nodes, coef (M, 4, 18), length, ends (2, 18), window) for :func:`batch_kernel.path_point`."""
-    path = plan.path
-    ends = np.stack([np.concatenate([path.c_nodes[i], path.frame_nodes[i].ravel(), path.k_nodes[i],
-                                     path.dk_nodes[i], path.ddk_nodes[i]]) for i in (0, -1)])
-    # the Hermite coefficients of Path.point (a private table of the same package)
-    return (np.ascontiguousarray(path.s_nodes), np.ascontiguousarray(path._coef), float(path.length_m), ends,
-            float(window_m))
-
-
-def _gain_tables(plan: Plan, lead_s: float) -> tuple:
-    """The plan's nodes, its table (x, u, v, K per node) and the table's row differences
-    (see :func:`batch_kernel.regulator_step`)."""
-    n = len(plan.s)
-    T = np.concatenate([plan.x, plan.u, np.reshape(plan.speed_m_s, (n, 1)), plan.K.reshape(n, 44)], axis=1)
-    return np.ascontiguousarray(plan.s), np.ascontiguousarray(T), np.diff(T, axis=0), float(lead_s)
-
-
 def fly_batch(plan: Plan, runs: Sequence[BatchRun], *, control_rate_hz: float = 1000.0,
-              dt_s: float = 0.001, extra_time_s: float = 5.0) -> list[SimResult]:
+              dt_s: float = 0.001, extra_time_s: float = 5.0, compiled: Optional[bool] = None) -> list[SimResult]:
     """Fly every run of ``runs`` on the design model; one :class:`SimResult` per run, in order.
 
     Parameters
@@ -87,18 +78,26 @@ def fly_batch(plan: Plan, runs: Sequence[BatchRun], *, control_rate_hz: float = 
         As :func:`~mavreg.sim.maneuver_run.fly_on_design_model`: the control rate must be a
         whole number of physics steps ``dt_s``; each run stops at the nominal duration plus
         ``extra_time_s``.
+    compiled : bool, optional
+        The compiled path (:mod:`~mavreg.sim.batch_compiled`) or the numpy one
+        (:mod:`~mavreg.sim.batch_numpy`); default: compiled when numba is in use
+        (:data:`mavreg.accel.ACCELERATED`).
 
     Raises
     ------
     ValueError
-        For lag-aware gains, an empty batch, or a control rate that is not a whole number
-        of physics steps (and whatever :class:`SimOptions` refuses in a run).
+        For lag-aware gains, an empty batch, a control rate that is not a whole number of
+        physics steps, ``compiled=True`` without numba (and whatever :class:`SimOptions`
+        refuses in a run).
     """
     if plan.K.shape[-1] != 11:
         raise ValueError(f"the batch simulator flies the paper's design (gains (4, 11)), not gains "
                          f"{plan.K.shape[1:]} (a lag-aware design)")
     if not runs:
         raise ValueError("a batch needs at least one run")
+    use_compiled = ACCELERATED if compiled is None else bool(compiled)
+    if use_compiled and not ACCELERATED:
+        raise ValueError(f"the compiled batch needs numba ({accel_reason})")
     steps = int(round(1.0 / (control_rate_hz * dt_s)))
     if steps < 1 or abs(steps * dt_s * control_rate_hz - 1.0) > 1e-9:
         raise ValueError(f"control rate {control_rate_hz} Hz is not a whole number of "
@@ -117,33 +116,47 @@ def fly_batch(plan: Plan, runs: Sequence[BatchRun], *, control_rate_hz: float = 
                                   seed=run.seed, saturation_n=run.saturation_n))
     n, opt = len(runs), options[0]
     n_steps = int(np.ceil(opt.max_duration_s / dt_s - 1e-9))
-    X = np.ascontiguousarray(np.array(x0s).T)
+    X = np.array(x0s)
     S = np.array([projector.reset(x0[:3]).s for x0 in x0s])
-    status = np.full(n, kernel.RUNNING, dtype=np.int64)
+    status = np.full(n, RUNNING, dtype=np.int64)
     k_end = np.zeros(n, dtype=np.int64)
     for r, o in enumerate(options):
-        if _divergence(X[:, r], o) is not None:
-            status[r] = kernel.DIVERGED
+        if _divergence(X[r], o) is not None:
+            status[r] = DIVERGED
         elif S[r] >= plan.length_m - 1e-6:
-            status[r] = kernel.COMPLETED
-    J = np.array([o.inertia_kg_m2 or tuple(vehicle.inertia_kg_m2) for o in options]).T
-    drag = tuple(float(c) for c in vehicle.rotor_drag_n_s_per_m)
-    plant = (float(vehicle.mass_kg), float(G), J[0].copy(), J[1].copy(), J[2].copy(), drag[0], drag[1],
-             float(vehicle.parasitic_drag_n_s2_per_m2))
+            status[r] = COMPLETED
+    J = np.array([o.inertia_kg_m2 or tuple(vehicle.inertia_kg_m2) for o in options])
+    cxy, cz = (float(c) for c in vehicle.rotor_drag_n_s_per_m)
+    mass, cpar = float(vehicle.mass_kg), float(vehicle.parasitic_drag_n_s2_per_m2)
     upper = np.array([np.inf if o.saturation_n is None else float(o.saturation_n) for o in options])
     noise = _noise(options, -(-n_steps // steps))
-    xs = np.empty((n_steps + 1, NX, n))
-    cmd = np.empty((n_steps + 1, 4, n))
-    app = np.empty((n_steps + 1, 4, n))
-    xs[0] = X
+    xs = np.empty((n, n_steps + 1, NX))
+    cmd = np.empty((n, n_steps + 1, 4))
+    app = np.empty((n, n_steps + 1, 4))
+    xs[:, 0] = X
+    lead_s, fmax = steps * dt_s / 2, float(vehicle.max_rotor_thrust_n)
     limits = (opt.max_speed_m_s, opt.max_rate_rad_s, opt.max_position_m, opt.min_cos_pitch)
-    with np.errstate(all="ignore"):     # the allocation's ratios where a rotor has no yaw share
-        kernel.run(X, S, status, k_end, xs, cmd, app, _path_tables(plan, projector.window_m),
-                   _gain_tables(plan, steps * dt_s / 2), np.ascontiguousarray(mixer.inverse),
-                   np.ascontiguousarray(mixer.matrix), float(vehicle.max_rotor_thrust_n), plant, upper, noise,
-                   1.0, float(dt_s), steps, limits)
+    M = np.ascontiguousarray(mixer.matrix)
+    if use_compiled:
+        from . import batch_compiled
+        fs = FastStep(plan, mixer.matrix, mixer.inverse, fmax, False, lead_s, 0.0, (cxy, cz), np.pi,
+                      projector.window_m, projector.tube_margin)
+        ST = np.zeros((n, 6))
+        ST[:, 0] = S
+        batch_compiled.run(X, ST, status, k_end, xs, cmd, app, (fs.table, fs.s_tab, fs.s_nodes, fs.coef, fs.ends,
+                                                                 fs.prm), M, (mass, G, cxy, cz, cpar), J, upper,
+                           noise, 1.0, float(dt_s), steps, limits)
+    else:
+        s_nodes, coef, ends = path_tables(plan.path)
+        s_tab, T = plan_table(plan)
+        plant = (mass, G, J[:, 0].copy(), J[:, 1].copy(), J[:, 2].copy(), cxy, cz, cpar)
+        with np.errstate(all="ignore"):     # the allocation's ratios where a rotor has no yaw share
+            batch_numpy.run(np.ascontiguousarray(X.T), S, status, k_end, xs, cmd, app,
+                            (s_nodes, coef, float(plan.length_m), ends, projector.window_m),
+                            (s_tab, T, np.diff(T, axis=0), lead_s), np.ascontiguousarray(mixer.inverse), M, fmax,
+                            plant, upper, noise, 1.0, float(dt_s), steps, limits)
     ts = np.arange(n_steps + 1) * dt_s
-    return [_result(ts, xs[:, :, r], cmd[:, :, r], app[:, :, r], int(status[r]), int(k_end[r]), steps, o)
+    return [_result(ts, xs[r], cmd[r], app[r], int(status[r]), int(k_end[r]), steps, o)
             for r, o in enumerate(options)]
 
 
@@ -163,14 +176,14 @@ def _noise(options: Sequence[SimOptions], calls: int) -> np.ndarray:
 def _result(ts, xs, cmd, app, code: int, k: int, steps: int, opt: SimOptions) -> SimResult:
     """One run's :class:`SimResult` as :func:`~mavreg.sim.closed_loop.simulate` would return it."""
     t_k = f"{ts[k]:.6g}"
-    if code == kernel.BAD_COMMAND:
+    if code == BAD_COMMAND:
         status, reason = SimStatus.DIVERGED, f"controller returned non-finite rotor forces at t = {t_k} s"
         calls = k // steps + 1
     else:
         calls = -(-k // steps)
-        if code == kernel.COMPLETED:
+        if code == COMPLETED:
             status, reason = SimStatus.COMPLETED, "done at t = 0" if k == 0 else f"done at t = {t_k} s"
-        elif code == kernel.DIVERGED:
+        elif code == DIVERGED:
             why = _divergence(xs[k], opt)
             status = SimStatus.DIVERGED
             reason = f"initial state: {why}" if k == 0 else f"{why} at t = {t_k} s"

@@ -2,21 +2,18 @@
 
 The reference is :func:`mavreg.sim.maneuver_run.fly_on_design_model` (what ``mavreg
 experiment --via sim`` flies, one run at a time); the batch is
-:func:`mavreg.sim.batch.fly_batch`, compiled when numba is installed. Its pure-numpy path
-(``MAVREG_PURE=1``) is checked in a child process, since the switch is read at import.
+:func:`mavreg.sim.batch.fly_batch`, on both of its paths: compiled (numba; skipped without
+it) and numpy (the pure path).
 """
 from __future__ import annotations
 
 import dataclasses
-import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from mavreg.accel import ACCELERATED
 from mavreg.config.controller import load_controller
 from mavreg.config.maneuver import load_maneuver_text
 from mavreg.config.vehicle import load_vehicle
@@ -29,6 +26,8 @@ from mavreg.sim.batch import BatchRun, fly_batch
 from mavreg.sim.closed_loop import SimOptions, simulate
 from mavreg.sim.maneuver_run import fly_on_design_model
 
+PATHS = [pytest.param(True, id="compiled", marks=pytest.mark.skipif(not ACCELERATED, reason="numba not in use")),
+         pytest.param(False, id="numpy")]
 REPO = Path(__file__).resolve().parents[2]
 VEHICLE = load_vehicle(REPO / "params/vehicles/mk_quadro.yaml")
 PAPER = load_controller(REPO / "params/controller/paper_lqr.yaml")
@@ -75,17 +74,19 @@ def barrel():
     return plan_file(BARREL, VEHICLE, PAPER)
 
 
-def test_group1_runs_agree_with_the_sequential_simulator_on_the_start_of_the_barrel_roll(barrel):
+@pytest.mark.parametrize("compiled", PATHS)
+def test_group1_runs_agree_with_the_sequential_simulator_on_the_start_of_the_barrel_roll(barrel, compiled):
     """The first 1.5 s (the 0.6 m start offset being taken out) of three group 1 runs: the
     nominal inertia and two drawn ones."""
     runs = [as_batch(r) for r in paper_group1(seed=0).runs[:3]]
     extra = 1.5 - barrel.duration_s
-    for run, bat in zip(runs, fly_batch(barrel, runs, extra_time_s=extra)):
+    for run, bat in zip(runs, fly_batch(barrel, runs, extra_time_s=extra, compiled=compiled)):
         assert bat.status.value == "timeout" and len(bat.t) == 1501
         assert_agree(sequential(barrel, run, extra), bat)
 
 
-def test_runs_that_end_at_different_times_noise_saturation_and_a_failed_start_agree():
+@pytest.mark.parametrize("compiled", PATHS)
+def test_runs_that_end_at_different_times_noise_saturation_and_a_failed_start_agree(compiled):
     """A short maneuver flown to its end from different offsets and inertias (the runs
     complete at different steps), with rotor noise from a seed and with saturation, and a
     run that starts beyond the position bound (diverged at t = 0)."""
@@ -93,7 +94,7 @@ def test_runs_that_end_at_different_times_noise_saturation_and_a_failed_start_ag
     runs = [BatchRun((0.2, 0.1, -0.1)), BatchRun((0.0, -0.3, 0.2), (0.02, 0.015, 0.03)),
             BatchRun((0.1, 0.1, 0.1), None, 0.1, 7.0, 11), BatchRun((0.0, 0.0, 0.0), None, 0.1, None, 11),
             BatchRun((2e4, 0.0, 0.0))]
-    batch = fly_batch(plan, runs, extra_time_s=1.0)
+    batch = fly_batch(plan, runs, extra_time_s=1.0, compiled=compiled)
     ends = {len(b.t) for b in batch[:4]}
     assert len(ends) > 1 and all(b.status.value == "completed" for b in batch[:4])
     for run, bat in zip(runs[:4], batch):
@@ -105,7 +106,8 @@ def test_runs_that_end_at_different_times_noise_saturation_and_a_failed_start_ag
     assert_agree(ref, batch[4])
 
 
-def test_a_controller_that_returns_nan_ends_the_run_as_simulate_ends_it():
+@pytest.mark.parametrize("compiled", PATHS)
+def test_a_controller_that_returns_nan_ends_the_run_as_simulate_ends_it(compiled):
     """Gains that are NaN past s = 3.5 m: the command there is not finite; the run ends at
     that step with the previous applied forces in its last row, the other runs go on."""
     plan = plan_spec(load_maneuver_text(SHORT, "short.yaml"), VEHICLE, PAPER)
@@ -113,7 +115,7 @@ def test_a_controller_that_returns_nan_ends_the_run_as_simulate_ends_it():
     K[plan.s > 3.5] = np.nan
     broken = dataclasses.replace(plan, K=K)
     runs = [BatchRun((0.1, 0.0, 0.0)), BatchRun((0.0, 0.2, 0.0), (0.02, 0.02, 0.03))]
-    batch = fly_batch(broken, runs, extra_time_s=1.0)
+    batch = fly_batch(broken, runs, extra_time_s=1.0, compiled=compiled)
     model, mixer = QuadrotorModel.from_vehicle(VEHICLE), Mixer(VEHICLE.arm_length_m, VEHICLE.drag_torque_ratio_m)
     for run, bat in zip(runs, batch):
         reg = ManeuverRegulator(broken, VEHICLE, control_period_s=1e-3, rotor_time_constant_s=0.0)
@@ -126,11 +128,12 @@ def test_a_controller_that_returns_nan_ends_the_run_as_simulate_ends_it():
         assert_agree(ref, bat)
 
 
-def test_control_rate_below_the_physics_rate_holds_the_command(barrel):
+@pytest.mark.parametrize("compiled", PATHS)
+def test_control_rate_below_the_physics_rate_holds_the_command(barrel, compiled):
     """500 Hz control on 1 kHz physics: zero-order hold and the half-period feedforward lead."""
     run = BatchRun((0.3, -0.2, 0.1), None, 0.1, None, 3)
     extra = 0.5 - barrel.duration_s
-    bat = fly_batch(barrel, [run], control_rate_hz=500.0, extra_time_s=extra)[0]
+    bat = fly_batch(barrel, [run], control_rate_hz=500.0, extra_time_s=extra, compiled=compiled)[0]
     seq = fly_on_design_model(barrel, offset_m=run.offset_m, rotor_noise_sd_n=0.1, seed=3, control_rate_hz=500.0,
                               extra_time_s=extra).result
     assert bat.controller_calls == 250
@@ -145,38 +148,9 @@ def test_lag_aware_gains_and_odd_control_rates_are_refused(barrel):
     lagged = load_controller(REPO / "params/controller/realistic.yaml")
     with pytest.raises(ValueError, match="paper's design"):
         fly_batch(plan_file(BARREL, VEHICLE, lagged), [BatchRun()])
-
-
-_PURE_SCRIPT = """
-import json, sys
-import numpy as np
-from mavreg import accel
-from mavreg.config.controller import load_controller
-from mavreg.config.vehicle import load_vehicle
-from mavreg.maneuver.plan import plan_file
-from mavreg.model.mixer import Mixer
-from mavreg.model.quadrotor import QuadrotorModel
-from mavreg.sim.batch import BatchRun, fly_batch
-from mavreg.sim.closed_loop import SimOptions, simulate
-assert not accel.ACCELERATED
-plan = plan_file(sys.argv[1], load_vehicle(sys.argv[2]), load_controller(sys.argv[3]))
-runs = [BatchRun((0.6, 0.6, 0.6)), BatchRun((0.6, 0.6, 0.6), (0.02, 0.016, 0.036), 0.1, 8.5, 4)]
-res = fly_batch(plan, runs, extra_time_s=0.4 - plan.duration_s)
-print(json.dumps([[r.x.tolist(), r.rotor_applied_n.tolist()] for r in res]))
-"""
-
-
-def test_the_pure_numpy_path_agrees_too(barrel):
-    """The kernels run as plain numpy (``MAVREG_PURE=1``), in a child process."""
-    env = dict(os.environ, MAVREG_PURE="1")
-    out = subprocess.run([sys.executable, "-c", _PURE_SCRIPT, str(BARREL), str(REPO / "params/vehicles/mk_quadro.yaml"),
-                          str(REPO / "params/controller/paper_lqr.yaml")], env=env, cwd=REPO, capture_output=True,
-                         text=True, timeout=300, check=True).stdout
-    runs = [BatchRun((0.6, 0.6, 0.6)), BatchRun((0.6, 0.6, 0.6), (0.02, 0.016, 0.036), 0.1, 8.5, 4)]
-    for run, (x, applied) in zip(runs, json.loads(out)):
-        seq = sequential(barrel, run, 0.4 - barrel.duration_s)
-        np.testing.assert_allclose(np.array(x), seq.x, rtol=0, atol=1e-9)
-        np.testing.assert_allclose(np.array(applied), seq.rotor_applied_n, rtol=0, atol=1e-9)
+    if not ACCELERATED:
+        with pytest.raises(ValueError, match="needs numba"):
+            fly_batch(barrel, [BatchRun()], compiled=True)
 
 
 @pytest.mark.slow
@@ -184,9 +158,12 @@ def test_all_of_group1_agrees_over_the_whole_maneuver(barrel):
     """The 26 runs of the paper's group 1, the full barrel roll at 1 kHz (about 4 minutes
     of the sequential simulator)."""
     runs = [as_batch(r) for r in paper_group1(seed=0).runs]
-    for run, bat in zip(runs, fly_batch(barrel, runs)):
-        assert bat.status.value == "completed"
-        assert_agree(sequential(barrel, run, 5.0), bat)
+    batches = [fly_batch(barrel, runs, compiled=c) for c in ((True, False) if ACCELERATED else (False,))]
+    for i, run in enumerate(runs):
+        seq = sequential(barrel, run, 5.0)
+        for batch in batches:
+            assert batch[i].status.value == "completed"
+            assert_agree(seq, batch[i])
 
 
 @pytest.mark.slow
@@ -194,6 +171,8 @@ def test_a_run_that_falls_diverges_at_the_same_step():
     """Rotors saturated at 0.3 N cannot hold the vehicle: it falls until the speed bound."""
     plan = plan_spec(load_maneuver_text(SHORT, "short.yaml"), VEHICLE, PAPER)
     run = BatchRun((0.0, 0.0, 0.0), None, 0.0, 0.3, 0)
-    bat = fly_batch(plan, [run], extra_time_s=8.0)[0]
-    assert bat.status.value == "diverged" and bat.reason.startswith("speed")
-    assert_agree(sequential(plan, run, 8.0), bat)
+    seq = sequential(plan, run, 8.0)
+    for compiled in (True, False) if ACCELERATED else (False,):
+        bat = fly_batch(plan, [run], extra_time_s=8.0, compiled=compiled)[0]
+        assert bat.status.value == "diverged" and bat.reason.startswith("speed")
+        assert_agree(seq, bat)

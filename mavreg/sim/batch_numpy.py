@@ -1,11 +1,10 @@
-r"""The batch closed loop's time loop, vectorized across runs, compiled by numba where available.
+r"""The batch closed loop in numpy: one loop over time, every operation across all the runs.
 
 Every array here has the runs on its **last** axis: a state batch is (12, N), rotor forces
 (4, N), the path's geometry at the runs' arc lengths (18, N); the tables keep one row per
-node, so that the rows of N runs are one gather. Each function is plain numpy on
-those arrays, in the subset of numpy that numba compiles (:func:`mavreg.accel.njit`): run
-as Python it is the pure-numpy batch simulator (a few hundred array operations per time
-step, whatever N is); compiled, the same operations without the interpreter between them.
+node, so that the rows of N runs are one gather. A time step is a few hundred numpy
+operations whatever N is. This is the pure path of :func:`mavreg.sim.batch.fly_batch` (no
+numba, or ``MAVREG_PURE=1``); :mod:`mavreg.sim.batch_compiled` is the compiled one.
 
 The maths is the sequential path's, operation for operation where that matters for
 rounding (the path's Hermite polynomials, the tables' linear interpolation, the RK4 stages,
@@ -16,7 +15,7 @@ the yaw-then-lift allocation), and in the same order; sums of products (dot prod
 - :func:`project`: :meth:`mavreg.geometry.projection.Projector.update` (Newton on
   :math:`t^T(y - c(\sigma)) = 0`, at most 12 iterations, within the window);
 - :func:`regulator_step`: :meth:`mavreg.control.regulator.ManeuverRegulator.step` for the
-  paper's design (gains (4, 11), no disturbance compensation):
+  paper's design (gains (4, 11), no disturbance compensation, no speed governor):
   :math:`u = \bar u(s + v(s)\,\ell) - K(s)\,w`, rotor forces by
   :func:`mavreg.model.mixer.yaw_then_lift`;
 - :func:`plant_rhs`: :meth:`mavreg.model.quadrotor.QuadrotorModel.f` with one inertia per run;
@@ -30,8 +29,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..accel import njit
-
 __all__ = ["path_point", "project", "locate", "regulator_step", "plant_rhs", "run",
            "RUNNING", "COMPLETED", "DIVERGED", "BAD_COMMAND", "TIMEOUT"]
 
@@ -40,13 +37,13 @@ RUNNING, COMPLETED, DIVERGED, BAD_COMMAND, TIMEOUT = 0, 1, 2, 3, 4
 non-finite rotor forces; the maximum duration was reached."""
 
 
-@njit
 def path_point(s, s_nodes, coef, length, ends):
     """Path geometry at arc lengths ``s`` (N,): (18, N) rows c (3), frame row-major (9; column
     0 is t, 1 is m1, 2 is m2), k, dk, ddk (2 each).
 
-    ``coef`` (M, 4, 18): the path's Hermite coefficients in u = (s - s_i)/h_i per interval;
-    ``ends`` (2, 18): the same 18 values at s = 0 and s = length, for the straight extensions.
+    ``s_nodes``, ``coef`` (M, 4, 18: the Hermite coefficients in u = (s - s_i)/h_i per
+    interval), ``ends`` (2, 18: the values at s = 0 and s = length, for the straight
+    extensions): :func:`mavreg.geometry.projection_kernel.path_tables`.
     """
     n = s_nodes.shape[0]
     i = np.minimum(np.maximum(np.searchsorted(s_nodes, s, side="right") - 1, 0), n - 2)
@@ -70,7 +67,6 @@ def path_point(s, s_nodes, coef, length, ends):
     return v
 
 
-@njit
 def project(y0, y1, y2, s_prev, window, s_nodes, coef, length, ends):
     """Warm-started nearest points of positions (y0, y1, y2) (each (N,)) from ``s_prev``:
     the new s (N,) and the path geometry there (18, N)."""
@@ -101,7 +97,6 @@ def project(y0, y1, y2, s_prev, window, s_nodes, coef, length, ends):
     return s, v
 
 
-@njit
 def locate(s, s_tab, last):
     """Table row i (N,) and blend a (N,) of arc lengths s, clamped to the table's ends."""
     i = np.minimum(np.maximum(np.searchsorted(s_tab, s) - 1, 0), last)
@@ -110,20 +105,18 @@ def locate(s, s_tab, last):
     return i, a
 
 
-@njit
 def wrap_angle(a):
     """Angles wrapped to (-pi, pi] (:func:`mavreg.model.rotation.wrap_angle`)."""
     return np.pi - np.mod(np.pi - a, 2 * np.pi)
 
 
-@njit
 def regulator_step(X, s_prev, path, table, Minv, fmax):
     """Rotor forces (4, N) and arc lengths (N,) for states X (12, N).
 
     ``path`` = (s_nodes, coef, length, ends, window); ``table`` = (s (n,), T (n, 61),
     D (n - 1, 61), lead_s): the plan's nodes, a row per node of x (12), u (4), v (1) and K
-    (4 x 11, row-major), and the differences between consecutive rows (the rows of N runs
-    are gathered and blended in one operation).
+    (4 x 11, row-major) (:func:`mavreg.control.fastpath.plan_table`), and the differences
+    between consecutive rows (the rows of N runs are gathered and blended in one operation).
     """
     s_nodes, coef, length, ends, window = path
     s_tab, T, D, lead = table
@@ -153,7 +146,6 @@ def regulator_step(X, s_prev, path, table, Minv, fmax):
     return yaw_then_lift(Minv, u, fmax), s
 
 
-@njit
 def yaw_then_lift(Minv, u, fmax):
     """:func:`mavreg.model.mixer.yaw_then_lift` for a batch u (4, N)."""
     base = Minv[:, 0:1] * u[0] + Minv[:, 1:2] * u[1] + Minv[:, 2:3] * u[2]
@@ -173,7 +165,6 @@ def yaw_then_lift(Minv, u, fmax):
     return np.where(low < 0.0, f + lift, f)
 
 
-@njit
 def plant_rhs(X, U, plant):
     """dX/dt (12, N) of :meth:`~mavreg.model.quadrotor.QuadrotorModel.f` for states X (12, N)
     and inputs U (4, N); ``plant`` = (mass, g, jx, jy, jz (each (N,)), c_xy, c_z, c_parasitic)."""
@@ -206,7 +197,6 @@ def plant_rhs(X, U, plant):
     return out
 
 
-@njit
 def diverged(X, limits):
     """Runs (N,) whose state is non-finite or beyond ``limits`` = (max speed, max body rate,
     max |position|, min |cos pitch|) (:func:`mavreg.sim.closed_loop._divergence`'s tests)."""
@@ -219,19 +209,18 @@ def diverged(X, limits):
             | (np.abs(np.cos(X[4])) < min_cos))
 
 
-@njit
 def run(X, S, status, k_end, xs, cmd, app, path, table, Minv, M, fmax, plant, upper, noise, thrust_scale,
         dt, period, limits):
     """Fly every run with ``status`` RUNNING from state X (12, N) and arc length S (N,) until
-    it ends or ``xs`` is full: ``xs`` (K+1, 12, N) gets the states (row 0 must hold X),
-    ``cmd`` and ``app`` (K+1, 4, N) the rotor forces commanded and applied over each step;
+    it ends or ``xs`` is full: ``xs`` (N, K+1, 12) gets the states (row 0 must hold X),
+    ``cmd`` and ``app`` (N, K+1, 4) the rotor forces commanded and applied over each step;
     ``status`` and ``k_end`` (N,) are set to how and at which row each run ended.
 
     ``upper`` (N,): rotor saturation (inf: none); ``noise`` (C, 4, N): the noise of each
     control call (C = 1: the same for every call); ``period``: physics steps per control
     call; ``limits``: see :func:`diverged`.
     """
-    n_steps = xs.shape[0] - 1
+    n_steps = xs.shape[1] - 1
     n = X.shape[1]
     alive = status == RUNNING
     command = np.zeros((4, n))
@@ -263,12 +252,10 @@ def run(X, S, status, k_end, xs, cmd, app, path, table, Minv, M, fmax, plant, up
             noise_now = noise[min(calls, noise.shape[0] - 1)]
             calls += 1
         applied = np.minimum(np.maximum(acting + noise_now, 0.0), upper)
-        cmd[i] = command
-        app[i] = applied
+        cmd[:, i] = command.T
+        app[:, i] = applied.T
         if bad_any:
-            for r in range(n):
-                if bad[r]:
-                    app[i, :, r] = last_applied[:, r]
+            app[bad, i] = last_applied[:, bad].T
         f = applied * thrust_scale
         U = M[:, 0:1] * f[0] + M[:, 1:2] * f[1] + M[:, 2:3] * f[2] + M[:, 3:4] * f[3]
         k1 = plant_rhs(X, U, plant)
@@ -277,7 +264,7 @@ def run(X, S, status, k_end, xs, cmd, app, path, table, Minv, M, fmax, plant, up
         k4 = plant_rhs(X + dt * k3, U, plant)
         X_new = X + sixth * (k1 + 2.0 * (k2 + k3) + k4)
         X = X_new if everyone else np.where(alive, X_new, X)
-        xs[i + 1] = X
+        xs[:, i + 1] = X.T
         bad = alive & diverged(X, limits)
         done = alive & ~bad & (S >= path[2] - 1e-6)
         for r in range(n):

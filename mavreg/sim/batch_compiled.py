@@ -1,0 +1,156 @@
+r"""The batch closed loop compiled: each run a scalar loop in time, the runs one after another.
+
+What :mod:`mavreg.sim.batch_numpy` does with array operations across runs, numba compiles
+here as plain loops (:func:`mavreg.accel.njit`), which is several times faster than numba's
+array expressions and compiles in seconds instead of tens of seconds. Per run and control
+call, the regulator's step is the project's compiled one,
+:func:`mavreg.control.step_kernel.regulator_step` (the same kernel the regulator's compiled
+path runs), and between calls the plant of eqs 6-17 (:func:`plant_rhs`, the run's inertia)
+is stepped by classical RK4, exactly as :func:`mavreg.sim.closed_loop.simulate` steps it:
+the command held, clipped to :math:`[0, f_{sat}]`, the control call's noise added and
+clipped again, :math:`u = M f` times the thrust scale.
+
+Only useful compiled: run as plain Python (``MAVREG_PURE=1``) it would be the sequential
+simulator again, so :func:`mavreg.sim.batch.fly_batch` takes the numpy path then.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..accel import njit
+from ..control import step_kernel as sk
+from .batch_numpy import BAD_COMMAND, COMPLETED, DIVERGED, TIMEOUT
+
+__all__ = ["plant_rhs", "run"]
+
+
+@njit
+def plant_rhs(x, u0, u1, u2, u3, plant, jx, jy, jz, out):
+    """dx/dt of :meth:`~mavreg.model.quadrotor.QuadrotorModel.f` into ``out`` (12,) for state x
+    (12,), input (u0, u1, u2, u3), ``plant`` = (mass, g, c_xy, c_z, c_parasitic) and the
+    run's inertia; the same operations in the same order."""
+    m, g, cxy, cz, cpar = plant
+    phi, theta, psi = x[3], x[4], x[5]
+    v1, v2, v3 = x[6], x[7], x[8]
+    p, q, r = x[9], x[10], x[11]
+    cf, sf = np.cos(phi), np.sin(phi)
+    ct, st = np.cos(theta), np.sin(theta)
+    cp, sp = np.cos(psi), np.sin(psi)
+    tt = np.tan(theta)
+    out[0] = cp * ct * v1 + (-sp * cf + cp * st * sf) * v2 + (sp * sf + cp * st * cf) * v3
+    out[1] = sp * ct * v1 + (cp * cf + sp * st * sf) * v2 + (-cp * sf + sp * st * cf) * v3
+    out[2] = -st * v1 + ct * sf * v2 + ct * cf * v3
+    out[3] = p + sf * tt * q + cf * tt * r
+    out[4] = cf * q + -sf * r
+    out[5] = sf / ct * q + cf / ct * r
+    out[6] = r * v2 - q * v3 - g * st
+    out[7] = -r * v1 + p * v3 + g * sf * ct
+    out[8] = q * v1 - p * v2 + g * ct * cf - u0 / m
+    if cxy != 0.0 or cz != 0.0 or cpar != 0.0:
+        quad = cpar * np.sqrt(v1 * v1 + v2 * v2 + v3 * v3)
+        out[6] = out[6] - (cxy + quad) * v1 / m
+        out[7] = out[7] - (cxy + quad) * v2 / m
+        out[8] = out[8] - (cz + quad) * v3 / m
+    out[9] = q * r * (jy - jz) / jx + u1 / jx
+    out[10] = p * r * (jz - jx) / jy + u2 / jy
+    out[11] = p * q * (jx - jy) / jz + u3 / jz
+
+
+@njit
+def _diverged(x, limits):
+    """Whether x is non-finite or beyond ``limits`` (see :func:`batch_numpy.diverged`)."""
+    max_speed, max_rate, max_pos, min_cos = limits
+    for j in range(12):
+        if not np.isfinite(x[j]):
+            return True
+    if np.sqrt(x[6] * x[6] + x[7] * x[7] + x[8] * x[8]) > max_speed:
+        return True
+    if np.sqrt(x[9] * x[9] + x[10] * x[10] + x[11] * x[11]) > max_rate:
+        return True
+    if max(abs(x[0]), abs(x[1]), abs(x[2])) > max_pos:
+        return True
+    return abs(np.cos(x[4])) < min_cos
+
+
+@njit
+def _fly(r, x, st, status, k_end, xs, cmd, app, step, M, plant, J, upper, noise, thrust_scale, dt, period,
+         limits):
+    """Run ``r`` from state x and regulator state ``st`` (see :func:`run`)."""
+    table, s_tab, s_nodes, coef, ends, prm = step
+    n_steps = xs.shape[1] - 1
+    jx, jy, jz = J[r, 0], J[r, 1], J[r, 2]
+    out = np.empty(sk.OUT_WIDTH)
+    none = np.zeros(4)
+    f = np.zeros(4)
+    command = np.zeros(4)
+    acting = np.zeros(4)
+    applied = np.zeros(4)
+    ns = np.zeros(4)
+    k1, k2, k3, k4, y = np.empty(12), np.empty(12), np.empty(12), np.empty(12), np.empty(12)
+    half, sixth = 0.5 * dt, dt / 6.0
+    s = st[0]
+    calls = 0
+    for i in range(n_steps):
+        if i % period == 0:
+            s = sk.regulator_step(x, none, False, False, 0.0, 0.0, 0.0, 0.0, 0.0, table, s_tab, s_nodes, coef, ends,
+                                  prm, st, out)[0]
+            finite = True
+            for j in range(4):
+                command[j] = out[sk.OUT_ROTORS + j]
+                finite = finite and np.isfinite(command[j])
+            if not finite:
+                cmd[r, i] = command
+                app[r, i] = applied
+                status[r] = BAD_COMMAND
+                k_end[r] = i
+                return
+            for j in range(4):
+                acting[j] = min(max(command[j], 0.0), upper[r])
+                ns[j] = noise[min(calls, noise.shape[0] - 1), j, r]
+            calls += 1
+        for j in range(4):
+            applied[j] = min(max(acting[j] + ns[j], 0.0), upper[r])
+            f[j] = applied[j] * thrust_scale
+        cmd[r, i] = command
+        app[r, i] = applied
+        u0 = M[0, 0] * f[0] + M[0, 1] * f[1] + M[0, 2] * f[2] + M[0, 3] * f[3]
+        u1 = M[1, 0] * f[0] + M[1, 1] * f[1] + M[1, 2] * f[2] + M[1, 3] * f[3]
+        u2 = M[2, 0] * f[0] + M[2, 1] * f[1] + M[2, 2] * f[2] + M[2, 3] * f[3]
+        u3 = M[3, 0] * f[0] + M[3, 1] * f[1] + M[3, 2] * f[2] + M[3, 3] * f[3]
+        plant_rhs(x, u0, u1, u2, u3, plant, jx, jy, jz, k1)
+        for j in range(12):
+            y[j] = x[j] + half * k1[j]
+        plant_rhs(y, u0, u1, u2, u3, plant, jx, jy, jz, k2)
+        for j in range(12):
+            y[j] = x[j] + half * k2[j]
+        plant_rhs(y, u0, u1, u2, u3, plant, jx, jy, jz, k3)
+        for j in range(12):
+            y[j] = x[j] + dt * k3[j]
+        plant_rhs(y, u0, u1, u2, u3, plant, jx, jy, jz, k4)
+        for j in range(12):
+            x[j] = x[j] + sixth * (k1[j] + 2.0 * (k2[j] + k3[j]) + k4[j])
+        xs[r, i + 1] = x
+        if _diverged(x, limits):
+            status[r] = DIVERGED
+            k_end[r] = i + 1
+            return
+        if s >= prm[sk.P_END]:
+            status[r] = COMPLETED
+            k_end[r] = i + 1
+            return
+    status[r] = TIMEOUT
+    k_end[r] = n_steps
+
+
+@njit
+def run(X, ST, status, k_end, xs, cmd, app, step, M, plant, J, upper, noise, thrust_scale, dt, period, limits):
+    """Fly every run whose ``status`` is RUNNING: X (N, 12) start states, ST (N, 6) the step
+    kernel's state per run (s first), ``step`` = (table, s_tab, s_nodes, coef, ends, prm) of
+    :class:`mavreg.control.fastpath.FastStep`; ``xs`` (N, K+1, 12), ``cmd`` and ``app``
+    (N, K+1, 4) receive the records, ``status`` and ``k_end`` how and where each run ended.
+    ``plant`` = (mass, g, c_xy, c_z, c_parasitic), J (N, 3), ``upper`` (N,) the saturation,
+    ``noise`` (C, 4, N) as in :func:`batch_numpy.run`."""
+    for r in range(X.shape[0]):
+        if status[r] == 0:
+            _fly(r, X[r].copy(), ST[r].copy(), status, k_end, xs, cmd, app, step, M, plant, J, upper, noise,
+                 thrust_scale, dt, period, limits)
