@@ -13,7 +13,6 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry.projection import Projector
-from ..model.rotation import rpy_to_matrix
 
 __all__ = ["true_errors", "quats_to_matrices"]
 
@@ -68,7 +67,7 @@ def true_errors(plan, positions_m, rotations=None, velocities_m_s=None) -> dict:
         Rt = np.asarray(rotations, dtype=float)[keep]
         a_arr = np.empty(len(keep))
         for j, (s, R) in enumerate(zip(s_arr, Rt)):
-            Rn = rpy_to_matrix(*plan.nominal_state(s)[3:6])
+            Rn = plan.nominal_attitude(s)
             c = (float(np.sum(Rn * R)) - 1.0) / 2.0
             a_arr[j] = np.degrees(np.arccos(min(max(c, -1.0), 1.0)))
     dv_arr = None
