@@ -1,10 +1,13 @@
-"""The nominal attitude of a plan as the regulator reads it: rows of rotation matrices,
-blended along the geodesic between neighbours.
+"""The nominal attitude of a plan between its rows: a cubic in the rotation vector.
 
-The SO(3) form of the regulator needs Rbar(s) at the vehicle's s. The rows are a few
-milliseconds of flight apart, so the geodesic between two rows is a turn of a few
-milliradians; its rotation vector is computed once per row when the table is built, and a
-step costs one Rodrigues formula: Rbar = R_i Exp(a d_i), d_i = Log(R_i^T R_{i+1}).
+The SO(3) form of the regulator needs Rbar(s) at the vehicle's s. Between rows i and i+1,
+h apart in s, Rbar = R_i Exp(xi(a)), a = (s - s_i)/h, with xi the cubic Hermite polynomial
+that starts at 0 with slope h w_i and ends at d_i = Log(R_i^T R_{i+1}) with slope h w_{i+1}
+(w the nominal body rates per metre, omega/v): the attitude analogue of the Hermite
+interpolation of the nominal state, O(h^3) where the geodesic alone (xi = a d_i) is O(h^2).
+The end slope is the body rate of row i+1 in row i's frame to first order in |d_i|, a few
+milliradians between rows. The rotation vectors are computed once per row; a step costs a
+Rodrigues formula.
 """
 from __future__ import annotations
 
@@ -14,26 +17,43 @@ import numpy as np
 
 from ..model.so3 import log_so3
 
-__all__ = ["NominalAttitudes"]
+__all__ = ["NominalAttitudes", "rodrigues"]
+
+
+def rodrigues(x: float, y: float, z: float) -> np.ndarray:
+    """Exp of the rotation vector (x, y, z), in scalar arithmetic (as
+    :func:`~mavreg.model.so3.exp_so3`)."""
+    t2 = x * x + y * y + z * z
+    if t2 < 1e-8:
+        s, c = 1.0 - t2 / 6.0 + t2 * t2 / 120.0, 0.5 - t2 / 24.0 + t2 * t2 / 720.0
+    else:
+        th = math.sqrt(t2)
+        s, c = math.sin(th) / th, (1.0 - math.cos(th)) / t2
+    return np.array([[1.0 - c * (y * y + z * z), c * x * y - s * z, c * x * z + s * y],
+                     [c * x * y + s * z, 1.0 - c * (x * x + z * z), c * y * z - s * x],
+                     [c * x * z - s * y, c * y * z + s * x, 1.0 - c * (x * x + y * y)]])
 
 
 class NominalAttitudes:
-    """Rbar at a row ``i`` and a fraction ``a`` of the way to row ``i + 1``."""
+    """Rbar at row ``i`` and fraction ``a`` towards row ``i + 1``.
 
-    def __init__(self, R: np.ndarray):
+    Parameters
+    ----------
+    s : (N,) arc lengths of the rows; R : (N, 3, 3) attitudes; rates_per_m : (N, 3) body
+    rates over speed (rad/m).
+    """
+
+    def __init__(self, s, R, rates_per_m):
         self.R = np.ascontiguousarray(R, dtype=float)
-        self.turn = np.ascontiguousarray(log_so3(np.swapaxes(self.R[:-1], 1, 2) @ self.R[1:]))
+        h = np.diff(np.asarray(s, dtype=float))[:, None]
+        w = np.asarray(rates_per_m, dtype=float)
+        self.d = log_so3(np.swapaxes(self.R[:-1], 1, 2) @ self.R[1:])
+        self.m0 = h * w[:-1]
+        self.m1 = h * w[1:]
 
     def at(self, i: int, a: float) -> np.ndarray:
-        """R_i Exp(a d_i) (scalar Rodrigues: equal to :func:`~mavreg.model.so3.exp_so3`)."""
-        x, y, z = (a * float(c) for c in self.turn[i])
-        t2 = x * x + y * y + z * z
-        if t2 < 1e-8:
-            s, c = 1.0 - t2 / 6.0 + t2 * t2 / 120.0, 0.5 - t2 / 24.0 + t2 * t2 / 720.0
-        else:
-            th = math.sqrt(t2)
-            s, c = math.sin(th) / th, (1.0 - math.cos(th)) / t2
-        E = np.array([[1.0 - c * (y * y + z * z), c * x * y - s * z, c * x * z + s * y],
-                      [c * x * y + s * z, 1.0 - c * (x * x + z * z), c * y * z - s * x],
-                      [c * x * z - s * y, c * y * z + s * x, 1.0 - c * (x * x + y * y)]])
-        return self.R[i] @ E
+        a2 = a * a
+        a3 = a2 * a
+        h10, h01, h11 = a3 - 2.0 * a2 + a, -2.0 * a3 + 3.0 * a2, a3 - a2
+        xi = h10 * self.m0[i] + h01 * self.d[i] + h11 * self.m1[i]
+        return self.R[i] @ rodrigues(float(xi[0]), float(xi[1]), float(xi[2]))

@@ -87,8 +87,7 @@ def truth_trace(plan, flight: Flight) -> Trace:
         e[i] = pr.distance_m
     R = np.asarray(flight.rotation, dtype=float).reshape(k, 3, 3)
     if k:
-        nominal = np.array([plan.nominal_state(si)[3:6] for si in s])   # clamped to [0, length]
-        Rn = rpy_to_matrix(*nominal.T).transpose(2, 0, 1)
+        Rn = np.array([plan.nominal_attitude(si) for si in s])   # clamped to [0, length]
         c = (np.einsum("kij,kij->k", Rn, R) - 1.0) / 2.0
         att = np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
         rpy = matrix_to_rpy(R)                          # (K, 3)

@@ -21,6 +21,7 @@ from ..config.controller import ControllerParams
 from ..config.maneuver import ManeuverSpec, load_maneuver, load_maneuver_text
 from ..config.vehicle import VehicleParams
 from ..control.actuator import augmented_jacobians
+from ..control.attitude_table import NominalAttitudes
 from ..control.riccati import SweepDivergence, care, periodic_riccati, riccati_rhs, sweep_backward
 from ..control.transverse import transverse_jacobians
 from ..errors import ManeuverError
@@ -29,7 +30,6 @@ from ..geometry.path import Path
 from ..model.mixer import Mixer
 from ..model.quadrotor import QuadrotorModel
 from ..model.rotation import rpy_to_matrix
-from ..model.so3 import exp_so3, log_so3
 from .cache import PlanCache, default_cache
 from .diagnose import euler_singularity, explain_divergence
 from .feasibility import Feasibility, check_feasibility
@@ -73,12 +73,15 @@ class Plan:
     ``so3`` (the rotation vector Log(Rbar^T R), :mod:`mavreg.model.so3`)."""
 
     def nominal_attitude(self, s: float) -> np.ndarray:
-        """Rbar(s) (3, 3): along the geodesic between the grid rows around s (clamped)."""
-        R = self.R if self.R is not None else np.moveaxis(rpy_to_matrix(*self.x[:, 3:6].T), -1, 0)
+        """Rbar(s) (3, 3) between the grid rows around s (clamped), by the cubic in the
+        rotation vector of :class:`~mavreg.control.attitude_table.NominalAttitudes`."""
         s = float(np.clip(s, self.s[0], self.s[-1]))
         i = int(np.clip(np.searchsorted(self.s, s) - 1, 0, len(self.s) - 2))
-        a = (s - self.s[i]) / (self.s[i + 1] - self.s[i])
-        return R[i] @ exp_so3(a * log_so3(R[i].T @ R[i + 1]))
+        rows = slice(i, i + 2)
+        R = (self.R[rows] if self.R is not None
+             else np.moveaxis(rpy_to_matrix(*self.x[rows, 3:6].T), -1, 0))
+        table = NominalAttitudes(self.s[rows], R, self.x[rows, 9:12] / self.speed_m_s[rows, None])
+        return table.at(0, (s - self.s[i]) / (self.s[i + 1] - self.s[i]))
 
     @property
     def length_m(self) -> float:

@@ -131,3 +131,22 @@ def test_so3_plant_turns_through_pitch_ninety():
     for t, x in zip(so3.t[::100], so3.x[::100]):
         c, s = np.cos(2.0 * t), np.sin(2.0 * t)
         assert np.abs(rpy_to_matrix(*x[3:6]) - np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])).max() < 1e-9
+
+
+def test_nominal_attitude_between_rows_matches_the_flat_map():
+    """Plan.nominal_attitude between rows (the cubic in the rotation vector) against the flat
+    map evaluated at those arc lengths, along a loop flown nose-first: within 1e-8 rad."""
+    from mavreg.cli.common import DESIGN_CONTROLLER, PARAMS_DIR
+    from mavreg.config.controller import load_controller
+    from mavreg.config.maneuver import load_maneuver
+    from mavreg.maneuver.plan import plan_spec
+    from mavreg.model.so3 import attitude_error
+
+    spec = load_maneuver(PARAMS_DIR / "maneuvers" / "forward_loop.yaml")
+    plan = plan_spec(spec, VEHICLE, load_controller(DESIGN_CONTROLLER))
+    s = (plan.s[:-1] + plan.s[1:])[::37] / 2 + 0.13 * np.diff(plan.s)[::37]
+    speed, yaw = build_profiles(spec, plan.path)
+    c, F, k, dk, ddk = plan.path.evaluate(s)
+    _, _, R = flat_nominal(MODEL, F, k, dk, ddk, c, speed.evaluate(s), yaw.evaluate(s), "velocity")
+    err = np.linalg.norm(attitude_error(R, np.array([plan.nominal_attitude(q) for q in s])), axis=1)
+    assert err.max() < 1e-8
