@@ -16,7 +16,7 @@ import numpy as np
 
 from ..geometry.projection import Projector
 from ..model.mixer import mixer_matrix
-from ..model.rotation import matrix_to_rpy, rpy_to_matrix
+from ..model.rotation import matrix_to_rpy
 
 __all__ = ["Flight", "Trace", "truth_trace"]
 
