@@ -11,9 +11,11 @@ Definitions (every quantity is the truth's, :mod:`.record`):
 - **minimum distance to the loop's centre**: the closest the true position comes to the
   centre of the laps segment's circle (1.5 m on the nominal; a vehicle that cuts the loop
   comes closer).
-- **overspeed**: the largest ``|v| - v(s)``, the true speed above the speed profile at the
-  vehicle's own arc length s (clamped to the path): a vehicle racing to catch up with a
-  reference ahead of it flies faster than the maneuver prescribes where it is.
+- **overspeed**: the largest ``v_t - v(s)``, the true velocity's component along the path's
+  tangent at the vehicle's own arc length s (clamped to the path) above the speed profile
+  there: a vehicle racing to catch up with a reference ahead of it flies faster along the
+  path than the maneuver prescribes where it is. (Along the tangent, not the speed: a vehicle
+  a gust pushes backwards is not too fast, and a sideways excursion is the distance's.)
 - **diverged**: the simulation or the flight stopped on a divergence (speed, rate, a
   non-finite state); **completed**: the vehicle's projection reached the path's end in time.
 - **late**: the time taken from the start to the path's end minus the nominal's.
@@ -27,7 +29,8 @@ import numpy as np
 from ..geometry.path import Path
 from .metrics import saturated_share
 
-__all__ = ["TUBE_M", "time_above", "peak_acceleration", "overspeed", "loop_centre", "disturbance_metrics"]
+__all__ = ["TUBE_M", "time_above", "peak_acceleration", "overspeed", "along_track_speed", "loop_centre",
+           "disturbance_metrics"]
 
 TUBE_M = 0.5
 """The tube around the path whose leaving is counted (m)."""
@@ -55,12 +58,23 @@ def peak_acceleration(t_s, velocity_m_s) -> float | None:
 
 
 def overspeed(speed_m_s, s_m, profile_s_m, profile_v_m_s) -> float | None:
-    """Largest speed above the profile at the same arc length (s clamped to the profile's ends)."""
+    """Largest (along-track) speed above the profile at the same arc length (s clamped to the
+    profile's ends)."""
     speed = np.asarray(speed_m_s, dtype=float)
     if speed.size == 0:
         return None
     v = np.interp(np.asarray(s_m, dtype=float), profile_s_m, profile_v_m_s)
     return float(np.max(speed - v))
+
+
+def along_track_speed(path: Path, s_m, velocity_m_s) -> np.ndarray:
+    """Each velocity (K, 3) along the path's unit tangent at its arc length (clamped to the path)."""
+    s = np.clip(np.asarray(s_m, dtype=float), 0.0, path.length_m)
+    v = np.asarray(velocity_m_s, dtype=float).reshape(-1, 3)
+    if s.size == 0:
+        return np.zeros(0)
+    tangent = path.evaluate(s)[1][:, :, 0]
+    return np.einsum("ki,ki->k", tangent, v)
 
 
 def loop_centre(path: Path, segment: str) -> np.ndarray:
@@ -79,7 +93,7 @@ def disturbance_metrics(plan, trace, flight, spec) -> dict:
     """Every number of one gust or lag run (JSON-ready); see the module docstring."""
     t, e, s = trace.t_s, trace.transverse_error_m, trace.s_m
     n = t.size
-    speed = np.linalg.norm(np.asarray(flight.velocity_m_s, dtype=float), axis=1)
+    v_t = along_track_speed(plan.path, s, flight.velocity_m_s)
     centre = loop_centre(plan.path, plan.laps_segment or "loop")
     dc = np.linalg.norm(trace.position_m - centre, axis=1)
     nominal_left = _nominal_time(plan, plan.length_m) - _nominal_time(plan, spec.start_s_m)
@@ -102,7 +116,7 @@ def disturbance_metrics(plan, trace, flight, spec) -> dict:
         "tube_m": TUBE_M,
         "peak_acceleration_m_s2": peak_acceleration(flight.t_s, flight.velocity_m_s),
         "min_centre_distance_m": float(np.min(dc)) if n else None,
-        "overspeed_m_s": overspeed(speed, s, plan.s, plan.speed_m_s),
+        "overspeed_m_s": overspeed(v_t, s, plan.s, plan.speed_m_s),
         "max_attitude_error_deg": float(np.max(trace.attitude_error_deg)) if n else None,
         "final_distance_m": float(e[-1]) if n else None,
         "peak_thrust_n": float(trace.wrench_command[:, 0].max()) if n else None,

@@ -7,8 +7,9 @@ with a row per case (the force, or the reference's lead) and a column per rotor 
   zoomed on where any run is more than 2 cm off the path, with the loop;
 - ``NAME_GROUP_distance.png``: the distance from the path against time, the 0.5 m tube
   dashed, the gust's window shaded;
-- ``NAME_GROUP_speed.png``: the speed minus the profile's at the vehicle's own arc length
-  against time (above zero: faster than the maneuver prescribes where the vehicle is).
+- ``NAME_GROUP_speed.png``: the speed along the path minus the profile's at the vehicle's own
+  arc length against time (above zero: faster than the maneuver prescribes where the vehicle
+  is; below -v(s): going backwards).
 
 Colours: desired black, maneuver regulation blue, the TVLQR red, the SE(3) tracker green.
 """
@@ -19,7 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from .definitions import REGULATOR, SE3, TVLQR, rotors_label
-from .disturbance_metrics import TUBE_M
+from ..model.rotation import rpy_to_matrix
+from .disturbance_metrics import TUBE_M, along_track_speed
 from .figures import _plt, nominal_curves
 
 __all__ = ["disturbance_figures", "CONTROLLER_STYLE"]
@@ -141,20 +143,22 @@ def _against_time(path: Path, plan, name: str, group: str, cases, limits, cells,
                     y = tr.transverse_error_m
                 else:
                     s = np.clip(tr.s_m, plan.s[0], plan.s[-1])
-                    y = np.linalg.norm(tr.velocity_body_m_s, axis=1) - np.interp(s, plan.s, plan.speed_m_s)
+                    R = rpy_to_matrix(*tr.rpy_rad.T).transpose(2, 0, 1)
+                    v_ned = np.einsum("kij,kj->ki", R, tr.velocity_body_m_s)
+                    y = along_track_speed(plan.path, s, v_ned) - np.interp(s, plan.s, plan.speed_m_s)
                 ax.plot(tr.t_s, y, **CONTROLLER_STYLE[o.spec.controller])
             if what == "distance":
                 ax.axhline(TUBE_M, color="k", lw=0.7, ls="--")
                 ax.set_ylabel("distance from path (m)", fontsize=8)
             else:
                 ax.axhline(0.0, color="k", lw=0.6)
-                ax.set_ylabel("speed - v(s) (m/s)", fontsize=8)
+                ax.set_ylabel("along-track speed - v(s) (m/s)", fontsize=8)
             ax.set_xlim(t0, t1)
             ax.grid(alpha=0.3)
             ax.set_title(f"{case}, {rotors_label(lim)}", fontsize=9)
             ax.set_xlabel("time from the start (s)", fontsize=8)
     head = ("distance from the path (dashed: the 0.5 m tube)" if what == "distance"
-            else "speed above the profile at the vehicle's arc length")
+            else "speed along the path above the profile at the vehicle's arc length")
     _finish(plt, fig, axes, path, f"{name} via {via}, {group}: {head}" + ("; grey: the gust" if name == "gust" else ""))
 
 
