@@ -153,6 +153,40 @@ def _table_disturbance(runs) -> list[str]:
     return lines
 
 
+def _outcome_word(m) -> str:
+    if "error" in m:
+        return "error"
+    if m["diverged"]:
+        return "**diverged**"
+    return "ok" if m["completed"] else f"**{m['status']}**"
+
+
+def _pivot_disturbance(runs) -> list[str]:
+    """One row per case and rotor limit, each cell the controllers' values in the order of
+    :data:`~.definitions.CONTROLLERS` (maneuver regulation / TVLQR / SE(3))."""
+    rows: dict = {}
+    for m in runs:
+        if "error" in m:
+            continue
+        rows.setdefault((m["group"], m["case"], m["saturation_n"]), {})[m["controller"]] = m
+    ctrls = [c for c in CONTROLLERS if any(c in r for r in rows.values())]
+    cols = (("max distance from the path (cm)", "max_distance_m", 100, "{:.1f}"),
+            (f"time outside the {TUBE_M:g} m tube (s)", "outside_tube_s", 1, "{:.2f}"),
+            ("min distance to the loop's centre (m)", "min_centre_distance_m", 1, "{:.2f}"),
+            ("overspeed (m/s)", "overspeed_m_s", 1, "{:.2f}"),
+            ("peak acceleration (m/s²)", "peak_acceleration_m_s2", 1, "{:.0f}"))
+    names = " / ".join(CONTROLLER_NAMES.get(c, c) for c in ctrls)
+    lines = [f"Each cell: {names}.", "",
+             "| case | rotors | outcome | " + " | ".join(c[0] for c in cols) + " |",
+             "|---|---|---|" + "---|" * len(cols)]
+    for (group, case, sat), by in rows.items():
+        cells = [" / ".join(_outcome_word(by[c]) if c in by else "—" for c in ctrls)]
+        for _, key, scale, fmt in cols:
+            cells.append(" / ".join(_f(by[c][key], scale, fmt) if c in by else "—" for c in ctrls))
+        lines.append(f"| {group} {case} | {rotors_label(sat)} | " + " | ".join(cells) + " |")
+    return lines
+
+
 def _summary_disturbance(sm) -> str:
     parts = []
     for ctrl, c in sm["by_controller"].items():
@@ -170,7 +204,7 @@ def markdown(res: dict) -> str:
              f"Command: `{res['command']}` (seed {res['seed']}, {res['jobs']} jobs, "
              f"{res['wall_time_s']:.0f} s wall).", ""]
     if res["kind"] == DISTURBANCE:
-        lines.append(_summary_disturbance(sm))
+        lines += [_summary_disturbance(sm), "", *_pivot_disturbance(res["runs"]), "", "Every run:"]
         table = _table_disturbance(res["runs"])
     elif res["kind"] == CONVERGENCE:
         rng = sm.get("converged_at_s_m")
