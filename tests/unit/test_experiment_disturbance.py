@@ -34,7 +34,8 @@ def test_gust_campaign_writes_its_table_and_figures(gust_campaign):
     assert [r["controller"] for r in res["runs"]] == [REGULATOR, TVLQR, SE3]
     assert set(res["summary"]["by_controller"]) == {REGULATOR, TVLQR, SE3}
     md = (out / "results.md").read_text()
-    assert md.count("| run-up 8 N | ideal rotors |") == 3 and "maneuver regulation" in md
+    # the side-by-side row of the case, then a row per controller
+    assert md.count("| run-up 8 N | ideal rotors |") == 1 + 3 and "maneuver regulation / TVLQR / SE(3)" in md
     for name in ("gust_run-up_paths.png", "gust_run-up_distance.png", "gust_run-up_speed.png"):
         assert (out / name).stat().st_size > 10_000 and f"]({name})" in md
 
