@@ -33,6 +33,7 @@ CONTROLLER_STYLE = {
 }
 _DPI = 80
 _OFF_PATH_M = 0.02
+_FOCUS_MAX_M = 2.0
 _SHOWN_S = 7.0
 """The time figures show 7 s from 1 s before the gust (from the start without a gust): every
 run is back on its path or its reference by then, or has gone for good."""
@@ -59,7 +60,8 @@ def _window(ax, outs) -> None:
 
 
 def _focus(plan, cells) -> tuple[tuple[float, float], tuple[float, float]]:
-    """East and altitude limits: the loop and every stretch more than 2 cm off the path."""
+    """East and altitude limits: the loop and every stretch 2 cm to 2 m off the path (a run
+    that leaves for good is drawn as it leaves, not followed)."""
     name = plan.laps_segment or "loop"
     pts = [np.concatenate([plan.path.evaluate(np.linspace(a, b, 200))[0] for n, a, b in plan.segments
                            if n == name])]
@@ -67,7 +69,8 @@ def _focus(plan, cells) -> tuple[tuple[float, float], tuple[float, float]]:
         for o in outs:
             tr = o.trace
             if tr is not None and tr.t_s.size:
-                pts.append(tr.position_m[tr.transverse_error_m > _OFF_PATH_M])
+                e = tr.transverse_error_m
+                pts.append(tr.position_m[(e > _OFF_PATH_M) & (e < _FOCUS_MAX_M)])
     p = np.concatenate(pts)
     e, z = p[:, 1], -p[:, 2]
     return (e.min() - 1.0, e.max() + 1.0), (z.min() - 0.7, z.max() + 0.7)
