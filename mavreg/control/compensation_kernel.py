@@ -121,16 +121,28 @@ def _turned(R, thrust_n, f0, f1, f2, max_turn_rad):
 
 @njit
 def _log_vee(R):
-    """The rotation vector of R (angle below pi)."""
-    c = min(max((R[0] + R[4] + R[8] - 1.0) / 2.0, -1.0), 1.0)
-    angle = math.acos(c)
-    v0 = (R[7] - R[5]) / 2.0
-    v1 = (R[2] - R[6]) / 2.0
-    v2 = (R[3] - R[1]) / 2.0
-    if angle < 1e-9:
-        return v0, v1, v2
-    g = angle / math.sin(angle)
-    return v0 * g, v1 * g, v2 * g
+    """The rotation vector of R, angle in [0, pi] (:func:`mavreg.model.so3.log_so3`: the series
+    below 1e-4 rad, the axis from the symmetric part near pi)."""
+    w0 = 0.5 * (R[7] - R[5])
+    w1 = 0.5 * (R[2] - R[6])
+    w2 = 0.5 * (R[3] - R[1])
+    sin_t = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+    cos_t = min(max((R[0] + R[4] + R[8] - 1.0) / 2.0, -1.0), 1.0)
+    t = math.atan2(sin_t, cos_t)
+    if cos_t < -0.9:
+        q = 1.0 - cos_t
+        k = 0
+        for j in (4, 8):
+            if R[j] > R[4 * k]:
+                k = j // 4
+        b0 = ((R[3 * k] + R[k]) / 2.0 - (cos_t if k == 0 else 0.0)) / q
+        b1 = ((R[3 * k + 1] + R[3 + k]) / 2.0 - (cos_t if k == 1 else 0.0)) / q
+        b2 = ((R[3 * k + 2] + R[6 + k]) / 2.0 - (cos_t if k == 2 else 0.0)) / q
+        n = math.sqrt((b0, b1, b2)[k])
+        sign = -1.0 if b0 * w0 + b1 * w1 + b2 * w2 < 0.0 else 1.0
+        return sign * t * b0 / n, sign * t * b1 / n, sign * t * b2 / n
+    g = 1.0 + sin_t * sin_t / 6.0 if sin_t < 1e-4 else t / sin_t
+    return g * w0, g * w1, g * w2
 
 
 @njit
