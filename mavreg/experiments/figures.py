@@ -13,7 +13,7 @@ import numpy as np
 
 from ..model.mixer import Mixer
 
-__all__ = ["group1_figures", "group2_figures", "nominal_curves"]
+__all__ = ["group1_figures", "group2_figures", "nominal_curves", "save_with_legend_below"]
 
 _DESIRED = dict(color="tab:blue", lw=2.2, zorder=3)
 _NOMINAL_RUN = dict(color="tab:red", lw=1.6, zorder=4)
@@ -125,12 +125,17 @@ def _attitude_velocity(path: Path, plan, nominal, styled, desired, title: str, x
         ax.set_xlabel("arc length s (m)")
     if xlim is not None:
         _zoom(axes.ravel(), xlim)
-    handles, labels = axes[0, 0].get_legend_handles_labels()
+    save_with_legend_below(plt, fig, axes[0, 0], path, title)
+
+
+def save_with_legend_below(plt, fig, ax, path: Path, title: str, dpi: int = _DPI, legend_room: float = 0.03) -> None:
+    """``ax``'s legend centred below the panels (if it has one), the title above; save, close."""
+    handles, labels = ax.get_legend_handles_labels()
     if labels:
         fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8)
     fig.suptitle(title, fontsize=11)
-    fig.tight_layout(rect=(0.0, 0.03 if labels else 0.0, 1.0, 1.0))
-    fig.savefig(path, dpi=_DPI)
+    fig.tight_layout(rect=(0.0, legend_room if labels else 0.0, 1.0, 1.0))
+    fig.savefig(path, dpi=dpi)
     plt.close(fig)
 
 

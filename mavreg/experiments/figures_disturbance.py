@@ -22,7 +22,7 @@ import numpy as np
 from .definitions import REGULATOR, SE3, TVLQR, rotors_label
 from ..model.rotation import rpy_to_matrix
 from .disturbance_metrics import TUBE_M, along_track_speed
-from .figures import _plt, nominal_curves
+from .figures import _plt, nominal_curves, save_with_legend_below
 
 __all__ = ["disturbance_figures", "CONTROLLER_STYLE"]
 
@@ -84,13 +84,7 @@ def _figure(plt, cases, limits, panel_size):
 
 
 def _finish(plt, fig, axes, path: Path, title: str) -> None:
-    handles, labels = axes[0, 0].get_legend_handles_labels()
-    if labels:
-        fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8)
-    fig.suptitle(title, fontsize=11)
-    fig.tight_layout(rect=(0.0, 0.04 if labels else 0.0, 1.0, 1.0))
-    fig.savefig(path, dpi=_DPI)
-    plt.close(fig)
+    save_with_legend_below(plt, fig, axes[0, 0], path, title, dpi=_DPI, legend_room=0.04)
 
 
 def _paths(path: Path, plan, name: str, group: str, cases, limits, cells, via: str) -> None:
