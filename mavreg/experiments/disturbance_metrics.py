@@ -10,7 +10,7 @@ Definitions (every quantity is the truth's, :mod:`.record`):
   of the true velocity (central differences on the 1 ms record; the gust's own push included).
 - **minimum distance to the loop's centre**: the closest the true position comes to the
   centre of the laps segment's circle (1.5 m on the nominal; a vehicle that cuts the loop
-  comes closer).
+  comes closer); none for a run that never reached the loop.
 - **overspeed**: the largest ``v_t - v(s)``, the true velocity's component along the path's
   tangent at the vehicle's own arc length s (clamped to the path) above the speed profile
   there: a vehicle racing to catch up with a reference ahead of it flies faster along the
@@ -94,8 +94,10 @@ def disturbance_metrics(plan, trace, flight, spec) -> dict:
     t, e, s = trace.t_s, trace.transverse_error_m, trace.s_m
     n = t.size
     v_t = along_track_speed(plan.path, s, flight.velocity_m_s)
-    centre = loop_centre(plan.path, plan.laps_segment or "loop")
+    loop = plan.laps_segment or "loop"
+    centre = loop_centre(plan.path, loop)
     dc = np.linalg.norm(trace.position_m - centre, axis=1)
+    reached_loop = n > 0 and float(np.max(s)) >= min(a for name, a, _ in plan.segments if name == loop)
     nominal_left = _nominal_time(plan, plan.length_m) - _nominal_time(plan, spec.start_s_m)
     duration = float(t[-1] - t[0]) if n else 0.0
     diverged = flight.status == "diverged"
@@ -115,7 +117,7 @@ def disturbance_metrics(plan, trace, flight, spec) -> dict:
         "outside_tube_s": time_above(t, e, TUBE_M),
         "tube_m": TUBE_M,
         "peak_acceleration_m_s2": peak_acceleration(flight.t_s, flight.velocity_m_s),
-        "min_centre_distance_m": float(np.min(dc)) if n else None,
+        "min_centre_distance_m": float(np.min(dc)) if reached_loop else None,
         "overspeed_m_s": overspeed(v_t, s, plan.s, plan.speed_m_s),
         "max_attitude_error_deg": float(np.max(trace.attitude_error_deg)) if n else None,
         "final_distance_m": float(e[-1]) if n else None,

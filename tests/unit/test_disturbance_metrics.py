@@ -74,7 +74,13 @@ def test_a_straight_flight_with_a_known_excursion(plan):
     # the along-track speed: the run-up's tangent points west
     np.testing.assert_allclose(along_track_speed(plan.path, [10.0, 12.0], [[0.0, -8.0, 0.0], [3.0, 2.0, 1.0]]),
                                [8.0, -2.0], atol=1e-9)
-    c = loop_centre(plan.path, "loop")
-    assert m["min_centre_distance_m"] == pytest.approx(np.linalg.norm(pos - c, axis=1).min())
+    assert m["min_centre_distance_m"] is None                        # it never reached the loop
+    # flown on into the loop (the nominal from s = 16 to 24 m): 1.5 m from its centre
+    s2 = np.linspace(16.0, 24.0, 400)
+    pos2 = np.array([plan.path.point(x).position for x in s2])
+    on = Flight(np.arange(400) * 0.004, pos2, np.repeat(R[:1], 400, 0), np.zeros((400, 3)), rotors[:400],
+                rotors[:400], "timeout", "", False, None, {})
+    m2 = disturbance_metrics(plan, truth_trace(plan, on), on, spec)
+    assert m2["min_centre_distance_m"] == pytest.approx(1.5, abs=1e-6)
     assert not m["completed"] and not m["diverged"] and not m["ok"] and m["late_s"] is None
     assert m["saturated_share"] == 0.0 and m["max_attitude_error_deg"] < 1e-6
