@@ -60,8 +60,8 @@ def _window(ax, outs) -> None:
 
 
 def _focus(plan, cells) -> tuple[tuple[float, float], tuple[float, float]]:
-    """East and altitude limits: the loop and every stretch 2 cm to 2 m off the path (a run
-    that leaves for good is drawn as it leaves, not followed)."""
+    """East and altitude limits: the loop, where the gust blows, and every stretch 2 cm to 2 m
+    off the path (a run that leaves for good is drawn as it leaves, not followed)."""
     name = plan.laps_segment or "loop"
     pts = [np.concatenate([plan.path.evaluate(np.linspace(a, b, 200))[0] for n, a, b in plan.segments
                            if n == name])]
@@ -70,14 +70,18 @@ def _focus(plan, cells) -> tuple[tuple[float, float], tuple[float, float]]:
             tr = o.trace
             if tr is not None and tr.t_s.size:
                 e = tr.transverse_error_m
-                pts.append(tr.position_m[(e > _OFF_PATH_M) & (e < _FOCUS_MAX_M)])
+                keep = (e > _OFF_PATH_M) & (e < _FOCUS_MAX_M)
+                if o.spec.gust_window_s is not None:
+                    keep |= (tr.t_s >= o.spec.gust_window_s[0]) & (tr.t_s <= o.spec.gust_window_s[1])
+                pts.append(tr.position_m[keep])
     p = np.concatenate(pts)
     e, z = p[:, 1], -p[:, 2]
     return (e.min() - 1.0, e.max() + 1.0), (z.min() - 0.7, z.max() + 0.7)
 
 
 def _figure(plt, cases, limits, panel_size):
-    fig, axes = plt.subplots(len(cases), len(limits), figsize=(panel_size[0] * len(limits),
+    """A grid of a row per case and a column per rotor limit, at least 8 in wide (the title)."""
+    fig, axes = plt.subplots(len(cases), len(limits), figsize=(max(panel_size[0] * len(limits), 8.0),
                                                                panel_size[1] * len(cases)),
                              squeeze=False)
     return fig, axes
