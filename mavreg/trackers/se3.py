@@ -43,7 +43,7 @@ import numpy as np
 
 from ..config.vehicle import G
 from ..model.rotation import rpy_to_matrix
-from .common import Allocator, TrackerOutput
+from .common import Allocator, TrackerOutput, cross3
 from .timed import TimedNominal
 
 __all__ = ["Se3Gains", "Se3Tracker", "LEE_ATTITUDE_RAD_S", "LEE_ATTITUDE_DAMPING"]
@@ -109,13 +109,13 @@ class Se3Tracker:
         """R_d from the desired force and the heading direction; where b1d is nearly along
         b3d the nominal body y axis, made normal to b3d, stands in for b3d x b1d."""
         b3 = -F_d / np.linalg.norm(F_d)
-        c = np.cross(b3, b1d)
+        c = cross3(b3, b1d)
         n = float(np.linalg.norm(c))
         if n < 0.1:
             c = b2_nominal - (b2_nominal @ b3) * b3
             n = float(np.linalg.norm(c))
         b2 = c / n
-        return np.column_stack([np.cross(b2, b3), b2, b3])
+        return np.column_stack([cross3(b2, b3), b2, b3])
 
     def step(self, t: float, x) -> TrackerOutput:
         """The command at maneuver time ``t`` for state ``x`` (12,)."""
@@ -134,7 +134,7 @@ class Se3Tracker:
         RtRd = R.T @ Rd
         e_R = 0.5 * _vee(Rd.T @ R - R.T @ Rd)
         e_W = W - RtRd @ W_d
-        M = (-self.k_R * e_R - self.k_W * e_W + np.cross(W, self.J @ W)
+        M = (-self.k_R * e_R - self.k_W * e_W + cross3(W, self.J @ W)
              - self.J @ (_hat(W) @ RtRd @ W_d - RtRd @ dW_d))
         u = np.array([f, *M])
         if self.lead_s:

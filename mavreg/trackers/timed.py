@@ -29,6 +29,7 @@ from scipy.interpolate import CubicSpline
 from ..maneuver.plan import Plan
 from ..model.quadrotor import QuadrotorModel
 from ..model.rotation import rpy_to_matrix
+from .common import cross3
 
 __all__ = ["Reference", "TimedNominal"]
 
@@ -96,6 +97,8 @@ class TimedNominal:
 
     def s_at(self, t):
         """Arc length of the reference at time(s) ``t`` (s(0) = 0; clamped at t = 0)."""
+        if isinstance(t, float):
+            return self._s_at_scalar(t)
         t = np.asarray(t, dtype=float)
         h = self.step_s
         n = len(self.t_grid)
@@ -110,6 +113,19 @@ class TimedNominal:
         s = h00 * s0 + h10 * h * v0 + h01 * s1 + h11 * h * v1
         s = np.where(past, self.s_grid[-1] + self._v_grid[-1] * (t - self.t_grid[-1]), s)
         return float(s) if s.ndim == 0 else s
+
+    def _s_at_scalar(self, t: float) -> float:
+        """:meth:`s_at` for one time, in plain floats (the trackers call it every step)."""
+        h = self.step_s
+        n = len(self.t_grid)
+        if t > self.t_grid[-1]:
+            return float(self.s_grid[-1] + self._v_grid[-1] * (t - self.t_grid[-1]))
+        tc = max(t, 0.0)
+        i = min(int(tc / h), n - 2)
+        u = (tc - self.t_grid[i]) / h
+        u2, u3 = u * u, u * u * u
+        return float((2 * u3 - 3 * u2 + 1) * self.s_grid[i] + (u3 - 2 * u2 + u) * h * self._v_grid[i]
+                     + (-2 * u3 + 3 * u2) * self.s_grid[i + 1] + (u3 - u2) * h * self._v_grid[i + 1])
 
     def t_of_s(self, s: float) -> float:
         """The time the reference reaches arc length ``s`` (0 <= s; linear between grid nodes)."""
@@ -141,5 +157,5 @@ class TimedNominal:
         u = self.input_at_s(s)
         dx = self.model.f(x, u)
         R = rpy_to_matrix(*x[3:6])
-        acc = R @ (dx[6:9] + np.cross(x[9:12], x[6:9]))
+        acc = R @ (dx[6:9] + cross3(x[9:12], x[6:9]))
         return Reference(float(t), s, x, u, acc, dx[9:12])
