@@ -7,9 +7,9 @@ step, :meth:`mavreg.control.regulator.ManeuverRegulator.step` (the paper's desig
 lead, as the daemon builds it), over 30 000 states (quick: 3 000) in flight order: the
 first group 1 runs of the paper (0.6 m off in each axis, nominal then drawn inertia) flown
 on the design model by :func:`mavreg.sim.batch.fly_batch`, one after the other, the
-regulator reset (untimed) at the start of each. Baseline, same states, same run:
-:class:`benchmarks.plain_regulator.PlainRegulator`, the straightforward step with scipy
-interpolators and small numpy arrays (it agrees to 1e-9).
+regulator reset (untimed) at the start of each. Baseline, same states, same run, the two
+steps taken in turn on each state: :class:`benchmarks.plain_regulator.PlainRegulator`, the
+straightforward step with scipy interpolators and small numpy arrays (it agrees to 1e-9).
 
 Run alone: ``python -m benchmarks.step_bench [--quick]``.
 """
@@ -46,16 +46,21 @@ def closed_loop_states(plan, n: int) -> tuple[np.ndarray, list[int]]:
     return np.concatenate(states)[:n], [s for s in starts if s < n]
 
 
-def time_steps(regulator, states: np.ndarray, starts: list[int]) -> np.ndarray:
-    """Seconds per ``regulator.step(x)`` over ``states`` in order (reset, untimed, at ``starts``)."""
-    out = np.empty(len(states))
-    clock, step, begin = time.perf_counter, regulator.step, set(starts)
+def time_steps(regulators, states: np.ndarray, starts: list[int]) -> np.ndarray:
+    """Seconds per ``step(x)`` of each regulator (columns) over ``states`` in order, taken in
+    turn on each state so that the machine's load falls on all alike (reset, untimed, at
+    ``starts``)."""
+    out = np.empty((len(states), len(regulators)))
+    clock, begin = time.perf_counter, set(starts)
+    steps = [r.step for r in regulators]
     for i, x in enumerate(states):
         if i in begin:
-            regulator.reset(x)
-        t0 = clock()
-        step(x)
-        out[i] = clock() - t0
+            for r in regulators:
+                r.reset(x)
+        for j, step in enumerate(steps):
+            t0 = clock()
+            step(x)
+            out[i, j] = clock() - t0
     return out
 
 
@@ -66,8 +71,9 @@ def run_step(quick: bool) -> dict:
     n = 3000 if quick else 30_000
     states, starts = closed_loop_states(plan, n)
     states = list(states)                       # rows as the daemon hands them: one array a step
-    fast = time_steps(ManeuverRegulator(plan, vehicle, control_period_s=CONTROL_PERIOD_S), states, starts)
-    plain = time_steps(PlainRegulator(plan, vehicle, control_period_s=CONTROL_PERIOD_S), states, starts)
+    times = time_steps([ManeuverRegulator(plan, vehicle, control_period_s=CONTROL_PERIOD_S),
+                        PlainRegulator(plan, vehicle, control_period_s=CONTROL_PERIOD_S)], states, starts)
+    fast, plain = times[:, 0], times[:, 1]
     note = (f"ManeuverRegulator.step over {len(states)} closed-loop states of {len(starts)} group 1 barrel "
             "roll(s) (paper_lqr.yaml); baseline: the plain step (scipy interp1d, small numpy arrays)")
     return {f"step_us.{name}": figure(float(np.percentile(fast, q)) * 1e6, float(np.percentile(plain, q)) * 1e6,
