@@ -20,8 +20,9 @@ environment for its children):
   deadline misses: the daemon at 500 Hz in real time, one barrel-roll flight per I/O path).
 
 ``--quick`` shortens every section (a smoke test, well under a minute without ``sitl`` and
-``daemon_rt``); the full run takes about 4-5 minutes on a quiet 2-core machine, most of it
-the flights of ``sitl`` and ``daemon_rt``.
+``daemon_rt``); the full run takes about 4 minutes on a quiet 2-core machine and under 5 at
+a load average of 3, most of it the flights of ``sitl`` and ``daemon_rt``
+(``docs/performance.md``).
 """
 from __future__ import annotations
 
