@@ -23,6 +23,7 @@ import numpy as np
 from ..accel import ACCELERATED
 from ..geometry.projection_kernel import path_tables
 from . import step_kernel as sk
+from .attitude_table import NominalAttitudes
 
 __all__ = ["FastStep", "plan_table", "available", "warm_up", "compile_seconds"]
 
@@ -53,9 +54,12 @@ def warm_up() -> float | None:
     ends[:, 3:12] = np.eye(3).reshape(9)
     ends[1, 0] = 1.0
     prm = np.zeros(sk.N_PARAMS)
+    prm[sk.P_NK] = 15
+    prm[sk.P_SO3] = 1.0
     prm[sk.P_MINV:sk.P_MINV + 16] = np.eye(4).reshape(16)
     prm[sk.P_MIX:sk.P_MIX + 16] = np.eye(4).reshape(16)
-    table = np.zeros((2, sk.TABLE_K + 60))
+    table = np.zeros((2, sk.TABLE_K + 60 + sk.ATTITUDE_WIDTH))
+    table[:, sk.TABLE_K + 60:sk.TABLE_K + 69] = np.eye(3).reshape(9)
     sk.regulator_step(np.zeros(12), np.zeros(4), True, True, 0.0, 0.0, 0.0, 0.0, 0.0, table,
                       np.array([0.0, 1.0]), np.array([0.0, 1.0]), coef, ends, prm, np.zeros(6),
                       np.empty(sk.OUT_WIDTH))
@@ -64,13 +68,25 @@ def warm_up() -> float | None:
 
 
 def plan_table(plan) -> tuple[np.ndarray, np.ndarray]:
-    """``(s (N,), table (N, 17 + 4 n_K))``: the plan's nodes and, per node, x (12), u (4),
-    v and K (4, n_K) row-major, at the columns :data:`~mavreg.control.step_kernel.TABLE_X` ...
-    :data:`~mavreg.control.step_kernel.TABLE_K`."""
+    """``(s (N,), table (N, 17 + 4 n_K [+ 18]))``: the plan's nodes and, per node, x (12),
+    u (4), v and K (4, n_K) row-major, at the columns
+    :data:`~mavreg.control.step_kernel.TABLE_X` ... :data:`~mavreg.control.step_kernel.TABLE_K`;
+    for gains on the SO(3) attitude error the row's attitude data follow
+    (:class:`~mavreg.control.attitude_table.NominalAttitudes`: R_i, d_i, m0_i, m1_i; zero
+    past the last interval)."""
     n = len(plan.s)
-    table = np.concatenate([plan.x, plan.u, np.asarray(plan.speed_m_s, float).reshape(n, 1),
-                            plan.K.reshape(n, -1)], axis=1)
+    columns = [plan.x, plan.u, np.asarray(plan.speed_m_s, float).reshape(n, 1), plan.K.reshape(n, -1)]
+    if _so3(plan):
+        att = NominalAttitudes(plan.s, plan.R, plan.x[:, 9:12] / plan.speed_m_s[:, None])
+        pad = np.zeros((1, 3))
+        columns += [att.R.reshape(n, 9)] + [np.concatenate([m, pad]) for m in (att.d, att.m0, att.m1)]
+    table = np.concatenate(columns, axis=1)
     return np.ascontiguousarray(plan.s, dtype=float), np.ascontiguousarray(table, dtype=float)
+
+
+def _so3(plan) -> bool:
+    """Whether the plan's gains are on the SO(3) attitude error."""
+    return getattr(plan, "attitude_error", "rpy") == "so3"
 
 
 class FastStep:
@@ -111,6 +127,8 @@ class FastStep:
         prm[sk.P_TORQUES_FIRST] = 1.0 if torques_first else 0.0
         prm[sk.P_AUGMENTED] = 1.0 if plan.K.shape[-1] > 11 else 0.0
         prm[sk.P_END] = plan.length_m - 1e-6
+        prm[sk.P_NK] = plan.K.shape[-1]
+        prm[sk.P_SO3] = 1.0 if _so3(plan) else 0.0
         prm[sk.P_MINV:sk.P_MINV + 16] = np.asarray(mixer_inverse, dtype=float).reshape(16)
         prm[sk.P_MIX:sk.P_MIX + 16] = np.asarray(mixer_matrix, dtype=float).reshape(16)
         self.prm = prm
