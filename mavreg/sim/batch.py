@@ -149,12 +149,12 @@ def fly_batch(plan: Plan, runs: Sequence[BatchRun], *, control_rate_hz: float = 
     else:
         s_nodes, coef, ends = path_tables(plan.path)
         s_tab, T = plan_table(plan)
-        plant = (mass, G, J[:, 0].copy(), J[:, 1].copy(), J[:, 2].copy(), cxy, cz, cpar)
         with np.errstate(all="ignore"):     # the allocation's ratios where a rotor has no yaw share
             batch_numpy.run(np.ascontiguousarray(X.T), S, status, k_end, xs, cmd, app,
                             (s_nodes, coef, float(plan.length_m), ends, projector.window_m),
                             (s_tab, T, np.diff(T, axis=0), lead_s), np.ascontiguousarray(mixer.inverse), M, fmax,
-                            plant, upper, noise, 1.0, float(dt_s), steps, limits)
+                            (mass, G, cxy, cz, cpar), np.ascontiguousarray(J.T), upper, noise, 1.0,
+                            float(dt_s), steps, limits)
     ts = np.arange(n_steps + 1) * dt_s
     return [_result(ts, xs[r], cmd[r], app[r], int(status[r]), int(k_end[r]), steps, o)
             for r, o in enumerate(options)]

@@ -5,7 +5,8 @@ here as plain loops (:func:`mavreg.accel.njit`), which is several times faster t
 array expressions and compiles in seconds instead of tens of seconds. Per run and control
 call, the regulator's step is the project's compiled one,
 :func:`mavreg.control.step_kernel.regulator_step` (the same kernel the regulator's compiled
-path runs), and between calls the plant of eqs 6-17 (:func:`plant_rhs`, the run's inertia)
+path runs), and between calls the plant of eqs 6-17
+(:func:`mavreg.sim.batch_plant.plant_rhs`, the run's inertia)
 is stepped by classical RK4, exactly as :func:`mavreg.sim.closed_loop.simulate` steps it:
 the command held, clipped to :math:`[0, f_{sat}]`, the control call's noise added and
 clipped again, :math:`u = M f` times the thrust scale.
@@ -19,41 +20,10 @@ import numpy as np
 
 from ..accel import njit
 from ..control import step_kernel as sk
-from .batch_numpy import BAD_COMMAND, COMPLETED, DIVERGED, TIMEOUT
+from .batch_numpy import BAD_COMMAND, COMPLETED, DIVERGED, RUNNING, TIMEOUT
+from .batch_plant import plant_rhs_compiled as plant_rhs
 
-__all__ = ["plant_rhs", "run"]
-
-
-@njit
-def plant_rhs(x, u0, u1, u2, u3, plant, jx, jy, jz, out):
-    """dx/dt of :meth:`~mavreg.model.quadrotor.QuadrotorModel.f` into ``out`` (12,) for state x
-    (12,), input (u0, u1, u2, u3), ``plant`` = (mass, g, c_xy, c_z, c_parasitic) and the
-    run's inertia; the same operations in the same order."""
-    m, g, cxy, cz, cpar = plant
-    phi, theta, psi = x[3], x[4], x[5]
-    v1, v2, v3 = x[6], x[7], x[8]
-    p, q, r = x[9], x[10], x[11]
-    cf, sf = np.cos(phi), np.sin(phi)
-    ct, st = np.cos(theta), np.sin(theta)
-    cp, sp = np.cos(psi), np.sin(psi)
-    tt = np.tan(theta)
-    out[0] = cp * ct * v1 + (-sp * cf + cp * st * sf) * v2 + (sp * sf + cp * st * cf) * v3
-    out[1] = sp * ct * v1 + (cp * cf + sp * st * sf) * v2 + (-cp * sf + sp * st * cf) * v3
-    out[2] = -st * v1 + ct * sf * v2 + ct * cf * v3
-    out[3] = p + sf * tt * q + cf * tt * r
-    out[4] = cf * q + -sf * r
-    out[5] = sf / ct * q + cf / ct * r
-    out[6] = r * v2 - q * v3 - g * st
-    out[7] = -r * v1 + p * v3 + g * sf * ct
-    out[8] = q * v1 - p * v2 + g * ct * cf - u0 / m
-    if cxy != 0.0 or cz != 0.0 or cpar != 0.0:
-        quad = cpar * np.sqrt(v1 * v1 + v2 * v2 + v3 * v3)
-        out[6] = out[6] - (cxy + quad) * v1 / m
-        out[7] = out[7] - (cxy + quad) * v2 / m
-        out[8] = out[8] - (cz + quad) * v3 / m
-    out[9] = q * r * (jy - jz) / jx + u1 / jx
-    out[10] = p * r * (jz - jx) / jy + u2 / jy
-    out[11] = p * q * (jx - jy) / jz + u3 / jz
+__all__ = ["run"]
 
 
 @njit
@@ -151,6 +121,6 @@ def run(X, ST, status, k_end, xs, cmd, app, step, M, plant, J, upper, noise, thr
     ``plant`` = (mass, g, c_xy, c_z, c_parasitic), J (N, 3), ``upper`` (N,) the saturation,
     ``noise`` (C, 4, N) as in :func:`batch_numpy.run`."""
     for r in range(X.shape[0]):
-        if status[r] == 0:
+        if status[r] == RUNNING:
             _fly(r, X[r].copy(), ST[r].copy(), status, k_end, xs, cmd, app, step, M, plant, J, upper, noise,
                  thrust_scale, dt, period, limits)

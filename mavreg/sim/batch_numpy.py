@@ -18,7 +18,8 @@ the yaw-then-lift allocation), and in the same order; sums of products (dot prod
   paper's design (gains (4, 11), no disturbance compensation, no speed governor):
   :math:`u = \bar u(s + v(s)\,\ell) - K(s)\,w`, rotor forces by
   :func:`mavreg.model.mixer.yaw_then_lift`;
-- :func:`plant_rhs`: :meth:`mavreg.model.quadrotor.QuadrotorModel.f` with one inertia per run;
+- :func:`mavreg.sim.batch_plant.plant_rhs`: :meth:`mavreg.model.quadrotor.QuadrotorModel.f`
+  with one inertia per run;
 - :func:`run`: the loop of :func:`mavreg.sim.closed_loop.simulate` (zero-order hold, rotor
   forces clipped to [0, saturation], noise held over a control period, RK4, the divergence
   checks, the regulator's "s has reached the end" as the stop condition).
@@ -29,7 +30,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["path_point", "project", "locate", "regulator_step", "plant_rhs", "run",
+from .batch_plant import plant_rhs
+
+__all__ = ["path_point", "project", "locate", "regulator_step", "run",
            "RUNNING", "COMPLETED", "DIVERGED", "BAD_COMMAND", "TIMEOUT"]
 
 RUNNING, COMPLETED, DIVERGED, BAD_COMMAND, TIMEOUT = 0, 1, 2, 3, 4
@@ -165,38 +168,6 @@ def yaw_then_lift(Minv, u, fmax):
     return np.where(low < 0.0, f + lift, f)
 
 
-def plant_rhs(X, U, plant):
-    """dX/dt (12, N) of :meth:`~mavreg.model.quadrotor.QuadrotorModel.f` for states X (12, N)
-    and inputs U (4, N); ``plant`` = (mass, g, jx, jy, jz (each (N,)), c_xy, c_z, c_parasitic)."""
-    m, g, jx, jy, jz, cxy, cz, cpar = plant
-    phi, theta, psi = X[3], X[4], X[5]
-    v1, v2, v3 = X[6], X[7], X[8]
-    p, q, r = X[9], X[10], X[11]
-    cf, sf = np.cos(phi), np.sin(phi)
-    ct, st = np.cos(theta), np.sin(theta)
-    cp, sp = np.cos(psi), np.sin(psi)
-    tt = np.tan(theta)
-    out = np.empty_like(X)
-    out[0] = cp * ct * v1 + (-sp * cf + cp * st * sf) * v2 + (sp * sf + cp * st * cf) * v3
-    out[1] = sp * ct * v1 + (cp * cf + sp * st * sf) * v2 + (-cp * sf + sp * st * cf) * v3
-    out[2] = -st * v1 + ct * sf * v2 + ct * cf * v3
-    out[3] = p + sf * tt * q + cf * tt * r
-    out[4] = cf * q + -sf * r
-    out[5] = sf / ct * q + cf / ct * r
-    out[6] = r * v2 - q * v3 - g * st
-    out[7] = -r * v1 + p * v3 + g * sf * ct
-    out[8] = q * v1 - p * v2 + g * ct * cf - U[0] / m
-    if cxy != 0.0 or cz != 0.0 or cpar != 0.0:
-        quad = cpar * np.sqrt(v1 * v1 + v2 * v2 + v3 * v3)
-        out[6] = out[6] - (cxy + quad) * v1 / m
-        out[7] = out[7] - (cxy + quad) * v2 / m
-        out[8] = out[8] - (cz + quad) * v3 / m
-    out[9] = q * r * (jy - jz) / jx + U[1] / jx
-    out[10] = p * r * (jz - jx) / jy + U[2] / jy
-    out[11] = p * q * (jx - jy) / jz + U[3] / jz
-    return out
-
-
 def diverged(X, limits):
     """Runs (N,) whose state is non-finite or beyond ``limits`` = (max speed, max body rate,
     max |position|, min |cos pitch|) (:func:`mavreg.sim.closed_loop._divergence`'s tests)."""
@@ -209,19 +180,21 @@ def diverged(X, limits):
             | (np.abs(np.cos(X[4])) < min_cos))
 
 
-def run(X, S, status, k_end, xs, cmd, app, path, table, Minv, M, fmax, plant, upper, noise, thrust_scale,
+def run(X, S, status, k_end, xs, cmd, app, path, table, Minv, M, fmax, plant, J, upper, noise, thrust_scale,
         dt, period, limits):
     """Fly every run with ``status`` RUNNING from state X (12, N) and arc length S (N,) until
     it ends or ``xs`` is full: ``xs`` (N, K+1, 12) gets the states (row 0 must hold X),
     ``cmd`` and ``app`` (N, K+1, 4) the rotor forces commanded and applied over each step;
     ``status`` and ``k_end`` (N,) are set to how and at which row each run ended.
 
+    ``plant`` = (mass, g, c_xy, c_z, c_parasitic), J (3, N) the runs' inertia (jx, jy, jz);
     ``upper`` (N,): rotor saturation (inf: none); ``noise`` (C, 4, N): the noise of each
     control call (C = 1: the same for every call); ``period``: physics steps per control
     call; ``limits``: see :func:`diverged`.
     """
     n_steps = xs.shape[1] - 1
     n = X.shape[1]
+    jx, jy, jz = J
     alive = status == RUNNING
     command = np.zeros((4, n))
     applied = np.zeros((4, n))
@@ -258,10 +231,11 @@ def run(X, S, status, k_end, xs, cmd, app, path, table, Minv, M, fmax, plant, up
             app[bad, i] = last_applied[:, bad].T
         f = applied * thrust_scale
         U = M[:, 0:1] * f[0] + M[:, 1:2] * f[1] + M[:, 2:3] * f[2] + M[:, 3:4] * f[3]
-        k1 = plant_rhs(X, U, plant)
-        k2 = plant_rhs(X + half * k1, U, plant)
-        k3 = plant_rhs(X + half * k2, U, plant)
-        k4 = plant_rhs(X + dt * k3, U, plant)
+        k1, k2, k3, k4 = (np.empty_like(X) for _ in range(4))
+        plant_rhs(X, U[0], U[1], U[2], U[3], plant, jx, jy, jz, k1)
+        plant_rhs(X + half * k1, U[0], U[1], U[2], U[3], plant, jx, jy, jz, k2)
+        plant_rhs(X + half * k2, U[0], U[1], U[2], U[3], plant, jx, jy, jz, k3)
+        plant_rhs(X + dt * k3, U[0], U[1], U[2], U[3], plant, jx, jy, jz, k4)
         X_new = X + sixth * (k1 + 2.0 * (k2 + k3) + k4)
         X = X_new if everyone else np.where(alive, X_new, X)
         xs[:, i + 1] = X.T

@@ -1,0 +1,49 @@
+r"""The design model's derivative for the batch simulator, on one state or on a batch of them.
+
+:func:`plant_rhs` is :meth:`mavreg.model.quadrotor.QuadrotorModel.f` (eqs 6-17, with the
+optional drag) written out, the same operations in the same order, for one run's inertia:
+given x (12,) and floats it fills ``out`` (12,); given x (12, N), the inputs and the inertia
+as (N,) arrays, it fills ``out`` (12, N) (each line is then a numpy expression across runs).
+:mod:`mavreg.sim.batch_numpy` calls it so; :mod:`mavreg.sim.batch_compiled` calls
+:data:`plant_rhs_compiled`, the same function compiled by numba (:func:`mavreg.accel.njit`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..accel import njit
+
+__all__ = ["plant_rhs", "plant_rhs_compiled"]
+
+
+def plant_rhs(x, u0, u1, u2, u3, plant, jx, jy, jz, out):
+    r"""dx/dt into ``out`` for state x and input :math:`u = (f, \gamma_1, \gamma_2, \gamma_3)`;
+    ``plant`` = (mass, g, c_xy, c_z, c_parasitic); jx, jy, jz: the run's inertia."""
+    m, g, cxy, cz, cpar = plant
+    phi, theta, psi = x[3], x[4], x[5]
+    v1, v2, v3 = x[6], x[7], x[8]
+    p, q, r = x[9], x[10], x[11]
+    cf, sf = np.cos(phi), np.sin(phi)
+    ct, st = np.cos(theta), np.sin(theta)
+    cp, sp = np.cos(psi), np.sin(psi)
+    tt = np.tan(theta)
+    out[0] = cp * ct * v1 + (-sp * cf + cp * st * sf) * v2 + (sp * sf + cp * st * cf) * v3
+    out[1] = sp * ct * v1 + (cp * cf + sp * st * sf) * v2 + (-cp * sf + sp * st * cf) * v3
+    out[2] = -st * v1 + ct * sf * v2 + ct * cf * v3
+    out[3] = p + sf * tt * q + cf * tt * r
+    out[4] = cf * q + -sf * r
+    out[5] = sf / ct * q + cf / ct * r
+    out[6] = r * v2 - q * v3 - g * st
+    out[7] = -r * v1 + p * v3 + g * sf * ct
+    out[8] = q * v1 - p * v2 + g * ct * cf - u0 / m
+    if cxy != 0.0 or cz != 0.0 or cpar != 0.0:
+        quad = cpar * np.sqrt(v1 * v1 + v2 * v2 + v3 * v3)
+        out[6] = out[6] - (cxy + quad) * v1 / m
+        out[7] = out[7] - (cxy + quad) * v2 / m
+        out[8] = out[8] - (cz + quad) * v3 / m
+    out[9] = q * r * (jy - jz) / jx + u1 / jx
+    out[10] = p * r * (jz - jx) / jy + u2 / jy
+    out[11] = p * q * (jx - jy) / jz + u3 / jz
+
+
+plant_rhs_compiled = njit(plant_rhs)
