@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["mixer_matrix", "Mixer", "lift_to_zero", "yaw_then_lift"]
+__all__ = ["mixer_matrix", "Mixer", "lift_to_zero", "yaw_then_lift", "torques_first"]
 
 
 def mixer_matrix(arm_length_m: float, drag_torque_ratio_m: float) -> np.ndarray:
@@ -78,3 +78,59 @@ def yaw_then_lift(mixer_inverse, u, max_rotor_thrust_n: float) -> np.ndarray:
         if b + y < 0.0:
             beta = min(beta, max(b, 0.0) / -y)
     return lift_to_zero(base + beta * yaw, max_rotor_thrust_n)
+
+
+def torques_first(mixer_inverse, u, max_rotor_thrust_n: float) -> np.ndarray:
+    r"""Rotor forces within :math:`[0, F]` for ``u = (f, g1, g2, g3)``: the torques are kept
+    and the collective thrust is given up first.
+
+    With :math:`b = M^{-1}_{:,0:3} u_{0:3}` (thrust, roll, pitch) and
+    :math:`y = M^{-1}_{:,3} u_3` (yaw), in this order:
+
+    1. :math:`f = b + y` when every force is within :math:`[0, F]` (eq 34 inverted, exact);
+    2. the yaw torque gives way: :math:`y \to \beta y` with the largest :math:`\beta \in [0, 1]`
+       that keeps every rotor that :math:`b` leaves within :math:`[0, F]` there (at the low
+       end exactly :func:`yaw_then_lift`'s :math:`\beta`);
+    3. the collective moves: all four forces shift by the same amount, the least that brings
+       them within :math:`[0, F]` (down at the top: the thrust is given up; up at the
+       bottom: :func:`lift_to_zero`), roll, pitch and the remaining yaw torque exact. This
+       is possible while the forces' spread :math:`\max f - \min f \le F`;
+    4. otherwise roll and pitch themselves do not fit (the yaw is gone by then): the torques
+       are scaled by :math:`F/(\max f - \min f)` and the collective is the one left, the
+       forces spanning exactly :math:`[0, F]`.
+
+    Wherever :func:`yaw_then_lift` gives forces within :math:`[0, F]`, this gives the same. The
+    yaw gives way first at both ends for the reason :func:`yaw_then_lift` gives: it is the
+    expensive torque and the least needed to stay on a path.
+    Per-rotor clipping at :math:`F` instead keeps the collective and loses the torque of the
+    clipped rotor: at the bottom of the barrel roll's loop, where the nominal asks every
+    rotor for about 10 N, rotors saturated at 7 N can give no roll torque at all.
+
+    Parameters
+    ----------
+    mixer_inverse : (4, 4) array_like
+        The inverse of eq 34's matrix.
+    u : (4,) array_like
+        Thrust (N) and body torques (N m) asked for.
+    max_rotor_thrust_n : float
+        The rotors' limit F.
+    """
+    Minv = np.asarray(mixer_inverse, dtype=float)
+    u = np.asarray(u, dtype=float)
+    F = float(max_rotor_thrust_n)
+    base = Minv[:, :3] @ u[:3]
+    yaw = Minv[:, 3] * u[3]
+    f = base + yaw
+    if f.min() >= 0.0 and f.max() <= F:
+        return f
+    beta = 1.0
+    for b, y in zip(base, yaw):         # a rotor out of range with the yaw's help: no yaw
+        if b + y < 0.0 and y != 0.0:
+            beta = min(beta, max(b, 0.0) / -y) if y < 0.0 else 0.0
+        elif b + y > F and y != 0.0:
+            beta = min(beta, max(F - b, 0.0) / y) if y > 0.0 else 0.0
+    f = base + beta * yaw
+    low, high = float(f.min()), float(f.max())
+    if high - low <= F:
+        return f - low if low < 0.0 else (f - (high - F) if high > F else f)
+    return (f - low) * (F / (high - low))
