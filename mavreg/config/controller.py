@@ -9,6 +9,7 @@ import numpy as np
 from .disturbance import DisturbanceParams
 from .envelope import EnvelopeParams
 from .loader import load_file
+from .regulation import AllocationParams, SpeedGovernorParams
 
 __all__ = ["ControllerParams", "load_controller"]
 
@@ -62,6 +63,11 @@ class ControllerParams:
     """Cap on the prediction horizon; past it a gap is not flown on the prediction."""
     disturbance: DisturbanceParams = field(default_factory=DisturbanceParams)
     """The disturbance observer (:mod:`mavreg.config.disturbance`); off by default."""
+    allocation: AllocationParams = field(default_factory=AllocationParams)
+    """How the regulator maps its wrench to rotor forces, and the rotor limit it counts on
+    (:mod:`mavreg.config.regulation`); the torques first by default."""
+    speed_governor: SpeedGovernorParams = field(default_factory=SpeedGovernorParams)
+    """The speed the regulator regulates to (:mod:`mavreg.config.regulation`); off by default."""
 
     @property
     def q(self) -> np.ndarray:

@@ -4,6 +4,13 @@ Each step projects the position on the path (s), forms the transverse coordinate
 interpolates the feedforward and the gain tables linearly in s, and maps u to rotor forces
 by the inverse of eq 34. The tables are built once by the planner; a step allocates only
 a few small vectors.
+
+Two departures from the paper, each optional (the controller file's ``allocation:`` and
+``speed_governor:`` sections, docs/governor.md): the rotor forces may be allocated within the
+rotors' limit, the torques kept and the collective given up first
+(:func:`~mavreg.model.mixer.torques_first`); and the nominal may be re-timed to a governed
+speed (:mod:`mavreg.control.governor`), so that a vehicle slowed down is not made to fight
+for the profile's speed.
 """
 from __future__ import annotations
 
@@ -12,12 +19,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..config.regulation import AllocationParams, SpeedGovernorParams
 from ..config.vehicle import VehicleParams
 from ..geometry.projection import Projector
 from ..maneuver.plan import Plan
-from ..model.mixer import Mixer, yaw_then_lift
+from ..model.mixer import Mixer, torques_first, yaw_then_lift
 from ..model.rotation import rpy_to_matrix
-from .disturbance import DisturbanceEstimate, compensated_nominal
+from ..model.so3 import attitude_error
+from .attitude_table import NominalAttitudes
+from .disturbance import DisturbanceEstimate, compensate
+from .governor import GovernedSpeed, SpeedGovernor, along_track_speed, retiming_force, thrust_speed_cap
 from .transverse import transverse_coordinates
 
 __all__ = ["ManeuverRegulator", "RegulatorOutput"]
@@ -34,12 +45,15 @@ class RegulatorOutput:
     u: np.ndarray
     """(f, g1, g2, g3) commanded."""
     rotor_forces_n: np.ndarray
-    """Rotor forces by the inverse of eq 34; where one would pull, the yaw torque gives way
-    and then all four are lifted (:func:`~mavreg.model.mixer.yaw_then_lift`); not clipped at
-    the top."""
+    """Rotor forces by the inverse of eq 34, allocated by the regulator's method:
+    ``torques_first`` keeps them within [0, limit] (:func:`~mavreg.model.mixer.torques_first`);
+    ``per_rotor_clip`` lets the yaw torque give way and then lifts all four where one would
+    pull (:func:`~mavreg.model.mixer.yaw_then_lift`) and does not clip at the top."""
     in_tube: bool
     finished: bool
     """s has reached the end of the maneuver."""
+    speed_ref_m_s: float = math.nan
+    """The speed regulated to at s: the governed speed, or the profile's without a governor."""
 
 
 class ManeuverRegulator:
@@ -60,6 +74,11 @@ class ManeuverRegulator:
         about tau late.
     max_compensation_turn_rad : float
         Largest turn of the nominal attitude by the disturbance compensation.
+    allocation : AllocationParams, optional
+        Allocation method and the rotor limit it counts on (default: ``per_rotor_clip`` at
+        the vehicle's ``max_rotor_thrust_n``, the paper's).
+    speed_governor : SpeedGovernorParams, optional
+        The speed governor (default: none, the paper's regulator).
 
     Notes
     -----
@@ -81,10 +100,15 @@ class ManeuverRegulator:
     """
 
     def __init__(self, plan: Plan, vehicle: VehicleParams, control_period_s: float = 0.0,
-                 rotor_time_constant_s: float | None = None, max_compensation_turn_rad: float = math.pi):
+                 rotor_time_constant_s: float | None = None, max_compensation_turn_rad: float = math.pi,
+                 allocation: AllocationParams | None = None,
+                 speed_governor: SpeedGovernorParams | None = None):
         self.plan = plan
         mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
-        self._fmax = float(vehicle.max_rotor_thrust_n)
+        alloc = allocation if allocation is not None else AllocationParams(method="per_rotor_clip")
+        self._fmax = float(vehicle.max_rotor_thrust_n if alloc.max_rotor_thrust_n is None
+                           else alloc.max_rotor_thrust_n)
+        self._allocate = torques_first if alloc.method == "torques_first" else yaw_then_lift
         self.mixer_inverse = mixer.inverse
         self._mixer = mixer.matrix
         self._augmented = plan.K.shape[-1] > 11
@@ -99,13 +123,35 @@ class ManeuverRegulator:
         tau = vehicle.rotor_time_constant_s if rotor_time_constant_s is None else rotor_time_constant_s
         self._lead_s = control_period_s / 2 + tau
         self._base_drag = tuple(float(c) for c in vehicle.rotor_drag_n_s_per_m)
+        self._parasitic = float(vehicle.parasitic_drag_n_s2_per_m2)
+        self._mass = float(vehicle.mass_kg)
         self._max_turn = float(max_compensation_turn_rad)
+        self.governor: SpeedGovernor | None = None
+        if speed_governor is not None and speed_governor.enabled:
+            cap = (thrust_speed_cap(plan, speed_governor.thrust_share * 4.0 * self._fmax,
+                                    speed_governor.recovery_accel_m_s2)
+                   if speed_governor.cap_speed_for_thrust else None)
+            self.governor = SpeedGovernor(plan.s, plan.speed_m_s, speed_governor, cap)
+            jerk = speed_governor.max_jerk_m_s3
+            self._accel_step = math.inf if control_period_s <= 0.0 else jerk * control_period_s
+            self._accel_step_ahead = jerk * _COMPENSATION_DT_S
+        self._accel_excess = 0.0
+        """The along-track acceleration fed forward less the profile's (slew-limited)."""
+        self._attitudes = (NominalAttitudes(plan.s, plan.R, plan.x[:, 9:12] / plan.speed_m_s[:, None])
+                           if plan.attitude_error == "so3" else None)
+        """The nominal attitude's rows when the gains are on the SO(3) attitude error."""
         self.s = 0.0
 
-    def _extra_force(self, xbar, disturbance: DisturbanceEstimate) -> np.ndarray:
-        """The force the plan's model misses at nominal state ``xbar``."""
-        R = rpy_to_matrix(*xbar[3:6])
+    def _extra_force(self, xbar, R, disturbance: DisturbanceEstimate) -> np.ndarray:
+        """The force the plan's model misses at nominal state ``xbar`` (attitude ``R``)."""
         return disturbance.extra_force_ned(R, R @ xbar[6:9], self._base_drag)
+
+    def _nominal_attitude(self, i: int, a: float, xbar) -> np.ndarray:
+        """Rbar at table row i, fraction a: the plan's rotation rows in the SO(3) form, the
+        blended roll-pitch-yaw otherwise."""
+        if self._attitudes is not None:
+            return self._attitudes.at(i, a)
+        return rpy_to_matrix(*xbar[3:6])
 
     def _locate(self, s: float) -> tuple[int, float]:
         i = min(max(int(np.searchsorted(self._s, s)) - 1, 0), self._last)
@@ -115,10 +161,54 @@ class ManeuverRegulator:
         """Start tracking from state x, with s near ``s_guess`` and the rotors at
         ``rotor_forces_n`` (default: the nominal's at s)."""
         self.s = self.projector.reset(np.asarray(x)[:3], s_guess).s
+        if self.governor is not None:
+            self.governor.reset()
+        self._accel_excess = 0.0
         if rotor_forces_n is None:
             i, a = self._locate(self.s)
             rotor_forces_n = self.mixer_inverse @ (self._u[i] + a * (self._u[i + 1] - self._u[i]))
         self._rotors_est = np.asarray(rotor_forces_n, dtype=float).copy()
+
+    def _governed(self, s: float, pt, x) -> tuple[GovernedSpeed, float] | None:
+        """The governed reference at s for state x, its along-track acceleration fed forward
+        (the profile's, plus the governed excess through the first-order lag, plus the
+        push); with the excess over the profile fed forward; None when not re-timed."""
+        R = rpy_to_matrix(*x[3:6])
+        gov, push = self.governor.reference(s, along_track_speed(pt.frame[:, 0], R @ x[6:9]))
+        a_bar = self.governor.profile(s)[1]
+        excess = gov.accel_m_s2 + push - a_bar if gov.retimed else 0.0
+        change = excess - self._accel_excess
+        self._accel_excess += min(max(change, -self._accel_step), self._accel_step)
+        if not gov.retimed and abs(self._accel_excess) < 1e-6:
+            self._accel_excess = 0.0
+            return None
+        # the excess _COMPENSATION_DT_S later, for the turn rate of the slew's own motion
+        later = self._accel_excess + min(max(excess - self._accel_excess, -self._accel_step_ahead),
+                                         self._accel_step_ahead)
+        return GovernedSpeed(gov.speed_m_s, a_bar + self._accel_excess, True), later
+
+    def _retimed(self, s: float, xbar, R, thrust_n: float, gov: GovernedSpeed):
+        r"""The nominal at s flown at the governed speed: body velocity and rates scaled by
+        :math:`\sigma = v_g/\bar v`, the thrust vector changed by
+        :func:`~mavreg.control.governor.retiming_force` (no turn rate: see :meth:`step`)."""
+        v_bar, a_bar = self.governor.profile(s)
+        sigma = gov.speed_m_s / v_bar
+        x = xbar.copy()
+        x[6:12] *= sigma
+        pt = self.plan.path.point(s)
+        drag = self._drag_change(R, R @ xbar[6:9], sigma)
+        d = retiming_force(self._mass, pt.frame[:, 0], pt.curvature_vector, v_bar, a_bar,
+                           gov.speed_m_s, gov.accel_m_s2, drag)
+        return x, d, sigma
+
+    def _drag_change(self, R, v_bar_ned, sigma: float):
+        """The modelled drag at velocity sigma * v_bar less the drag at v_bar (None: no drag)."""
+        cxy, cz = self._base_drag
+        if not (cxy or cz or self._parasitic):
+            return None
+        C = R @ np.diag((cxy, cxy, cz)) @ R.T
+        speed = float(np.linalg.norm(v_bar_ned))
+        return -(sigma - 1.0) * (C @ v_bar_ned) - self._parasitic * speed * v_bar_ned * (sigma * abs(sigma) - 1.0)
 
     def step(self, x, rotor_forces_n=None, disturbance: DisturbanceEstimate | None = None) -> RegulatorOutput:
         """One control step for state x (12,); ``rotor_forces_n`` (4,): the rotors' forces
@@ -132,25 +222,54 @@ class ManeuverRegulator:
         # Linear interpolation of the tables at s (clamped to the ends).
         i, a = self._locate(s)
         xbar = self._x[i] + a * (self._x[i + 1] - self._x[i])
+        Rbar = self._nominal_attitude(i, a, xbar)
+        Rbar_plan = Rbar
         K = self._K[i] + a * (self._K[i + 1] - self._K[i])
         u_here = self._u[i] + a * (self._u[i + 1] - self._u[i])
         v = float(self._v[i] + a * (self._v[i + 1] - self._v[i]))
+        gov = self._governed(s, pt, x) if self.governor is not None else None
+        v_ref = v if gov is None else gov[0].speed_m_s
         if self._lead_s > 0.0:
-            i, a = self._locate(s + v * self._lead_s)
+            i, a = self._locate(s + v_ref * self._lead_s)
         ubar = self._u[i] + a * (self._u[i + 1] - self._u[i])
-        if disturbance is not None:
-            # the compensation's turn rate from the nominal _COMPENSATION_DT_S ahead
-            j, b = self._locate(s + max(v, 0.1) * _COMPENSATION_DT_S)
+        if gov is not None or disturbance is not None:
+            # the turn rate of the changed nominal from the nominal _COMPENSATION_DT_S ahead
+            s_ahead = s + max(v_ref, 0.1) * _COMPENSATION_DT_S
+            j, b = self._locate(s_ahead)
             x_ahead = self._x[j] + b * (self._x[j + 1] - self._x[j])
+            R_ahead = self._nominal_attitude(j, b, x_ahead)
             t_ahead = float(self._u[j, 0] + b * (self._u[j + 1, 0] - self._u[j, 0]))
-            xbar, thrust = compensated_nominal(xbar, float(u_here[0]), self._extra_force(xbar, disturbance),
-                                               x_ahead, t_ahead, self._extra_force(x_ahead, disturbance),
-                                               _COMPENSATION_DT_S, self._max_turn)
+            thrust = float(u_here[0])
+            if gov is not None:
+                gov, excess_ahead = gov
+                ds = s_ahead - s
+                gov_ahead = GovernedSpeed(math.sqrt(max(v_ref * v_ref + 2.0 * gov.accel_m_s2 * ds, 0.0)),
+                                          self.governor.profile(s_ahead)[1] + excess_ahead, True)
+                xa, d_ahead, _ = self._retimed(s_ahead, x_ahead, R_ahead, t_ahead, gov_ahead)
+                xbar, d, sigma = self._retimed(s, xbar, Rbar, thrust, gov)
+                x_ahead, t_ahead_g, R_ahead_g = compensate(xa, R_ahead, t_ahead, d_ahead)
+                xbar, thrust, Rbar = compensate(xbar, Rbar, thrust, d, R_ahead, t_ahead, d_ahead,
+                                                _COMPENSATION_DT_S)
+                t_ahead, R_ahead = t_ahead_g, R_ahead_g
+                torque_scale = sigma * sigma
+                ubar = ubar.copy()
+                u_here = u_here.copy()
+                ubar[1:] *= torque_scale
+                u_here[1:] *= torque_scale
+            if disturbance is not None:
+                xbar, thrust, Rbar = compensate(
+                    xbar, Rbar, thrust, self._extra_force(xbar, Rbar, disturbance), R_ahead, t_ahead,
+                    self._extra_force(x_ahead, R_ahead, disturbance), _COMPENSATION_DT_S, self._max_turn)
             ubar = ubar.copy()
             ubar[0] += thrust - u_here[0]
             u_here = u_here.copy()
             u_here[0] = thrust
-        w = transverse_coordinates(x[:3], pt.frame, pt.position, x, xbar)
+        w = transverse_coordinates(x[:3], pt.frame, pt.position, x, xbar,
+                                   Rbar=Rbar_plan if self._attitudes is not None else None)
+        if self._attitudes is not None and Rbar is not Rbar_plan:
+            # the error from the changed nominal, in the plan's nominal frame, where the gains
+            # were designed: e = Log(Rbar^T R) - Log(Rbar^T Rbar_changed)
+            w[2:5] -= attitude_error(Rbar_plan, Rbar)
         if self._augmented:
             f_act = self._rotors_est if rotor_forces_n is None else np.asarray(rotor_forces_n, float)
             if f_act is None:
@@ -158,8 +277,8 @@ class ManeuverRegulator:
             u = ubar - K[:, :11] @ w - K[:, 11:] @ (self._mixer @ f_act - u_here)
         else:
             u = ubar - K @ w
-        rotors = yaw_then_lift(self.mixer_inverse, u, self._fmax)
+        rotors = self._allocate(self.mixer_inverse, u, self._fmax)
         if self._augmented:
             base = self._rotors_est if self._rotors_est is not None else rotors
             self._rotors_est = rotors + (base - rotors) * self._decay
-        return RegulatorOutput(s, w, u, rotors, proj.in_tube, s >= self.plan.length_m - 1e-6)
+        return RegulatorOutput(s, w, u, rotors, proj.in_tube, s >= self.plan.length_m - 1e-6, v_ref)

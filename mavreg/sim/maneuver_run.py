@@ -7,6 +7,7 @@ import numpy as np
 
 import dataclasses
 
+from ..config.regulation import AllocationParams, SpeedGovernorParams
 from ..control.forecast import Forecaster
 from ..control.regulator import ManeuverRegulator
 from ..maneuver.plan import Plan
@@ -40,7 +41,8 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
                         rotor_time_constant_s: float = 0.0, measurement_delay_s: float = 0.0,
                         command_delay_s: float = 0.0, estimate_noise: EstimateNoise | None = None,
                         predict: bool = False, assumed_delay_s: float | None = None,
-                        start_s_m: float = 0.0) -> ManeuverRun:
+                        start_s_m: float = 0.0, allocation: AllocationParams | None = None,
+                        speed_governor: SpeedGovernorParams | None = None) -> ManeuverRun:
     """Start at the nominal entry state plus ``offset_m`` and fly to the end of the path
     (with ``start_s_m``: at the nominal state at that arc length plus ``offset_m``).
 
@@ -55,11 +57,15 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
     its command reaches the rotors ``command_delay_s`` later. With ``predict`` it first
     predicts the state across ``assumed_delay_s`` (default: the true round trip) with
     :class:`~mavreg.control.forecast.Forecaster`.
+
+    ``allocation`` and ``speed_governor`` (the controller file's sections) go to the
+    :class:`~mavreg.control.regulator.ManeuverRegulator` (default: the paper's regulator).
     """
     vehicle = plan.vehicle
     period = 1.0 / control_rate_hz
     reg = ManeuverRegulator(plan, vehicle, control_period_s=period,
-                            rotor_time_constant_s=rotor_time_constant_s)
+                            rotor_time_constant_s=rotor_time_constant_s, allocation=allocation,
+                            speed_governor=speed_governor)
     x0 = plan.nominal_state(start_s_m) if start_s_m else plan.entry_state
     x0[:3] += np.asarray(offset_m, dtype=float)
     reg.reset(x0, s_guess=start_s_m)
@@ -101,7 +107,8 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
                       rotor_time_constant_s=rotor_time_constant_s,
                       measurement_delay_s=measurement_delay_s, command_delay_s=command_delay_s,
                       force_fn=None if gust_force_n is None else window_force(gust_force_n, *gust_window_s),
-                      done=lambda t, x: reg.s >= plan.length_m - 1e-6)
+                      done=lambda t, x: reg.s >= plan.length_m - 1e-6,
+                      attitude="so3" if plan.attitude_error == "so3" else "rpy")
     result = simulate(QuadrotorModel.from_vehicle(vehicle),
                       Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m), controller, opts)
     s = np.clip(np.array(log_s), 0.0, plan.length_m)  # the extension before 0 counts as the first segment
