@@ -19,11 +19,11 @@ import math
 from ..accel import njit
 from ..model.rotation_kernel import log_vee, mm, mtm, mtv, mv, wrap
 
-__all__ = ["compensate"]
+__all__ = ["compensate", "extra_force"]
 
 
 @njit
-def _extra_force(R, v0, v1, v2, dcxy, dcz, fx, fy, fz):
+def extra_force(R, v0, v1, v2, dcxy, dcz, fx, fy, fz):
     """The force the design model misses at attitude R and NED velocity v (drag excess and
     constant force; ``dcxy, dcz`` the estimate less the design's drag)."""
     along = R[2] * v0 + R[5] * v1 + R[8] * v2
@@ -67,24 +67,16 @@ def _turned(R, thrust_n, f0, f1, f2, max_turn_rad):
 
 
 @njit
-def compensate(xbar, R, thrust_n, x_ahead, R_ahead, thrust_ahead_n, dcxy, dcz, fx, fy, fz, dt_s,
-               max_turn_rad):
-    """Compensate the nominal ``xbar`` (12,), attitude ``R``, in place for the extra force;
-    return ``(thrust, R')``, R' the turned attitude
+def compensate(xbar, R, thrust_n, f0, f1, f2, R_ahead, thrust_ahead_n, g0, g1, g2, dt_s, max_turn_rad):
+    """Compensate the nominal ``xbar`` (12,), attitude ``R``, in place for the force
+    (f0, f1, f2); return ``(thrust, R')``, R' the turned attitude
     (:func:`mavreg.control.disturbance.compensate`).
 
-    ``x_ahead``, ``R_ahead``, ``thrust_ahead_n``: the nominal ``dt_s`` ahead (for the turn's
-    rate); ``dcxy, dcz``: the estimated drag less the design's; ``fx, fy, fz``: the constant
-    force.
+    ``R_ahead``, ``thrust_ahead_n``, (g0, g1, g2): the nominal's attitude, thrust and force
+    ``dt_s`` ahead, for the turn's rate (``dt_s`` <= 0: the rates are kept).
     """
     v0, v1, v2 = mv(R, xbar[6], xbar[7], xbar[8])
-    e0, e1, e2 = _extra_force(R, v0, v1, v2, dcxy, dcz, fx, fy, fz)
-    w0, w1, w2 = mv(R_ahead, x_ahead[6], x_ahead[7], x_ahead[8])
-    g0, g1, g2 = _extra_force(R_ahead, w0, w1, w2, dcxy, dcz, fx, fy, fz)
-    R2, T = _turned(R, thrust_n, e0, e1, e2, max_turn_rad)
-    Ra2, _ = _turned(R_ahead, thrust_ahead_n, g0, g1, g2, max_turn_rad)
-    c0, c1, c2 = log_vee(mtm(R2, Ra2))
-    n0, n1, n2 = log_vee(mtm(R, R_ahead))
+    R2, T = _turned(R, thrust_n, f0, f1, f2, max_turn_rad)
     theta = -math.asin(min(max(R2[6], -1.0), 1.0))
     phi = math.atan2(R2[7], R2[8])
     psi = math.atan2(R2[3], R2[0])
@@ -92,7 +84,11 @@ def compensate(xbar, R, thrust_n, x_ahead, R_ahead, thrust_ahead_n, dcxy, dcz, f
     xbar[4] = xbar[4] + wrap(theta - xbar[4])
     xbar[5] = xbar[5] + wrap(psi - xbar[5])
     xbar[6], xbar[7], xbar[8] = mtv(R2, v0, v1, v2)
-    xbar[9] = xbar[9] + (c0 - n0) / dt_s
-    xbar[10] = xbar[10] + (c1 - n1) / dt_s
-    xbar[11] = xbar[11] + (c2 - n2) / dt_s
+    if dt_s > 0.0:
+        Ra2, _ = _turned(R_ahead, thrust_ahead_n, g0, g1, g2, max_turn_rad)
+        c0, c1, c2 = log_vee(mtm(R2, Ra2))
+        n0, n1, n2 = log_vee(mtm(R, R_ahead))
+        xbar[9] = xbar[9] + (c0 - n0) / dt_s
+        xbar[10] = xbar[10] + (c1 - n1) / dt_s
+        xbar[11] = xbar[11] + (c2 - n2) / dt_s
     return T, R2

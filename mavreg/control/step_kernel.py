@@ -37,9 +37,9 @@ from ..accel import njit
 from ..geometry import projection_kernel
 from ..geometry.projection_kernel import POINT_WIDTH, project
 from ..model import rotation_kernel
-from ..model.rotation_kernel import log_vee, mm, mtm, rodrigues, rpy_matrix, wrap
+from ..model.rotation_kernel import log_vee, mm, mtm, mv, rodrigues, rpy_matrix, wrap
 from . import compensation_kernel
-from .compensation_kernel import compensate
+from .compensation_kernel import compensate, extra_force
 
 __all__ = ["regulator_step", "yaw_then_lift", "torques_first", "TABLE_X", "TABLE_U", "TABLE_V",
            "TABLE_K", "ATTITUDE_WIDTH", "P_LEAD", "P_DECAY", "P_FMAX", "P_WINDOW", "P_MARGIN",
@@ -197,8 +197,13 @@ def regulator_step(x, f_act, has_f, has_dist, dcxy, dcz, fx, fy, fz, table, s_ta
         R_ahead = (_nominal_attitude(table, j, b, width) if so3
                    else rpy_matrix(x_ahead[3], x_ahead[4], x_ahead[5]))
         t_ahead = table[j, TABLE_U] + b * (table[j + 1, TABLE_U] - table[j, TABLE_U])
-        thrust, Rbar = compensate(xbar, Rbar, u_here[0], x_ahead, R_ahead, t_ahead, dcxy - prm[P_CXY],
-                                  dcz - prm[P_CZ], fx, fy, fz, COMPENSATION_DT_S, prm[P_MAX_TURN])
+        dcxy -= prm[P_CXY]
+        dcz -= prm[P_CZ]
+        f0, f1, f2 = extra_force(Rbar, *mv(Rbar, xbar[6], xbar[7], xbar[8]), dcxy, dcz, fx, fy, fz)
+        g0, g1, g2 = extra_force(R_ahead, *mv(R_ahead, x_ahead[6], x_ahead[7], x_ahead[8]), dcxy, dcz,
+                                 fx, fy, fz)
+        thrust, Rbar = compensate(xbar, Rbar, u_here[0], f0, f1, f2, R_ahead, t_ahead, g0, g1, g2,
+                                  COMPENSATION_DT_S, prm[P_MAX_TURN])
         ubar[0] += thrust - u_here[0]
         u_here[0] = thrust
     w = out[OUT_W:OUT_W + 11]
