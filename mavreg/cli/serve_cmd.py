@@ -72,7 +72,8 @@ def run(args) -> int:
                                            gap_fill=not args.vehicle_lockstep),
                           envelope=controller.envelope, controller=controller,
                           control_rate_hz=args.control_rate_hz)
-    make_regulator = regulator_factory(vehicle, args.control_rate_hz, controller.disturbance)
+    make_regulator = regulator_factory(vehicle, args.control_rate_hz, controller.disturbance,
+                                      controller.allocation, controller.speed_governor)
     daemon = Daemon(config, vehicle, make_regulator)
     asyncio.run(daemon.run())
     if args.control_log:

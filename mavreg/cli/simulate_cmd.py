@@ -12,7 +12,9 @@ Plan the maneuver, start at its nominal entry state (plus --offset), and integra
 paper's quadrotor model (eqs 6-17, RK4, 1 ms) in closed loop with the s-scheduled LQR
 regulator run at --rate-hz with zero-order hold. Rotor forces may carry Gaussian noise and
 saturate per rotor; the plant's inertia may differ from the design (--inertia-kg-m2); a gust
-(--gust-n, --gust-window) may push the vehicle.
+(--gust-n, --gust-window) may push the vehicle. The regulator allocates and governs its
+speed as the controller file's allocation: and speed_governor: sections say
+(docs/governor.md), knowing the --saturation-n limit.
 Reports, overall and per named segment: transverse position error (max, RMS), attitude
 error (max), rotor command range and time saturated. With --json: stable, completed,
 transverse_error_m {max, rms}, attitude_error_deg {max}, segments {...}.
@@ -28,7 +30,8 @@ def add_arguments(p):
     p.add_argument("--noise-n", type=float, default=0.0, metavar="SD",
                    help="Gaussian noise SD on each rotor force, N (default 0)")
     p.add_argument("--saturation-n", type=float, default=None, metavar="F",
-                   help="per-rotor saturation, N (default: none)")
+                   help="per-rotor saturation, N, known to the controller's allocation and speed "
+                        "governor (default: none)")
     add_laps_argument(p)
     p.add_argument("--seed", type=int, default=None, metavar="N", help="noise seed")
     p.add_argument("--rate-hz", type=float, default=1000.0, help="controller rate (default 1000)")
@@ -46,6 +49,7 @@ def add_arguments(p):
 
 def run(args) -> int:
     from ..maneuver.plan import plan_file
+    from ..config.regulation import told_rotor_limit
     from ..sim.maneuver_run import fly_on_design_model
     if args.noise_n < 0:
         raise ValueError(f"--noise-n must be >= 0, got {args.noise_n}")
@@ -60,7 +64,9 @@ def run(args) -> int:
     run_ = fly_on_design_model(plan, offset_m=args.offset, inertia_kg_m2=args.inertia_kg_m2,
                                rotor_noise_sd_n=args.noise_n, saturation_n=args.saturation_n,
                                seed=args.seed, control_rate_hz=args.rate_hz,
-                               gust_force_n=args.gust_n, gust_window_s=tuple(args.gust_window))
+                               gust_force_n=args.gust_n, gust_window_s=tuple(args.gust_window),
+                               allocation=told_rotor_limit(controller.allocation, args.saturation_n),
+                               speed_governor=controller.speed_governor)
     m = run_.metrics
     if args.plot:
         from ..plots import plot_flight

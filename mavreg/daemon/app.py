@@ -20,6 +20,7 @@ from typing import Callable
 from ..config.controller import ControllerParams
 from ..config.disturbance import DisturbanceParams
 from ..config.envelope import EnvelopeParams
+from ..config.regulation import AllocationParams, SpeedGovernorParams
 from ..control.forecast import Forecaster
 from ..config.vehicle import VehicleParams
 from ..control.regulator import ManeuverRegulator
@@ -32,16 +33,20 @@ from .tlog import TlogWriter
 
 
 def regulator_factory(vehicle: VehicleParams, control_rate_hz: float,
-                      disturbance: DisturbanceParams | None = None) -> Callable:
+                      disturbance: DisturbanceParams | None = None,
+                      allocation: AllocationParams | None = None,
+                      speed_governor: SpeedGovernorParams | None = None) -> Callable:
     """plan -> ManeuverRegulator at the vehicle's control rate (for its feedforward lead), its
-    disturbance compensation bounded by ``disturbance`` (the controller file's section)."""
+    disturbance compensation bounded by ``disturbance``, its allocation and speed governor
+    ``allocation`` and ``speed_governor`` (the controller file's sections; None: the paper's)."""
     if not control_rate_hz > 0:
         raise ValueError(f"control rate must be positive, got {control_rate_hz} Hz")
     d = disturbance if disturbance is not None else DisturbanceParams()
 
     def make(plan) -> ManeuverRegulator:
         return ManeuverRegulator(plan, vehicle, control_period_s=1.0 / control_rate_hz,
-                                 max_compensation_turn_rad=d.max_compensation_turn_rad)
+                                 max_compensation_turn_rad=d.max_compensation_turn_rad,
+                                 allocation=allocation, speed_governor=speed_governor)
     return make
 
 __all__ = ["DaemonConfig", "Daemon"]

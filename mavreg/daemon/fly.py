@@ -133,7 +133,8 @@ def fly(opts: FlyOptions) -> int:
                                                       entry_offset_m=tuple(opts.entry_offset_m)),
                           envelope=controller.envelope,
                           controller=controller, control_rate_hz=opts.control_rate_hz)
-    make_regulator = regulator_factory(vehicle, opts.control_rate_hz, controller.disturbance)
+    make_regulator = regulator_factory(vehicle, opts.control_rate_hz, controller.disturbance,
+                                      controller.allocation, controller.speed_governor)
     daemon = Daemon(config, vehicle, make_regulator)
     proc = None
     emulator_code = None

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..config.controller import load_controller
+from ..config.regulation import told_rotor_limit
 from ..geometry.projection import Projector
 from ..model.mixer import Mixer
 from ..model.quadrotor import QuadrotorModel
@@ -90,11 +91,14 @@ def fly_sim(plan, spec, controller_path: Path | None = None) -> Flight:
     if spec.controller == REGULATOR:
         # no timed reference: a lead changes nothing, the regulator starts where the vehicle is
         duration = _max_time(plan, spec)
+        ctrl = None if controller_path is None else load_controller(controller_path)
         run = fly_on_design_model(plan, offset_m=spec.offset_m, inertia_kg_m2=spec.inertia_kg_m2,
                                   rotor_noise_sd_n=spec.rotor_noise_sd_n, saturation_n=spec.saturation_n,
                                   seed=spec.seed, extra_time_s=duration - plan.duration_s,
                                   gust_force_n=spec.gust_force_n,
-                                  gust_window_s=spec.gust_window_s or (0.0, 0.0), start_s_m=spec.start_s_m)
+                                  gust_window_s=spec.gust_window_s or (0.0, 0.0), start_s_m=spec.start_s_m,
+                                  allocation=None if ctrl is None else told_rotor_limit(ctrl.allocation, spec.saturation_n),
+                                  speed_governor=None if ctrl is None else ctrl.speed_governor)
         res = run.result
     else:
         res = _fly_tracker(plan, spec, tracker_for(plan, controller_path, spec.controller))

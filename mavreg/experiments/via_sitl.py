@@ -6,7 +6,9 @@ at once, no link effects, the vehicle file's 20 ms rotor lag) with the paper's d
 plant goes to the emulator alone: ``--inertia-kg-m2``, ``--rotor-noise-sd-n`` (drawn every
 1 ms physics step from ``--seed``) and ``--rotor-saturation-n`` (the rotors clip at the
 limit while the daemon's commands keep the 12 N scale; ``--max-rotor-thrust-n`` would
-rescale the commands too). The start offset is ``mavreg fly --entry-offset``: the run-in ends
+rescale the commands too). The controller is told a saturation run's limit (its allocation and speed
+governor count on it; the plan keeps the 12 N airframe): a controller file per limit,
+``allocation.max_rotor_thrust_n``. The start offset is ``mavreg fly --entry-offset``: the run-in ends
 off the path with the entry's velocity and the regulator takes over there. Laps are the
 maneuver file's ``laps.count`` (a variant file is written).
 
@@ -80,6 +82,16 @@ class SitlFiles:
     vehicle_path: Path
     maneuver_start_s: float | None = None
     """Emulator time at which the maneuver begins (the reference flight's), for gust windows."""
+    controllers_by_saturation: tuple = ()
+    """(rotor limit N, controller YAML path) of the saturation runs: the experiment's controller
+    file told the limit (``allocation.max_rotor_thrust_n``, docs/governor.md)."""
+
+    def controller_for(self, saturation_n: float | None) -> Path:
+        """The controller file of a run whose rotors saturate at ``saturation_n`` (None: none)."""
+        for limit, path in self.controllers_by_saturation:
+            if limit == saturation_n:
+                return path
+        return self.controller_path
 
 
 def prepare_sitl_files(exp, out_dir: Path) -> SitlFiles:
@@ -111,7 +123,16 @@ def prepare_sitl_files(exp, out_dir: Path) -> SitlFiles:
                         + yaml.safe_dump(raw, sort_keys=False))
         load_maneuver(path)
         maneuvers[laps] = path
-    files = SitlFiles(maneuvers, ctrl_path, Path(exp.vehicle_path).resolve())
+    told = []
+    for limit in sorted({r.saturation_n for r in exp.runs if r.saturation_n is not None}):
+        sat = dict(ctrl, allocation={**(ctrl.get("allocation") or {}), "max_rotor_thrust_n": float(limit)})
+        path = out_dir / f"controller_experiment_rotors{limit:g}n.yaml"
+        path.write_text(f"# controller_experiment.yaml told that the rotors give {limit:g} N at most\n"
+                        + yaml.safe_dump(sat, sort_keys=False))
+        load_controller(path)
+        told.append((float(limit), path))
+    files = SitlFiles(maneuvers, ctrl_path, Path(exp.vehicle_path).resolve(),
+                      controllers_by_saturation=tuple(told))
     if any(r.gust_force_n is not None for r in exp.runs):
         files = dataclasses.replace(files, maneuver_start_s=_reference_start(exp, files, out_dir))
     return files
@@ -141,7 +162,7 @@ def _reference_start(exp, files: SitlFiles, out_dir: Path) -> float:
 def fly_command(spec, files: SitlFiles, run_dir: Path) -> list[str]:
     """The ``mavreg fly`` command line of one run."""
     cmd = [sys.executable, "-m", "mavreg.cli.main", "fly", str(files.maneuvers[spec.laps]),
-           "--lockstep", "--world", "ideal", "--controller", str(files.controller_path),
+           "--lockstep", "--world", "ideal", "--controller", str(files.controller_for(spec.saturation_n)),
            "--vehicle-params", str(files.vehicle_path), "--out", str(run_dir),
            "--timeout-s", f"{FLY_TIMEOUT_S:g}", "--entry-offset", *(repr(float(v)) for v in spec.offset_m),
            f"--emulator-arg=--seed={spec.seed}", f"--emulator-arg=--rotor-noise-sd-n={float(spec.rotor_noise_sd_n)!r}"]

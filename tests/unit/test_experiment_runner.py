@@ -56,11 +56,13 @@ def test_group2_campaign_is_stable_and_saturates_only_with_a_limit(tmp_path):
     assert free["stable"] and sat["stable"] and camp.all_ok
     assert free["laps_flown"] == 1.0 and sat["laps_flown"] == 1.0
     assert free["saturated_share"] == 0.0 and 0.0 < sat["saturated_share"] < 0.5
-    # torque asked for and not given: the noise alone (0.04 N m SD) against the clipped rotors
-    assert max(free["loop_torque_shortfall_n_m"]) < 0.3 < 1.0 < sat["loop_torque_shortfall_n_m"][0]
-    # 0.1 N of noise alone keeps the loop within millimetres; 7 N pushes it out by decimetres
+    # torque asked for and not given: the noise alone (0.04 N m SD); at 7 N the controller knows
+    # the limit and allocates the torques first (per-rotor clipping lost more than 1 N m)
+    assert max(free["loop_torque_shortfall_n_m"]) < 0.3 and max(sat["loop_torque_shortfall_n_m"]) < 0.5
+    # 0.1 N of noise alone keeps the loop within millimetres; at 7 N the governor slows the loop
+    # down to what the rotors give: centimetres (per-rotor clipping at full speed: decimetres)
     assert free["loop"]["transverse_error_m"]["max"] < 0.005
-    assert sat["loop"]["transverse_error_m"]["max"] > 0.1
+    assert 0.005 < sat["loop"]["transverse_error_m"]["max"] < 0.4
     assert max(max(o.trace.rotor_applied_n.max(axis=0)) for o in camp.outcomes[1:]) <= 7.0
     md = (tmp_path / "results.md").read_text()
     assert "Stable in 2 of 2 cases" in md and "saturation 7 N" in md
