@@ -9,11 +9,16 @@ prints it.
 
 Compiled kernels are cached on disk (``cache=True``: next to the module, or in numba's user
 cache when the package directory is read-only), so only the first run on a machine pays the
-compile time.
+compile time. numba judges a cached kernel fresh by its own file's stamp alone, but a kernel
+compiles in the kernels it calls from other files (the batch simulator the regulator's step,
+the step the projection): every kernel's cache is therefore stamped with all the package's
+kernel files (:func:`_kernel_stamp`), and an edit of any of them recompiles them all.
 """
 from __future__ import annotations
 
 import os
+from functools import lru_cache
+from pathlib import Path
 
 __all__ = ["ACCELERATED", "njit", "reason"]
 
@@ -33,8 +38,21 @@ ACCELERATED = _numba is not None
 """True when the kernels are compiled by numba."""
 
 
+@lru_cache(maxsize=None)
+def _kernel_stamp() -> tuple:
+    """(path, mtime, size) of every module of the package that imports from this one: the
+    files whose kernels a compiled kernel may have compiled in."""
+    root = Path(__file__).resolve().parent
+    files = sorted(f for f in root.rglob("*.py") if "accel import" in f.read_text(encoding="utf-8"))
+    return tuple((str(f.relative_to(root)), f.stat().st_mtime, f.stat().st_size) for f in files)
+
+
 def njit(func):
     """``numba.njit(cache=True)`` when accelerated, else ``func`` unchanged."""
     if _numba is None:
         return func
-    return _numba.njit(cache=True)(func)
+    dispatcher = _numba.njit(cache=True)(func)
+    cache_file = getattr(getattr(dispatcher, "_cache", None), "_cache_file", None)
+    if hasattr(cache_file, "_source_stamp"):      # numba's layout; else its own stamp alone
+        cache_file._source_stamp = (cache_file._source_stamp, _kernel_stamp())
+    return dispatcher

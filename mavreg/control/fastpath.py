@@ -2,30 +2,33 @@ r"""The compiled step of the maneuver regulator: tables, state and the call of t
 
 :class:`FastStep` holds what :func:`mavreg.control.step_kernel.regulator_step` reads: the
 plan laid out as one contiguous (N, 17 + 4 n_K) table (x, u, v and K per node, so that one
-row blend gives them all), the path's Hermite tables, a parameter vector, and the state
-kept between steps (s, the rotor lag filter). A step costs one kernel call, one small
-array for the outputs (w, u and the rotor forces are views of it, fresh every step, so a
-caller may keep them) and the :class:`~mavreg.control.regulator.RegulatorOutput`.
+row blend gives them all; then the SO(3) form's attitude rows and the speed governor's
+columns where they are used), the path's Hermite tables, a parameter vector, and the state
+kept between steps (s, the rotor lag filter, the governor). A step costs one kernel call,
+one small array for the outputs (w, u and the rotor forces are views of it, fresh every
+step, so a caller may keep them) and the :class:`~mavreg.control.regulator.RegulatorOutput`.
 
 The compiled path is used when numba is available and ``MAVREG_PURE`` is not set
-(:data:`mavreg.accel.ACCELERATED`) and the regulator has no speed governor; otherwise the
-regulator's numpy step runs, the reference that the tests hold this one to
-(``tests/unit/test_fastpath.py``: rotor forces within 1e-9 N over closed-loop states).
+(:data:`mavreg.accel.ACCELERATED`); otherwise the regulator's numpy step runs, the
+reference that the tests hold this one to (``tests/unit/test_fastpath.py``: rotor forces
+within 1e-9 N over closed-loop states).
 :func:`warm_up` compiles (or loads from numba's on-disk cache) the kernel when the
 regulator is built, so that no compilation falls inside a control loop.
 """
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..accel import ACCELERATED
+from ..config.regulation import SpeedGovernorParams
 from ..geometry.projection_kernel import path_tables
 from . import step_kernel as sk
 from .attitude_table import NominalAttitudes
 
-__all__ = ["FastStep", "plan_table", "available", "warm_up", "compile_seconds"]
+__all__ = ["FastStep", "GovernorSetup", "plan_table", "available", "warm_up", "compile_seconds"]
 
 compile_seconds: float | None = None
 """Seconds :func:`warm_up` took in this process (compiling the kernel, or loading it from
@@ -61,7 +64,7 @@ def warm_up() -> float | None:
     table = np.zeros((2, sk.TABLE_K + 60 + sk.ATTITUDE_WIDTH))
     table[:, sk.TABLE_K + 60:sk.TABLE_K + 69] = np.eye(3).reshape(9)
     sk.regulator_step(np.zeros(12), np.zeros(4), True, True, 0.0, 0.0, 0.0, 0.0, 0.0, table,
-                      np.array([0.0, 1.0]), np.array([0.0, 1.0]), coef, ends, prm, np.zeros(6),
+                      np.array([0.0, 1.0]), np.array([0.0, 1.0]), coef, ends, prm, np.zeros(sk.ST_WIDTH),
                       np.empty(sk.OUT_WIDTH))
     compile_seconds = time.perf_counter() - t0
     return compile_seconds
@@ -89,8 +92,33 @@ def _so3(plan) -> bool:
     return getattr(plan, "attitude_error", "rpy") == "so3"
 
 
+@dataclass(frozen=True)
+class GovernorSetup:
+    """What the compiled step needs of the regulator's speed governor
+    (:class:`~mavreg.control.governor.SpeedGovernor`, docs/governor.md)."""
+
+    params: SpeedGovernorParams
+    target_m_s: np.ndarray
+    """The governor's target speed on the plan's grid (the profile, capped for thrust)."""
+    accel_step_m_s2: float
+    """Largest change of the fed-forward acceleration per control step (inf: no slew)."""
+    accel_step_ahead_m_s2: float
+    """The same over the compensation's dt."""
+    mass_kg: float
+    parasitic_drag_n_s2_per_m2: float
+
+
+def _governor_columns(plan, target_m_s) -> np.ndarray:
+    """(N, 3): the target speed, its :math:`v_t v_t'` and the profile's :math:`\bar v \bar v'`
+    (as :class:`~mavreg.control.governor.SpeedGovernor` forms them)."""
+    s = np.asarray(plan.s, dtype=float)
+    target = np.asarray(target_m_s, dtype=float)
+    profile = np.asarray(plan.speed_m_s, dtype=float)
+    return np.column_stack([target, np.gradient(0.5 * target * target, s), np.gradient(0.5 * profile ** 2, s)])
+
+
 class FastStep:
-    """The regulator's step without a speed governor, compiled.
+    """The regulator's step, compiled.
 
     Parameters
     ----------
@@ -109,14 +137,27 @@ class FastStep:
     max_compensation_turn_rad : float
     window_m, tube_margin : float
         The projector's (:class:`~mavreg.geometry.projection.Projector`).
+    governor : GovernorSetup, optional
+        The speed governor (None: the profile's speed is regulated to).
     """
 
     def __init__(self, plan, mixer_matrix, mixer_inverse, max_rotor_thrust_n: float, torques_first: bool,
                  lead_s: float, decay: float, base_drag_n_s_per_m, max_compensation_turn_rad: float,
-                 window_m: float, tube_margin: float):
-        self.s_tab, self.table = plan_table(plan)
-        self.s_nodes, self.coef, self.ends = path_tables(plan.path)
+                 window_m: float, tube_margin: float, governor: GovernorSetup | None = None):
+        self.s_tab, table = plan_table(plan)
         prm = np.zeros(sk.N_PARAMS)
+        if governor is not None:
+            g = governor.params
+            columns = _governor_columns(plan, governor.target_m_s)
+            prm[sk.P_GOV], prm[sk.P_GOV_COL] = 1.0, table.shape[1]
+            prm[sk.P_MASS], prm[sk.P_PARASITIC] = governor.mass_kg, governor.parasitic_drag_n_s2_per_m2
+            prm[sk.P_GOV_ACCEL:sk.P_GOV_STEP_AHEAD + 1] = (
+                g.recovery_accel_m_s2, g.recovery_time_constant_s, g.speed_band_m_s, g.speed_gain_per_s,
+                g.max_accel_m_s2, float(np.any(columns[:, 0] < plan.speed_m_s)), governor.accel_step_m_s2,
+                governor.accel_step_ahead_m_s2)
+            table = np.ascontiguousarray(np.concatenate([table, columns], axis=1))
+        self.table = table
+        self.s_nodes, self.coef, self.ends = path_tables(plan.path)
         prm[sk.P_LEAD] = lead_s
         prm[sk.P_DECAY] = decay
         prm[sk.P_FMAX] = max_rotor_thrust_n
@@ -132,18 +173,18 @@ class FastStep:
         prm[sk.P_MINV:sk.P_MINV + 16] = np.asarray(mixer_inverse, dtype=float).reshape(16)
         prm[sk.P_MIX:sk.P_MIX + 16] = np.asarray(mixer_matrix, dtype=float).reshape(16)
         self.prm = prm
-        self.state = np.zeros(6)
-        """s, 1.0 when the lag filter holds an estimate, the estimate (4)."""
+        self.state = np.zeros(sk.ST_WIDTH)
+        """Kept between steps (:data:`~mavreg.control.step_kernel.ST_S` ...)."""
         self._no_forces = np.zeros(4)
 
     def reset(self, s: float, rotor_forces_n=None) -> None:
-        """Continue from arc length s, the lag filter at ``rotor_forces_n`` (None: empty)."""
-        self.state[0] = s
-        if rotor_forces_n is None:
-            self.state[1:] = 0.0
-        else:
-            self.state[1] = 1.0
-            self.state[2:6] = rotor_forces_n
+        """Continue from arc length s, the lag filter at ``rotor_forces_n`` (None: empty), the
+        governor without a governed speed."""
+        self.state[:] = 0.0
+        self.state[sk.ST_S] = s
+        if rotor_forces_n is not None:
+            self.state[sk.ST_HAS_EST] = 1.0
+            self.state[sk.ST_EST:sk.ST_EST + 4] = rotor_forces_n
 
     def step(self, x, rotor_forces_n=None, disturbance=None):
         """The regulator's step (see :meth:`ManeuverRegulator.step`): ``(s, w, u,

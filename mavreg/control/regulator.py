@@ -26,6 +26,7 @@ from ..maneuver.plan import Plan
 from ..model.mixer import Mixer, torques_first, yaw_then_lift
 from ..model.rotation import rpy_to_matrix
 from ..model.so3 import attitude_error
+from . import fastpath
 from .attitude_table import NominalAttitudes
 from .disturbance import DisturbanceEstimate, compensate
 from .governor import GovernedSpeed, SpeedGovernor, along_track_speed, retiming_force, thrust_speed_cap
@@ -79,6 +80,10 @@ class ManeuverRegulator:
         the vehicle's ``max_rotor_thrust_n``, the paper's).
     speed_governor : SpeedGovernorParams, optional
         The speed governor (default: none, the paper's regulator).
+    compiled : bool, optional
+        Step by the compiled kernel (:mod:`mavreg.control.fastpath`, the same outputs to
+        rounding) or by the numpy step below, the reference. None (default): compiled where
+        numba is available and ``MAVREG_PURE`` is not set.
 
     Notes
     -----
@@ -102,7 +107,7 @@ class ManeuverRegulator:
     def __init__(self, plan: Plan, vehicle: VehicleParams, control_period_s: float = 0.0,
                  rotor_time_constant_s: float | None = None, max_compensation_turn_rad: float = math.pi,
                  allocation: AllocationParams | None = None,
-                 speed_governor: SpeedGovernorParams | None = None):
+                 speed_governor: SpeedGovernorParams | None = None, compiled: bool | None = None):
         self.plan = plan
         mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
         alloc = allocation if allocation is not None else AllocationParams(method="per_rotor_clip")
@@ -141,6 +146,22 @@ class ManeuverRegulator:
                            if plan.attitude_error == "so3" else None)
         """The nominal attitude's rows when the gains are on the SO(3) attitude error."""
         self.s = 0.0
+        if compiled and not fastpath.available():
+            raise ValueError("no compiled step here: numba is missing or MAVREG_PURE is set")
+        self._fast = self._compiled_step(speed_governor) if (
+            fastpath.available() if compiled is None else compiled) else None
+
+    def _compiled_step(self, speed_governor) -> fastpath.FastStep:
+        """The compiled step with this regulator's tables and settings (the kernel compiled
+        or loaded now, not in the loop)."""
+        fastpath.warm_up()
+        gov = None if self.governor is None else fastpath.GovernorSetup(
+            speed_governor, self.governor.target_m_s, self._accel_step, self._accel_step_ahead,
+            self._mass, self._parasitic)
+        return fastpath.FastStep(self.plan, self._mixer, self.mixer_inverse, self._fmax,
+                                 self._allocate is torques_first, self._lead_s, self._decay,
+                                 self._base_drag, self._max_turn, self.projector.window_m,
+                                 self.projector.tube_margin, gov)
 
     def _extra_force(self, xbar, R, disturbance: DisturbanceEstimate) -> np.ndarray:
         """The force the plan's model misses at nominal state ``xbar`` (attitude ``R``)."""
@@ -168,6 +189,8 @@ class ManeuverRegulator:
             i, a = self._locate(self.s)
             rotor_forces_n = self.mixer_inverse @ (self._u[i] + a * (self._u[i + 1] - self._u[i]))
         self._rotors_est = np.asarray(rotor_forces_n, dtype=float).copy()
+        if self._fast is not None:
+            self._fast.reset(self.s, self._rotors_est)
 
     def _governed(self, s: float, pt, x) -> tuple[GovernedSpeed, float] | None:
         """The governed reference at s for state x, its along-track acceleration fed forward
@@ -214,6 +237,10 @@ class ManeuverRegulator:
         """One control step for state x (12,); ``rotor_forces_n`` (4,): the rotors' forces
         when this command takes over (used only by lag-aware gains); ``disturbance``: the
         airframe's estimated force model, compensated."""
+        if self._fast is not None:
+            s, w, u, rotors, in_tube, finished, v_ref = self._fast.step(x, rotor_forces_n, disturbance)
+            self.s = self.projector.s = s
+            return RegulatorOutput(s, w, u, rotors, in_tube, finished, v_ref)
         x = np.asarray(x, dtype=float)
         proj = self.projector.update(x[:3])
         s = proj.s

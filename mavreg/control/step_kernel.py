@@ -1,6 +1,6 @@
 r"""The maneuver regulator's step as one scalar kernel that numba compiles
-(:func:`mavreg.accel.njit`): :meth:`mavreg.control.regulator.ManeuverRegulator.step` without
-a speed governor, state in, rotor forces out, nothing allocated but one scratch point.
+(:func:`mavreg.accel.njit`): :meth:`mavreg.control.regulator.ManeuverRegulator.step`, state
+in, rotor forces out, nothing allocated but scratch rows.
 
 One step, as the regulator does it:
 
@@ -10,18 +10,21 @@ One step, as the regulator does it:
    (:data:`TABLE_X`, :data:`TABLE_U`, :data:`TABLE_V`, :data:`TABLE_K`), and the nominal
    attitude :math:`\bar R(s)`: from the blended roll-pitch-yaw, or in the SO(3) form
    :math:`R_i \mathrm{Exp}(\xi(a))` from the row's attitude data;
-3. the feedforward at :math:`s + \bar v(s)\,\ell` (the lead), and with a disturbance
-   estimate the nominal compensated for it
-   (:func:`mavreg.control.compensation_kernel.compensate`, with the nominal
-   :data:`COMPENSATION_DT_S` ahead for the turn's rate);
-4. w (:func:`mavreg.control.transverse.transverse_coordinates`: the attitude error the
+3. with a speed governor, the speed :math:`v_r` regulated to and the along-track
+   acceleration fed forward (:mod:`mavreg.control.governor_kernel`), else :math:`v_r = \bar v(s)`;
+4. the feedforward at :math:`s + v_r\,\ell` (the lead); the nominal re-timed to the governed
+   speed (velocities and rates times :math:`\sigma = v_r/\bar v`, torques times
+   :math:`\sigma^2`, the thrust vector turned for the re-timing force), and with a disturbance
+   estimate compensated for it (:func:`mavreg.control.compensation_kernel.compensate`, each
+   with the nominal :data:`COMPENSATION_DT_S` ahead for the turn's rate);
+5. w (:func:`mavreg.control.transverse.transverse_coordinates`: the attitude error the
    wrapped roll-pitch-yaw differences, or :math:`\mathrm{Log}(\bar R^T R)` in the plan's
    nominal frame, less :math:`\mathrm{Log}(\bar R^T \bar R_c)` of the compensated
    :math:`\bar R_c`), then
    :math:`u = \bar u - K_{:, 0:11} w - K_{:, 11:15} (M f - \bar u(s))` with lag-aware gains
    (f: the rotor forces handed over, else the regulator's lag filter of its own commands,
    else :math:`M^{-1} \bar u(s)`), or :math:`u = \bar u - K w`;
-5. rotor forces by the configured allocation (:func:`yaw_then_lift` or
+6. rotor forces by the configured allocation (:func:`yaw_then_lift` or
    :func:`torques_first`, :mod:`mavreg.model.mixer`'s, scalar), and the lag filter updated.
 
 The tables' layout and the parameter vector's slots are the constants below; the Python side
@@ -29,23 +32,23 @@ The tables' layout and the parameter vector's slots are the constants below; the
 """
 from __future__ import annotations
 
-import os
+import math
 
 import numpy as np
 
 from ..accel import njit
-from ..geometry import projection_kernel
-from ..geometry.projection_kernel import POINT_WIDTH, project
-from ..model import rotation_kernel
+from ..geometry.projection_kernel import POINT_WIDTH, path_point, project
 from ..model.rotation_kernel import log_vee, mm, mtm, mv, rodrigues, rpy_matrix, wrap
-from . import compensation_kernel
 from .compensation_kernel import compensate, extra_force
+from .governor_kernel import G_PROFILE_ACCEL, drag_change, governed_reference, interp, retiming_force
 
 __all__ = ["regulator_step", "yaw_then_lift", "torques_first", "TABLE_X", "TABLE_U", "TABLE_V",
            "TABLE_K", "ATTITUDE_WIDTH", "P_LEAD", "P_DECAY", "P_FMAX", "P_WINDOW", "P_MARGIN",
            "P_MAX_TURN", "P_CXY", "P_CZ", "P_TORQUES_FIRST", "P_AUGMENTED", "P_END", "P_NK", "P_SO3",
-           "P_MINV", "P_MIX", "N_PARAMS", "OUT_S", "OUT_W", "OUT_U", "OUT_ROTORS", "OUT_WIDTH",
-           "COMPENSATION_DT_S"]
+           "P_GOV", "P_GOV_COL", "P_MASS", "P_PARASITIC", "P_GOV_ACCEL", "P_GOV_TAU", "P_GOV_BAND",
+           "P_GOV_GAIN", "P_GOV_MAX_ACCEL", "P_GOV_CAPPED", "P_GOV_STEP", "P_GOV_STEP_AHEAD", "P_MINV",
+           "P_MIX", "N_PARAMS", "ST_S", "ST_HAS_EST", "ST_EST", "ST_GOV", "ST_WIDTH", "OUT_S", "OUT_W",
+           "OUT_U", "OUT_ROTORS", "OUT_WIDTH", "COMPENSATION_DT_S"]
 
 TABLE_X, TABLE_U, TABLE_V, TABLE_K = 0, 12, 16, 17
 """Columns of a table row: x (12), u (4), v (1), K row-major (4 x n_K, n_K 11 or 15), then
@@ -61,9 +64,20 @@ window (m) and tube margin, largest compensating turn (rad), the design's drag (
 1.0 for ``torques_first`` (else ``yaw_then_lift``), 1.0 for lag-aware gains, the arc length
 at which the maneuver is finished, n_K, 1.0 for the SO(3) attitude error (else roll-pitch-yaw
 differences)."""
-P_MINV, P_MIX = 16, 32
+(P_GOV, P_GOV_COL, P_MASS, P_PARASITIC, P_GOV_ACCEL, P_GOV_TAU, P_GOV_BAND, P_GOV_GAIN,
+ P_GOV_MAX_ACCEL, P_GOV_CAPPED, P_GOV_STEP, P_GOV_STEP_AHEAD) = range(13, 25)
+"""The speed governor's slots: 1.0 when it is on, its first table column, the mass (kg) and
+parasitic drag of the re-timing force, then (:func:`~mavreg.control.governor_kernel.governed_reference`'s
+``gp``) the recovery acceleration and time constant, the band, the gain, the largest push,
+1.0 when the target is capped somewhere, the slew of the fed-forward acceleration per step
+and over :data:`COMPENSATION_DT_S`."""
+P_MINV, P_MIX = 32, 48
 """M^{-1} and M (eq 34), row-major, 16 slots each."""
-N_PARAMS = 48
+N_PARAMS = 64
+ST_S, ST_HAS_EST, ST_EST, ST_GOV = 0, 1, 2, 6
+"""The state vector: s, 1.0 when the lag filter holds an estimate, the estimate (4), the
+governor's four slots (:mod:`mavreg.control.governor_kernel`)."""
+ST_WIDTH = 10
 OUT_S, OUT_W, OUT_U, OUT_ROTORS = 0, 1, 12, 16
 """The output vector: s, w (11), u (4), rotor forces (4)."""
 OUT_WIDTH = 20
@@ -114,12 +128,12 @@ def torques_first(Minv, u, F, f):
     if low >= 0.0 and high <= F:
         return
     beta = 1.0
-    for r in range(4):
+    for r in range(4):          # a rotor out of range with the yaw's help: no yaw
         b, y = _split(Minv, u, r)
-        if b + y < 0.0:
-            beta = min(beta, max(b, 0.0) / -y)
-        elif b + y > F:
-            beta = min(beta, max(F - b, 0.0) / y)
+        if b + y < 0.0 and y != 0.0:
+            beta = min(beta, max(b, 0.0) / -y) if y < 0.0 else 0.0
+        elif b + y > F and y != 0.0:
+            beta = min(beta, max(F - b, 0.0) / y) if y > 0.0 else 0.0
     low, high = _fill(Minv, u, beta, f)
     if high - low <= F:
         shift = low if low < 0.0 else (high - F if high > F else 0.0)
@@ -161,19 +175,36 @@ def _nominal_attitude(table, i, a, c0):
 
 
 @njit
+def _retimed(s, xb, R, pt, v, a, s_tab, table, c, prm):
+    r"""The nominal ``xb`` at s re-timed in place to speed v and along-track acceleration a
+    (body velocity and rates times :math:`\sigma = v/\bar v`); returns :math:`\sigma` and the
+    force by which its thrust vector must change (the regulator's ``_retimed``), ``pt`` the
+    path's 18 values at s."""
+    v_bar = interp(s, s_tab, table, TABLE_V)
+    sigma = v / v_bar
+    d = retiming_force(prm[P_MASS], pt, v_bar, interp(s, s_tab, table, c + G_PROFILE_ACCEL), v, a)
+    cxy, cz, parasitic = prm[P_CXY], prm[P_CZ], prm[P_PARASITIC]
+    if cxy != 0.0 or cz != 0.0 or parasitic != 0.0:
+        e = drag_change(R, *mv(R, xb[6], xb[7], xb[8]), sigma, cxy, cz, parasitic)
+        d = (d[0] + e[0], d[1] + e[1], d[2] + e[2])
+    for k in range(6, 12):
+        xb[k] *= sigma
+    return sigma, d
+
+
+@njit
 def regulator_step(x, f_act, has_f, has_dist, dcxy, dcz, fx, fy, fz, table, s_tab, s_nodes, coef,
                    ends, prm, st, out):
     """One step for state x (12,); returns ``(s, in_tube, finished, v_ref)``.
 
     ``f_act`` (4,): the rotor forces handed over (used when ``has_f``); ``dcxy ... fz``: the
-    disturbance estimate's drag less the design's and its constant force (used when
-    ``has_dist``). ``st`` (6,) is the state between steps: s, 1.0 when the lag filter holds
-    an estimate, the estimate (4). ``out`` (:data:`OUT_WIDTH`,) receives s, w, u and the
-    rotor forces.
+    disturbance estimate's drag and its constant force (used when ``has_dist``). ``st``
+    (:data:`ST_WIDTH`,; 6 without a governor) is the state kept between steps. ``out``
+    (:data:`OUT_WIDTH`,) receives s, w, u and the rotor forces.
     """
     p = np.empty(POINT_WIDTH)
-    s, inside, _ = project(x[0], x[1], x[2], st[0], prm[P_WINDOW], prm[P_MARGIN], s_nodes, coef, ends, p)
-    st[0] = s
+    s, inside, _ = project(x[0], x[1], x[2], st[ST_S], prm[P_WINDOW], prm[P_MARGIN], s_nodes, coef, ends, p)
+    st[ST_S] = s
     nk = int(prm[P_NK])
     width = TABLE_K + 4 * nk           # the blended columns; the attitude data follow
     so3 = prm[P_SO3] > 0.0
@@ -186,24 +217,54 @@ def regulator_step(x, f_act, has_f, has_dist, dcxy, dcz, fx, fy, fz, table, s_ta
     v_ref = row[TABLE_V]
     Rbar = _nominal_attitude(table, i, a, width) if so3 else rpy_matrix(xbar[3], xbar[4], xbar[5])
     R_plan = Rbar
+    governed = False
+    a_ff = later = 0.0
+    if prm[P_GOV] > 0.0:
+        n0, n1, n2 = mv(rpy_matrix(x[3], x[4], x[5]), x[6], x[7], x[8])
+        governed, v_gov, a_ff, later = governed_reference(
+            s, p[3] * n0 + p[6] * n1 + p[9] * n2, s_tab, table, int(prm[P_GOV_COL]), TABLE_V, st, ST_GOV,
+            (prm[P_GOV_ACCEL], prm[P_GOV_TAU], prm[P_GOV_BAND], prm[P_GOV_GAIN], prm[P_GOV_MAX_ACCEL],
+             prm[P_GOV_CAPPED], prm[P_GOV_STEP], prm[P_GOV_STEP_AHEAD]))
+        if governed:
+            v_ref = v_gov
     ubar = row[width:width + 4]
     if prm[P_LEAD] > 0.0:
         i, a = _locate(s + v_ref * prm[P_LEAD], s_tab)
     _blend(table, i, a, TABLE_U, TABLE_U + 4, ubar)
-    if has_dist:
+    if governed or has_dist:
+        # the turn rate of the changed nominal from the nominal COMPENSATION_DT_S ahead
         x_ahead = row[width + 4:width + 16]
-        j, b = _locate(s + max(v_ref, 0.1) * COMPENSATION_DT_S, s_tab)
+        s_ahead = s + max(v_ref, 0.1) * COMPENSATION_DT_S
+        j, b = _locate(s_ahead, s_tab)
         _blend(table, j, b, TABLE_X, TABLE_X + 12, x_ahead)
         R_ahead = (_nominal_attitude(table, j, b, width) if so3
                    else rpy_matrix(x_ahead[3], x_ahead[4], x_ahead[5]))
         t_ahead = table[j, TABLE_U] + b * (table[j + 1, TABLE_U] - table[j, TABLE_U])
-        dcxy -= prm[P_CXY]
-        dcz -= prm[P_CZ]
-        f0, f1, f2 = extra_force(Rbar, *mv(Rbar, xbar[6], xbar[7], xbar[8]), dcxy, dcz, fx, fy, fz)
-        g0, g1, g2 = extra_force(R_ahead, *mv(R_ahead, x_ahead[6], x_ahead[7], x_ahead[8]), dcxy, dcz,
-                                 fx, fy, fz)
-        thrust, Rbar = compensate(xbar, Rbar, u_here[0], f0, f1, f2, R_ahead, t_ahead, g0, g1, g2,
-                                  COMPENSATION_DT_S, prm[P_MAX_TURN])
+        thrust = u_here[0]
+        if governed:
+            q = np.empty(POINT_WIDTH)
+            path_point(s_ahead, s_nodes, coef, ends, q)
+            c = int(prm[P_GOV_COL])
+            v_ahead = math.sqrt(max(v_ref * v_ref + 2.0 * a_ff * (s_ahead - s), 0.0))
+            a_ahead = interp(s_ahead, s_tab, table, c + G_PROFILE_ACCEL) + later
+            da = _retimed(s_ahead, x_ahead, R_ahead, q, v_ahead, a_ahead, s_tab, table, c, prm)[1]
+            sigma, d = _retimed(s, xbar, Rbar, p, v_ref, a_ff, s_tab, table, c, prm)
+            t_ahead_g, R_ahead_g = compensate(x_ahead, R_ahead, t_ahead, da[0], da[1], da[2], R_ahead, 0.0,
+                                              0.0, 0.0, 0.0, 0.0, math.pi)
+            thrust, Rbar = compensate(xbar, Rbar, thrust, d[0], d[1], d[2], R_ahead, t_ahead, da[0], da[1],
+                                      da[2], COMPENSATION_DT_S, math.pi)
+            t_ahead, R_ahead = t_ahead_g, R_ahead_g
+            for r in range(1, 4):
+                ubar[r] *= sigma * sigma
+                u_here[r] *= sigma * sigma
+        if has_dist:
+            dcxy -= prm[P_CXY]
+            dcz -= prm[P_CZ]
+            f0, f1, f2 = extra_force(Rbar, *mv(Rbar, xbar[6], xbar[7], xbar[8]), dcxy, dcz, fx, fy, fz)
+            g0, g1, g2 = extra_force(R_ahead, *mv(R_ahead, x_ahead[6], x_ahead[7], x_ahead[8]), dcxy, dcz,
+                                     fx, fy, fz)
+            thrust, Rbar = compensate(xbar, Rbar, thrust, f0, f1, f2, R_ahead, t_ahead, g0, g1, g2,
+                                      COMPENSATION_DT_S, prm[P_MAX_TURN])
         ubar[0] += thrust - u_here[0]
         u_here[0] = thrust
     w = out[OUT_W:OUT_W + 11]
@@ -214,7 +275,7 @@ def regulator_step(x, f_act, has_f, has_dist, dcxy, dcz, fx, fy, fz, table, s_ta
         # in the plan's nominal frame, where the gains were designed; with a compensation,
         # the error from the changed nominal: Log(Rbar^T R) - Log(Rbar^T Rbar_changed)
         w[2], w[3], w[4] = log_vee(mtm(R_plan, rpy_matrix(x[3], x[4], x[5])))
-        if has_dist:
+        if governed or has_dist:
             c0, c1, c2 = log_vee(mtm(R_plan, Rbar))
             w[2] -= c0
             w[3] -= c1
@@ -233,8 +294,8 @@ def regulator_step(x, f_act, has_f, has_dist, dcxy, dcz, fx, fy, fz, table, s_ta
     minv = prm[P_MINV:P_MINV + 16]
     augmented = prm[P_AUGMENTED] > 0.0
     if augmented:
-        fa = f_act if has_f else st[2:6]
-        if not has_f and st[1] == 0.0:
+        fa = f_act if has_f else st[ST_EST:ST_EST + 4]
+        if not has_f and st[ST_HAS_EST] == 0.0:
             fa = np.empty(4)
             for r in range(4):
                 fa[r] = (minv[4 * r] * u_here[0] + minv[4 * r + 1] * u_here[1]
@@ -255,26 +316,9 @@ def regulator_step(x, f_act, has_f, has_dist, dcxy, dcz, fx, fy, fz, table, s_ta
     if augmented:
         decay = prm[P_DECAY]
         for r in range(4):
-            base = st[2 + r] if st[1] != 0.0 else rotors[r]
-            st[2 + r] = rotors[r] + (base - rotors[r]) * decay
-        st[1] = 1.0
+            base = st[ST_EST + r] if st[ST_HAS_EST] != 0.0 else rotors[r]
+            st[ST_EST + r] = rotors[r] + (base - rotors[r]) * decay
+        st[ST_HAS_EST] = 1.0
     out[OUT_S] = s
     return s, inside, s >= prm[P_END], v_ref
 
-
-def _cache_follows(dispatcher, *modules) -> None:
-    """Make the on-disk cache of a compiled ``dispatcher`` stale when any of ``modules`` changes.
-
-    numba keys a cached function by the stamp (mtime, size) of its own source file only, so
-    the callees it compiles in from other files would be loaded as they were after an edit of
-    theirs alone. The stamp is extended with theirs (nothing happens without numba, or where
-    its cache is laid out otherwise: then only this file's edits refresh it).
-    """
-    cache_file = getattr(getattr(dispatcher, "_cache", None), "_cache_file", None)
-    if cache_file is None or not hasattr(cache_file, "_source_stamp"):
-        return
-    stamps = tuple((os.stat(m.__file__).st_mtime, os.stat(m.__file__).st_size) for m in modules)
-    cache_file._source_stamp = (cache_file._source_stamp, stamps)
-
-
-_cache_follows(regulator_step, projection_kernel, rotation_kernel, compensation_kernel)
