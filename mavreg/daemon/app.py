@@ -23,6 +23,7 @@ from ..config.envelope import EnvelopeParams
 from ..config.regulation import AllocationParams, SpeedGovernorParams
 from ..control.forecast import Forecaster
 from ..config.vehicle import VehicleParams
+from ..control import fastpath
 from ..control.regulator import ManeuverRegulator
 from .ctrllog import ControlLog
 from .endpoint import EndpointServer
@@ -38,10 +39,13 @@ def regulator_factory(vehicle: VehicleParams, control_rate_hz: float,
                       speed_governor: SpeedGovernorParams | None = None) -> Callable:
     """plan -> ManeuverRegulator at the vehicle's control rate (for its feedforward lead), its
     disturbance compensation bounded by ``disturbance``, its allocation and speed governor
-    ``allocation`` and ``speed_governor`` (the controller file's sections; None: the paper's)."""
+    ``allocation`` and ``speed_governor`` (the controller file's sections; None: the paper's).
+    The regulator's compiled step is compiled (or loaded from numba's cache) here, so that a
+    maneuver uploaded in flight does not stall the loop for it."""
     if not control_rate_hz > 0:
         raise ValueError(f"control rate must be positive, got {control_rate_hz} Hz")
     d = disturbance if disturbance is not None else DisturbanceParams()
+    fastpath.warm_up()      # the compiled step now, before the link: a later upload builds at once
 
     def make(plan) -> ManeuverRegulator:
         return ManeuverRegulator(plan, vehicle, control_period_s=1.0 / control_rate_hz,
