@@ -1,11 +1,14 @@
 """The controller step (state in, rotor commands out) over the states of closed-loop barrel rolls.
 
-Run: ``python benchmarks/bench_step.py [--states N] [--pure]``. For each controller file
+Run: ``python benchmarks/bench_step.py [--states N] [--repeat K]``. For each controller file
 (``paper_lqr.yaml``, and ``realistic.yaml`` with the rotor forces and a disturbance estimate
 as the daemon hands them over) it flies the barrel roll on the design model, keeps the
 states the regulator saw, then times :meth:`ManeuverRegulator.step` on them, in order, one
-call per state (the projection is warm-started from the previous one), and prints p50, p99,
-p99.9 and the maximum. Asserts nothing (shared machines are noisy).
+call per state (the projection is warm-started from the previous one), the numpy step and
+the compiled one (``compiled=``), and prints p50, p99, p99.9 and the maximum, and the time
+the kernel took to compile or load. Asserts nothing (shared machines are noisy). The
+regulators are built as the controller files say (allocation, speed governor). The suite's
+step figure (``python -m benchmarks``) is the paper file's alone.
 
 Also importable: :func:`closed_loop_states` gives the states, :func:`time_steps` the timings.
 """
@@ -20,6 +23,7 @@ import numpy as np
 
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
+from mavreg.control import fastpath
 from mavreg.control.disturbance import DisturbanceEstimate
 from mavreg.control.regulator import ManeuverRegulator
 from mavreg.maneuver.plan import plan_file
@@ -116,11 +120,16 @@ def main(argv=None) -> None:
     ap.add_argument("--states", type=int, default=30_000)
     ap.add_argument("--repeat", type=int, default=1, help="time each case this many times")
     args = ap.parse_args(argv)
+    seconds = fastpath.warm_up()
+    print("compiled step: " + ("unavailable (numba missing or MAVREG_PURE set)" if seconds is None else
+                               f"compiled or loaded from numba's cache in {seconds:.2f} s"))
     for name in ("paper_lqr", "realistic"):
         case = closed_loop_states(name, args.states)
         for _ in range(args.repeat):
-            reg = case.regulator()
-            print(f"{name:10s} step over {len(case.states)} states: {summary(time_steps(case, reg))}")
+            for compiled in (False, True) if seconds is not None else (False,):
+                reg = case.regulator(compiled=compiled)
+                label = f"{name} {'compiled' if compiled else 'numpy'}"
+                print(f"{label:20s} step over {len(case.states)} states: {summary(time_steps(case, reg))}")
 
 
 if __name__ == "__main__":
