@@ -18,7 +18,7 @@ REAL_CONTROLLER = PARAMS_DIR / "controller" / "realistic.yaml"
 that fly a vehicle (fly, serve)."""
 
 
-def add_model_arguments(p: argparse.ArgumentParser, controller: Path = PAPER_CONTROLLER) -> None:
+def add_model_arguments(p: argparse.ArgumentParser, controller: Path = DESIGN_CONTROLLER) -> None:
     p.add_argument("--vehicle-params", metavar="YAML", default=str(DEFAULT_VEHICLE),
                    help="vehicle parameter file (default: %(default)s)")
     p.add_argument("--controller", metavar="YAML", default=str(controller),

@@ -169,8 +169,10 @@ class FlightPhases:
         w = np.asarray(r.w, dtype=float)
         rotors = np.asarray(r.rotor_forces_n, dtype=float)
         record = self._record(sample, r.s, w, r.u, rotors)
-        tracking = Tracking(float(math.hypot(w[0], w[1])), angle_between(x[3:6], x[3:6] - w[2:5]),
-                            _norm3(w, 8), self._s, bool(r.in_tube))
+        attitude_error = (float(np.linalg.norm(w[2:5])) if plan.attitude_error == "so3"   # |Log(Rbar^T R)|
+                          else angle_between(x[3:6], x[3:6] - w[2:5]))
+        tracking = Tracking(float(math.hypot(w[0], w[1])), attitude_error, _norm3(w, 8), self._s,
+                            bool(r.in_tube))
         if r.finished and np.all(np.isfinite(rotors)):
             self._maneuvers_done.append(plan.name)
             self._active = None

@@ -38,9 +38,10 @@ def euler_singularity(s, pitch_rad, segment_of: Callable[[float], str],
     i = int(np.argmax(pitch))
     return (f"the nominal attitude reaches pitch {np.degrees(pitch_rad[i]):+.1f} deg at "
             f"s = {s[i]:.2f} m in {segment_of(s[i])!r}: the paper's roll-pitch-yaw attitude is "
-            "singular at +-90 deg (a loop flown nose-first passes it). Keep the pitch within "
-            f"+-{limit_deg:.0f} deg: fly the loop as a barrel roll (start heading across the "
-            "loop's plane) or yaw the nose out of the loop's plane")
+            "singular at +-90 deg (a loop flown nose-first passes it). Plan it with a controller "
+            "in the SO(3) form (attitude_error: so3, as params/controller/design.yaml and "
+            f"realistic.yaml), or keep the pitch within +-{limit_deg:.0f} deg (fly the loop as a "
+            "barrel roll, heading across the loop's plane)")
 
 
 def explain_divergence(s_fail: float, s, pitch_rad, speed_m_s, rotor_forces_n,

@@ -42,13 +42,19 @@ def test_euler_singularity_only_near_ninety_degrees():
     assert "+89.5 deg at s = 6.10 m in 'loop'" in msg
 
 
-def test_a_loop_flown_nose_first_is_refused_for_the_singularity():
-    """The issue's forward loop: the barrel roll with heading 0 and yaw 0."""
+def test_a_loop_flown_nose_first_is_refused_for_its_real_cause():
+    """The issue's forward loop, the barrel roll file with heading 0 and yaw 0: with the yaw
+    held, the nose reference crosses the thrust axis and the attitude flips (any attitude
+    form); with the nose on the velocity, the paper's roll-pitch-yaw form is singular, and
+    the message points at the SO(3) form. Never a Riccati step size."""
     text = (PARAMS_DIR / "maneuvers" / "barrel_roll.yaml").read_text()
     text = text.replace("heading_deg: 270", "heading_deg: 0")
-    with pytest.raises(ManeuverError) as info:
-        plan_spec(load_maneuver_text(text, "forward_loop.yaml"), load_vehicle(DEFAULT_VEHICLE),
-                  load_controller(PAPER_CONTROLLER))
-    msg = str(info.value)
-    assert "roll-pitch-yaw attitude is singular" in msg and "in 'loop'" in msg
-    assert "Riccati" not in msg and "reduce the step" not in msg
+    for yaw, expected in (("", "the attitude flips by 180 deg"),
+                          ("\n  mode: velocity", "roll-pitch-yaw attitude is singular")):
+        spec = load_maneuver_text(text.replace("yaw:", "yaw:" + yaw, 1), "forward_loop.yaml")
+        with pytest.raises(ManeuverError) as info:
+            plan_spec(spec, load_vehicle(DEFAULT_VEHICLE), load_controller(PAPER_CONTROLLER))
+        msg = str(info.value)
+        assert expected in msg and "in 'loop'" in msg, msg
+        assert "Riccati" not in msg and "reduce the step" not in msg
+    assert "attitude_error: so3" in msg

@@ -36,6 +36,7 @@ class FakePlan:
     length_m: float = 2.0
     speed: float = 1.0
     start: tuple = (1.0, 0.5, -2.0)
+    attitude_error: str = "rpy"
 
     @property
     def segments(self):
