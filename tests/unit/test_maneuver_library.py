@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from mavreg.cli.common import DEFAULT_VEHICLE, DESIGN_CONTROLLER, PARAMS_DIR
@@ -107,3 +107,29 @@ def test_the_other_yaw_modes_name_why_a_loop_cannot_be_flown_nose_first(mode):
         assert "yaw mode" in str(exc)
     else:
         assert not plan.feasibility.feasible
+
+
+def _flies(plan):
+    from mavreg.sim.maneuver_run import fly_on_design_model
+    m = fly_on_design_model(plan).metrics
+    assert m["status"] == "completed"
+    assert m["transverse_error_m"]["max"] <= 0.01 and m["attitude_error_deg"]["max"] <= 1.0
+
+
+@settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(radius=st.floats(1.5, 3.0), g_at_top=st.floats(1.7, 2.4),
+       heading=st.floats(0.0, 360.0).map(round))
+def test_a_feasible_loop_flown_nose_first_flies_on_the_design_model(radius, g_at_top, heading):
+    """From its nominal entry, through pitch +-90 deg: within 1 cm and 1 deg, wherever the
+    rotors allow the loop."""
+    speed = float(np.sqrt(g_at_top * 9.81 * radius))
+    plan = plan_spec(forward_loop(radius, speed, 0.0, "velocity", heading), VEHICLE, CONTROLLER,
+                     strict=False)
+    assume(plan.feasibility.feasible)
+    _flies(plan)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", LIBRARY, ids=[p.stem for p in LIBRARY])
+def test_every_library_maneuver_flies_on_the_design_model(path):
+    _flies(plan_spec(load_maneuver(path), VEHICLE, CONTROLLER))
