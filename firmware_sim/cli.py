@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
+import os
 import signal
 import sys
 import textwrap
@@ -12,7 +13,6 @@ from .autopilot import Autopilot, AutopilotConfig
 from .clock import StopRun, run_lockstep, run_realtime
 from .engine import Engine
 from .link import Link
-from mavreg.cli.guard import run_guarded
 from mavreg.config.vehicle import EmulatorParams, load_vehicle
 
 from .params import START_KEYS, build_sim_params, default_vehicle_path, parse_start
@@ -254,7 +254,19 @@ def _raise_stop(signum, frame):
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status (see :class:`firmware_sim.status.ExitCode`); a
     closed pipe exits 141 and a Ctrl-C before the run starts 130, without a traceback."""
-    return run_guarded("firmware-sim", lambda: _main(argv))
+    try:
+        code = _main(argv)
+        sys.stdout.flush()
+        return code
+    except BrokenPipeError:          # a closed pipe: quiet, as a shell expects (mavreg.cli.guard)
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except OSError:
+            pass
+        return 128 + signal.SIGPIPE
+    except KeyboardInterrupt:        # before the run's own signal handlers are in place
+        print("firmware-sim: interrupted", file=sys.stderr)
+        return 128 + signal.SIGINT
 
 
 def _main(argv: list[str] | None) -> int:
