@@ -43,7 +43,9 @@ def _maneuver(f, plan):
 
 
 def _controller_loop_attitude_deg(f, plan) -> float:
-    """The regulator's largest attitude error (about its compensated nominal) in the loop."""
+    """The regulator's largest attitude error (about its compensated nominal) in the loop:
+    the norm of w[2:5], a rotation vector in the SO(3) form of realistic.yaml (2.2 deg on the
+    drag case, where the roll-pitch-yaw form's differences read 1.5-2.0 deg)."""
     ctrl = load_control_log(f["out"] / "control.npz")
     lo, hi = next((a, b) for name, a, b in plan.segments if name == "loop")
     m = (ctrl["s_m"] >= lo) & (ctrl["s_m"] < hi)
@@ -77,7 +79,7 @@ def test_barrel_roll_on_a_realistic_vehicle(tmp_path, realistic_plan):
           f"{loop['max_speed_error_m_s']:.3f} m/s, regulator attitude {att:.2f} deg, "
           f"jitter {jitter:.3f} N, rotors {rotors.min():.2f}..{rotors.max():.2f} N, "
           f"measured delay {delay['sample_to_actuation']:.1f} ms, estimate {est}")
-    assert loop["max_m"] <= 0.03 and att <= 2.0
+    assert loop["max_m"] <= 0.03 and att <= 2.5
     # the speed holds the profile, and never overtakes it: nothing catches up
     assert loop["max_speed_error_m_s"] <= 0.2 and loop["max_overspeed_m_s"] <= 0.3
     # the emulator's drag: 0.337 N s/m in the rotor plane (+ 0.0075 |v| parasitic), 0.652 along z
@@ -96,7 +98,7 @@ def test_a_50_ms_link_is_flown_on_prediction(tmp_path, realistic_plan):
     loop = truth["segments"]["loop"]
     att = _controller_loop_attitude_deg(f, realistic_plan)
     print(f"\n50 ms round trip: loop true max {100 * loop['max_m']:.2f} cm, regulator attitude {att:.2f} deg")
-    assert loop["max_m"] <= 0.03 and att <= 2.0
+    assert loop["max_m"] <= 0.03 and att <= 2.5
 
 
 @pytest.mark.parametrize("preset, flag, check", [
