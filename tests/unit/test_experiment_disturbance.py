@@ -46,12 +46,16 @@ def test_after_the_gust_the_trackers_cut_the_loop_and_the_regulator_does_not_rac
     for r in runs.values():
         assert r["status"] == "timeout" and not r["diverged"]            # stopped at 2.3 s by design
         assert r["gust_window_s"] == pytest.approx([0.25, 1.25])
-        assert r["max_distance_m"] > 0.05 and r["peak_acceleration_m_s2"] > 40.0   # v^2 / r in the loop
+    # the trackers leave the path; the governed regulator holds it (issue 9: <= 10 cm)
+    assert runs[TVLQR]["max_distance_m"] > 0.05 and runs[SE3]["max_distance_m"] > 0.05
+    assert min(runs[c]["peak_acceleration_m_s2"] for c in (TVLQR, SE3)) > 40.0   # v^2 / r, racing
+    assert runs[REGULATOR]["max_distance_m"] <= 0.10
     # the time-indexed trackers come out of the gust behind their reference and cut the
     # corner into the loop to catch up (the loop's centre is 1.5 m from the path)
     assert runs[TVLQR]["min_centre_distance_m"] < 1.2 and runs[SE3]["min_centre_distance_m"] < 1.2
     # maneuver regulation flies the loop where it is: round it, late, never faster than the profile
-    assert runs[REGULATOR]["min_centre_distance_m"] > 1.4
+    centre = runs[REGULATOR]["min_centre_distance_m"]     # None: still before the loop at 2.3 s
+    assert centre is None or centre > 1.4
     assert runs[REGULATOR]["overspeed_m_s"] < 0.3
     s_end = {c: o.trace.s_m[-1] for c, o in zip((REGULATOR, TVLQR, SE3), camp.outcomes)}
     assert s_end[TVLQR] - s_end[REGULATOR] > 2.0 and s_end[SE3] - s_end[REGULATOR] > 2.0
