@@ -11,27 +11,18 @@ Rodrigues formula.
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
+from ..model.rotation_kernel import rodrigues as _rodrigues9
 from ..model.so3 import log_so3
 
 __all__ = ["NominalAttitudes", "rodrigues"]
 
 
 def rodrigues(x: float, y: float, z: float) -> np.ndarray:
-    """Exp of the rotation vector (x, y, z), in scalar arithmetic (as
-    :func:`~mavreg.model.so3.exp_so3`)."""
-    t2 = x * x + y * y + z * z
-    if t2 < 1e-8:
-        s, c = 1.0 - t2 / 6.0 + t2 * t2 / 120.0, 0.5 - t2 / 24.0 + t2 * t2 / 720.0
-    else:
-        th = math.sqrt(t2)
-        s, c = math.sin(th) / th, (1.0 - math.cos(th)) / t2
-    return np.array([[1.0 - c * (y * y + z * z), c * x * y - s * z, c * x * z + s * y],
-                     [c * x * y + s * z, 1.0 - c * (x * x + z * z), c * y * z - s * x],
-                     [c * x * z - s * y, c * y * z + s * x, 1.0 - c * (x * x + y * y)]])
+    """Exp of the rotation vector (x, y, z) as a (3, 3) array (the compiled kernels' scalar
+    Rodrigues, :func:`mavreg.model.rotation_kernel.rodrigues`)."""
+    return np.array(_rodrigues9(x, y, z)).reshape(3, 3)
 
 
 class NominalAttitudes:
