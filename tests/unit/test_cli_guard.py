@@ -31,48 +31,35 @@ def test_closed_pipe_exits_141_without_a_traceback(args):
     assert rc == (0 if args == ("--help",) else EXIT_BROKEN_PIPE) or rc == EXIT_BROKEN_PIPE
 
 
-@pytest.fixture(scope="module")
-def compiled_kernels():
-    """The numba kernels compiled and cached on disk before the commands start, which then
-    load them from the cache: in a fresh clone's CI run, a Ctrl-C sent while the commands
-    compiled them cold went unseen (simulate ran to its end with status 0)."""
-    from mavreg.cli.common import DESIGN_CONTROLLER, PAPER_CONTROLLER
-    from mavreg.config.controller import load_controller
-    from mavreg.config.vehicle import load_vehicle
-    from mavreg.control.fastpath import warm_up
-    from mavreg.maneuver.plan import plan_file
-    warm_up()
-    vehicle = load_vehicle(PARAMS_DIR / "vehicles" / "mk_quadro.yaml")
-    for controller in (DESIGN_CONTROLLER, PAPER_CONTROLLER):
-        plan_file(BARREL, vehicle, load_controller(controller), use_cache=False)
-
-
 def _interrupt_when_started(cmd, marker: str, tmp_path, timeout_s: float = 120.0):
     """Start ``cmd`` in a process group of its own, wait until its standard error or output
     shows ``marker`` (it is running, not loading), then Ctrl-C the group as a terminal does."""
     out, err = tmp_path / "out.txt", tmp_path / "err.txt"
     with open(out, "wb") as fo, open(err, "wb") as fe:
+        # A terminal's Ctrl-C reaches a foreground command with SIGINT at its default; a
+        # test run started in the background (nohup ... &) ignores SIGINT, and its children
+        # inherit that, so the command is started with the default restored.
         proc = subprocess.Popen(cmd, stdout=fo, stderr=fe, start_new_session=True,
-                                env=dict(os.environ, PYTHONUNBUFFERED="1"))
+                                env=dict(os.environ, PYTHONUNBUFFERED="1"),
+                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
         deadline = time.monotonic() + timeout_s
         while marker not in out.read_text() + err.read_text():
             assert proc.poll() is None, f"ended before {marker!r}: {err.read_text()}"
             assert time.monotonic() < deadline, f"no {marker!r} in {timeout_s} s"
             time.sleep(0.05)
-        time.sleep(1.0)                 # past the step kernel's load from the cache
         os.killpg(proc.pid, signal.SIGINT)
         rc = proc.wait(timeout=60)
     return rc, err.read_text()
 
 
-def test_ctrl_c_in_simulate(tmp_path, compiled_kernels):
+def test_ctrl_c_in_simulate(tmp_path):
     rc, err = _interrupt_when_started(_mavreg("simulate", BARREL, "--laps", "40"),
                                       "planned", tmp_path)
     assert rc == EXIT_INTERRUPTED and "Traceback" not in err, err
     assert err.strip().endswith("mavreg: interrupted")
 
 
-def test_ctrl_c_in_an_experiment_with_workers(tmp_path, compiled_kernels):
+def test_ctrl_c_in_an_experiment_with_workers(tmp_path):
     rc, err = _interrupt_when_started(
         _mavreg("experiment", "paper-group1", "--jobs", "2", "--out", str(tmp_path / "exp")),
         "paper-group1", tmp_path)
