@@ -59,10 +59,13 @@ class SpeedGovernorParams:
     vector, instead of being left to the LQR."""
     max_accel_m_s2: float = field(default=12.0, metadata={"min_exclusive": 0.0, "max": 20.0})
     """Bound on that acceleration (12 m/s^2: 51 deg of tilt, 1.6 times the hover thrust)."""
-    max_jerk_m_s3: float = field(default=30.0, metadata={"min_exclusive": 0.0, "max": 1000.0})
-    """The along-track acceleration fed forward follows the governed one at this rate at
-    most: a recovery that starts changes the nominal's tilt at once (3 m/s^2 is 17 deg), which
-    a step would turn into an attitude error."""
+    accel_time_constant_s: float = field(default=0.05, metadata={"min_exclusive": 0.0, "max": 1.0})
+    """The along-track acceleration fed forward follows the governed one through a critically
+    damped second-order filter of this time constant: a recovery that starts turns the
+    nominal's thrust at once (3 m/s^2 is 17 deg), which a step, or a step of its rate, would
+    turn into an attitude error (with a 20 ms rotor lag the paper's gains ring)."""
+    max_jerk_m_s3: float = field(default=60.0, metadata={"min_exclusive": 0.0, "max": 1000.0})
+    """Bound on that acceleration's rate of change."""
     thrust_share: float = field(default=0.9, metadata={"min_exclusive": 0.0, "max": 1.0})
     """Share of four rotors' thrust the re-timed nominal may ask for; the rest is left for
     the torques and the feedback."""

@@ -100,10 +100,12 @@ class GovernorSetup:
     params: SpeedGovernorParams
     target_m_s: np.ndarray
     """The governor's target speed on the plan's grid (the profile, capped for thrust)."""
-    accel_step_m_s2: float
-    """Largest change of the fed-forward acceleration per control step (inf: no slew)."""
-    accel_step_ahead_m_s2: float
-    """The same over the compensation's dt."""
+    filter_dt_s: float
+    """The fed-forward acceleration's filter step: the control period (0: no filter)."""
+    filter_rate_per_s: float
+    """Its natural frequency, 1 / ``accel_time_constant_s``."""
+    max_jerk_m_s3: float
+    """The bound on its rate."""
     mass_kg: float
     parasitic_drag_n_s2_per_m2: float
 
@@ -151,10 +153,10 @@ class FastStep:
             columns = _governor_columns(plan, governor.target_m_s)
             prm[sk.P_GOV], prm[sk.P_GOV_COL] = 1.0, table.shape[1]
             prm[sk.P_MASS], prm[sk.P_PARASITIC] = governor.mass_kg, governor.parasitic_drag_n_s2_per_m2
-            prm[sk.P_GOV_ACCEL:sk.P_GOV_STEP_AHEAD + 1] = (
+            prm[sk.P_GOV_ACCEL:sk.P_GOV_JERK + 1] = (
                 g.recovery_accel_m_s2, g.recovery_time_constant_s, g.speed_band_m_s, g.speed_gain_per_s,
-                g.max_accel_m_s2, float(np.any(columns[:, 0] < plan.speed_m_s)), governor.accel_step_m_s2,
-                governor.accel_step_ahead_m_s2)
+                g.max_accel_m_s2, float(np.any(columns[:, 0] < plan.speed_m_s)), governor.filter_dt_s,
+                governor.filter_rate_per_s, governor.max_jerk_m_s3)
             table = np.ascontiguousarray(np.concatenate([table, columns], axis=1))
         self.table = table
         self.s_nodes, self.coef, self.ends = path_tables(plan.path)

@@ -8,9 +8,9 @@ The governor's tables are three columns of the step kernel's table, from column 
 target speed :math:`v_t`, its :math:`v_t v_t'` and the profile's :math:`\bar v \bar v'`; the
 profile :math:`\bar v` is the table's speed column. They are read as ``numpy.interp`` reads
 them (the same formula, so that the governor's comparisons of speeds decide alike). Its state
-is four slots of the step's state vector from ``k``: 1.0 once it holds a governed speed, the
-speed :math:`v_g`, the arc length it was reached at, and the fed-forward acceleration's
-excess over the profile's.
+is five slots of the step's state vector from ``k``: 1.0 once it holds a governed speed, the
+speed :math:`v_g`, the arc length it was reached at, the fed-forward acceleration's excess
+over the profile's and that excess's rate.
 """
 from __future__ import annotations
 
@@ -29,6 +29,8 @@ G_TARGET, G_TARGET_ACCEL, G_PROFILE_ACCEL = 0, 1, 2
 GOVERNOR_COLUMNS = 3
 ON_TARGET_M_S = 0.01
 """As :data:`mavreg.control.governor._ON_TARGET_M_S`."""
+AHEAD_S = 0.02
+"""As :data:`mavreg.control.step_kernel.COMPENSATION_DT_S` (imported from here would be circular)."""
 
 
 @njit
@@ -94,12 +96,12 @@ def governed_reference(s, along, s_tab, table, c, speed_col, st, k, gp):
 
     ``governed`` is False when the nominal is flown as it is; else :math:`v_r` is the speed
     regulated to, :math:`a_{ff}` the along-track acceleration fed forward (the profile's plus
-    the slew-limited excess, pushed beyond the band) and ``excess_ahead`` that excess
+    the filtered excess, pushed beyond the band) and ``excess_ahead`` that excess
     ``COMPENSATION_DT_S`` on. ``gp`` = (recovery accel, recovery time constant, band, gain,
-    max accel, 1.0 when the target is capped somewhere, slew per step, slew over the
-    compensation's dt).
+    max accel, 1.0 when the target is capped somewhere, the filter's step (0: none), natural
+    frequency and largest rate).
     """
-    recovery_accel, tau, band, gain, max_accel, capped, step, step_ahead = gp
+    recovery_accel, tau, band, gain, max_accel, capped, dt, omega, jerk = gp
     v_g, a_g, retimed = _update(s, along, s_tab, table, c, speed_col, st, k, recovery_accel, tau, band,
                                 capped > 0.0)
     v_r = min(v_g, along + band)
@@ -109,12 +111,16 @@ def governed_reference(s, along, s_tab, table, c, speed_col, st, k, gp):
         push = min(gain * (v_g - v_r), max_accel)
     a_bar = interp(s, s_tab, table, c + G_PROFILE_ACCEL)
     excess = a_g + push - a_bar if retimed else 0.0
-    change = excess - st[k + 3]
-    st[k + 3] += min(max(change, -step), step)
-    if not retimed and abs(st[k + 3]) < 1e-6:
-        st[k + 3] = 0.0
+    if dt > 0.0:
+        r = st[k + 4] + dt * (omega * omega * (excess - st[k + 3]) - 2.0 * omega * st[k + 4])
+        st[k + 4] = min(max(r, -jerk), jerk)
+        st[k + 3] += dt * st[k + 4]
+    else:
+        st[k + 3], st[k + 4] = excess, 0.0
+    if not retimed and abs(st[k + 3]) < 1e-6 and abs(st[k + 4]) < 1e-4:
+        st[k + 3] = st[k + 4] = 0.0
         return False, v_r, a_g, 0.0
-    later = st[k + 3] + min(max(excess - st[k + 3], -step_ahead), step_ahead)
+    later = st[k + 3] + st[k + 4] * AHEAD_S
     return True, v_r, a_bar + st[k + 3], later
 
 

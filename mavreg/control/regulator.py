@@ -138,11 +138,13 @@ class ManeuverRegulator:
                                     speed_governor.recovery_accel_m_s2)
                    if speed_governor.cap_speed_for_thrust else None)
             self.governor = SpeedGovernor(plan.s, plan.speed_m_s, speed_governor, cap)
-            jerk = speed_governor.max_jerk_m_s3
-            self._accel_step = math.inf if control_period_s <= 0.0 else jerk * control_period_s
-            self._accel_step_ahead = jerk * _COMPENSATION_DT_S
+            self._accel_dt = float(control_period_s)
+            self._accel_omega = 1.0 / speed_governor.accel_time_constant_s
+            self._accel_jerk = float(speed_governor.max_jerk_m_s3)
         self._accel_excess = 0.0
-        """The along-track acceleration fed forward less the profile's (slew-limited)."""
+        """The along-track acceleration fed forward less the profile's (filtered)."""
+        self._accel_rate = 0.0
+        """Its rate of change (m/s^3)."""
         self._attitudes = (NominalAttitudes(plan.s, plan.R, plan.x[:, 9:12] / plan.speed_m_s[:, None])
                            if plan.attitude_error == "so3" else None)
         """The nominal attitude's rows when the gains are on the SO(3) attitude error."""
@@ -157,7 +159,7 @@ class ManeuverRegulator:
         or loaded now, not in the loop)."""
         fastpath.warm_up()
         gov = None if self.governor is None else fastpath.GovernorSetup(
-            speed_governor, self.governor.target_m_s, self._accel_step, self._accel_step_ahead,
+            speed_governor, self.governor.target_m_s, self._accel_dt, self._accel_omega, self._accel_jerk,
             self._mass, self._parasitic)
         return fastpath.FastStep(self.plan, self._mixer, self.mixer_inverse, self._fmax,
                                  self._allocate is torques_first, self._lead_s, self._decay,
@@ -185,7 +187,7 @@ class ManeuverRegulator:
         self.s = self.projector.reset(np.asarray(x)[:3], s_guess).s
         if self.governor is not None:
             self.governor.reset()
-        self._accel_excess = 0.0
+        self._accel_excess = self._accel_rate = 0.0
         if rotor_forces_n is None:
             i, a = self._locate(self.s)
             rotor_forces_n = self.mixer_inverse @ (self._u[i] + a * (self._u[i + 1] - self._u[i]))
@@ -194,21 +196,32 @@ class ManeuverRegulator:
             self._fast.reset(self.s, self._rotors_est)
 
     def _governed(self, s: float, pt, x) -> tuple[GovernedSpeed, float] | None:
-        """The governed reference at s for state x, its along-track acceleration fed forward
-        (the profile's, plus the governed excess through the first-order lag, plus the
-        push); with the excess over the profile fed forward; None when not re-timed."""
+        r"""The governed reference at s for state x with its along-track acceleration fed
+        forward, and that acceleration's excess over the profile's ``_COMPENSATION_DT_S``
+        later; None when the nominal is not re-timed.
+
+        The excess e follows its target :math:`e^* = a_g + a_{push} - \bar a` through a
+        critically damped second-order filter of time constant :math:`\tau_a`
+        (``accel_time_constant_s``), its rate bounded by ``max_jerk_m_s3``:
+        :math:`\dot r = (e^* - e)/\tau_a^2 - 2r/\tau_a`, :math:`\dot e = r`, one explicit step
+        per control period (none without a period: e = e*). Its rate is continuous, so is
+        the turn rate of the re-timed attitude (a step of it excites the roll loop of a design
+        that does not know the rotors' lag)."""
         R = rpy_to_matrix(*x[3:6])
         gov, push = self.governor.reference(s, along_track_speed(pt.frame[:, 0], R @ x[6:9]))
         a_bar = self.governor.profile(s)[1]
         excess = gov.accel_m_s2 + push - a_bar if gov.retimed else 0.0
-        change = excess - self._accel_excess
-        self._accel_excess += min(max(change, -self._accel_step), self._accel_step)
-        if not gov.retimed and abs(self._accel_excess) < 1e-6:
-            self._accel_excess = 0.0
+        if self._accel_dt > 0.0:
+            w, dt = self._accel_omega, self._accel_dt
+            r = self._accel_rate + dt * (w * w * (excess - self._accel_excess) - 2.0 * w * self._accel_rate)
+            self._accel_rate = min(max(r, -self._accel_jerk), self._accel_jerk)
+            self._accel_excess += dt * self._accel_rate
+        else:
+            self._accel_excess, self._accel_rate = excess, 0.0
+        if not gov.retimed and abs(self._accel_excess) < 1e-6 and abs(self._accel_rate) < 1e-4:
+            self._accel_excess = self._accel_rate = 0.0
             return None
-        # the excess _COMPENSATION_DT_S later, for the turn rate of the slew's own motion
-        later = self._accel_excess + min(max(excess - self._accel_excess, -self._accel_step_ahead),
-                                         self._accel_step_ahead)
+        later = self._accel_excess + self._accel_rate * _COMPENSATION_DT_S
         return GovernedSpeed(gov.speed_m_s, a_bar + self._accel_excess, True), later
 
     def _retimed(self, s: float, xbar, R, thrust_n: float, gov: GovernedSpeed):

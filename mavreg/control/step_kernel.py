@@ -46,7 +46,7 @@ __all__ = ["regulator_step", "yaw_then_lift", "torques_first", "TABLE_X", "TABLE
            "TABLE_K", "ATTITUDE_WIDTH", "P_LEAD", "P_DECAY", "P_FMAX", "P_WINDOW", "P_MARGIN",
            "P_MAX_TURN", "P_CXY", "P_CZ", "P_TORQUES_FIRST", "P_AUGMENTED", "P_END", "P_NK", "P_SO3",
            "P_GOV", "P_GOV_COL", "P_MASS", "P_PARASITIC", "P_GOV_ACCEL", "P_GOV_TAU", "P_GOV_BAND",
-           "P_GOV_GAIN", "P_GOV_MAX_ACCEL", "P_GOV_CAPPED", "P_GOV_STEP", "P_GOV_STEP_AHEAD", "P_MINV",
+           "P_GOV_GAIN", "P_GOV_MAX_ACCEL", "P_GOV_CAPPED", "P_GOV_DT", "P_GOV_OMEGA", "P_GOV_JERK", "P_MINV",
            "P_MIX", "N_PARAMS", "ST_S", "ST_HAS_EST", "ST_EST", "ST_GOV", "ST_WIDTH", "OUT_S", "OUT_W",
            "OUT_U", "OUT_ROTORS", "OUT_WIDTH", "COMPENSATION_DT_S"]
 
@@ -65,19 +65,19 @@ window (m) and tube margin, largest compensating turn (rad), the design's drag (
 at which the maneuver is finished, n_K, 1.0 for the SO(3) attitude error (else roll-pitch-yaw
 differences)."""
 (P_GOV, P_GOV_COL, P_MASS, P_PARASITIC, P_GOV_ACCEL, P_GOV_TAU, P_GOV_BAND, P_GOV_GAIN,
- P_GOV_MAX_ACCEL, P_GOV_CAPPED, P_GOV_STEP, P_GOV_STEP_AHEAD) = range(13, 25)
+ P_GOV_MAX_ACCEL, P_GOV_CAPPED, P_GOV_DT, P_GOV_OMEGA, P_GOV_JERK) = range(13, 26)
 """The speed governor's slots: 1.0 when it is on, its first table column, the mass (kg) and
 parasitic drag of the re-timing force, then (:func:`~mavreg.control.governor_kernel.governed_reference`'s
 ``gp``) the recovery acceleration and time constant, the band, the gain, the largest push,
-1.0 when the target is capped somewhere, the slew of the fed-forward acceleration per step
-and over :data:`COMPENSATION_DT_S`."""
+1.0 when the target is capped somewhere, the fed-forward acceleration's filter step (the
+control period), natural frequency and largest rate."""
 P_MINV, P_MIX = 32, 48
 """M^{-1} and M (eq 34), row-major, 16 slots each."""
 N_PARAMS = 64
 ST_S, ST_HAS_EST, ST_EST, ST_GOV = 0, 1, 2, 6
 """The state vector: s, 1.0 when the lag filter holds an estimate, the estimate (4), the
-governor's four slots (:mod:`mavreg.control.governor_kernel`)."""
-ST_WIDTH = 10
+governor's five slots (:mod:`mavreg.control.governor_kernel`)."""
+ST_WIDTH = 11
 OUT_S, OUT_W, OUT_U, OUT_ROTORS = 0, 1, 12, 16
 """The output vector: s, w (11), u (4), rotor forces (4)."""
 OUT_WIDTH = 20
@@ -224,7 +224,7 @@ def regulator_step(x, f_act, has_f, has_dist, dcxy, dcz, fx, fy, fz, table, s_ta
         governed, v_gov, a_ff, later = governed_reference(
             s, p[3] * n0 + p[6] * n1 + p[9] * n2, s_tab, table, int(prm[P_GOV_COL]), TABLE_V, st, ST_GOV,
             (prm[P_GOV_ACCEL], prm[P_GOV_TAU], prm[P_GOV_BAND], prm[P_GOV_GAIN], prm[P_GOV_MAX_ACCEL],
-             prm[P_GOV_CAPPED], prm[P_GOV_STEP], prm[P_GOV_STEP_AHEAD]))
+             prm[P_GOV_CAPPED], prm[P_GOV_DT], prm[P_GOV_OMEGA], prm[P_GOV_JERK]))
         if governed:
             v_ref = v_gov
     ubar = row[width:width + 4]
