@@ -59,6 +59,7 @@ def test_ctrl_c_in_simulate(tmp_path):
     assert err.strip().endswith("mavreg: interrupted")
 
 
+@pytest.mark.slow          # 23 s: a pool of spawned workers starts before the Ctrl-C
 def test_ctrl_c_in_an_experiment_with_workers(tmp_path):
     rc, err = _interrupt_when_started(
         _mavreg("experiment", "paper-group1", "--jobs", "2", "--out", str(tmp_path / "exp")),
