@@ -46,10 +46,13 @@ def identified(calibration):
     return calibration[0]
 
 
+@pytest.mark.slow
 def test_the_calibrated_vehicle_flies_the_drag_forward(calibration):
     """The loop a user closes: fly, identify, fly again on the written vehicle file. The plan
     then feeds the drag, the thrust scale and the lag forward; the observer finds almost
-    nothing left to estimate."""
+    nothing left to estimate. (Slow: a second realistic flight, about 40 s; the default suite
+    keeps the identification itself, and the written file is checked by
+    ``tests/unit/test_identify_cli.py``.)"""
     from mavreg.config.controller import load_controller
     from mavreg.config.vehicle import load_vehicle
     from mavreg.daemon.report import ground_truth_errors
