@@ -7,8 +7,8 @@
   :func:`mavreg.maneuver.plan.plan_spec` of ``barrel_roll.yaml`` with the paper's controller
   (``paper_lqr.yaml``), the stage times it reports through ``timings=``; median of 3 (quick: 1)
   after one untimed plan (numba compiles or loads its kernels there). Baseline: the same
-  plan with the controller's ``riccati_method`` set to ``"rk4"`` (the fixed-step sweep),
-  when the controller file has that setting; none otherwise;
+  plan on the pure path (``MAVREG_PURE=1``: no compiled kernel, the Riccati sweep and the
+  rest in numpy), in a child process of the same run, one plan after an untimed one;
 - ``plan_s.cache_hit``: replanning the unchanged maneuver through a plan cache
   (:func:`mavreg.maneuver.plan.plan_cached` on a fresh directory: one miss, then the timed
   hit), against planning it.
@@ -17,14 +17,17 @@ Run alone: ``python -m benchmarks.plan_bench [--quick]``.
 """
 from __future__ import annotations
 
-import dataclasses
 import inspect
+import json
+import os
 import statistics
+import subprocess
+import sys
 import tempfile
 import time
 
 from benchmarks.io_helpers import BARREL, PAPER_CONTROLLER, VEHICLE, figure
-from mavreg.config.controller import ControllerParams, load_controller
+from mavreg.config.controller import load_controller
 from mavreg.config.maneuver import load_maneuver
 from mavreg.config.vehicle import load_vehicle
 from mavreg.maneuver import plan as planmod
@@ -70,6 +73,25 @@ def _cache_hit_s(spec, vehicle, controller) -> float | None:
     return hit
 
 
+def _pure_stages() -> dict:
+    """The stages of one plan on the pure path (``MAVREG_PURE=1``), in a child process (the
+    switch is read at import)."""
+    code = ("import json; from benchmarks import plan_bench as b; "
+            "print(json.dumps(b._stages_of_default_plan(1)))")
+    env = dict(os.environ, MAVREG_PURE="1")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=600,
+                         cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    if out.returncode != 0:
+        raise RuntimeError(f"the pure-path plan failed: {out.stderr.strip()[-500:]}")
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def _stages_of_default_plan(repeats: int) -> dict:
+    """Median stages of planning the barrel roll with the paper's controller."""
+    return _median_stages(load_maneuver(BARREL), load_vehicle(VEHICLE), load_controller(PAPER_CONTROLLER),
+                          repeats)
+
+
 def run_plan(quick: bool) -> dict:
     """All the figures of the module docstring."""
     vehicle = load_vehicle(VEHICLE)
@@ -77,12 +99,8 @@ def run_plan(quick: bool) -> dict:
     spec = load_maneuver(BARREL)
     repeats = 1 if quick else 3
     now = _median_stages(spec, vehicle, controller, repeats)
-    base = {}
-    if "riccati_method" in {f.name for f in dataclasses.fields(ControllerParams)}:
-        base = _median_stages(spec, vehicle, dataclasses.replace(controller, riccati_method="rk4"), repeats)
-        what = 'baseline: riccati_method "rk4" (fixed-step RK4 sweep)'
-    else:
-        what = "no baseline (the controller has no riccati_method setting)"
+    base = _pure_stages()
+    what = "baseline: the pure path (MAVREG_PURE=1, no compiled kernel), one plan in a child process"
     note = f"plan_spec(barrel_roll.yaml, mk_quadro, paper_lqr.yaml), median of {repeats}; {what}"
     fig = {"plan_s.total": figure(now["total"], base.get("total"), target=TARGET_TOTAL_S, unit="s",
                                   higher_is_better=False, note=note)}
