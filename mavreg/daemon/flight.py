@@ -14,6 +14,7 @@ import numpy as np
 
 from ..control.hover import hold_ramp
 from ..model.rotation import rpy_to_matrix
+from ..model.rotation_kernel import rpy_matrix as _rpy_rows  # scalar: numpy on 3x3 cost ~9 µs a step
 from . import flightpath as fp
 from . import messages as mm
 from .gate import plan_outside_envelope
@@ -37,17 +38,6 @@ def smoothstep(t: float) -> float:
     """C^2 blend 0 -> 1 on t in [0, 1]."""
     t = min(max(t, 0.0), 1.0)
     return t * t * t * (10.0 - 15.0 * t + 6.0 * t)
-
-
-def _rpy_rows(phi: float, theta: float, psi: float) -> tuple:
-    """The nine entries of R = Rz(psi) Ry(theta) Rx(phi), row by row (scalar math: this runs
-    every control step, where numpy on 3x3 arrays cost about 9 µs)."""
-    cf, sf = math.cos(phi), math.sin(phi)
-    ct, st = math.cos(theta), math.sin(theta)
-    cp, sp = math.cos(psi), math.sin(psi)
-    return (cp * ct, -sp * cf + cp * st * sf, sp * sf + cp * st * cf,
-            sp * ct, cp * cf + sp * st * sf, -cp * sf + sp * st * cf,
-            -st, ct * sf, ct * cf)
 
 
 def angle_between(rpy_a, rpy_b) -> float:
