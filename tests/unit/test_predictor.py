@@ -140,3 +140,57 @@ def test_command_history_stays_bounded_without_predictions():
     assert len(pred._cmds) <= 4097
     f = pred.rotor_forces(20000 * PERIOD, 0.0)
     np.testing.assert_allclose(f, [1.0, 2.0, 3.0, 4.0], rtol=1e-9)
+
+
+def prediction_cases(n: int = 240) -> np.ndarray:
+    """Seeded predictions, one row each (time, horizon, x, R, rotor forces): ideal and
+    lagging rotors, drag on and off (linear, parasitic, an estimate in its place), a thrust
+    scale, an external force, commands switching inside the horizon, a horizon past the cap,
+    an explicit delay shorter than the horizon, and an empty command history."""
+    rng = np.random.default_rng(3)
+    rows = []
+    for case in range(n):
+        veh = dataclasses.replace(VEHICLE, rotor_time_constant_s=(0.0, 0.02, 0.03)[case % 3],
+                                  rotor_drag_n_s_per_m=(0.3, 0.6) if case % 2 == 0 else (0.0, 0.0),
+                                  parasitic_drag_n_s2_per_m2=0.01 if case % 4 == 0 else 0.0)
+        pred = StatePredictor(veh, max_step_s=PERIOD, max_horizon_s=0.1)
+        pred.reset(rng.uniform(0, 6, 4))
+        t = 0.0
+        for _ in range(0 if case % 10 == 0 else int(rng.integers(1, 40))):
+            pred.record(t, rng.uniform(-1, 13, 4))
+            t += float(rng.uniform(0.0015, 0.0025))
+        x = rng.normal(size=12)
+        x[3:6] = rng.uniform(-3, 3, 3)
+        x[6:9] *= 5
+        kw = {}
+        if case % 3 == 1:
+            kw["thrust_scale"] = 0.9
+        if case % 7 == 2:
+            kw["external_force_n"] = tuple(rng.normal(size=3))
+        if case % 6 == 3:
+            kw["drag_n_s_per_m"] = (0.2, 0.4)
+        horizon = float(rng.uniform(0, 0.15))
+        delay = None if case % 5 == 0 else float(rng.uniform(0, 0.05))
+        p = pred.predict(max(t - float(rng.uniform(0, 0.03)), 0.0), x, rpy_to_matrix(*x[3:6]), horizon,
+                         delay_s=delay, **kw)
+        rows.append(np.concatenate([[p.time_s, p.horizon_s], p.x, p.rotation.ravel(), p.rotor_forces_n]))
+    return np.array(rows)
+
+
+def test_compiled_prediction_agrees_with_plain_python(tmp_path):
+    """The prediction kernel compiled (numba) and as plain Python (MAVREG_PURE=1, a fresh
+    process) give the same predictions to round-off, over the cases above."""
+    import os
+    import subprocess
+    import sys
+    code = ("import sys, numpy as np; sys.path.insert(0, 'tests/unit'); import test_predictor as t; "
+            "np.save(sys.argv[1], t.prediction_cases())")
+    out = {}
+    for pure in ("0", "1"):
+        path = tmp_path / f"p{pure}.npy"
+        subprocess.run([sys.executable, "-c", code, str(path)], check=True, timeout=300,
+                       env=dict(os.environ, MAVREG_PURE=pure))
+        out[pure] = np.load(path)
+    assert out["0"].shape == (240, 2 + 12 + 9 + 4) and np.all(np.isfinite(out["0"]))
+    assert np.abs(out["0"] - out["1"]).max() <= 1e-12 * (1.0 + np.abs(out["1"]).max())
+    assert out["0"][:, 1].max() == pytest.approx(0.1)          # some horizons were capped
