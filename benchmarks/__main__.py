@@ -14,6 +14,8 @@ environment for its children):
   CRC path; a warning if it is not in use);
 - ``plan``: :mod:`benchmarks.plan_bench` (``plan_s.*``);
 - ``step``: :mod:`benchmarks.step_bench` (``step_us.*``);
+- ``controller``: :mod:`benchmarks.controller_bench` (``controller_us.*``: the daemon's
+  per-sample forecaster, hover LQR, regulator and command bookkeeping);
 - ``monte_carlo``: :mod:`benchmarks.monte_carlo` (``monte_carlo_s.*``);
 - ``sitl``: :mod:`benchmarks.sitl` (``sitl_periods_per_s.*``: lockstep firmware_sim);
 - ``daemon_rt``: :mod:`benchmarks.daemon_rt` (``daemon_latency_us.*``, ``daemon_cpu_pct``,
@@ -37,7 +39,7 @@ from pathlib import Path
 
 from benchmarks.report import format_notes, format_table
 
-SECTIONS = ("codec", "plan", "step", "monte_carlo", "sitl", "daemon_rt")
+SECTIONS = ("codec", "plan", "step", "controller", "monte_carlo", "sitl", "daemon_rt")
 
 
 def _section(name: str):
@@ -51,6 +53,9 @@ def _section(name: str):
     if name == "step":
         from benchmarks.step_bench import run_step
         return run_step
+    if name == "controller":
+        from benchmarks.controller_bench import run_controller
+        return run_controller
     if name == "monte_carlo":
         from benchmarks.monte_carlo import run_monte_carlo
         return run_monte_carlo
