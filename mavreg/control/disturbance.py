@@ -44,10 +44,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..accel import ACCELERATED
 from ..config.disturbance import DisturbanceParams
 from ..config.vehicle import VehicleParams
 from ..model.rotation import matrix_to_rpy, rpy_to_matrix, wrap_angle
 from ..model.so3 import log_so3
+from . import observer_kernel as ok
 
 __all__ = ["DisturbanceEstimate", "DisturbanceObserver", "compensated_nominal", "compensate", "regressors"]
 
@@ -88,7 +90,7 @@ def regressors(R, v, thrust_n: float) -> np.ndarray:
     return phi
 
 
-_GATE_CHI2 = 36.0
+_GATE_CHI2 = ok.GATE_CHI2
 """Innovation gate: a measurement farther than 6 sigma (Mahalanobis, 3 dof) from the
 prediction is refused (probability under the filter's own model: 1e-7)."""
 
@@ -101,9 +103,16 @@ class DisturbanceObserver:
     params : DisturbanceParams
     vehicle : VehicleParams
         Mass, and the file's drag and thrust calibration (the initial estimate).
+    compiled : bool, optional
+        Update by the compiled kernel (:mod:`mavreg.control.observer_kernel`, the same
+        results to rounding) or by the numpy update, the reference. None (default):
+        compiled where numba is (:data:`mavreg.accel.ACCELERATED`).
     """
 
-    def __init__(self, params: DisturbanceParams, vehicle: VehicleParams):
+    def __init__(self, params: DisturbanceParams, vehicle: VehicleParams, compiled: bool | None = None):
+        if compiled and not ACCELERATED:
+            raise ValueError("no compiled observer here: numba is missing or MAVREG_PURE is set")
+        self.compiled = ACCELERATED if compiled is None else bool(compiled)
         self.params = params
         self.mass_kg = float(vehicle.mass_kg)
         self.base_drag = tuple(float(c) for c in vehicle.rotor_drag_n_s_per_m)
@@ -120,6 +129,13 @@ class DisturbanceObserver:
                               + [p.max_thrust_scale_rate_per_s])
         self._lo = np.array([0.0, 0.0, -hi_f, -hi_f, -hi_f, p.thrust_scale_bounds[0]])
         self._hi = np.array([hi_c, hi_c, hi_f, hi_f, hi_f, p.thrust_scale_bounds[1]])
+        # The compiled update's layout: theta and theta_applied are views of its first rows.
+        self._kf = np.zeros((ok.ROWS, 6))
+        self._kf[ok.Q_PER_S], self._kf[ok.RATE] = self._q_per_s, self._rate
+        self._kf[ok.LO], self._kf[ok.HI] = self._lo, self._hi
+        self.theta = self._kf[ok.THETA]
+        self.theta_applied = self._kf[ok.APPLIED]
+        self.P = np.empty((6, 6))
         self.updates = 0
         self.rejected = 0
         """Measurements refused by the innovation gate."""
@@ -127,30 +143,49 @@ class DisturbanceObserver:
 
     def reset(self) -> None:
         """Back to the vehicle file's model, with the initial uncertainty."""
-        self.theta = self._theta0.copy()
-        self.theta_applied = self._theta0.copy()
-        self.P = self._P0.copy()
+        self.theta[:] = self._theta0
+        self.theta_applied[:] = self._theta0
+        self.P[:] = self._P0
+        self._estimates = None
 
     @staticmethod
     def _as_estimate(th) -> DisturbanceEstimate:
         return DisturbanceEstimate((float(th[0]), float(th[1])), (float(th[2]), float(th[3]), float(th[4])),
                                    float(th[5]))
 
+    def _both(self) -> tuple[DisturbanceEstimate, DisturbanceEstimate]:
+        """(estimate, applied), made once per measurement (read several times a sample)."""
+        if self._estimates is None:
+            self._estimates = (self._as_estimate(self.theta), self._as_estimate(self.theta_applied))
+        return self._estimates
+
     @property
     def estimate(self) -> DisturbanceEstimate:
         """The filter's estimate (what predictions use)."""
-        return self._as_estimate(self.theta)
+        return self._both()[0]
 
     @property
     def applied(self) -> DisturbanceEstimate:
         """The estimate followed at bounded rates (what the compensation uses)."""
-        return self._as_estimate(self.theta_applied)
+        return self._both()[1]
 
     def update(self, dt_s: float, R, v, thrust_n: float, innovation_m_s) -> None:
         """One measurement: ``innovation_m_s`` (3,) = the sample's velocity less its prediction
         from the previous sample ``dt_s`` earlier (attitude ``R``, velocity ``v``, commanded
         thrust ``thrust_n`` over the interval), predicted with the current estimate."""
         if not (0.0 < dt_s <= self.params.max_sample_gap_s):
+            return
+        if self.compiled:
+            y0, y1, y2 = innovation_m_s
+            v0, v1, v2 = v
+            status = ok.update(self._kf, self.P, float(dt_s), self.mass_kg, self._r,
+                               self.params.drag_learning_min_speed_m_s, np.asarray(R, dtype=float),
+                               float(v0), float(v1), float(v2), float(thrust_n), float(y0), float(y1), float(y2))
+            if status == ok.REJECTED:
+                self.rejected += 1
+            elif status == ok.UPDATED:
+                self._estimates = None
+                self.updates += 1
             return
         y = np.asarray(innovation_m_s, dtype=float)
         if not np.all(np.isfinite(y)):
@@ -165,11 +200,12 @@ class DisturbanceObserver:
             self.rejected += 1           # an outlier (a telemetry stall, a bump): not a force
             return
         K = np.linalg.solve(S, H @ self.P).T                            # (6, 3)
-        self.theta = np.clip(self.theta + K @ y, self._lo, self._hi)
+        self.theta[:] = np.clip(self.theta + K @ y, self._lo, self._hi)
         I_KH = np.eye(6) - K @ H
-        self.P = I_KH @ self.P @ I_KH.T + self._r * (K @ K.T)          # Joseph form
+        self.P[:] = I_KH @ self.P @ I_KH.T + self._r * (K @ K.T)          # Joseph form
         step = self._rate * dt_s
         self.theta_applied += np.clip(self.theta - self.theta_applied, -step, step)
+        self._estimates = None
         self.updates += 1
 
 

@@ -1,0 +1,130 @@
+r"""One measurement of :class:`mavreg.control.disturbance.DisturbanceObserver`, one kernel.
+
+The Kalman filter on :math:`\theta = (c_{xy}, c_z, F_n, F_e, F_d, k)` takes one velocity
+innovation per sample the daemon receives. In numpy its update is some forty calls on 3x3
+and 6x6 arrays (about 60 us); here it is loops on plain floats, compiled by numba
+(:func:`mavreg.accel.njit`): the same steps in the same order,
+
+.. math::
+    P \mathrel{+}= \mathrm{diag}(q)\,h,\quad H = \tfrac{h}{m}\Phi,\quad
+    S = H P H^T + r I,\quad y^T S^{-1} y > 36 \Rightarrow \text{refused},
+
+    K = P H^T S^{-1},\quad \theta \leftarrow \mathrm{clip}(\theta + K y),\quad
+    P \leftarrow (I - K H) P (I - K H)^T + r K K^T,
+
+with :math:`S^{-1}` from its Cholesky factor (S is symmetric positive definite) where
+numpy's ``solve`` pivots an LU factor: the two agree to rounding
+(``tests/unit/test_disturbance_kernel.py``). The numpy update stays the reference, used
+where numba is not (or with ``MAVREG_PURE=1``).
+
+Layout of ``kf`` (8, 6): rows :data:`THETA`, :data:`APPLIED` (the estimate and its
+rate-limited follower, updated in place), then the constants :data:`Q_PER_S` (the random
+walks' intensities), :data:`RATE` (the follower's rate bounds), :data:`LO`, :data:`HI` (the
+estimate's bounds). ``P`` (6, 6) is updated in place.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..accel import njit
+
+__all__ = ["update", "THETA", "APPLIED", "Q_PER_S", "RATE", "LO", "HI", "ROWS",
+           "SKIPPED", "REJECTED", "UPDATED"]
+
+THETA, APPLIED, Q_PER_S, RATE, LO, HI = range(6)
+ROWS = 8
+SKIPPED, REJECTED, UPDATED = 0, 1, 2
+GATE_CHI2 = 36.0
+
+
+@njit
+def update(kf, P, dt, mass, r, min_speed, R, vx, vy, vz, thrust, y0, y1, y2):
+    """One measurement (see the module docstring): attitude ``R`` (3, 3), velocity
+    ``(vx, vy, vz)`` NED and commanded thrust ``thrust`` over the interval ``dt``, innovation
+    ``(y0, y1, y2)``. Returns :data:`SKIPPED` (a non-finite innovation), :data:`REJECTED`
+    (the gate) or :data:`UPDATED`."""
+    if not (math.isfinite(y0) and math.isfinite(y1) and math.isfinite(y2)):
+        return SKIPPED
+    for i in range(6):
+        P[i, i] += kf[Q_PER_S, i] * dt
+    bx, by, bz = R[0, 2], R[1, 2], R[2, 2]
+    along = bx * vx + by * vy + bz * vz
+    g = dt / mass
+    H = np.zeros((3, 6))               # (dt / m) Phi; the drag columns stay 0 below min_speed
+    v = (vx, vy, vz)
+    b = (bx, by, bz)
+    learn_drag = math.sqrt(vx * vx + vy * vy + vz * vz) >= min_speed
+    for a in range(3):
+        if learn_drag:
+            H[a, 0] = -(v[a] - along * b[a]) * g
+            H[a, 1] = -along * b[a] * g
+        H[a, 2 + a] = g
+        H[a, 5] = -thrust * b[a] * g
+    HP = np.empty((3, 6))
+    for a in range(3):
+        for j in range(6):
+            acc = 0.0
+            for k in range(6):
+                acc += H[a, k] * P[k, j]
+            HP[a, j] = acc
+    # S = H P H^T + r I, then its Cholesky factor L
+    S = np.empty((3, 3))
+    for a in range(3):
+        for c in range(3):
+            acc = 0.0
+            for k in range(6):
+                acc += HP[a, k] * H[c, k]
+            S[a, c] = acc + (r if a == c else 0.0)
+    l00 = math.sqrt(S[0, 0])
+    l10 = S[1, 0] / l00
+    l20 = S[2, 0] / l00
+    l11 = math.sqrt(S[1, 1] - l10 * l10)
+    l21 = (S[2, 1] - l20 * l10) / l11
+    l22 = math.sqrt(S[2, 2] - l20 * l20 - l21 * l21)
+    # z = S^-1 y (forward, then back substitution)
+    w0 = y0 / l00
+    w1 = (y1 - l10 * w0) / l11
+    w2 = (y2 - l20 * w0 - l21 * w1) / l22
+    z2 = w2 / l22
+    z1 = (w1 - l21 * z2) / l11
+    z0 = (w0 - l10 * z1 - l20 * z2) / l00
+    if y0 * z0 + y1 * z1 + y2 * z2 > GATE_CHI2:
+        return REJECTED
+    # K = (S^-1 H P)^T (6, 3), column by column of HP
+    K = np.empty((6, 3))
+    for j in range(6):
+        c0, c1, c2 = HP[0, j], HP[1, j], HP[2, j]
+        w0 = c0 / l00
+        w1 = (c1 - l10 * w0) / l11
+        w2 = (c2 - l20 * w0 - l21 * w1) / l22
+        k2 = w2 / l22
+        k1 = (w1 - l21 * k2) / l11
+        K[j, 0], K[j, 1], K[j, 2] = (w0 - l10 * k1 - l20 * k2) / l00, k1, k2
+    for i in range(6):
+        th = kf[THETA, i] + (K[i, 0] * y0 + K[i, 1] * y1 + K[i, 2] * y2)
+        kf[THETA, i] = min(max(th, kf[LO, i]), kf[HI, i])
+    # A = I - K H; P <- A P A^T + r K K^T (Joseph form)
+    A = np.empty((6, 6))
+    for i in range(6):
+        for j in range(6):
+            A[i, j] = (1.0 if i == j else 0.0) - (K[i, 0] * H[0, j] + K[i, 1] * H[1, j] + K[i, 2] * H[2, j])
+    AP = np.empty((6, 6))
+    for i in range(6):
+        for j in range(6):
+            acc = 0.0
+            for k in range(6):
+                acc += A[i, k] * P[k, j]
+            AP[i, j] = acc
+    for i in range(6):
+        for j in range(6):
+            acc = 0.0
+            for k in range(6):
+                acc += AP[i, k] * A[j, k]
+            P[i, j] = acc + r * (K[i, 0] * K[j, 0] + K[i, 1] * K[j, 1] + K[i, 2] * K[j, 2])
+    for i in range(6):
+        step = kf[RATE, i] * dt
+        d = kf[THETA, i] - kf[APPLIED, i]
+        kf[APPLIED, i] += min(max(d, -step), step)
+    return UPDATED
