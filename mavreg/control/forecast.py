@@ -106,9 +106,9 @@ class Forecaster:
             return
         model = self._model()
         f0 = self.predictor.rotor_forces(t0, delay_s)
-        p = self.predictor.predict(t0, x0, R0, h, delay_s=delay_s, **model)
-        thrust = 0.5 * (sum(f0) + float(np.sum(p.rotor_forces_n)) / model["thrust_scale"])
-        self.observer.update(h, R0, R0 @ x0[6:9], thrust, R @ x[6:9] - p.rotation @ p.x[6:9])
+        p = self.predictor.predict_raw(t0, x0, R0, h, delay_s=delay_s, **model)
+        thrust = 0.5 * (sum(f0) + float(p[21] + p[22] + p[23] + p[24]) / model["thrust_scale"])
+        self.observer.update(h, R0, R0 @ x0[6:9], thrust, R @ x[6:9] - p[25:28])
 
     def update(self, t_s: float, x, rotation, delay_s: float) -> Forecast:
         """A new sample of vehicle time ``t_s``; ``delay_s``: sample-to-actuation delay."""

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config.vehicle import VehicleParams
-from .predictor_kernel import PARAM_SIZE, STATE_SIZE, integrate
+from .predictor_kernel import OUT_SIZE, PARAM_SIZE, predict_into
 
 __all__ = ["StatePredictor", "Prediction"]
 
@@ -85,7 +85,6 @@ class StatePredictor:
         self._prm = np.array([self.mass_kg, self.jx, self.jy, self.jz, self.l, self.k, self.tau,
                               self.cxy, self.cz, self.cp, self.max_step_s])
         assert self._prm.size == PARAM_SIZE
-        self._state = np.empty(STATE_SIZE)
         self._cmds: deque = deque()          # (t_answered_s, (c1..c4)) not yet fully acted
         self._f = (0.0, 0.0, 0.0, 0.0)       # rotor forces at self._t_f
         self._t_f: float | None = None
@@ -162,6 +161,16 @@ class StatePredictor:
         ``external_force_n`` (NED) is a known external force; ``thrust_scale`` the rotors'
         actual per commanded force (the vehicle file's calibration); ``drag_n_s_per_m`` a
         linear body drag (c_xy, c_z) in place of the vehicle file's (an estimate of it)."""
+        out = self.predict_raw(t_s, x, rotation, horizon_s, delay_s, external_force_n, thrust_scale,
+                               drag_n_s_per_m)
+        H = min(max(float(horizon_s), 0.0), self.max_horizon_s)
+        return Prediction(t_s + H, H, out[0:12], out[12:21].reshape(3, 3), out[21:25])
+
+    def predict_raw(self, t_s: float, x, rotation, horizon_s: float, delay_s: float | None = None,
+                    external_force_n=(0.0, 0.0, 0.0), thrust_scale: float = 1.0,
+                    drag_n_s_per_m=None) -> np.ndarray:
+        """:meth:`predict` as one array (28,): x (12), R row-major (9), the rotor forces (4),
+        and the velocity NED (3) (:data:`~mavreg.control.predictor_kernel.OUT_SIZE`)."""
         cxy, cz = (self.cxy, self.cz) if drag_n_s_per_m is None else (float(c) for c in drag_n_s_per_m)
         H = min(max(float(horizon_s), 0.0), self.max_horizon_s)
         D = H if delay_s is None else min(max(float(delay_s), 0.0), self.max_horizon_s)
@@ -177,18 +186,9 @@ class StatePredictor:
             elif start < t_end:
                 rows.append((start, *c))
         rows.append((t_end, 0.0, 0.0, 0.0, 0.0))
-        st = self._state
-        st[0:9] = np.asarray(rotation, dtype=float).ravel()
-        x = np.asarray(x, dtype=float)
-        st[9:12] = x[0:3]
-        st[12:15] = st[0:9].reshape(3, 3) @ x[6:9]
-        st[15:18] = x[9:12]
-        st[18:22] = f
         fext = external_force_n
-        integrate(st, np.array(rows), self._prm, float(thrust_scale), float(fext[0]), float(fext[1]),
-                  float(fext[2]), cxy, cz)
-        Rm = st[0:9].reshape(3, 3).copy()
-        r = st[0:9].tolist()
-        rpy = (math.atan2(r[7], r[8]), -math.asin(min(max(r[6], -1.0), 1.0)), math.atan2(r[3], r[0]))
-        xp = np.array((*st[9:12].tolist(), *rpy, *(Rm.T @ st[12:15]).tolist(), *st[15:18].tolist()))
-        return Prediction(t_end, H, xp, Rm, thrust_scale * st[18:22].copy())
+        out = np.empty(OUT_SIZE)
+        predict_into(out, np.asarray(rotation, dtype=float), np.asarray(x, dtype=float), f[0], f[1], f[2], f[3],
+                     np.array(rows), self._prm, float(thrust_scale), float(fext[0]), float(fext[1]),
+                     float(fext[2]), cxy, cz)
+        return out

@@ -17,20 +17,26 @@ Layouts (plain float arrays, so that nothing is allocated in the loop):
 - ``seg`` (K + 2, 5): row 0 the command in force at the sample, ``(t_s, c1..c4)``; rows 1..K
   the commands that start in the horizon, ``(start_s, c1..c4)``; row K + 1 ``(t_end, ...)``;
 - ``prm`` (11,): mass, jx, jy, jz, arm length l, drag-torque ratio k, rotor time constant
-  tau, c_xy, c_z (the linear body drag), c_p (parasitic), the longest step.
+  tau, c_xy, c_z (the linear body drag), c_p (parasitic), the longest step;
+- ``out`` (:data:`OUT_SIZE`,) of :func:`predict_into`: the predicted design-model state x
+  (12: p, roll pitch yaw, v body, w body), R row-major (9), the rotor forces times the
+  thrust scale (4), v NED (3).
 """
 from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from ..accel import njit
 from ..config.vehicle import G
 from ..model.rotation_kernel import mm, rodrigues
 
-__all__ = ["integrate", "STATE_SIZE", "PARAM_SIZE"]
+__all__ = ["integrate", "predict_into", "STATE_SIZE", "PARAM_SIZE", "OUT_SIZE"]
 
 STATE_SIZE = 22
 PARAM_SIZE = 11
+OUT_SIZE = 28
 
 
 @njit
@@ -112,4 +118,36 @@ def integrate(state, seg, prm, thrust_scale, fx, fy, fz, cxy, cz):
     state[12], state[13], state[14] = vx, vy, vz
     state[15], state[16], state[17] = wx, wy, wz
     state[18], state[19], state[20], state[21] = f0, f1, f2, f3
+    return steps
+
+
+@njit
+def predict_into(out, R, x, f0, f1, f2, f3, seg, prm, thrust_scale, fx, fy, fz, cxy, cz):
+    """From the sample ``x`` (12,) with body-to-NED ``R`` (3, 3) and rotor forces
+    ``(f0..f3)`` at ``seg[0, 0]``: :func:`integrate` to ``seg[-1, 0]``, the result into
+    ``out`` (see the module docstring). Returns the number of steps taken."""
+    state = np.empty(STATE_SIZE)
+    for j in range(9):
+        state[j] = R[j // 3, j % 3]
+    state[9], state[10], state[11] = x[0], x[1], x[2]
+    for a in range(3):
+        state[12 + a] = R[a, 0] * x[6] + R[a, 1] * x[7] + R[a, 2] * x[8]
+    state[15], state[16], state[17] = x[9], x[10], x[11]
+    state[18], state[19], state[20], state[21] = f0, f1, f2, f3
+    steps = integrate(state, seg, prm, thrust_scale, fx, fy, fz, cxy, cz)
+    r = state
+    out[0], out[1], out[2] = r[9], r[10], r[11]
+    out[3] = math.atan2(r[7], r[8])
+    out[4] = -math.asin(min(max(r[6], -1.0), 1.0))
+    out[5] = math.atan2(r[3], r[0])
+    vx, vy, vz = r[12], r[13], r[14]
+    out[6] = r[0] * vx + r[3] * vy + r[6] * vz
+    out[7] = r[1] * vx + r[4] * vy + r[7] * vz
+    out[8] = r[2] * vx + r[5] * vy + r[8] * vz
+    out[9], out[10], out[11] = r[15], r[16], r[17]
+    for j in range(9):
+        out[12 + j] = r[j]
+    for j in range(4):
+        out[21 + j] = thrust_scale * r[18 + j]
+    out[25], out[26], out[27] = vx, vy, vz
     return steps
