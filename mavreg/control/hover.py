@@ -19,16 +19,19 @@ Its duration is the shortest that keeps speed and acceleration inside the limits
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.linalg import solve_continuous_are
 
+from ..accel import ACCELERATED
 from ..config.vehicle import G, VehicleParams
 from ..model.linearize import model_jacobians
 from ..model.mixer import Mixer, yaw_then_lift
 from ..model.quadrotor import NX, QuadrotorModel
 from ..model.rotation import rpy_to_matrix, wrap_angle
+from . import hover_kernel as hk
 
 __all__ = ["HoverParams", "HoverController", "HoverOutput", "Ramp", "plan_ramp", "hold_ramp"]
 
@@ -198,19 +201,30 @@ def hold_ramp(position_m, yaw_rad: float) -> Ramp:
 
 @dataclass
 class HoverController:
-    """LQR about level hover; gains computed once per yaw (K does depend on yaw)."""
+    """LQR about level hover; gains computed once per yaw (K does depend on yaw).
+
+    ``compiled``: step by the compiled kernels (:mod:`mavreg.control.hover_kernel`, the same
+    outputs to rounding) or by the numpy step, the reference; None (default): compiled where
+    numba is (:data:`mavreg.accel.ACCELERATED`).
+    """
 
     vehicle: VehicleParams
     params: HoverParams = field(default_factory=HoverParams)
+    compiled: bool | None = None
 
     def __post_init__(self):
+        if self.compiled and not ACCELERATED:
+            raise ValueError("no compiled hover step here: numba is missing or MAVREG_PURE is set")
         self.model = QuadrotorModel.from_vehicle(self.vehicle)
         self.mixer = Mixer(self.vehicle.arm_length_m, self.vehicle.drag_torque_ratio_m)
         self._gains: dict[float, np.ndarray] = {}
+        self._fast = ACCELERATED if self.compiled is None else bool(self.compiled)
+        self._minv = np.ascontiguousarray(self.mixer.inverse, dtype=float).ravel()
+        self._ramp = self._ramp_pack = self._ramp_v = self._coeffs = None
 
     def gain(self, yaw_rad: float) -> np.ndarray:
         """K (4, 12) of the LQR linearized at level hover with yaw ``yaw_rad`` (cached per 1e-3 rad)."""
-        key = round(float(wrap_angle(yaw_rad)), 3)
+        key = round(math.pi - (math.pi - float(yaw_rad)) % (2.0 * math.pi), 3)      # wrapped to (-pi, pi]
         K = self._gains.get(key)
         if K is None:
             x0 = np.zeros(NX)
@@ -265,9 +279,31 @@ class HoverController:
     def step(self, x: np.ndarray, ramp: Ramp, t_s: float, disturbance=None) -> HoverOutput:
         """Control ``u`` for state ``x`` (12,) following ``ramp`` at ramp time ``t_s``, with an
         estimated ``disturbance`` fed forward (see :meth:`reference`)."""
+        if self._fast:
+            return self._step_compiled(x, ramp, t_s, disturbance)
         x_ref, u_ref = self.reference(ramp, t_s, disturbance)
         e = np.asarray(x, dtype=float) - x_ref
         e[3:6] = wrap_angle(e[3:6])
         u = u_ref - self.gain(x_ref[5]) @ e
         return HoverOutput(u=u, rotor_forces_n=yaw_then_lift(self.mixer.inverse, u, self.vehicle.max_rotor_thrust_n),
                            error=e)
+
+    def _step_compiled(self, x, ramp: Ramp, t_s: float, disturbance) -> HoverOutput:
+        """:meth:`step` by the kernels of :mod:`mavreg.control.hover_kernel`."""
+        if ramp is not self._ramp:
+            self._ramp = ramp
+            self._ramp_pack = np.array([ramp.duration_s, *ramp.end_position_m, ramp.end_yaw_rad, 0.0])
+            self._ramp_v = np.ascontiguousarray(ramp.end_velocity_m_s, dtype=float)
+            self._coeffs = np.ascontiguousarray(ramp.coeffs, dtype=float)
+        ref = np.empty(hk.REF_SIZE)
+        if disturbance is None:
+            hk.reference(ref, self._coeffs, float(t_s), self._ramp_pack, self._ramp_v, False, 0.0, 0.0, 0.0, 0.0,
+                         0.0, float(self.vehicle.mass_kg))
+        else:
+            (cxy, cz), (fx, fy, fz) = disturbance.drag_n_s_per_m, disturbance.force_ned_n
+            hk.reference(ref, self._coeffs, float(t_s), self._ramp_pack, self._ramp_v, True, float(cxy), float(cz),
+                         float(fx), float(fy), float(fz), float(self.vehicle.mass_kg))
+        out = np.empty(hk.OUT_SIZE)
+        hk.feedback(out, np.asarray(x, dtype=float), ref, self.gain(ref[5]), self._minv,
+                    float(self.vehicle.max_rotor_thrust_n))
+        return HoverOutput(u=out[0:4], rotor_forces_n=out[4:8], error=out[8:20])
