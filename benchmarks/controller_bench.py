@@ -179,8 +179,9 @@ def run_controller(quick: bool) -> dict:
     base = _pure(quick)
     note = ("per sample, replaying closed-loop realistic.yaml flights (hover 8 s, barrel roll) on the design model; "
             "baseline: the pure path (MAVREG_PURE=1) in a child process")
-    return {f"controller_us.{k}": figure(now[k], base.get(k), unit="us", higher_is_better=False, note=note)
-            for k in now}
+    return {f"controller_us.{k}": figure(now[k], base.get(k), unit="us", higher_is_better=False,
+                                        note=note if i == 0 else "")
+            for i, k in enumerate(now)}
 
 
 if __name__ == "__main__":
