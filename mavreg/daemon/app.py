@@ -25,6 +25,7 @@ from ..control.forecast import Forecaster
 from ..config.vehicle import VehicleParams
 from ..control import fastpath
 from ..control.regulator import ManeuverRegulator
+from ..control.sample_warmup import warm_up_sample_kernels
 from .ctrllog import ControlLog
 from .endpoint import EndpointServer
 from .link import FastLink, MavlinkLink, open_link
@@ -243,6 +244,10 @@ class Daemon:
         self.pool = PlannerPool(self.config.vehicle_path, self.config.controller_path)
         try:
             await self.pool.warm_up()
+            ctl = self.config.controller        # compiled now, not in the take-off's first period
+            warm_up_sample_kernels(self.vehicle, 1.0 / self.config.control_rate_hz,
+                                   0.1 if ctl is None else ctl.max_prediction_s,
+                                   None if ctl is None else ctl.disturbance, self.config.supervisor.hover)
             for text, source in initial or []:
                 verdict = await self.offer_text(text, source)
                 if not verdict["ok"]:

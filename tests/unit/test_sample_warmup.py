@@ -1,0 +1,57 @@
+"""``mavreg.control.sample_warmup``: after the warm-up, a closed-loop flight compiles nothing.
+
+In a fresh process (numba's dispatchers start empty there), the kernels' compiled
+signatures are read before the warm-up, after it, and after a closed-loop realistic.yaml
+hover and the barrel roll's first second flown through the daemon's objects
+(``benchmarks.controller_bench.fly``): the warm-up must have compiled every kernel the
+flights call, for every argument type they call it with.
+"""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from mavreg.accel import ACCELERATED
+
+REPO = Path(__file__).resolve().parents[2]
+
+_CHILD = """
+import json, sys
+sys.path.insert(0, '.')
+from mavreg.control import compensation_kernel, hover_kernel, observer_kernel, predictor_kernel
+from mavreg.control.hover import HoverParams
+from mavreg.control.sample_warmup import warm_up_sample_kernels
+from benchmarks import controller_bench as cb
+
+MODULES = (predictor_kernel, observer_kernel, hover_kernel, compensation_kernel)
+
+def compiled():
+    return {f"{m.__name__}.{k}": [str(s) for s in v.signatures] for m in MODULES
+            for k, v in vars(m).items() if hasattr(v, "signatures") and v.__module__ == m.__name__}
+
+setup = cb.Setup()
+before = compiled()
+c = setup.controller
+seconds = warm_up_sample_kernels(setup.vehicle, 1.0 / cb.RATE_HZ, c.max_prediction_s, c.disturbance, HoverParams())
+warm = compiled()
+cb.fly(setup, "hover", 1.0)
+cb.fly(setup, "maneuver", 1.0)
+print(json.dumps({"before": before, "warm": warm, "flown": compiled(), "seconds": seconds}))
+"""
+
+
+@pytest.mark.skipif(not ACCELERATED, reason="the pure path compiles nothing")
+def test_the_warm_up_compiles_every_kernel_the_flights_call():
+    out = subprocess.run([sys.executable, "-c", _CHILD], cwd=REPO, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    r = json.loads(out.stdout.strip().splitlines()[-1])
+    assert r["seconds"] is not None
+    assert not any(r["before"].values())
+    for name in ("predictor_kernel.predict_into", "observer_kernel.update", "hover_kernel.reference",
+                 "hover_kernel.feedback"):
+        assert any(k.endswith(name) and v for k, v in r["warm"].items()), name
+    assert r["flown"] == r["warm"]
