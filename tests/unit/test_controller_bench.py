@@ -31,3 +31,39 @@ def test_the_timed_flights_hold_the_hover_point_and_finish_the_maneuver():
     assert np.linalg.norm(p_end - np.array([0.5, -0.3, -1.5])) < 0.05
     maneuver = cb.fly(setup, "maneuver", setup.plan.duration_s + 0.5)
     assert len(maneuver) < (setup.plan.duration_s + 0.5) * cb.RATE_HZ     # stopped at the path's end
+
+
+def forecasts_of_a_recorded_flight() -> np.ndarray:
+    """The forecaster's outputs (x, R, rotor forces, and the observer's estimate after each
+    sample) over the hover flight, each command answered as the flight answered it."""
+    setup = cb.Setup()
+    samples = cb.fly(setup, "hover", 3.0)
+    hover = cb.HoverController(setup.vehicle, cb.HoverParams())
+    ramp = cb._hover_ramp(samples[0][1])
+    fc = setup.forecaster()
+    fc.reset(np.full(4, setup.vehicle.mass_kg * 9.81 / 4))
+    rows = []
+    for t, x, R, delay in samples:
+        f = fc.update(t, x, R, delay)
+        fc.command(t, hover.step(f.x, ramp, t, fc.disturbance).rotor_forces_n)
+        rows.append(np.concatenate([f.x, f.rotation.ravel(), f.rotor_forces_n, fc.observer.theta, fc.observer.P[0]]))
+    return np.array(rows)
+
+
+def test_the_forecaster_compiled_and_pure_agree_over_a_recorded_flight(tmp_path):
+    """The same closed-loop hover (observer on, commands recorded) replayed in a process on
+    the compiled path and in one on the pure path (MAVREG_PURE=1): the forecasts and the
+    observer's state agree to 1e-12 relative after 1500 samples."""
+    import os
+    import subprocess
+    code = ("import sys, numpy as np; sys.path.insert(0, 'tests/unit'); import test_controller_bench as t; "
+            "np.save(sys.argv[1], t.forecasts_of_a_recorded_flight())")
+    out = {}
+    for pure in ("0", "1"):
+        path = tmp_path / f"f{pure}.npy"
+        subprocess.run([sys.executable, "-c", code, str(path)], check=True, timeout=300, cwd=REPO,
+                       env=dict(os.environ, MAVREG_PURE=pure))
+        out[pure] = np.load(path)
+    assert out["0"].shape[0] == 1500 and np.all(np.isfinite(out["0"]))
+    scale = np.abs(out["1"]).max(axis=0) + 1e-9
+    assert (np.abs(out["0"] - out["1"]) / scale).max() <= 1e-12
