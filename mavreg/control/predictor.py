@@ -21,18 +21,19 @@ The result is the state and the rotor forces at the moment the next command take
 what the regulator needs (the state for ``w``, the forces for the actuator part of the
 lag-augmented gain). The horizon is capped at ``max_horizon_s``.
 
-The integration is one kernel (:mod:`mavreg.control.predictor_kernel`), compiled by numba
-where available: a prediction of ten steps costs a few microseconds.
+The integration is one kernel (:mod:`mavreg.control.predictor_kernel`), the command
+history's lag filter and the horizon's segments another
+(:mod:`mavreg.control.command_history_kernel`, the history in preallocated arrays), both
+compiled by numba where available: a prediction of ten steps costs a few microseconds.
 """
 from __future__ import annotations
 
-import math
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..config.vehicle import VehicleParams
+from .command_history_kernel import advance, prepare
 from .predictor_kernel import OUT_SIZE, PARAM_SIZE, predict_into
 
 __all__ = ["StatePredictor", "Prediction"]
@@ -85,69 +86,74 @@ class StatePredictor:
         self._prm = np.array([self.mass_kg, self.jx, self.jy, self.jz, self.l, self.k, self.tau,
                               self.cxy, self.cz, self.cp, self.max_step_s])
         assert self._prm.size == PARAM_SIZE
-        self._cmds: deque = deque()          # (t_answered_s, (c1..c4)) not yet fully acted
-        self._f = (0.0, 0.0, 0.0, 0.0)       # rotor forces at self._t_f
-        self._t_f: float | None = None
+        # The commands not yet fully acted, rows lo:hi (command_history_kernel): the time of
+        # the sample each answered, and the four rotor commands; room for twice the most kept.
+        self._ct = np.empty(2 * (_MAX_PENDING + 1))
+        self._cc = np.empty((self._ct.size, 4))
+        self._seg = np.empty((self._ct.size + 2, 5))
+        self._lo = self._hi = 0
+        self._rot = np.zeros(5)              # the lag filter: its time and the rotor forces then
+        self._fresh = True                   # the filter's time is set by the first call
         self._last_delay_s = 0.0
+
+    @property
+    def pending(self) -> int:
+        """Commands kept (not yet fully acted)."""
+        return self._hi - self._lo
 
     def reset(self, rotor_forces_n=(0.0, 0.0, 0.0, 0.0)) -> None:
         """Forget the command history; the rotors are at ``rotor_forces_n``."""
-        self._cmds.clear()
-        self._f = tuple(float(v) for v in rotor_forces_n)
-        self._t_f = None
+        self._lo = self._hi = 0
+        self._rot[1:5] = [float(v) for v in rotor_forces_n]
+        self._fresh = True
 
     def record(self, t_s: float, rotor_cmd_n) -> None:
         """The command sent in answer to the sample of vehicle time ``t_s`` (clipped as the
         vehicle clips it)."""
         fmax = self.fmax
-        c = tuple(0.0 if v < 0.0 else (fmax if v > fmax else float(v)) for v in rotor_cmd_n)
-        if self._cmds and t_s <= self._cmds[-1][0]:
-            self._cmds[-1] = (self._cmds[-1][0], c)   # a second answer to the same sample replaces the first
+        c = [0.0 if v < 0.0 else (fmax if v > fmax else float(v)) for v in rotor_cmd_n]
+        lo, hi = self._lo, self._hi
+        if hi > lo and t_s <= self._ct[hi - 1]:
+            self._cc[hi - 1] = c                # a second answer to the same sample replaces the first
         else:
-            self._cmds.append((float(t_s), c))
-        if len(self._cmds) > _MAX_PENDING:
+            if hi == self._ct.size:
+                self._compact()
+                hi = self._hi
+            self._ct[hi] = t_s
+            self._cc[hi] = c
+            self._hi = hi + 1
+        if self._hi - self._lo > _MAX_PENDING:
             # Nobody has asked for a prediction for a while (a long preflight): fold the
             # commands that have acted into the rotor state, so the history stays bounded.
             self.rotor_forces(t_s, self._last_delay_s)
 
-    def _lag(self, f, c, dt):
-        """Rotor forces after ``dt`` toward ``c`` and their mean over the interval."""
-        if dt <= 0.0:
-            return f, f
-        if self.tau <= 0.0:
-            return c, c
-        e = math.exp(-dt / self.tau)
-        frac = self.tau / dt * (1.0 - e)
-        new = tuple(ci + (fi - ci) * e for fi, ci in zip(f, c))
-        mean = tuple(ci + (fi - ci) * frac for fi, ci in zip(f, c))
-        return new, mean
+    def _compact(self) -> None:
+        """Move the live commands to the front of their arrays (doubled if they are full)."""
+        lo, hi = self._lo, self._hi
+        n = hi - lo
+        if n == self._ct.size:
+            self._ct = np.concatenate([self._ct, np.empty(n)])
+            self._cc = np.concatenate([self._cc, np.empty((n, 4))])
+            self._seg = np.empty((self._ct.size + 2, 5))
+        else:
+            self._ct[:n] = self._ct[lo:hi]
+            self._cc[:n] = self._cc[lo:hi]
+            self._lo, self._hi = 0, n
+
+    def _start(self, t_s: float, delay_s: float) -> None:
+        """The kept filter's time: on the first call, the sample's or the first command's."""
+        self._last_delay_s = delay_s
+        if self._fresh:               # the rotors were at the reset value until the first command
+            self._rot[0] = min(t_s, self._ct[self._lo] + delay_s) if self._hi > self._lo else t_s
+            self._fresh = False
 
     def rotor_forces(self, t_s: float, horizon_s: float):
         """Lagged rotor forces at ``t_s`` from the commands that acted before it (each acts
         ``horizon_s`` after the sample it answered). Advances the kept filter state."""
-        cmds = self._cmds
-        self._last_delay_s = horizon_s
-        if self._t_f is None:         # the rotors were at the reset value until the first command
-            self._t_f = min(t_s, cmds[0][0] + horizon_s) if cmds else t_s
-        t, f = self._t_f, self._f
-        if t_s <= t:
-            return f
-        while cmds:
-            start = cmds[0][0] + horizon_s
-            if start >= t_s:
-                break
-            end = cmds[1][0] + horizon_s if len(cmds) > 1 else math.inf
-            a = max(start, t)
-            b = min(end, t_s)
-            if b > a:
-                f, _ = self._lag(f, cmds[0][1], b - a)
-                t = b
-            if end <= t_s and len(cmds) > 1:
-                cmds.popleft()       # fully acted
-            else:
-                break
-        self._t_f, self._f = t_s, f
-        return f
+        self._start(t_s, horizon_s)
+        self._lo = advance(self._rot, self._ct, self._cc, self._lo, self._hi, float(t_s), float(horizon_s),
+                           self.tau)
+        return tuple(self._rot[1:5].tolist())
 
     def predict(self, t_s: float, x, rotation, horizon_s: float, delay_s: float | None = None,
                 external_force_n=(0.0, 0.0, 0.0), thrust_scale: float = 1.0,
@@ -174,21 +180,14 @@ class StatePredictor:
         cxy, cz = (self.cxy, self.cz) if drag_n_s_per_m is None else (float(c) for c in drag_n_s_per_m)
         H = min(max(float(horizon_s), 0.0), self.max_horizon_s)
         D = H if delay_s is None else min(max(float(delay_s), 0.0), self.max_horizon_s)
-        f = self.rotor_forces(t_s, D)
-        t_end = t_s + H
-        # Commands acting in [t_s, t_end): the one in force at t_s (else the rotors' own
-        # state), then those starting later; the last row ends the horizon.
-        rows = [(t_s, *f)]
-        for tj, c in self._cmds:
-            start = tj + D
-            if start <= t_s:
-                rows[0] = (t_s, *c)
-            elif start < t_end:
-                rows.append((start, *c))
-        rows.append((t_end, 0.0, 0.0, 0.0, 0.0))
+        self._start(t_s, D)
+        # the rotors advanced to t_s, then the commands acting in [t_s, t_s + H) as segments
+        rot = self._rot
+        self._lo, n = prepare(self._seg, rot, self._ct, self._cc, self._lo, self._hi, float(t_s), t_s + H, D,
+                              self.tau)
         fext = external_force_n
         out = np.empty(OUT_SIZE)
-        predict_into(out, np.asarray(rotation, dtype=float), np.asarray(x, dtype=float), f[0], f[1], f[2], f[3],
-                     np.array(rows), self._prm, float(thrust_scale), float(fext[0]), float(fext[1]),
+        predict_into(out, np.asarray(rotation, dtype=float), np.asarray(x, dtype=float), rot[1], rot[2], rot[3],
+                     rot[4], self._seg[:n], self._prm, float(thrust_scale), float(fext[0]), float(fext[1]),
                      float(fext[2]), cxy, cz)
         return out

@@ -137,9 +137,23 @@ def test_command_history_stays_bounded_without_predictions():
     pred = StatePredictor(dataclasses.replace(VEHICLE, rotor_time_constant_s=tau), max_step_s=PERIOD)
     for k in range(20000):
         pred.record(k * PERIOD, [1.0, 2.0, 3.0, 4.0])
-    assert len(pred._cmds) <= 4097
+    assert pred.pending <= 4097
     f = pred.rotor_forces(20000 * PERIOD, 0.0)
     np.testing.assert_allclose(f, [1.0, 2.0, 3.0, 4.0], rtol=1e-9)
+
+
+def test_a_history_that_cannot_be_folded_is_kept_whole():
+    """Commands that have not acted (asked for with a delay longer than the history) cannot
+    be folded: the history's arrays grow, and every command is still there, in order."""
+    pred = StatePredictor(dataclasses.replace(VEHICLE, rotor_time_constant_s=0.0), max_step_s=PERIOD)
+    pred.rotor_forces(0.0, 1e3)
+    n = 20000
+    for k in range(n):
+        pred.record(k * PERIOD, [k % 7, 0.0, 1.0, 2.0])
+    assert pred.pending == n
+    # now all acted (no delay): ideal rotors hold the last command, the others are dropped
+    assert pred.rotor_forces((n - 1) * PERIOD + 1e-4, 0.0) == ((n - 1) % 7, 0.0, 1.0, 2.0)
+    assert pred.pending == 1
 
 
 def prediction_cases(n: int = 240) -> np.ndarray:

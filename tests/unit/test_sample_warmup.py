@@ -22,12 +22,13 @@ REPO = Path(__file__).resolve().parents[2]
 _CHILD = """
 import json, sys
 sys.path.insert(0, '.')
-from mavreg.control import compensation_kernel, hover_kernel, observer_kernel, predictor_kernel
+from mavreg.control import (command_history_kernel, compensation_kernel, hover_kernel, observer_kernel,
+                            predictor_kernel)
 from mavreg.control.hover import HoverParams
 from mavreg.control.sample_warmup import warm_up_sample_kernels
 from benchmarks import controller_bench as cb
 
-MODULES = (predictor_kernel, observer_kernel, hover_kernel, compensation_kernel)
+MODULES = (predictor_kernel, command_history_kernel, observer_kernel, hover_kernel, compensation_kernel)
 
 def compiled():
     return {f"{m.__name__}.{k}": [str(s) for s in v.signatures] for m in MODULES
@@ -51,7 +52,7 @@ def test_the_warm_up_compiles_every_kernel_the_flights_call():
     r = json.loads(out.stdout.strip().splitlines()[-1])
     assert r["seconds"] is not None
     assert not any(r["before"].values())
-    for name in ("predictor_kernel.predict_into", "observer_kernel.update", "hover_kernel.reference",
-                 "hover_kernel.feedback"):
+    for name in ("predictor_kernel.predict_into", "command_history_kernel.prepare", "command_history_kernel.advance",
+                 "observer_kernel.update", "hover_kernel.reference", "hover_kernel.feedback"):
         assert any(k.endswith(name) and v for k, v in r["warm"].items()), name
     assert r["flown"] == r["warm"]
