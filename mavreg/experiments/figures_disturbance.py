@@ -6,7 +6,8 @@ with a row per case (the force, or the reference's lead) and a column per rotor 
 - ``NAME_GROUP_paths.png``: the paths in the plane of the loop (east against altitude),
   zoomed on where any run is more than 2 cm off the path, with the loop;
 - ``NAME_GROUP_distance.png``: the distance from the path against time, the 0.5 m tube
-  dashed, the gust's window shaded;
+  dashed, the gust's window shaded; a panel with a run lost (more than 2 m off) stops at
+  2 m and names its largest distance;
 - ``NAME_GROUP_speed.png``: the speed along the path minus the profile's at the vehicle's own
   arc length against time (above zero: faster than the maneuver prescribes where the vehicle
   is; below -v(s): going backwards).
@@ -124,6 +125,19 @@ def _paths(path: Path, plan, name: str, group: str, cases, limits, cells, via: s
     _finish(plt, fig, axes, path, f"{name} via {via}, {group}: paths in the plane of the loop{gust}")
 
 
+def _cap_lost(ax, outs) -> None:
+    """A run more than 2 m off the path has left it for good (as in the paths' zoom): the axis
+    stops at 2 m, so the other runs stay readable, and the panel names the lost run's largest
+    distance."""
+    lost = [o for o in outs if o.trace is not None and o.trace.transverse_error_m.max() > _FOCUS_MAX_M]
+    if not lost:
+        return
+    ax.set_ylim(-0.05 * _FOCUS_MAX_M, 1.05 * _FOCUS_MAX_M)
+    note = "; ".join(f"{CONTROLLER_STYLE[o.spec.controller]['label'].split(' (')[0]} off the scale, "
+                     f"{o.trace.transverse_error_m.max():.1f} m at most" for o in lost)
+    ax.text(0.98, 0.92, note, transform=ax.transAxes, ha="right", va="top", fontsize=8)
+
+
 def _against_time(path: Path, plan, name: str, group: str, cases, limits, cells, via: str, what: str) -> None:
     plt = _plt()
     fig, axes = _figure(plt, cases, limits, (6.5, 2.6))
@@ -151,6 +165,7 @@ def _against_time(path: Path, plan, name: str, group: str, cases, limits, cells,
             if what == "distance":
                 ax.axhline(TUBE_M, color="k", lw=0.7, ls="--")
                 ax.set_ylabel("distance from path (m)", fontsize=8)
+                _cap_lost(ax, outs)
             else:
                 ax.axhline(0.0, color="k", lw=0.6)
                 ax.set_ylabel("along-track speed - v(s) (m/s)", fontsize=8)

@@ -72,3 +72,28 @@ def test_a_reference_4_m_ahead_makes_the_trackers_race_and_leaves_the_regulator_
         assert runs[c]["overspeed_m_s"] > 1.0 and runs[c]["min_centre_distance_m"] < 1.0
         assert runs[c]["max_distance_m"] > 0.5 and runs[c]["outside_tube_s"] > 0.0
     assert (tmp_path / "lag_lag_paths.png").exists() and "lag 4 m ahead" in (tmp_path / "results.md").read_text()
+
+
+def test_a_distance_panel_with_a_lost_run_stops_at_2_m_and_names_its_distance():
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from mavreg.experiments.figures import _plt
+    from mavreg.experiments.figures_disturbance import _cap_lost
+
+    def run(controller, peak_m):
+        t = np.linspace(0.0, 7.0, 50)
+        return SimpleNamespace(spec=SimpleNamespace(controller=controller),
+                               trace=SimpleNamespace(t_s=t, transverse_error_m=peak_m * t / 7.0))
+
+    plt = _plt()
+    fig, (lost, kept) = plt.subplots(1, 2)
+    for ax, outs in ((lost, [run(TVLQR, 0.23), run(SE3, 15.6)]), (kept, [run(TVLQR, 0.23), run(SE3, 1.5)])):
+        for o in outs:
+            ax.plot(o.trace.t_s, o.trace.transverse_error_m)
+        _cap_lost(ax, outs)
+    assert lost.get_ylim()[1] == pytest.approx(2.1)
+    assert [t.get_text() for t in lost.texts] == ["SE(3) tracker off the scale, 15.6 m at most"]
+    assert kept.get_ylim()[1] == pytest.approx(1.575) and not kept.texts      # matplotlib's own margin
+    plt.close(fig)
