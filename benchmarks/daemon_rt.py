@@ -20,7 +20,7 @@ message, for the daemon and the emulator alike), in that order. Figures:
   time for the same sample (forecaster, hover LQR or maneuver regulator, the command
   bookkeeping of the forecaster): what the daemon itself adds (link, codec, state
   assembly, envelope monitor, logs);
-- ``controller_us.hover_p50`` / ``.maneuver_p50``: that controller time;
+- ``daemon_controller_us.hover_p50`` / ``.maneuver_p50``: that controller time;
 - ``daemon_cpu_pct``: CPU time of this process (the daemon; the planner worker and the
   emulator are other processes) per wall second while airborne, percent of one core;
   ``daemon_cpu_pct.maneuver`` in the maneuver;
@@ -198,7 +198,7 @@ def run_daemon_rt(quick: bool) -> dict:
         "daemon_overhead_us.hover_p50": figure(_overhead(f["hover"], 50), _overhead(r["hover"], 50), unit="us",
                                                higher_is_better=False,
                                                note="latency minus the controllers' time (forecaster, hover LQR)"),
-        "controller_us.hover_p50": figure(_p(f["hover"], 50, 1), _p(r["hover"], 50, 1), unit="us",
+        "daemon_controller_us.hover_p50": figure(_p(f["hover"], 50, 1), _p(r["hover"], 50, 1), unit="us",
                                           higher_is_better=False,
                                           note="forecaster update + hover LQR + forecaster command, per sample"),
         "daemon_latency_us.with_sendto_p50": figure(
@@ -227,7 +227,7 @@ def run_daemon_rt(quick: bool) -> dict:
             "daemon_overhead_us.maneuver_p50": figure(_overhead(f["maneuver"], 50), _overhead(r["maneuver"], 50),
                                                       unit="us", higher_is_better=False,
                                                       note="latency minus the controllers' time"),
-            "controller_us.maneuver_p50": figure(_p(f["maneuver"], 50, 1), _p(r["maneuver"], 50, 1), unit="us",
+            "daemon_controller_us.maneuver_p50": figure(_p(f["maneuver"], 50, 1), _p(r["maneuver"], 50, 1), unit="us",
                                                  higher_is_better=False,
                                                  note="forecaster update + maneuver regulator + forecaster command"),
             "daemon_cpu_pct.maneuver": figure(f["cpu_maneuver"], r["cpu_maneuver"], target=10.0,
