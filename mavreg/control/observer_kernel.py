@@ -40,6 +40,31 @@ GATE_CHI2 = 36.0
 
 
 @njit
+def _matmul_into(A, B, out, transpose_b):
+    """``out = A B`` (or ``A B^T`` with ``transpose_b``) by loops, for the small matrices here."""
+    n, m = out.shape
+    inner = A.shape[1]
+    for i in range(n):
+        for j in range(m):
+            acc = 0.0
+            for k in range(inner):
+                acc += A[i, k] * (B[j, k] if transpose_b else B[k, j])
+            out[i, j] = acc
+
+
+@njit
+def _cholesky_solve3(l00, l10, l20, l11, l21, l22, c0, c1, c2):
+    """``x = S^-1 c`` for ``S = L L^T``, L lower triangular (3, 3): forward, then back
+    substitution."""
+    w0 = c0 / l00
+    w1 = (c1 - l10 * w0) / l11
+    w2 = (c2 - l20 * w0 - l21 * w1) / l22
+    x2 = w2 / l22
+    x1 = (w1 - l21 * x2) / l11
+    return (w0 - l10 * x1 - l20 * x2) / l00, x1, x2
+
+
+@njit
 def update(kf, P, dt, mass, r, min_speed, R, vx, vy, vz, thrust, y0, y1, y2):
     """One measurement (see the module docstring): attitude ``R`` (3, 3), velocity
     ``(vx, vy, vz)`` NED and commanded thrust ``thrust`` over the interval ``dt``, innovation
@@ -63,12 +88,7 @@ def update(kf, P, dt, mass, r, min_speed, R, vx, vy, vz, thrust, y0, y1, y2):
         H[a, 2 + a] = g
         H[a, 5] = -thrust * b[a] * g
     HP = np.empty((3, 6))
-    for a in range(3):
-        for j in range(6):
-            acc = 0.0
-            for k in range(6):
-                acc += H[a, k] * P[k, j]
-            HP[a, j] = acc
+    _matmul_into(H, P, HP, False)
     # S = H P H^T + r I, then its Cholesky factor L
     S = np.empty((3, 3))
     for a in range(3):
@@ -84,24 +104,13 @@ def update(kf, P, dt, mass, r, min_speed, R, vx, vy, vz, thrust, y0, y1, y2):
     l21 = (S[2, 1] - l20 * l10) / l11
     l22 = math.sqrt(S[2, 2] - l20 * l20 - l21 * l21)
     # z = S^-1 y (forward, then back substitution)
-    w0 = y0 / l00
-    w1 = (y1 - l10 * w0) / l11
-    w2 = (y2 - l20 * w0 - l21 * w1) / l22
-    z2 = w2 / l22
-    z1 = (w1 - l21 * z2) / l11
-    z0 = (w0 - l10 * z1 - l20 * z2) / l00
+    z0, z1, z2 = _cholesky_solve3(l00, l10, l20, l11, l21, l22, y0, y1, y2)
     if y0 * z0 + y1 * z1 + y2 * z2 > GATE_CHI2:
         return REJECTED
     # K = (S^-1 H P)^T (6, 3), column by column of HP
     K = np.empty((6, 3))
     for j in range(6):
-        c0, c1, c2 = HP[0, j], HP[1, j], HP[2, j]
-        w0 = c0 / l00
-        w1 = (c1 - l10 * w0) / l11
-        w2 = (c2 - l20 * w0 - l21 * w1) / l22
-        k2 = w2 / l22
-        k1 = (w1 - l21 * k2) / l11
-        K[j, 0], K[j, 1], K[j, 2] = (w0 - l10 * k1 - l20 * k2) / l00, k1, k2
+        K[j, 0], K[j, 1], K[j, 2] = _cholesky_solve3(l00, l10, l20, l11, l21, l22, HP[0, j], HP[1, j], HP[2, j])
     for i in range(6):
         th = kf[THETA, i] + (K[i, 0] * y0 + K[i, 1] * y1 + K[i, 2] * y2)
         kf[THETA, i] = min(max(th, kf[LO, i]), kf[HI, i])
@@ -111,12 +120,7 @@ def update(kf, P, dt, mass, r, min_speed, R, vx, vy, vz, thrust, y0, y1, y2):
         for j in range(6):
             A[i, j] = (1.0 if i == j else 0.0) - (K[i, 0] * H[0, j] + K[i, 1] * H[1, j] + K[i, 2] * H[2, j])
     AP = np.empty((6, 6))
-    for i in range(6):
-        for j in range(6):
-            acc = 0.0
-            for k in range(6):
-                acc += A[i, k] * P[k, j]
-            AP[i, j] = acc
+    _matmul_into(A, P, AP, False)
     for i in range(6):
         for j in range(6):
             acc = 0.0
