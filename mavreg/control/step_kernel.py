@@ -112,7 +112,7 @@ def yaw_then_lift(Minv, u, F, f):
     beta = 1.0
     for r in range(4):
         b, y = _split(Minv, u, r)
-        if b + y < 0.0 and y != 0.0:    # y = 0: numpy's 0/0 is NaN, which min() passes over
+        if b + y < 0.0 and y != 0.0:    # as mixer.yaw_then_lift: no yaw share, no limit from it
             beta = min(beta, max(b, 0.0) / -y)
     low, high = _fill(Minv, u, beta, f)
     if low < 0.0:

@@ -75,7 +75,7 @@ def yaw_then_lift(mixer_inverse, u, max_rotor_thrust_n: float) -> np.ndarray:
         return f
     beta = 1.0
     for b, y in zip(base, yaw):
-        if b + y < 0.0:
+        if b + y < 0.0 and y != 0.0:     # no yaw share: the yaw torque cannot help this rotor
             beta = min(beta, max(b, 0.0) / -y)
     return lift_to_zero(base + beta * yaw, max_rotor_thrust_n)
 
