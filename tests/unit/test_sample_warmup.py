@@ -3,8 +3,11 @@
 In a fresh process (numba's dispatchers start empty there), the kernels' compiled
 signatures are read before the warm-up, after it, and after a closed-loop realistic.yaml
 hover and the barrel roll's first second flown through the daemon's objects
-(``benchmarks.controller_bench.fly``): the warm-up must have compiled every kernel the
-flights call, for every argument type they call it with.
+(``benchmarks.controller_bench.fly``): the warm-ups the daemon runs before it opens the link
+(the regulator's step, :func:`mavreg.control.fastpath.warm_up`, then the sample kernels)
+must have compiled every kernel the flights call, for every argument type they call it with.
+(The regulator's step compiles the compensation kernels into itself; on a cold numba cache
+their dispatchers then show the signatures too.)
 """
 from __future__ import annotations
 
@@ -25,6 +28,7 @@ sys.path.insert(0, '.')
 from mavreg.control import (command_history_kernel, compensation_kernel, hover_kernel, observer_kernel,
                             predictor_kernel)
 from mavreg.control.hover import HoverParams
+from mavreg.control import fastpath
 from mavreg.control.sample_warmup import warm_up_sample_kernels
 from benchmarks import controller_bench as cb
 
@@ -37,6 +41,7 @@ def compiled():
 setup = cb.Setup()
 before = compiled()
 c = setup.controller
+fastpath.warm_up()      # as the daemon: its regulator factory compiles the step before the link
 seconds = warm_up_sample_kernels(setup.vehicle, 1.0 / cb.RATE_HZ, c.max_prediction_s, c.disturbance, HoverParams())
 warm = compiled()
 cb.fly(setup, "hover", 1.0)
