@@ -19,7 +19,6 @@ Its duration is the shortest that keeps speed and acceleration inside the limits
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -31,6 +30,7 @@ from ..model.linearize import model_jacobians
 from ..model.mixer import Mixer, yaw_then_lift
 from ..model.quadrotor import NX, QuadrotorModel
 from ..model.rotation import rpy_to_matrix, wrap_angle
+from ..model.rotation_kernel import wrap
 from . import hover_kernel as hk
 
 __all__ = ["HoverParams", "HoverController", "HoverOutput", "Ramp", "plan_ramp", "hold_ramp"]
@@ -224,7 +224,7 @@ class HoverController:
 
     def gain(self, yaw_rad: float) -> np.ndarray:
         """K (4, 12) of the LQR linearized at level hover with yaw ``yaw_rad`` (cached per 1e-3 rad)."""
-        key = round(math.pi - (math.pi - float(yaw_rad)) % (2.0 * math.pi), 3)      # wrapped to (-pi, pi]
+        key = round(wrap(float(yaw_rad)), 3)          # wrapped to (-pi, pi], scalar
         K = self._gains.get(key)
         if K is None:
             x0 = np.zeros(NX)

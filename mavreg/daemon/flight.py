@@ -14,7 +14,7 @@ import numpy as np
 
 from ..control.hover import hold_ramp
 from ..model.rotation import rpy_to_matrix
-from ..model.rotation_kernel import rpy_matrix as _rpy_rows  # scalar: numpy on 3x3 cost ~9 µs a step
+from ..model.rotation_kernel import rpy_matrix
 from . import flightpath as fp
 from . import messages as mm
 from .gate import plan_outside_envelope
@@ -42,8 +42,8 @@ def smoothstep(t: float) -> float:
 
 def angle_between(rpy_a, rpy_b) -> float:
     """Angle of the rotation between two attitudes given as roll, pitch, yaw (any attitude)."""
-    a = _rpy_rows(float(rpy_a[0]), float(rpy_a[1]), float(rpy_a[2]))
-    b = _rpy_rows(float(rpy_b[0]), float(rpy_b[1]), float(rpy_b[2]))
+    a = rpy_matrix(float(rpy_a[0]), float(rpy_a[1]), float(rpy_a[2]))
+    b = rpy_matrix(float(rpy_b[0]), float(rpy_b[1]), float(rpy_b[2]))
     c = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] + a[4] * b[4] + a[5] * b[5]
          + a[6] * b[6] + a[7] * b[7] + a[8] * b[8] - 1.0) / 2.0    # (trace(Ra^T Rb) - 1) / 2
     return math.acos(min(max(c, -1.0), 1.0))
