@@ -16,7 +16,8 @@ Acceptance rules (documented in docs/firmware_sim.md):
   component; ``target_system`` ours (or 0 broadcast), ``target_component`` ours or 0.
 - TIMESYNC: same source rule as COMMAND_LONG. A request (``tc1`` 0) is answered with
   ``tc1`` = our clock (sim time) in ns when it is handled and ``ts1`` echoed, as PX4
-  does; a reply (``tc1`` != 0) sent to us is ``unsupported``.
+  does; a reply (``tc1`` != 0) sent to us is ``unsupported``, and so is every request with
+  ``answer_timesync`` off (``--no-timesync``).
 - HEARTBEAT from anyone is fine. Any other message is ``unsupported``.
 """
 from __future__ import annotations
@@ -64,6 +65,9 @@ class AutopilotConfig:
     heartbeat_period_s: float = 1.0
     max_arm_tilt_rad: float = math.radians(10.0)
     range_tolerance: float = 1e-6
+    answer_timesync: bool = True
+    """False: TIMESYNC requests are ignored (counted ``unsupported``), as by a vehicle that
+    does not implement the protocol (``--no-timesync``)."""
 
 
 class Autopilot:
@@ -230,7 +234,7 @@ class Autopilot:
         if msg.get_srcSystem() not in (cfg.system_id, cfg.gcs_system_id):
             self.drops["foreign_system"] += 1
             return
-        if msg.tc1 != 0:                 # a reply to a request of ours: we send none
+        if msg.tc1 != 0 or not cfg.answer_timesync:   # a reply (we send no request), or not answering
             self.drops["unsupported"] += 1
             return
         self._out.append(mavlink2.MAVLink_timesync_message(int(round(t_s * 1e9)), msg.ts1))

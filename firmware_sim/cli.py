@@ -146,6 +146,8 @@ def build_parser() -> argparse.ArgumentParser:
     a("--system-id", type=_sysid, default=1, help="our MAVLink system id (default 1)")
     a("--gcs-system-id", type=_sysid, default=255,
       help="commands are also accepted from this system id (default 255)")
+    a("--no-timesync", action="store_true",
+      help="ignore TIMESYNC requests (a vehicle that does not implement it): the peer cannot measure the link")
     a("--mass-kg", type=_positive_float, default=None, help="override the vehicle mass")
     a("--inertia-kg-m2", type=_positive_float, nargs=3, default=None, metavar=("JX", "JY", "JZ"),
       help="override the diagonal of the inertia matrix")
@@ -235,6 +237,7 @@ def build_engine(args) -> tuple[Engine, Recorder | None]:
     stab = Stabilizer(v.mass_kg, params.inertia_matrix_kg_m2, v.arm_length_m,
                       v.drag_torque_ratio_m, v.max_rotor_thrust_n)
     cfg = AutopilotConfig(system_id=args.system_id, gcs_system_id=args.gcs_system_id,
+                          answer_timesync=not args.no_timesync,
                           max_rotor_thrust_n=command_scale_n,
                           offboard_loss_timeout_s=args.offboard_loss_timeout,
                           failsafe_hold_s=args.failsafe_hold_s)
