@@ -36,6 +36,16 @@ class SimParams:
     rate_hz: int = 500
     physics_hz: int = 1000
     seed: int = 0
+    rotor_gain: tuple = (1.0, 1.0, 1.0, 1.0)
+    """Thrust each rotor (1..4) gives per newton commanded, before the world's
+    ``emulator.thrust_scale`` (an airframe mismatch: :mod:`firmware_sim.mismatch`)."""
+    com_offset_m: tuple = (0.0, 0.0, 0.0)
+    """Centre of mass relative to the rotors' centre, body FRD (m); the rotors' thrust acts
+    at their positions relative to it."""
+    mismatch: object = None
+    """The :class:`firmware_sim.mismatch.MismatchDraw` applied, or ``None``."""
+    mismatch_kept: tuple = ()
+    """Parameters an explicit flag kept from the draw (``mass_kg``, ...)."""
 
     @property
     def substeps(self) -> int:

@@ -27,6 +27,9 @@ or not the link then lost it; the truth itself in the ideal world):
 ``estimate_quat``              (M, 4)  ATTITUDE_QUATERNION q1..q4 (w, x, y, z)
 ``estimate_rates_rad_s``       (M, 3)  rollspeed, pitchspeed, yawspeed
 =============================  ======  ================================================
+
+plus whatever the emulator put in :attr:`Recorder.arrays` (the true airframe's
+``airframe_*`` fields: :func:`firmware_sim.mismatch.airframe_arrays`).
 """
 from __future__ import annotations
 
@@ -54,6 +57,8 @@ class Recorder:
         self._est = np.empty((_CHUNK, ESTIMATE_COLUMNS))
         self._est_i = 0
         self.meta: dict = {}
+        self.arrays: dict = {}
+        """Further named arrays written as they are (fixed at start-up: the true airframe)."""
 
     def record(self, t_s: float, s, cmd_n, applied_n, armed: bool, mode: int, on_ground: bool):
         """Append one row: time, 13-state, commanded and applied thrusts, flags."""
@@ -101,6 +106,7 @@ class Recorder:
         out.update(estimate_t_s=e[:, 0], estimate_position_ned_m=e[:, 1:4],
                    estimate_velocity_ned_m_s=e[:, 4:7], estimate_quat=e[:, 7:11],
                    estimate_rates_rad_s=e[:, 11:14])
+        out.update(self.arrays)
         tmp = self.path.with_name(self.path.name + ".tmp.npz")
         np.savez_compressed(tmp, **out)
         tmp.replace(self.path)

@@ -49,13 +49,14 @@ class Simulation:
                               v.emulator.parasitic_drag_n_s2_per_m2)
         self.rotors = Rotors(v.max_rotor_thrust_n, v.emulator.rotor_time_constant_s,
                              v.emulator.rotor_noise_sd_n, self.dt_s, self.rng,
-                             v.emulator.thrust_scale)
+                             v.emulator.thrust_scale, params.rotor_gain)
         self.ground = Ground(v.emulator.crash_speed_m_s)
         self.wind = wind if wind is not None else Wind()
         self.limits = limits if limits is not None else Limits()
         self.recorder = recorder
         self.arm_length_m = v.arm_length_m
         self.k_m = v.drag_torque_ratio_m
+        self.com_offset_m = tuple(float(c) for c in params.com_offset_m)
         self.state = tuple(float(x) for x in (state if state is not None else GROUND_STATE))
         self.step_count = 0
         self.t_s = 0.0
@@ -102,6 +103,7 @@ class Simulation:
         body, rotors, ground, wind, rec = self.body, self.rotors, self.ground, self.wind, self.recorder
         hist = self._history
         l, k, dt = self.arm_length_m, self.k_m, self.dt_s
+        cx, cy = self.com_offset_m[0], self.com_offset_m[1]
         s = self.state
         n0 = self.step_count
         pdt = self.params.physics_hz
@@ -109,7 +111,7 @@ class Simulation:
         for i in range(1, steps + 1):
             t0 = (n0 + i - 1) / pdt
             applied = rotors.step(cmd_n, armed)
-            T, tx, ty, tz = mix(applied, l, k)
+            T, tx, ty, tz = mix(applied, l, k, cx, cy)
             w, f = wind.at(t0)
             if ground.on_ground and T < 1e-9 and not wind.items:
                 pass       # resting, nothing acts that could lift it
