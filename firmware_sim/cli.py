@@ -13,6 +13,7 @@ from .autopilot import Autopilot, AutopilotConfig
 from .clock import StopRun, run_lockstep, run_realtime
 from .engine import Engine
 from .link import Link
+from .mismatch import BOUNDS, airframe_arrays, apply_mismatch, describe_airframe, draw_mismatch
 from mavreg.config.vehicle import EmulatorParams, load_vehicle
 
 from .params import START_KEYS, build_sim_params, default_vehicle_path, parse_start
@@ -39,7 +40,9 @@ seeded by --seed, deterministic in lockstep). --preset ideal sends the exact tru
 with no delay and no loss. Motor lag and rotor noise come from the vehicle YAML in both.
 
 The first stdout line is 'firmware_sim listening on udpin:HOST:PORT'; the second one
-('firmware_sim world: ...') names the preset, its values and any overrides.
+('firmware_sim world: ...') names the preset, its values and any overrides; with
+--mismatch-seed a third one ('firmware_sim airframe: key=value ...') gives the true
+airframe drawn around the vehicle file.
 Exit status: 0 done or signalled, 1 internal error, 2 bad input, 3 crash,
 4 non-finite state, 5 speed or body rate limit. See docs/firmware_sim.md."""
 
@@ -92,6 +95,23 @@ def _positive_int(text: str) -> int:
         raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
     if v <= 0:
         raise argparse.ArgumentTypeError(f"expected an integer > 0, got {text!r}")
+    return v
+
+
+def _nonneg_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
+    return v
+
+
+def _unit_scale(text: str) -> float:
+    v = _positive_float(text)
+    if v > 1.0:
+        raise argparse.ArgumentTypeError(f"expected a number in (0, 1], got {text!r}")
     return v
 
 
@@ -164,6 +184,28 @@ def build_parser() -> argparse.ArgumentParser:
     a("--duration-s", type=_positive_float, default=None, metavar="S",
       help="stop after this much simulation time (default: run until signalled)")
     a("--quiet", action="store_true", help="no status line every second")
+    _add_mismatch_args(p)
+    _add_world_args(p)
+    return p
+
+
+def _add_mismatch_args(p: argparse.ArgumentParser) -> None:
+    """``--mismatch-seed``, ``--mismatch-scale`` (:mod:`firmware_sim.mismatch`)."""
+    p.add_argument(
+        "--mismatch-seed", type=_nonneg_int, default=None, metavar="N",
+        help="fly a vehicle that is not its file: draw the true mass (+-15 %%), moments of "
+             "inertia (+-30 %% each), rotor thrust constants (+-10 %% each), yaw-torque "
+             "coefficient (+-30 %%), arm length (+-5 %%), rotor time constant (10-50 ms) and a "
+             "centre-of-mass offset (within 1 cm) from seed N, independent of --seed; explicit "
+             "--mass-kg, --inertia-*, --rotor-time-constant-s win over the draw. Default: the "
+             "file's airframe")
+    p.add_argument(
+        "--mismatch-scale", type=_unit_scale, default=None, metavar="X",
+        help="with --mismatch-seed: multiply every deviation from the file by X in (0, 1] "
+             "(default 1)")
+
+def _add_world_args(p: argparse.ArgumentParser) -> None:
+    """The world's flags: link, estimator, air and battery (:mod:`firmware_sim.world`)."""
     w = p.add_argument_group("world", "link effects and estimator errors; each flag overrides the preset's value")
     w.add_argument("--preset", choices=PRESET_NAMES, default="realistic",
                    help="named world (default %(default)s; values below)")
@@ -191,7 +233,6 @@ def build_parser() -> argparse.ArgumentParser:
                    metavar=("CX", "CY", "CZ"), help="body-frame linear drag coefficients")
     w.add_argument("--parasitic-drag-n-s2-per-m2", type=_nonneg_float, nargs=3, default=None,
                    metavar=("CX", "CY", "CZ"), help="body-frame quadratic drag coefficients")
-    return p
 
 
 def build_engine(args) -> tuple[Engine, Recorder | None]:
@@ -207,13 +248,7 @@ def build_engine(args) -> tuple[Engine, Recorder | None]:
                         parasitic_drag_n_s2_per_m2=args.parasitic_drag_n_s2_per_m2)
     vehicle = load_vehicle(vehicle_path)
     vehicle = dataclasses.replace(vehicle, emulator=world.airframe.apply(vehicle.emulator))
-    params = build_sim_params(
-        vehicle, rate_hz=args.rate_hz, physics_hz=args.physics_hz, seed=args.seed,
-        mass_kg=args.mass_kg, inertia_kg_m2=args.inertia_kg_m2, inertia_scale=args.inertia_scale,
-        inertia_perturb_sd_kg_m2=args.inertia_perturb_sd_kg_m2,
-        rotor_time_constant_s=args.rotor_time_constant_s, rotor_noise_sd_n=args.rotor_noise_sd_n,
-        max_rotor_thrust_n=(args.max_rotor_thrust_n if args.rotor_saturation_n is None
-                            else args.rotor_saturation_n))
+    nominal, params = _sim_params(args, vehicle)
     command_scale_n = (args.max_rotor_thrust_n if args.max_rotor_thrust_n is not None
                        else vehicle.max_rotor_thrust_n)     # thrust asked for by a control of 1
     start = parse_start(args.start) if args.start is not None else None
@@ -232,22 +267,57 @@ def build_engine(args) -> tuple[Engine, Recorder | None]:
                              rate_hz=args.rate_hz, physics_hz=args.physics_hz,
                              lockstep=args.lockstep, start=args.start, wind=args.wind,
                              command_scale_n=command_scale_n,
-                             world=dataclasses.asdict(world))
+                             world=dataclasses.asdict(world), airframe=_airframe_meta(params))
+        recorder.arrays.update(airframe_arrays(params))
     sim = Simulation(params, start, wind, recorder)
-    stab = Stabilizer(v.mass_kg, params.inertia_matrix_kg_m2, v.arm_length_m,
-                      v.drag_torque_ratio_m, v.max_rotor_thrust_n)
+    n = nominal.vehicle        # the autopilot is tuned on the file, as the offboard controller
+    stab = Stabilizer(n.mass_kg, nominal.inertia_matrix_kg_m2, n.arm_length_m,
+                      n.drag_torque_ratio_m, n.max_rotor_thrust_n)
     cfg = AutopilotConfig(system_id=args.system_id, gcs_system_id=args.gcs_system_id,
                           answer_timesync=not args.no_timesync,
                           max_rotor_thrust_n=command_scale_n,
                           offboard_loss_timeout_s=args.offboard_loss_timeout,
                           failsafe_hold_s=args.failsafe_hold_s)
-    ap = Autopilot(cfg, stab, v.mass_kg * G / 4)
+    ap = Autopilot(cfg, stab, n.mass_kg * G / 4)
     link = Link(args.listen, args.system_id, cfg.component_id)
     engine = Engine(sim, ap, link, world)
     if start is not None:
         link.send(ap.start_in_flight(0.0))
     sim.record_initial(ap.armed, ap.mode)
     return engine, recorder
+
+
+def _sim_params(args, vehicle):
+    """``(nominal, true)`` :class:`SimParams`: the file with the flags, and that with the
+    airframe mismatch of ``--mismatch-seed`` (the same object without one)."""
+    nominal = build_sim_params(
+        vehicle, rate_hz=args.rate_hz, physics_hz=args.physics_hz, seed=args.seed,
+        mass_kg=args.mass_kg, inertia_kg_m2=args.inertia_kg_m2, inertia_scale=args.inertia_scale,
+        inertia_perturb_sd_kg_m2=args.inertia_perturb_sd_kg_m2,
+        rotor_time_constant_s=args.rotor_time_constant_s, rotor_noise_sd_n=args.rotor_noise_sd_n,
+        max_rotor_thrust_n=(args.max_rotor_thrust_n if args.rotor_saturation_n is None
+                            else args.rotor_saturation_n))
+    seed = getattr(args, "mismatch_seed", None)
+    scale = getattr(args, "mismatch_scale", None)
+    if seed is None:
+        if scale is not None:
+            raise ValueError("--mismatch-scale needs --mismatch-seed")
+        return nominal, nominal
+    kept = [name for name, given in (
+        ("mass_kg", args.mass_kg is not None),
+        ("inertia_kg_m2", any(x is not None for x in (args.inertia_kg_m2, args.inertia_scale,
+                                                      args.inertia_perturb_sd_kg_m2))),
+        ("rotor_time_constant_s", args.rotor_time_constant_s is not None)) if given]
+    draw = draw_mismatch(seed, 1.0 if scale is None else scale)
+    return nominal, apply_mismatch(nominal, draw, kept)
+
+
+def _airframe_meta(params) -> dict:
+    """The recording's ``meta_json.airframe``: the true values, the draw, the bounds."""
+    true = {k[len("airframe_"):]: v.tolist() for k, v in airframe_arrays(params).items()}
+    draw = dataclasses.asdict(params.mismatch) if params.mismatch is not None else None
+    return {"true": true, "mismatch": draw, "kept": list(params.mismatch_kept),
+            "bounds": dataclasses.asdict(BOUNDS) if draw is not None else None}
 
 
 def _raise_stop(signum, frame):
@@ -281,6 +351,8 @@ def _main(argv: list[str] | None) -> int:
         return int(ExitCode.USAGE)
     print(f"firmware_sim listening on {engine.link.url}", flush=True)
     print(f"firmware_sim {engine.world.describe(engine.sim.params.vehicle.emulator)}", flush=True)
+    if engine.sim.params.mismatch is not None:
+        print(f"firmware_sim {describe_airframe(engine.sim.params)}", flush=True)
     code, reason = ExitCode.OK, "done"
     old = {s: signal.signal(s, _raise_stop) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
