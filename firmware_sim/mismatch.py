@@ -9,18 +9,18 @@ designs on the file; the physics flies the draw.
 
 Distributions (``X`` = ``--mismatch-scale``, 1 by default; ``u`` uniform in [0, 1)):
 
-=========================  ===========================  ======================================
-parameter                  nominal (vehicle file)       true value
-=========================  ===========================  ======================================
-mass                       ``mass_kg``                  nominal (1 + X e), e ~ U(-0.15, 0.15)
-each principal moment      ``inertia_kg_m2[i]``         nominal (1 + X e_i), e_i ~ U(-0.3, 0.3)
-rotor i thrust constant    1 (per newton commanded)     1 + X e_i, e_i ~ U(-0.1, 0.1)
-yaw-torque coefficient     ``drag_torque_ratio_m``      nominal (1 + X e), e ~ U(-0.3, 0.3)
-arm length                 ``arm_length_m``             nominal (1 + X e), e ~ U(-0.05, 0.05)
-rotor time constant        ``emulator.rotor_time_c...`` nominal + X (t - nominal), t ~ U(10, 50) ms
-centre-of-mass offset      0                            X r (cos a, sin a, 0), r = 1 cm sqrt(u),
-                                                        a ~ U(0, 2 pi): uniform on a 1 cm disc
-=========================  ===========================  ======================================
+==========================  ==============================  ==========================================
+parameter                   nominal (vehicle file)          true value
+==========================  ==============================  ==========================================
+mass                        ``mass_kg``                     nominal (1 + X e), e ~ U(-0.15, 0.15)
+each principal moment       ``inertia_kg_m2[i]``            nominal (1 + X e_i), e_i ~ U(-0.3, 0.3)
+rotor i thrust constant     1 (per newton commanded)        1 + X e_i, e_i ~ U(-0.1, 0.1)
+yaw-torque coefficient      ``drag_torque_ratio_m``         nominal (1 + X e), e ~ U(-0.3, 0.3)
+arm length                  ``arm_length_m``                nominal (1 + X e), e ~ U(-0.05, 0.05)
+rotor time constant         ``emulator.rotor_time_...``     nominal + X (t - nominal), t ~ U(10, 50) ms
+centre-of-mass offset       0                               X r (cos a, sin a, 0), r = 1 cm sqrt(u),
+                                                            a ~ U(0, 2 pi): uniform on a 1 cm disc
+==========================  ==============================  ==========================================
 
 All errors are independent. The draw itself does not depend on ``X``: a smaller scale
 moves the same airframe towards the file. An explicit flag (``--mass-kg``,
