@@ -36,6 +36,16 @@ Experiments (NAME):
                 profile, diverged. Figures per place: paths, distance and speed against time.
   lag           the trackers' timed reference 1, 2 or 4 m ahead of a vehicle on the nominal at
                 s = 11 m (as after a gust that held it back); the same table and figures.
+  robustness    the product as shipped (mavreg fly's default controller, realistic.yaml, its
+                envelope untouched, on the realistic world) over a matrix of cells, one factor
+                at a time: wind 3 m/s from 8 directions and 6 m/s from 4, thrust 90 %, an 8 N
+                gust at the gust experiment's three places, 8.5 and 7 N rotors, airframes
+                drawn by the emulator (--mismatch-seed), round trips 0-60 ms, 5 % loss, no
+                TIMESYNC, estimator errors x2, every other maneuver file. --flights N seeds
+                per cell (default 2), --cells GROUP,CELL,... a subset (e.g. mismatch,gust).
+                Table per cell: ok / failed but safe / unsafe (motors stopped in the air or a
+                ground impact over 1 m/s), error statistics, lowest altitude; every flight
+                that was not ok with its cause. Via sitl only. Figure: robustness_cells.
 
 --via sim (default) flies the design model (RK4 at 1 ms, regulator at 1 kHz; about 5 s of CPU
 a run). --via sitl flies each run with 'mavreg fly --lockstep --world ideal' against the
@@ -56,15 +66,14 @@ the same mavreg and the experiment's files at the same paths (checked before any
 via sitl --out on a shared filesystem.
 
 Exit status: 0 every run met its criterion (converged before the loop / stable / reached the
-path's end), 1 some run did not or could not be flown (the results are written all the same),
+path's end / robustness: the flight ok, nothing unsafe), 1 some run did not or could not be flown (the results are written all the same),
 2 bad input.
 See docs/experiments.md and docs/results.md.
 """
 
 
 def add_arguments(p):
-    from ..experiments.definitions import EXPERIMENTS
-    p.add_argument("name", metavar="NAME", help=f"the experiment: {', '.join(EXPERIMENTS)}")
+    p.add_argument("name", metavar="NAME", help=f"the experiment: {', '.join(_names())}")
     p.add_argument("--out", metavar="DIR", default=None,
                    help="output directory (default: experiments/NAME-VIA-<YYYYmmdd-HHMMSS>/)")
     p.add_argument("--seed", metavar="N", default="0",
@@ -72,8 +81,15 @@ def add_arguments(p):
     p.add_argument("--jobs", metavar="N", default=None,
                    help="worker processes (default: the number of CPUs, here %d); on a 2-core machine "
                    "use 1 or 2 with --via sitl" % (os.cpu_count() or 1))
-    p.add_argument("--via", metavar="sim|sitl", default="sim",
-                   help="sim: the design model (default); sitl: the daemon and firmware_sim in lockstep")
+    p.add_argument("--via", metavar="sim|sitl", default=None,
+                   help="sim: the design model (default; robustness: sitl); sitl: the daemon and "
+                   "firmware_sim in lockstep")
+    p.add_argument("--flights", metavar="N", default=None,
+                   help="robustness: flights (seeds) per cell (default 2)")
+    p.add_argument("--cells", metavar="LIST", default=None,
+                   help="robustness: only these cells or groups, comma-separated (default: all; groups: "
+                   "baseline, wind3, wind6, thrust90, gust, rotors, mismatch, delay, loss, timesync, "
+                   "estimator, maneuvers)")
     p.add_argument("--dask", metavar="ADDRESS", default=None,
                    help="run on the Dask cluster whose scheduler is at ADDRESS (e.g. tcp://host:8786) "
                    "instead of a local process pool; needs dask.distributed")
@@ -92,19 +108,42 @@ def _whole(text: str, what: str, minimum: int) -> int:
     return n
 
 
+def _names() -> list[str]:
+    from ..experiments.definitions import EXPERIMENTS
+    return [*EXPERIMENTS, "robustness"]
+
+
+def _build(args, seed: int):
+    """The experiment ``args.name`` drawn from ``seed``, as flown ``args.via``."""
+    from ..experiments.definitions import build_experiment
+    if args.name != "robustness":
+        return build_experiment(args.name, seed, args.via)
+    from ..experiments.robustness import DEFAULT_FLIGHTS, SIM_UNSUPPORTED, check_emulator, robustness
+    flights = DEFAULT_FLIGHTS if args.flights is None else _whole(args.flights, "--flights", 1)
+    exp = robustness(seed, flights, args.cells)        # the cells checked before the via
+    if args.via == "sim":
+        raise ValueError(SIM_UNSUPPORTED)
+    check_emulator(exp)
+    return exp
+
+
 def run(args) -> int:
     from ..experiments.campaign import run_campaign
-    from ..experiments.definitions import EXPERIMENTS, build_experiment
     from ..experiments.runner import VIAS
-    if args.name not in EXPERIMENTS:
-        raise ValueError(f"unknown experiment {args.name!r}; choose one of {', '.join(EXPERIMENTS)}")
+    if args.name not in _names():
+        raise ValueError(f"unknown experiment {args.name!r}; choose one of {', '.join(_names())}")
+    robust = args.name == "robustness"
+    if args.via is None:
+        args.via = "sitl" if robust else "sim"
     if args.via not in VIAS:
         raise ValueError(f"--via must be one of {', '.join(VIAS)}, got {args.via!r}")
     seed = _whole(args.seed, "--seed", 0)
     jobs = (os.cpu_count() or 1) if args.jobs is None else _whole(args.jobs, "--jobs", 1)
     if args.keep_flight_files and args.via != "sitl":
         raise ValueError("--keep-flight-files applies only to --via sitl")
-    exp = build_experiment(args.name, seed, args.via)
+    if not robust and (args.flights is not None or args.cells is not None):
+        raise ValueError("--flights and --cells apply only to the robustness experiment")
+    exp = _build(args, seed)
     if args.dask is not None and args.jobs is not None:
         raise ValueError("--jobs sizes the local process pool; with --dask the cluster's workers fly the runs")
     if args.dask is not None:
@@ -117,13 +156,15 @@ def run(args) -> int:
     except OSError as exc:
         raise ValueError(f"--out {out}: {exc.strerror or exc}") from None
     command = (f"mavreg experiment {args.name} --via {args.via} --seed {seed} "
+               + (f"--flights {exp.flights} " if robust else "")
+               + (f"--cells {shlex.quote(args.cells)} " if robust and args.cells else "")
                + (f"--dask {shlex.quote(args.dask)} " if args.dask else f"--jobs {jobs} ")
                + f"--out {shlex.quote(str(out))}" + (" --keep-flight-files" if args.keep_flight_files else ""))
     camp = run_campaign(exp, args.via, jobs, out, command, keep_flight_files=args.keep_flight_files,
                         dask_address=args.dask)
     sm = camp.results["summary"]
-    crit = ("converged before the loop" if "converged" in sm else "stable" if "stable" in sm
-            else "flown to the path's end")
+    crit = ("ok (flown, landed, nothing unsafe)" if robust else "converged before the loop" if "converged" in sm
+            else "stable" if "stable" in sm else "flown to the path's end")
     print(f"{exp.name} via {args.via}: {sm['ok']} of {sm['runs']} runs {crit}"
           + (f", {sm['errors']} could not be flown" if sm["errors"] else ""))
     print(f"outputs: {out}/ (" + ", ".join(f.name for f in camp.files) + ")")

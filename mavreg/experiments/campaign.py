@@ -10,6 +10,8 @@ from .definitions import CONVERGENCE, DISTURBANCE, Experiment
 from .figures import group1_figures, group2_figures
 from .figures_disturbance import disturbance_figures
 from .report import results_dict, write_results
+from .robustness import ROBUSTNESS
+from .robustness_figures import robustness_figures
 from .runner import RunOutcome, plan_for, run_experiment
 
 __all__ = ["Campaign", "run_campaign"]
@@ -47,15 +49,24 @@ def run_campaign(exp: Experiment, via: str, jobs: int, out_dir: Path, command: s
         (out_dir / "errors.log").write_text("\n".join(f"run {o.spec.index} ({o.spec.label}):\n{o.traceback}"
                                                       for o in failed))
     laps = exp.runs[0].laps
-    plan = plan_for(Path(exp.maneuver_path), Path(exp.vehicle_path), Path(exp.controller_path), laps)
-    if exp.kind == DISTURBANCE:
+    plan = None if exp.kind == ROBUSTNESS else plan_for(Path(exp.maneuver_path), Path(exp.vehicle_path),
+                                                        Path(exp.controller_path), laps)
+    if exp.kind == ROBUSTNESS:
+        figures = robustness_figures(out_dir, outcomes, exp.cells)
+    elif exp.kind == DISTURBANCE:
         figures = disturbance_figures(out_dir, plan, exp.name, outcomes, via)
     elif exp.kind == CONVERGENCE:
         figures = group1_figures(out_dir, plan, outcomes, via, plan.vehicle.inertia_kg_m2)
     else:
         figures = group2_figures(out_dir, plan, outcomes, via)
     extra = {}
-    if via == "sitl":
+    if exp.kind == ROBUSTNESS:
+        extra = {"sitl": {"world": exp.world, "lockstep": True, "controller_file": str(exp.controller_path),
+                          "envelope_changes": None},
+                 "cells": [{"name": c.name, "group": c.group, "title": c.title, "emulator_args": list(c.emulator_args),
+                            "maneuver": str(c.maneuver_path), "saturation_n": c.saturation_n,
+                            "gust_place": c.gust_place, "mismatch": c.mismatch} for c in exp.cells]}
+    elif via == "sitl":
         from .via_sitl import EXPERIMENT_ENVELOPE
         extra = {"sitl": {"world": "ideal", "lockstep": True, "controller_file": "controller_experiment.yaml",
                           "envelope_changes": EXPERIMENT_ENVELOPE}}

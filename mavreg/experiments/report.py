@@ -8,6 +8,7 @@ from pathlib import Path
 from .definitions import CONTROLLERS, CONVERGENCE, DISTURBANCE, rotors_label
 from .disturbance_metrics import TUBE_M
 from .metrics import BACK_ON_PATH_M, CONVERGED_M
+from .robustness import ROBUSTNESS
 
 __all__ = ["summarize", "results_dict", "write_results", "markdown"]
 
@@ -36,6 +37,9 @@ def _summarize_disturbance(ms) -> dict:
 def summarize(exp, outcomes) -> dict:
     """The campaign in a few numbers: runs, how many met the criterion, the worst of each column."""
     ms = [o.metrics for o in outcomes if o.metrics is not None]
+    if exp.kind == ROBUSTNESS:
+        from .robustness_report import summarize as summarize_robustness
+        return summarize_robustness(exp, outcomes)
     if exp.kind == DISTURBANCE:
         return {"runs": len(outcomes), "errors": sum(o.metrics is None for o in outcomes),
                 "ok": sum(o.ok for o in outcomes), "by_controller": _summarize_disturbance(ms)}
@@ -62,15 +66,24 @@ def results_dict(exp, via: str, outcomes, command: str, jobs: int, wall_time_s: 
             runs.append(o.metrics)
         else:
             runs.append({"index": o.spec.index, "label": o.spec.label, "ok": False, "error": o.error})
+    if exp.kind == ROBUSTNESS:                     # a run that raised is a ``not flown`` row of its cell
+        from .robustness_report import flight_rows
+        runs = flight_rows(outcomes)
     return {"experiment": exp.name, "title": exp.title, "kind": exp.kind, "via": via, "seed": exp.seed,
             "jobs": jobs, "command": command, "maneuver": str(exp.maneuver_path),
             "vehicle": str(exp.vehicle_path), "controller": str(exp.controller_path),
-            "definitions": ({"tube_m": TUBE_M, "documentation": "mavreg/experiments/disturbance_metrics.py"}
+            "definitions": (_robustness_definitions() if exp.kind == ROBUSTNESS else
+                            {"tube_m": TUBE_M, "documentation": "mavreg/experiments/disturbance_metrics.py"}
                             if exp.kind == DISTURBANCE else
                             {"converged_m": CONVERGED_M, "back_on_path_m": BACK_ON_PATH_M,
                              "documentation": "mavreg/experiments/metrics.py"}),
             "summary": summarize(exp, outcomes), "runs": runs,
             "figures": [Path(f).name for f in figures], "wall_time_s": wall_time_s, **(extra or {})}
+
+
+def _robustness_definitions() -> dict:
+    from .robustness_report import definitions
+    return definitions()
 
 
 def _f(v, scale=1.0, fmt="{:.2f}") -> str:
@@ -203,6 +216,9 @@ def markdown(res: dict) -> str:
     lines = [f"# {res['title']}, via {res['via']}", "",
              f"Command: `{res['command']}` (seed {res['seed']}, {res['jobs']} jobs, "
              f"{res['wall_time_s']:.0f} s wall).", ""]
+    if res["kind"] == ROBUSTNESS:
+        from .robustness_report import markdown_body
+        return "\n".join(lines + markdown_body(res))
     if res["kind"] == DISTURBANCE:
         lines += [_summary_disturbance(sm), "", *_pivot_disturbance(res["runs"]), "", "Every run:"]
         table = _table_disturbance(res["runs"])

@@ -29,6 +29,8 @@ from .definitions import DISTURBANCE, Experiment, RunSpec
 from .disturbance_metrics import disturbance_metrics
 from .metrics import run_metrics
 from .record import Trace, truth_trace
+from .robustness import ROBUSTNESS
+from .robustness_metrics import judge_flight, robustness_metrics
 
 __all__ = ["RunOutcome", "run_experiment", "plan_for", "VIAS", "TRACE_STEP"]
 
@@ -77,17 +79,23 @@ def _execute(job: _Job) -> RunOutcome:
     spec = job.spec
     try:
         exp = job.exp
-        plan = plan_for(Path(exp.maneuver_path), Path(exp.vehicle_path), Path(exp.controller_path), spec.laps)
+        maneuver = getattr(spec, "maneuver_path", None) or exp.maneuver_path    # robustness: the run's own
+        plan = plan_for(Path(maneuver), Path(exp.vehicle_path), Path(exp.controller_path), spec.laps)
+        robust = exp.kind == ROBUSTNESS
         if job.via == "sim":
             from .via_sim import fly_sim
             flight = fly_sim(plan, spec, Path(exp.controller_path))
         else:
             from .via_sitl import fly_sitl
             flight = fly_sitl(spec, job.sitl_files, job.run_dir, plan.vehicle.max_rotor_thrust_n,
-                              job.keep_flight_files)
+                              job.keep_flight_files, judge=judge_flight if robust else None)
         trace = truth_trace(plan, flight)
-        metrics = (disturbance_metrics(plan, trace, flight, spec) if exp.kind == DISTURBANCE
-                   else run_metrics(plan, trace, flight, spec, exp.kind))
+        if robust:
+            metrics = robustness_metrics(plan, trace, flight, spec)
+        elif exp.kind == DISTURBANCE:
+            metrics = disturbance_metrics(plan, trace, flight, spec)
+        else:
+            metrics = run_metrics(plan, trace, flight, spec, exp.kind)
         return RunOutcome(spec, metrics, trace.decimated(TRACE_STEP))
     except Exception as exc:                      # a bug or a broken run: recorded, the campaign goes on
         first = str(exc).strip().splitlines()[:1] or [""]

@@ -24,6 +24,12 @@ vehicle time in every flight of a campaign: :func:`prepare_sitl_files` flies one
 reference flight to measure it, each gust run's window is that start plus the run's window,
 and each run checks that its maneuver began there (a run whose maneuver began elsewhere is an
 error, not a result).
+
+The robustness experiment (:mod:`.robustness`) flies the product as shipped instead: its
+experiment's world (``realistic``), its controller file as is (no widened envelope; a rotor
+limit told as above), each run's own maneuver file and firmware_sim arguments, the vehicle
+file's rotor noise. Its world's noise moves the maneuver's start, so a gust run's reference
+flight is the gust-free flight of the run's own noise seed (one per seed).
 """
 from __future__ import annotations
 
@@ -87,6 +93,20 @@ class SitlFiles:
     controllers_by_saturation: tuple = ()
     """(rotor limit N, controller YAML path) of the saturation runs: the experiment's controller
     file told the limit (``allocation.max_rotor_thrust_n``, docs/governor.md)."""
+    world: str = "ideal"
+    """The emulator's world (``mavreg fly --world``)."""
+    starts_by_seed: tuple = ()
+    """(noise seed, maneuver start in emulator time): one reference flight per seed, where the
+    world's noise moves the start (the realistic world)."""
+
+    def maneuver_for(self, spec) -> Path:
+        """The maneuver file ``spec`` flies: its own (a robustness run's), or the experiment's by laps."""
+        own = getattr(spec, "maneuver_path", None)
+        return Path(own) if own is not None else self.maneuvers[spec.laps]
+
+    def start_for(self, seed: int) -> float | None:
+        """The maneuver's start in emulator time for a run of noise seed ``seed``."""
+        return dict(self.starts_by_seed).get(seed, self.maneuver_start_s)
 
     def controller_for(self, saturation_n: float | None) -> Path:
         """The controller file of a run whose rotors saturate at ``saturation_n`` (None: none)."""
@@ -102,18 +122,22 @@ def prepare_sitl_files(exp, out_dir: Path) -> SitlFiles:
     out_dir = Path(out_dir).resolve()
     out_dir.mkdir(parents=True, exist_ok=True)
     ctrl = yaml.safe_load(Path(exp.controller_path).read_text())
-    env = ctrl.setdefault("envelope", {})
-    env.update(EXPERIMENT_ENVELOPE)
-    ctrl_path = out_dir / "controller_experiment.yaml"
-    ctrl_path.write_text(f"# {exp.controller_path} with the maneuver envelope of mavreg experiment\n"
-                         "# (mavreg/experiments/via_sitl.py, EXPERIMENT_ENVELOPE): the paper's runs\n"
-                         "# leave the path by more than the default 0.5 m on purpose.\n"
-                         + yaml.safe_dump(ctrl, sort_keys=False))
+    widen = getattr(exp, "widen_envelope", True)    # the robustness experiment flies the file as is
+    if widen:
+        env = ctrl.setdefault("envelope", {})
+        env.update(EXPERIMENT_ENVELOPE)
+        ctrl_path = out_dir / "controller_experiment.yaml"
+        ctrl_path.write_text(f"# {exp.controller_path} with the maneuver envelope of mavreg experiment\n"
+                             "# (mavreg/experiments/via_sitl.py, EXPERIMENT_ENVELOPE): the paper's runs\n"
+                             "# leave the path by more than the default 0.5 m on purpose.\n"
+                             + yaml.safe_dump(ctrl, sort_keys=False))
+    else:
+        ctrl_path = Path(exp.controller_path).resolve()
     load_controller(ctrl_path)                      # validated by the one loader
     file_laps = load_maneuver(exp.maneuver_path).laps
     maneuvers = {}
-    for laps in sorted({r.laps for r in exp.runs}):
-        if file_laps is not None and file_laps.count == laps:
+    for laps in sorted({r.laps for r in exp.runs}, key=lambda n: -1 if n is None else n):
+        if laps is None or (file_laps is not None and file_laps.count == laps):
             maneuvers[laps] = Path(exp.maneuver_path).resolve()
             continue
         raw = yaml.safe_load(Path(exp.maneuver_path).read_text())
@@ -128,23 +152,29 @@ def prepare_sitl_files(exp, out_dir: Path) -> SitlFiles:
     told = []
     for limit in sorted({r.saturation_n for r in exp.runs if r.saturation_n is not None}):
         sat = dict(ctrl, allocation={**(ctrl.get("allocation") or {}), "max_rotor_thrust_n": float(limit)})
-        path = out_dir / f"controller_experiment_rotors{limit:g}n.yaml"
-        path.write_text(f"# controller_experiment.yaml told that the rotors give {limit:g} N at most\n"
+        path = out_dir / f"{'controller_experiment' if widen else ctrl_path.stem}_rotors{limit:g}n.yaml"
+        path.write_text(f"# {ctrl_path.name} told that the rotors give {limit:g} N at most\n"
                         + yaml.safe_dump(sat, sort_keys=False))
         load_controller(path)
         told.append((float(limit), path))
+    world = getattr(exp, "world", "ideal")
     files = SitlFiles(maneuvers, ctrl_path, Path(exp.vehicle_path).resolve(),
-                      controllers_by_saturation=tuple(told))
-    if any(r.gust_force_n is not None for r in exp.runs):
-        files = dataclasses.replace(files, maneuver_start_s=_reference_start(exp, files, out_dir))
+                      controllers_by_saturation=tuple(told), world=world)
+    gusts = [r for r in exp.runs if r.gust_force_n is not None]
+    if gusts and world == "ideal":                 # no noise in the world: one reference for all
+        files = dataclasses.replace(files, maneuver_start_s=_reference_start(exp.runs[0], files,
+                                                                             out_dir / "runs" / "reference"))
+    elif gusts:                                    # the noise moves the start: one per seed
+        first = {r.seed: r for r in reversed(gusts)}
+        files = dataclasses.replace(files, starts_by_seed=tuple(
+            (seed, _reference_start(r, files, out_dir / "runs" / f"reference-{seed}"))
+            for seed, r in sorted(first.items())))
     return files
 
 
-def _reference_start(exp, files: SitlFiles, out_dir: Path) -> float:
-    """Fly the first run without its gust into ``out_dir/runs/reference``; its maneuver's start
-    in emulator time."""
-    spec = dataclasses.replace(exp.runs[0], gust_force_n=None, gust_window_s=None)
-    run_dir = out_dir / "runs" / "reference"
+def _reference_start(run, files: SitlFiles, run_dir: Path) -> float:
+    """Fly ``run`` without its gust into ``run_dir``; its maneuver's start in emulator time."""
+    spec = dataclasses.replace(run, gust_force_n=None, gust_window_s=None)
     run_dir.mkdir(parents=True, exist_ok=True)
     with open(run_dir / "fly.log", "w") as log:
         subprocess.run(wrap_command(fly_command(spec, files, run_dir)), stdout=log, stderr=subprocess.STDOUT,
@@ -163,21 +193,25 @@ def _reference_start(exp, files: SitlFiles, out_dir: Path) -> float:
 
 def fly_command(spec, files: SitlFiles, run_dir: Path) -> list[str]:
     """The ``mavreg fly`` command line of one run."""
-    cmd = [sys.executable, "-m", "mavreg.cli.main", "fly", str(files.maneuvers[spec.laps]),
-           "--lockstep", "--world", "ideal", "--controller", str(files.controller_for(spec.saturation_n)),
+    cmd = [sys.executable, "-m", "mavreg.cli.main", "fly", str(files.maneuver_for(spec)),
+           "--lockstep", "--world", files.world, "--controller", str(files.controller_for(spec.saturation_n)),
            "--vehicle-params", str(files.vehicle_path), "--out", str(run_dir),
            "--timeout-s", f"{FLY_TIMEOUT_S:g}", "--entry-offset", *(repr(float(v)) for v in spec.offset_m),
-           f"--emulator-arg=--seed={spec.seed}", f"--emulator-arg=--rotor-noise-sd-n={float(spec.rotor_noise_sd_n)!r}"]
+           f"--emulator-arg=--seed={spec.seed}"]
+    if spec.rotor_noise_sd_n is not None:            # None: the vehicle file's
+        cmd.append(f"--emulator-arg=--rotor-noise-sd-n={float(spec.rotor_noise_sd_n)!r}")
     if spec.saturation_n is not None:                # floats as repr: the shortest exact decimal
         cmd.append(f"--emulator-arg=--rotor-saturation-n={float(spec.saturation_n)!r}")
     if spec.inertia_kg_m2 is not None:
         cmd += ["--emulator-arg=--inertia-kg-m2", *(f"--emulator-arg={float(j)!r}" for j in spec.inertia_kg_m2)]
     if spec.gust_force_n is not None:
-        if files.maneuver_start_s is None:
+        start = files.start_for(spec.seed)
+        if start is None:
             raise ValueError("a gust run needs the maneuver's start time of a reference flight")
-        a, b = (files.maneuver_start_s + w for w in spec.gust_window_s)
+        a, b = (start + w for w in spec.gust_window_s)
         cmd.append("--emulator-arg=--wind=force:" + ",".join(repr(float(f)) for f in spec.gust_force_n)
                    + f"@{a!r}:{b!r}")
+    cmd += [f"--emulator-arg={a}" for a in getattr(spec, "emulator_args", ())]
     return cmd
 
 
@@ -202,12 +236,14 @@ def _empty(status: str, reason: str, limit: float, extra: dict) -> Flight:
 
 
 def fly_sitl(spec, files: SitlFiles, run_dir: Path, max_rotor_thrust_n: float,
-             keep_files: bool = False) -> Flight:
+             keep_files: bool = False, judge=None) -> Flight:
     """Fly ``spec`` with ``mavreg fly`` into ``run_dir``; the emulator's true record of the maneuver.
 
     ``max_rotor_thrust_n`` is the vehicle file's limit, the plant's when the run does not
     saturate. The flight's output (``summary.json``, ``flight.png``, ``fly.log``) stays in
-    ``run_dir``; :data:`FLIGHT_FILES` too with ``keep_files``.
+    ``run_dir``; :data:`FLIGHT_FILES` too with ``keep_files``. ``judge(summary, record_path)``,
+    when given, judges the whole flight (take-off to landing) before the recording is removed;
+    its dict is the flight's ``extra["flight"]``.
     """
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
@@ -226,6 +262,8 @@ def fly_sitl(spec, files: SitlFiles, run_dir: Path, max_rotor_thrust_n: float,
         with np.load(run_dir / "groundtruth.npz") as z:
             rec = {k: z[k] for k in ("t_s", "position_ned_m", "quaternion_wxyz", "velocity_ned_m_s",
                                      "rotor_cmd_n", "rotor_applied_n")}
+        if judge is not None:
+            extra["flight"] = judge(summary, run_dir / "groundtruth.npz")
     except (OSError, ValueError, KeyError) as exc:
         tail = (run_dir / "fly.log").read_text().strip().splitlines()[-1:] or [""]
         return _empty("not_flown", f"mavreg fly exit {code}: {tail[0] or exc}", limit, extra)
@@ -241,10 +279,11 @@ def fly_sitl(spec, files: SitlFiles, run_dir: Path, max_rotor_thrust_n: float,
     if t0 is None:
         return _empty("not_flown", summary["reason"] or "the maneuver did not start", limit, extra)
     if spec.gust_force_n is not None:
-        if abs(t0 - files.maneuver_start_s) > START_TOLERANCE_S:
-            raise ValueError(f"the maneuver began at {t0:.4f} s of emulator time, not at {files.maneuver_start_s:.4f} s "
+        start = files.start_for(spec.seed)
+        if abs(t0 - start) > START_TOLERANCE_S:
+            raise ValueError(f"the maneuver began at {t0:.4f} s of emulator time, not at {start:.4f} s "
                              "as in the reference flight: the gust missed its place")
-        extra["gust_window_emulator_s"] = [files.maneuver_start_s + w for w in spec.gust_window_s]
+        extra["gust_window_emulator_s"] = [start + w for w in spec.gust_window_s]
     t = rec["t_s"]
     sel = (t >= t0) & (t <= (t1 if t1 is not None else t[-1]))
     completed = after == "hold"          # the maneuver's end hands over to the exit hold

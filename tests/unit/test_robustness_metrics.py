@@ -1,0 +1,130 @@
+"""Per-flight safety metrics of the robustness experiment on synthetic truth recordings."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from mavreg.experiments.robustness_metrics import (altitude_above_takeoff, judge_flight, judging_window,
+                                                   lowest_altitude, motors_stopped_in_air, touchdowns)
+
+DT = 0.001
+HOVER_N = 1.84
+
+
+def _phase(t, phase):
+    return {"kind": "phase", "time_s": t, "phase": phase}
+
+
+def _record(path, alt, vz_up, applied, armed, ground, exit_code=0, z0=0.05):
+    """Write a recording as firmware_sim's (vertical motion only; take-off point at NED z0)."""
+    n = alt.size
+    pos = np.zeros((n, 3))
+    pos[:, 2] = z0 - alt
+    vel = np.zeros((n, 3))
+    vel[:, 2] = -vz_up
+    np.savez(path, t_s=np.arange(n) * DT, position_ned_m=pos, velocity_ned_m_s=vel,
+             quaternion_wxyz=np.tile([1.0, 0, 0, 0], (n, 1)), rotor_applied_n=applied, armed=armed,
+             on_ground=ground, meta_json=np.array(json.dumps({"exit_code": exit_code, "stop_reason": "test"})))
+    return path
+
+
+def _clean_flight():
+    """1 s on the ground, climb to 3 m (2 s), hold and fly (10 s), descend at 0.3 m/s, 1 s on the ground."""
+    alt = np.concatenate([np.zeros(1000), np.linspace(0, 3, 2000), np.full(10000, 3.0),
+                          np.linspace(3, 0, 10000), np.zeros(1000)])
+    vz = np.gradient(alt, DT)
+    ground = alt <= 0.0
+    ground[1000:1001] = True
+    applied = np.full((alt.size, 4), HOVER_N)
+    armed = np.ones(alt.size, bool)
+    armed[-500:] = False
+    applied[-500:] = 0.0
+    applied[:900] = 0.0
+    armed[:900] = False
+    events = [_phase(0.9, "takeoff"), _phase(3.0, "hold"), _phase(5.0, "run_in"), _phase(6.0, "maneuver"),
+              _phase(10.0, "hold"), _phase(13.0, "land"), _phase(23.5, "disarmed")]
+    return alt, vz, applied, armed, ground, events
+
+
+def test_a_clean_flight_is_safe_and_its_lowest_altitude_is_the_hold(tmp_path):
+    alt, vz, applied, armed, ground, events = _clean_flight()
+    applied[8000:8020] = 0.0                         # a 20 ms blip of idle rotors in the air: not a stop
+    rec = _record(tmp_path / "g.npz", alt, vz, applied, armed, ground)
+    j = judge_flight({"result": "ok", "reason": "", "failure": None, "events": events, "flight_time_s": 23.0},
+                     rec)
+    assert j["result"] == "ok" and j["first_bound"] is None
+    assert j["lowest_altitude_m"] == pytest.approx(3.0, abs=1e-3)     # hold to landing
+    assert j["judged_from_to_s"] == [3.0, 13.0]
+    assert len(j["touchdowns"]) == 1 and j["max_touchdown_speed_m_s"] == pytest.approx(0.3, abs=0.01)
+    assert j["ground_impact"] is False
+    assert j["motors_stopped_in_air"] is False and j["motors_stopped_event_t_s"] is None
+
+
+def test_motors_stopped_in_the_air_and_the_fall_that_follows(tmp_path):
+    alt, vz, applied, armed, ground, events = _clean_flight()
+    k = 9000                                          # at 3 m, 9 s: disarmed, the rotors spin down
+    fall_t = np.arange(alt.size - k) * DT
+    alt[k:] = np.maximum(3.0 - 0.5 * 9.81 * fall_t ** 2, 0.0)
+    vz[k:] = -9.81 * fall_t
+    end = k + int(np.flatnonzero(alt[k:] <= 0.0)[0])  # the emulator stops at the crash: no contact recorded
+    armed[k:] = False
+    applied[k:] = HOVER_N * np.exp(-fall_t / 0.02)[:, None]
+    events = events[:4] + [{"kind": "motors_stopped", "time_s": 9.0}, _phase(9.0, "terminate")]
+    rec = _record(tmp_path / "g.npz", alt[:end], vz[:end], applied[:end], armed[:end], ground[:end],
+                  exit_code=3)
+    j = judge_flight({"result": "failed", "reason": "attitude_error in maneuver ...",
+                      "failure": {"bound": "attitude_error", "phase": "maneuver", "action": "motors stopped"},
+                      "events": events}, rec)
+    assert j["motors_stopped_in_air"] is True
+    assert j["motors_stopped_in_air_at"]["t_s"] == pytest.approx(9.0, abs=1e-3)
+    assert j["motors_stopped_in_air_at"]["altitude_m"] == pytest.approx(3.0, abs=1e-3)
+    assert j["motors_stopped_event_t_s"] == 9.0 and j["first_bound"] == "attitude_error"
+    assert j["ground_impact"] is True and j["max_touchdown_speed_m_s"] == pytest.approx(np.sqrt(2 * 9.81 * 3), rel=0.01)
+    assert j["lowest_altitude_m"] == pytest.approx(3.0, abs=1e-3)     # judged until the motors stopped
+
+
+def test_a_hard_touchdown_is_an_impact_and_a_landing_is_not():
+    t = np.arange(6) * DT
+    v = np.zeros((6, 3))
+    v[:3, 2] = 2.0                                    # 2 m/s down, then the ground zeroes it
+    g = np.array([True, False, False, True, True, True])
+    assert touchdowns(t, v, g) == [(0.003, 2.0)]
+    v[:3, 2] = 0.3
+    assert touchdowns(t, v, g) == [(0.003, pytest.approx(0.3))]
+    assert touchdowns(t, v, np.ones(6, bool)) == []                  # never left the ground
+    assert touchdowns(t, v, np.zeros(6, bool), crashed=True) == [(0.005, 0.0)]
+
+
+def test_motors_stopped_needs_altitude_air_and_50_ms():
+    t = np.arange(200) * DT
+    idle = np.zeros((200, 4))
+    armed = np.ones(200, bool)
+    air = np.zeros(200, bool)
+    assert motors_stopped_in_air(t, np.full(200, 2.0), idle, armed, air) == (0.0, 2.0)
+    assert motors_stopped_in_air(t, np.full(200, 0.1), idle, armed, air) is None        # at the ground
+    assert motors_stopped_in_air(t, np.full(200, 2.0), idle, armed, np.ones(200, bool)) is None  # landed
+    spinning = np.full((200, 4), HOVER_N)
+    assert motors_stopped_in_air(t, np.full(200, 2.0), spinning, armed, air) is None
+    short = spinning.copy()
+    short[100:140] = 0.0                                                                # 40 ms
+    assert motors_stopped_in_air(t, np.full(200, 2.0), short, armed, air) is None
+    disarmed = armed.copy()
+    disarmed[120:] = False                                                              # 80 ms disarmed
+    assert motors_stopped_in_air(t, np.full(200, 2.0), spinning, disarmed, air) == (0.12, 2.0)
+
+
+def test_lowest_altitude_stops_at_the_ground_and_needs_a_take_off():
+    t = np.arange(5.0)
+    alt = np.array([0.0, 2.0, 1.5, 0.7, 0.0])
+    ground = np.array([True, False, False, False, True])
+    assert lowest_altitude(t, alt, ground, 1.0, 3.0) == 0.7
+    assert lowest_altitude(t, alt, ground, 1.0, None) == 0.0         # the ground touched: 0
+    assert lowest_altitude(t, alt, ground, None, None) is None
+    assert np.allclose(altitude_above_takeoff([[0, 0, 0.1], [0, 0, -1.9]]), [0.0, 2.0])
+    ev = [_phase(0.5, "takeoff"), _phase(2.0, "hold"), _phase(4.0, "maneuver"), _phase(5.0, "recover"),
+          _phase(9.0, "land")]
+    assert judging_window(ev) == (2.0, 9.0)
+    assert judging_window([_phase(0.5, "takeoff"), _phase(1.0, "aborted")]) == (None, None)
+    assert judging_window([_phase(0.5, "takeoff")]) == (None, None)
