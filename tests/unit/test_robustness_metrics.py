@@ -128,3 +128,57 @@ def test_lowest_altitude_stops_at_the_ground_and_needs_a_take_off():
     assert judging_window(ev) == (2.0, 9.0)
     assert judging_window([_phase(0.5, "takeoff"), _phase(1.0, "aborted")]) == (None, None)
     assert judging_window([_phase(0.5, "takeoff")]) == (None, None)
+
+
+def _outcome(spec, flight_judged, status="completed"):
+    """A robustness run's outcome from a judged flight (None: not flown) on a toy plan."""
+    from types import SimpleNamespace as NS
+    from mavreg.experiments.robustness_metrics import robustness_metrics
+    from mavreg.experiments.runner import RunOutcome
+    plan = NS(name="toy", laps_segment="loop", segments=[("run_up", 0.0, 10.0), ("loop", 10.0, 20.0)])
+    s = np.linspace(0.0, 25.0, 251)
+    e = np.where((s >= 10) & (s < 20), 0.02, 0.05)
+    trace = NS(t_s=s / 5, s_m=s, transverse_error_m=e, attitude_error_deg=np.full(s.size, 3.0))
+    extra = {} if flight_judged is None else {"flight": flight_judged, "wall_time_s": 1.0}
+    flight = NS(extra=extra, status=status, completed=status == "completed",
+                reason="mavreg fly exit 2: bad argument" if flight_judged is None else "")
+    return RunOutcome(spec, robustness_metrics(plan, trace, flight, spec), None)
+
+
+def _judged(result="ok", impact=False, stopped=False, bound=None):
+    return {"result": result, "reason": "" if result == "ok" else f"{bound} in maneuver ...; action: recovery",
+            "first_bound": bound, "bound_phase": "maneuver" if bound else None, "action": "recovery" if bound else None,
+            "flight_time_s": 50.0, "lowest_altitude_m": 0.0 if impact else 2.9,
+            "max_touchdown_speed_m_s": 4.2 if impact else 0.3, "ground_impact": impact,
+            "motors_stopped_in_air": stopped,
+            "motors_stopped_in_air_at": {"t_s": 30.0, "altitude_m": 2.5} if stopped else None,
+            "motors_stopped_event_t_s": 30.0 if stopped else None}
+
+
+def test_each_flight_is_classed_and_the_report_lists_every_flight_that_was_not_ok(tmp_path):
+    from mavreg.experiments.report import markdown, results_dict
+    from mavreg.experiments.robustness import robustness
+    exp = robustness(0, 1, "baseline,thrust90,loss,no-timesync,rotors-7n")
+    outs = [_outcome(exp.runs[0], _judged()),
+            _outcome(exp.runs[1], _judged("failed", bound="position_error"), status="failed"),
+            _outcome(exp.runs[2], _judged("failed", impact=True, stopped=True, bound="rate_error"), "failed"),
+            _outcome(exp.runs[3], None, status="not_flown")]
+    from mavreg.experiments.runner import RunOutcome
+    outs.append(RunOutcome(exp.runs[4], None, None, "ValueError: the gust missed its place", "tb"))
+    ms = [o.metrics for o in outs[:4]]
+    assert [m["safety"] for m in ms] == ["ok", "failed, safe", "unsafe", "not flown"]
+    assert [m["ok"] for m in ms] == [True, False, False, False]
+    assert ms[0]["maneuver_max_error_m"] == 0.05 and ms[0]["loop_max_error_m"] == 0.02
+    assert ms[0]["max_attitude_error_deg"] == 3.0 and ms[0]["cause"] == ""
+    assert ms[2]["cause"].startswith("motors stopped in the air at 2.5 m; hit the ground at 4.2 m/s; rate_error")
+    assert ms[3]["result"] == "not flown" and "exit 2" in ms[3]["cause"]
+    res = results_dict(exp, "sitl", outs, "cmd", 1, 10.0, [], {"sitl": {"world": "realistic"}})
+    sm = res["summary"]
+    assert (sm["ok"], sm["failed_safe"], sm["unsafe"], sm["not_flown"], sm["errors"]) == (1, 1, 1, 2, 1)
+    assert sm["by_cell"]["thrust90"]["first_bounds"] == {"position_error": 1}
+    assert sm["by_cell"]["baseline"]["maneuver_max_error_m"] == {"median": 0.05, "max": 0.05}
+    md = markdown(res)
+    not_ok = md.split("## Flights that were not ok")[1].split("## Every flight")[0]
+    assert all(label in not_ok for label in ("thrust90 #0", "loss-5pct #0", "no-timesync #0", "rotors-7n #0"))
+    assert "baseline #0" not in not_ok and "the gust missed its place" in not_ok
+    json.dumps(res)                                    # JSON-ready
