@@ -179,7 +179,7 @@ def run_experiment(exp: Experiment, via: str, jobs: int, out_dir: Path | None = 
         if out_dir is None:
             raise ValueError("a sitl campaign needs an output directory")
         from .via_sitl import prepare_sitl_files
-        files = prepare_sitl_files(exp, Path(out_dir))
+        files = prepare_sitl_files(exp, Path(out_dir), 1 if dask_address is not None else jobs)
     todo = [_Job(exp, spec, via, None if out_dir is None else Path(out_dir) / "runs" / f"{spec.index:03d}",
                  files, keep_flight_files) for spec in exp.runs]
     bar = _Progress(exp, via, progress)

@@ -38,6 +38,7 @@ import json
 import subprocess
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -116,9 +117,10 @@ class SitlFiles:
         return self.controller_path
 
 
-def prepare_sitl_files(exp, out_dir: Path) -> SitlFiles:
+def prepare_sitl_files(exp, out_dir: Path, jobs: int = 1) -> SitlFiles:
     """Write the experiment's controller file and a maneuver file per laps count into
-    ``out_dir``; every path returned is absolute."""
+    ``out_dir``, and fly the gust runs' reference flights (``jobs`` at once); every path
+    returned is absolute."""
     out_dir = Path(out_dir).resolve()
     out_dir.mkdir(parents=True, exist_ok=True)
     ctrl = yaml.safe_load(Path(exp.controller_path).read_text())
@@ -165,10 +167,11 @@ def prepare_sitl_files(exp, out_dir: Path) -> SitlFiles:
         files = dataclasses.replace(files, maneuver_start_s=_reference_start(exp.runs[0], files,
                                                                              out_dir / "runs" / "reference"))
     elif gusts:                                    # the noise moves the start: one per seed
-        first = {r.seed: r for r in reversed(gusts)}
-        files = dataclasses.replace(files, starts_by_seed=tuple(
-            (seed, _reference_start(r, files, out_dir / "runs" / f"reference-{seed}"))
-            for seed, r in sorted(first.items())))
+        first = sorted({r.seed: r for r in reversed(gusts)}.items())
+        with ThreadPoolExecutor(max(1, min(jobs, len(first)))) as pool:     # each flight is a process
+            starts = list(pool.map(lambda sr: _reference_start(sr[1], files, out_dir / "runs" / f"reference-{sr[0]}"),
+                                   first))
+        files = dataclasses.replace(files, starts_by_seed=tuple((seed, t0) for (seed, _), t0 in zip(first, starts)))
     return files
 
 

@@ -147,3 +147,21 @@ def test_bad_input_is_one_line_and_exit_2(argv, needle, capsys, tmp_path):
 def test_flights_and_cells_belong_to_robustness_alone(capsys, tmp_path):
     assert main(["experiment", "gust", "--cells", "gust", "--out", str(tmp_path / "o")]) == 2
     assert "apply only to the robustness experiment" in capsys.readouterr().err
+
+
+def test_one_reference_flight_per_noise_seed_gives_the_gust_windows(tmp_path, monkeypatch):
+    import mavreg.experiments.via_sitl as via_sitl
+    exp = robustness(0, 3, "gust,baseline")
+    flown = []
+
+    def fake_reference(run, files, run_dir):
+        flown.append((run.seed, run_dir.name))
+        return 20.0 + run.index                        # any start, told apart by the run
+    monkeypatch.setattr(via_sitl, "_reference_start", fake_reference)
+    files = prepare_sitl_files(exp, tmp_path, jobs=2)
+    seeds = [run_seed(0, k) for k in range(3)]
+    assert sorted(flown) == sorted((s, f"reference-{s}") for s in seeds)      # 3, not 9
+    for r in exp.runs:
+        if r.gust_force_n is not None:
+            first = next(g for g in exp.runs if g.gust_force_n is not None and g.seed == r.seed)
+            assert files.start_for(r.seed) == 20.0 + first.index
