@@ -52,7 +52,9 @@ def worker_probe(files: list[str], out_dir: str | None) -> dict:
 
 
 def _check_workers(client, exp, out_dir: Path | None) -> None:
-    files = [str(Path(p).resolve()) for p in (exp.maneuver_path, exp.vehicle_path, exp.controller_path)]
+    paths = (exp.maneuver_path, exp.vehicle_path, exp.controller_path,
+             *(c.maneuver_path for c in getattr(exp, "cells", ())))    # robustness: every cell's maneuver
+    files = list(dict.fromkeys(str(Path(p).resolve()) for p in paths))
     want = worker_probe(files, None if out_dir is None else str(out_dir))
     got = client.run(worker_probe, files, None if out_dir is None else str(out_dir))
     if not got:
