@@ -1,4 +1,4 @@
-"""The robustness experiment's figure: every flight of every cell, by outcome.
+"""The robustness experiment's figures: every flight of every cell, by outcome.
 
 ``robustness_cells.png``: a row per cell (matrix order, top to bottom), two panels sharing
 the rows: the largest distance from the path over the maneuver (log scale; a flight whose
@@ -6,6 +6,11 @@ maneuver never started is not drawn there), and the lowest altitude after the ta
 (0: the ground touched). Each flight is a dot, jittered within its row, coloured by outcome:
 ok green, failed but safe orange, unsafe red (a cross); the loop's largest error is a small
 open circle beside it where the maneuver has a loop.
+
+``robustness_mismatch.png`` (when the mismatch cell flew): the same error against each drawn
+airframe parameter (mass, the largest inertia change, the spread of the rotors' thrust
+constants, yaw coefficient, motor lag, centre-of-mass offset), one panel each: which draws
+the failures share.
 """
 from __future__ import annotations
 
@@ -85,6 +90,62 @@ def robustness_figures(out_dir: Path, outcomes, cells) -> list[Path]:
     fig.suptitle("Robustness: every flight of every cell", fontsize=11)
     fig.tight_layout(rect=(0, 0.35 / height_in if labels else 0.0, 1, 1 - 0.3 / height_in))
     path = Path(out_dir) / "robustness_cells.png"
+    fig.savefig(path, dpi=_DPI)
+    plt.close(fig)
+    return [path, *_mismatch_figure(plt, out_dir, rows)]
+
+
+MISMATCH_AXES = (
+    ("mass (%)", lambda d: 100 * d["mass_rel"]),
+    ("largest inertia change (%)", lambda d: 100 * max(d["inertia_rel"], key=abs)),
+    ("rotor thrust spread, max - min (%)", lambda d: 100 * (max(d["rotor_gain_rel"]) - min(d["rotor_gain_rel"]))),
+    ("yaw coefficient (%)", lambda d: 100 * d["drag_torque_ratio_rel"]),
+    ("motor lag (ms)", lambda d: 1e3 * d["rotor_time_constant_s"]),
+    ("centre-of-mass offset (mm)", lambda d: 1e3 * float(np.hypot(*d["com_offset_m"][:2]))),
+)
+"""Each panel's x: a number from the emulator's drawn airframe (``airframe.mismatch`` of the record)."""
+
+
+def _drawn(m) -> dict | None:
+    return ((m.get("airframe") or {}).get("mismatch")) if m.get("cell") == "mismatch" else None
+
+
+def _mismatch_figure(plt, out_dir, rows) -> list[Path]:
+    from matplotlib.ticker import NullFormatter
+    mine = [m for m in rows if _drawn(m) and m.get("maneuver_max_error_m") is not None]
+    if not mine:
+        return []
+    fig, axes = plt.subplots(2, 3, figsize=(11, 6), sharey=True)
+    drawn = set()
+    for ax, (name, of) in zip(axes.ravel(), MISMATCH_AXES):
+        for m in mine:
+            st = dict(OUTCOME_STYLE[m["safety"]])
+            label = st.pop("label")
+            try:
+                x = of(_drawn(m))
+            except (KeyError, TypeError, ValueError):  # a record without that field
+                continue
+            ax.scatter(x, max(m["maneuver_max_error_m"], _FLOOR_M), label=None if label in drawn else label,
+                       zorder=3, **st)
+            drawn.add(label)
+        ax.set_xlabel(name, fontsize=8)
+        ax.set_yscale("log")
+        ax.yaxis.set_minor_formatter(NullFormatter())
+        ax.axhline(0.5, color="0.5", ls="--", lw=0.8)
+        ax.grid(alpha=0.3)
+        ax.tick_params(labelsize=8)
+    for ax in axes[:, 0]:
+        ax.set_ylabel("largest distance from the path (m)", fontsize=8)
+    found = {}
+    for ax in axes.ravel():
+        found.update(zip(*reversed(ax.get_legend_handles_labels())))
+    labels = [st["label"] for st in OUTCOME_STYLE.values() if st["label"] in found]
+    handles = [found[lab] for lab in labels]
+    if labels:
+        fig.legend(handles, labels, loc="lower center", fontsize=8, ncol=len(labels))
+    fig.suptitle(f"Drawn airframes ({len(mine)} flights): maneuver error against each drawn parameter", fontsize=11)
+    fig.tight_layout(rect=(0, 0.05 if labels else 0.0, 1, 0.96))
+    path = Path(out_dir) / "robustness_mismatch.png"
     fig.savefig(path, dpi=_DPI)
     plt.close(fig)
     return [path]

@@ -182,3 +182,5 @@ def test_each_flight_is_classed_and_the_report_lists_every_flight_that_was_not_o
     assert all(label in not_ok for label in ("thrust90 #0", "loss-5pct #0", "no-timesync #0", "rotors-7n #0"))
     assert "baseline #0" not in not_ok and "the gust missed its place" in not_ok
     json.dumps(res)                                    # JSON-ready
+    from mavreg.experiments.robustness_figures import robustness_figures
+    assert [p.name for p in robustness_figures(tmp_path, outs, exp.cells)] == ["robustness_cells.png"]
