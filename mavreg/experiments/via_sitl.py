@@ -99,6 +99,8 @@ class SitlFiles:
     starts_by_seed: tuple = ()
     """(noise seed, maneuver start in emulator time): one reference flight per seed, where the
     world's noise moves the start (the realistic world)."""
+    reference_failures: tuple = ()
+    """(noise seed, why): the reference flights that gave no start; their gust runs are errors."""
 
     def maneuver_for(self, spec) -> Path:
         """The maneuver file ``spec`` flies: its own (a robustness run's), or the experiment's by laps."""
@@ -169,10 +171,20 @@ def prepare_sitl_files(exp, out_dir: Path, jobs: int = 1) -> SitlFiles:
     elif gusts:                                    # the noise moves the start: one per seed
         first = sorted({r.seed: r for r in reversed(gusts)}.items())
         with ThreadPoolExecutor(max(1, min(jobs, len(first)))) as pool:     # each flight is a process
-            starts = list(pool.map(lambda sr: _reference_start(sr[1], files, out_dir / "runs" / f"reference-{sr[0]}"),
+            starts = list(pool.map(lambda sr: _start_or_why(sr[1], files, out_dir / "runs" / f"reference-{sr[0]}"),
                                    first))
-        files = dataclasses.replace(files, starts_by_seed=tuple((seed, t0) for (seed, _), t0 in zip(first, starts)))
+        files = dataclasses.replace(
+            files, starts_by_seed=tuple((seed, t0) for (seed, _), t0 in zip(first, starts) if isinstance(t0, float)),
+            reference_failures=tuple((seed, t0) for (seed, _), t0 in zip(first, starts) if isinstance(t0, str)))
     return files
+
+
+def _start_or_why(run, files: SitlFiles, run_dir: Path) -> float | str:
+    """:func:`_reference_start`, or why it failed (one seed's failure does not stop the campaign)."""
+    try:
+        return _reference_start(run, files, run_dir)
+    except (ValueError, OSError, subprocess.SubprocessError) as exc:
+        return str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
 
 
 def _reference_start(run, files: SitlFiles, run_dir: Path) -> float:
@@ -209,6 +221,9 @@ def fly_command(spec, files: SitlFiles, run_dir: Path) -> list[str]:
         cmd += ["--emulator-arg=--inertia-kg-m2", *(f"--emulator-arg={float(j)!r}" for j in spec.inertia_kg_m2)]
     if spec.gust_force_n is not None:
         start = files.start_for(spec.seed)
+        why = dict(files.reference_failures).get(spec.seed)
+        if why is not None:
+            raise ValueError(f"no gust window: the gust-free reference flight of seed {spec.seed} failed: {why}")
         if start is None:
             raise ValueError("a gust run needs the maneuver's start time of a reference flight")
         a, b = (start + w for w in spec.gust_window_s)

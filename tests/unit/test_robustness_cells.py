@@ -165,3 +165,20 @@ def test_one_reference_flight_per_noise_seed_gives_the_gust_windows(tmp_path, mo
         if r.gust_force_n is not None:
             first = next(g for g in exp.runs if g.gust_force_n is not None and g.seed == r.seed)
             assert files.start_for(r.seed) == 20.0 + first.index
+
+
+def test_a_failed_reference_makes_its_seeds_gust_runs_errors_and_no_others(tmp_path, monkeypatch):
+    import mavreg.experiments.via_sitl as via_sitl
+    exp = robustness(0, 2, "gust-slow")
+    bad = exp.runs[1].seed
+
+    def fake_reference(run, files, run_dir):
+        if run.seed == bad:
+            raise ValueError("the gust-free reference flight never began its maneuver: gate_position")
+        return 22.0
+    monkeypatch.setattr(via_sitl, "_reference_start", fake_reference)
+    files = prepare_sitl_files(exp, tmp_path, jobs=2)
+    assert files.start_for(exp.runs[0].seed) == 22.0
+    fly_command(exp.runs[0], files, tmp_path)
+    with pytest.raises(ValueError, match=f"reference flight of seed {bad} failed: .*gate_position"):
+        fly_command(exp.runs[1], files, tmp_path)
