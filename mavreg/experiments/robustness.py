@@ -55,10 +55,10 @@ JITTER_MS = 5.0
 """Half-width of each direction's uniform delay spread (clipped to the delay: none at 0 ms)."""
 ROTOR_LIMITS_N = (8.5, 7.0)
 MANEUVERS_DIR = PARAMS_DIR / "maneuvers"
-SIM_UNSUPPORTED = ("robustness flies via sitl only: it judges the daemon's safety layer, which the design "
-                   "model does not run, and the design model has none of its cells (realistic link and "
-                   "estimate, wind through drag, thrust scale, loss, TIMESYNC, estimator errors, airframe "
-                   "draws); use --via sitl")
+SIM_UNSUPPORTED = ("robustness flies via sitl only: every cell is judged by the daemon's safety layer, which "
+                   "the design model does not run, and the design model lacks the realistic world of every cell "
+                   "(link delay and loss, TIMESYNC, estimator errors, drag for the wind, thrust scale) and the "
+                   "emulator's drawn airframes; use --via sitl")
 
 
 @dataclass(frozen=True)
