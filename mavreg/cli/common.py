@@ -9,7 +9,11 @@ __all__ = ["PARAMS_DIR", "add_model_arguments", "add_laps_argument", "load_model
 PARAMS_DIR = Path(__file__).resolve().parents[2] / "params"
 DEFAULT_VEHICLE = PARAMS_DIR / "vehicles" / "mk_quadro.yaml"
 PAPER_CONTROLLER = PARAMS_DIR / "controller" / "paper_lqr.yaml"
-"""The paper's design, roll-pitch-yaw attitude error included: for reproductions."""
+"""Exactly the paper's design (roll-pitch-yaw attitude error, per-rotor clipping, no speed
+governor): for reproductions."""
+PAPER_GOVERNED_CONTROLLER = PARAMS_DIR / "controller" / "paper_governed.yaml"
+"""The paper's design with mavreg's speed governor and torques-first allocation: the
+experiments where a gust holds the vehicle back or the rotors saturate."""
 DESIGN_CONTROLLER = PARAMS_DIR / "controller" / "design.yaml"
 """The paper's weights on the SO(3) attitude error: the default of the design-model commands
 (plan, simulate)."""

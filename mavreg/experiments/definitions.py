@@ -41,7 +41,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..cli.common import DEFAULT_VEHICLE, PAPER_CONTROLLER, PARAMS_DIR
+from ..cli.common import DEFAULT_VEHICLE, PAPER_CONTROLLER, PAPER_GOVERNED_CONTROLLER, PARAMS_DIR
 
 __all__ = ["RunSpec", "Experiment", "EXPERIMENTS", "build_experiment", "draw_inertia", "run_seed",
            "paper_group1", "paper_group2", "gust", "lag", "PAPER_INERTIA_SD_KG_M2", "PAPER_OFFSET_M",
@@ -185,7 +185,8 @@ def paper_group2(seed: int = 0, laps: int = PAPER_LAPS, saturations_n=PAPER_SATU
                          saturation_n=None if sat is None else float(sat), laps=laps, seed=noise_seed)
                  for i, sat in enumerate(saturations_n))
     return Experiment("paper-group2", f"Paper group 2: 0.1 N rotor noise, saturation, {laps} laps",
-                      SATURATION, int(seed), runs, vehicle_path=vehicle_path)
+                      SATURATION, int(seed), runs, vehicle_path=vehicle_path,
+                      controller_path=PAPER_GOVERNED_CONTROLLER)
 
 
 def rotors_label(saturation_n: float | None) -> str:
@@ -256,7 +257,8 @@ def gust(seed: int = 0, forces_n=GUST_FORCES_N, places=tuple(GUST_PLACES), contr
                 "gust_window_s": (t_on, round(t_on + GUST_DURATION_S, 3)), "max_time_s": max_time_s,
                 "start_s_m": float(start_s_m)}))
     return Experiment("gust", "Gust against the path's tangent: maneuver regulation and two time-indexed trackers",
-                      DISTURBANCE, int(seed), _runs_by_case(seed, cases, saturations_n, controllers))
+                      DISTURBANCE, int(seed), _runs_by_case(seed, cases, saturations_n, controllers),
+                      controller_path=PAPER_GOVERNED_CONTROLLER)
 
 
 def lag(seed: int = 0, leads_m=LAG_LEADS_M, controllers=CONTROLLERS, saturations_n=ROTOR_LIMITS_N,
@@ -267,7 +269,8 @@ def lag(seed: int = 0, leads_m=LAG_LEADS_M, controllers=CONTROLLERS, saturations
     cases = [("lag", f"{d:g} m ahead", {"start_s_m": LAG_START_S_M, "reference_lead_m": float(d),
                                         "max_time_s": max_time_s}) for d in leads_m]
     return Experiment("lag", "Timed reference ahead of the vehicle: maneuver regulation and two time-indexed "
-                      "trackers", DISTURBANCE, int(seed), _runs_by_case(seed, cases, saturations_n, controllers))
+                      "trackers", DISTURBANCE, int(seed), _runs_by_case(seed, cases, saturations_n, controllers),
+                      controller_path=PAPER_GOVERNED_CONTROLLER)
 
 
 EXPERIMENTS: dict[str, Callable[..., Experiment]] = {

@@ -19,7 +19,7 @@ from mavreg.sim.maneuver_run import fly_on_design_model
 
 ROOT = Path(__file__).resolve().parents[2]
 VEHICLE = load_vehicle(ROOT / "params/vehicles/mk_quadro.yaml")
-PAPER = load_controller(ROOT / "params/controller/paper_lqr.yaml")
+PAPER = load_controller(ROOT / "params/controller/paper_governed.yaml")
 PARAMS = SpeedGovernorParams(enabled=True)
 S = np.linspace(0.0, 40.0, 801)
 RAMP = np.minimum(0.5 + 0.75 * S, 8.0)            # a profile that speeds up, then cruises
