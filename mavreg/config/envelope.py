@@ -119,7 +119,8 @@ class RecoveryParams:
     settle_s: float = field(default=1.0, metadata=_POS)
     """Recovered: braked, on its attitude, not rotating, slow and at the altitude for this long."""
     timeout_s: float = field(default=8.0, metadata=_POS)
-    """Not recovered within this time (vehicle time): the motors are stopped. From
+    """Not recovered within this time (vehicle time): the recovery controller lands where it
+    is (docs/safety.md). A recovery is judged over this time, never by one sample: from
     inverted at 8 m/s the controller settles in about 3 s (unit test)."""
     max_body_rate_rad_s: float = field(default=30.0, metadata=_POS)
     """Absolute body-rate bound during a recovery: turning over at full torque peaks near
@@ -128,7 +129,7 @@ class RecoveryParams:
     geofence_margin_m: float = field(default=10.0, metadata={"min": 0.0})
     """The geofence grows by this much during a recovery: braking from 8 m/s takes 5 m."""
     max_recoveries: int = field(default=2, metadata={"min": 0})
-    """Recoveries per flight; one more violation stops the motors."""
+    """Recoveries per flight; one more violation in the air: the recovery controller lands."""
 
 
 @dataclass(frozen=True)

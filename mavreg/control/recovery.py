@@ -8,7 +8,8 @@ changes for recovery:
 - **Desired thrust vector** from a saturated PD on velocity and altitude (NED):
   horizontal velocity command 0 while braking, then back to where braking ended; vertical
   velocity command up to ``safe_altitude_m`` above the take-off point, or to hold the
-  highest point reached (a recovery never descends), with conditional integrals for a
+  highest point reached (a recovery never descends until told to land, :meth:`RecoveryController.land`:
+  then down at a set speed to the ground), with conditional integrals for a
   vehicle heavier than the design and for a steady wind. The horizontal acceleration is limited so that the thrust tilts at most
   ``max_tilt_rad`` from vertical:
 
@@ -167,6 +168,7 @@ class RecoveryController:
         self._last_att_err = math.pi
         self._last_rate = math.inf
         self._clipped = False
+        self._land_descent_m_s: float | None = None
 
     @property
     def braking(self) -> bool:
@@ -184,6 +186,21 @@ class RecoveryController:
         self._last_att_err = math.pi
         self._last_rate = math.inf
         self._clipped = False
+        self._land_descent_m_s = None
+
+    def land(self, ground_z_m: float, descent_m_s: float) -> None:
+        """From now on, descend at ``descent_m_s`` (braked, level, holding the horizontal
+        position as before) until the ground stops it: the altitude target is put a metre
+        below the take-off point's altitude ``ground_z_m`` (NED z), so the descent goes on
+        through touchdown, where the caller spools the rotors down."""
+        if not descent_m_s > 0.0:
+            raise ValueError(f"descent speed must be positive, got {descent_m_s!r} m/s")
+        self._land_descent_m_s = float(descent_m_s)
+        self._z_target = float(ground_z_m) + 1.0
+
+    @property
+    def landing(self) -> bool:
+        return self._land_descent_m_s is not None
 
     def _accel(self, p, v, dt: float, integrate: bool) -> np.ndarray:
         prm = self.params
@@ -197,8 +214,12 @@ class RecoveryController:
             n = float(np.linalg.norm(vc_h))
             if n > prm.max_hold_speed_m_s:
                 vc_h *= prm.max_hold_speed_m_s / n
-        self._z_target = min(self._z_target, float(p[2]))   # never descend: hold the highest point
-        vc_z = min(max(prm.position_gain_1_s * (self._z_target - p[2]), -prm.max_climb_m_s), prm.max_descent_m_s)
+        if self._land_descent_m_s is None:
+            self._z_target = min(self._z_target, float(p[2]))   # never descend: hold the highest point
+            max_down = prm.max_descent_m_s
+        else:
+            max_down = self._land_descent_m_s
+        vc_z = min(max(prm.position_gain_1_s * (self._z_target - p[2]), -prm.max_climb_m_s), max_down)
         ez = vc_z - v[2]
         az = prm.velocity_gain_1_s * ez + self._bias
         if integrate and dt > 0.0 and -prm.max_accel_up_m_s2 < az < prm.max_accel_down_m_s2:

@@ -17,7 +17,7 @@ from ..model.rotation import rpy_to_matrix
 from ..model.rotation_kernel import rpy_matrix
 from . import flightpath as fp
 from . import messages as mm
-from .gate import plan_outside_envelope
+from .gate import GateVerdict, plan_outside_envelope
 from .monitor import Tracking
 from .phases import LogRecord, Phase
 
@@ -73,6 +73,22 @@ class FlightPhases:
             return
         st = self.vehicle_status
         if not st.armed:
+            bad = plan_outside_envelope(self._pending[0][2], sample.x[:3], self.envelope)
+            if bad is not None:                            # as the hold's gate would, before take-off
+                self._refuse(bad, out, Phase.PREFLIGHT)
+                self._land_requested = True
+                return
+            if self.fixed_delay_s is None and self.timesync.estimate() is None:
+                waited = t - self._stream_start_t
+                if waited < self.params.timesync_wait_s:
+                    return                                 # TIMESYNC requests go out with the stream
+                self._refuse(GateVerdict(
+                    False, "gate_no_timesync", waited, self.params.timesync_wait_s, "s",
+                    "no TIMESYNC answer from the vehicle, so the link delay the controller predicts "
+                    "across is unknown: set fixed_delay_s in the controller file to the vehicle's "
+                    "sample-to-actuation delay, or enable TIMESYNC on the vehicle"), out, Phase.PREFLIGHT)
+                self._land_requested = True                # stay disarmed on the ground
+                return
             self._command(out, mm.arm_disarm(sysid, compid, True))
         elif not st.offboard:
             if t - self._stream_start_t >= self.params.offboard_stream_min_s:
@@ -124,6 +140,9 @@ class FlightPhases:
             return self._maneuver_control(sample, x, out)
         if self.phase == Phase.RECOVER:
             return self._recover_control(sample, x, out)
+        if self.phase == Phase.LAND and self._recovery_landing:
+            rotors, record = self._recovery_step(sample, x)
+            return self._land_logic(sample, rotors, out), record, None
         t = sample.time_s
         if self.phase in (Phase.TAKEOFF, Phase.LAND):     # the observer learns clear of the ground
             floor = _OBSERVE_AFTER_LIFTOFF_M if self.phase == Phase.TAKEOFF else _OBSERVE_UNTIL_LANDING_M
@@ -169,12 +188,17 @@ class FlightPhases:
             self._start_exit_hold(sample, out)
         return rotors, record, tracking
 
+    def _recovery_step(self, sample, x):
+        """(rotor forces, log record) of the recovery controller on state ``x``."""
+        R = rpy_to_matrix(*x[3:6])
+        o = self.recovery.step(sample.time_s, x[:3], R @ x[6:9], R, x[9:12])
+        u = np.concatenate([[o.thrust_n], o.torque_n_m])
+        return o.rotor_forces_n, self._record(sample, math.nan, _NAN11, u, o.rotor_forces_n)
+
     def _recover_control(self, sample, x, out):
         t = sample.time_s
+        rotors, record = self._recovery_step(sample, x)
         R = rpy_to_matrix(*x[3:6])
-        o = self.recovery.step(t, x[:3], R @ x[6:9], R, x[9:12])
-        u = np.concatenate([[o.thrust_n], o.torque_n_m])
-        record = self._record(sample, math.nan, _NAN11, u, o.rotor_forces_n)
         if self.recovery.settled(x[:3], R @ x[6:9], R):
             if self._settled_since is None:
                 self._settled_since = t
@@ -182,7 +206,7 @@ class FlightPhases:
                 self._recovered(sample, x, out)
         else:
             self._settled_since = None
-        return o.rotor_forces_n, record, None
+        return rotors, record, None
 
     def _recovered(self, sample, x, out) -> None:
         t = sample.time_s

@@ -196,8 +196,14 @@ class EnvelopeMonitor:
         self._out_of_tube_since = None
 
     # ------------------------------------------------------------------ telemetry
-    def check_state(self, t_s: float, phase: str, s_m: float, p, v, R, omega) -> Violation | None:
-        """Telemetry-only bounds of a sample (NED position and velocity, body-to-NED R, body rates)."""
+    def check_state(self, t_s: float, phase: str, s_m: float, p, v, R, omega,
+                    disturbance=None) -> Violation | None:
+        """Telemetry-only bounds of a sample (NED position and velocity, body-to-NED R, body rates).
+
+        ``disturbance`` is the observer's estimate
+        (:class:`~mavreg.control.disturbance.DisturbanceEstimate`: body drag, a constant
+        force), or None: the thrust check counts the external force it explains, so that a
+        gust or a wind is not read as a thrust failure."""
         prm = self.p
         px, py, pz = float(p[0]), float(p[1]), float(p[2])
         vx, vy, vz = float(v[0]), float(v[1]), float(v[2])
@@ -225,8 +231,12 @@ class EnvelopeMonitor:
             a = math.sqrt(acc[0] ** 2 + acc[1] ** 2 + acc[2] ** 2)
             self._peak("impact_accel", a, prm.impact_accel_m_s2, phase, t_s)
             if a > prm.impact_accel_m_s2:
-                return self._fail(phase, t_s, s_m, "impact", a, prm.impact_accel_m_s2, "m/s^2",
-                                  f"acceleration spike {a:.0f} m/s^2 from the reported velocity", True)
+                # an impact only where there is ground to hit; in the air a spike (a collision,
+                # an estimate that jumped) is a violation like any other: a recovery
+                at_ground = alt <= prm.impact_altitude_m
+                return self._fail(phase, t_s, s_m, "impact" if at_ground else "accel_spike", a,
+                                  prm.impact_accel_m_s2, "m/s^2",
+                                  f"acceleration spike {a:.0f} m/s^2 from the reported velocity", at_ground)
         # 2. telemetry that contradicts itself or the commands
         if prev is not None and 0.0 < t_s - prev[0] <= 0.5:
             dt = t_s - prev[0]
@@ -241,7 +251,7 @@ class EnvelopeMonitor:
                 return self._fail(phase, t_s, s_m, "position_jump", jump, limit, "m",
                                   f"position moved {jump:.2f} m more than the velocity explains over "
                                   f"{dt * 1e3:.0f} ms")
-        v_bad = self._thrust_check(t_s, R)
+        v_bad = self._thrust_check(t_s, R, v, disturbance)
         if v_bad is not None:
             measured, commanded, lasted = v_bad
             near_ground = alt <= prm.impact_altitude_m
@@ -302,8 +312,16 @@ class EnvelopeMonitor:
         v0 = vel[k]
         return ((v1[0] - v0[0]) / dt, (v1[1] - v0[1]) / dt, (v1[2] - v0[2]) / dt)
 
-    def _thrust_check(self, t_s: float, R):
-        """(measured N, commanded N, lasted s) when the mismatch has lasted long enough."""
+    def _thrust_check(self, t_s: float, R, v, disturbance=None):
+        r"""(measured N, commanded N, lasted s) when the mismatch has lasted long enough.
+
+        With :math:`m a = m g e_3 - T b_3 + F` (NED, :math:`b_3` the body z axis, :math:`F`
+        the external force the observer estimates), the thrust the telemetry implies is
+        :math:`T = m g R_{33} - m\,b_3^T a + b_3^T F`. Of the observer's force model
+        (:mod:`mavreg.control.disturbance`) only the constant force and the drag along
+        :math:`b_3` project on it: :math:`b_3^T F = b_3^T F_w - c_z\,b_3^T v`. The commanded
+        collective is what the controller asked the rotors to give (the thrust-scale
+        calibration is applied after it), so it is compared as it is."""
         prm = self.p
         c = self._commands
         k = c.within(t_s, prm.thrust_window_s, strict=False)
@@ -317,9 +335,15 @@ class EnvelopeMonitor:
         if commanded < prm.thrust_check_min_ratio * self.mass_kg * G:
             self._mismatch_since = None
             return None
-        # specific force along the thrust axis (-body z) times the design mass
-        measured = self.mass_kg * (G * float(R[2][2]) - (float(R[0][2]) * acc[0] + float(R[1][2]) * acc[1]
-                                                          + float(R[2][2]) * acc[2]))
+        # specific force along the thrust axis (-body z) times the design mass, plus what the
+        # external force the observer explains adds along it
+        b3x, b3y, b3z = float(R[0][2]), float(R[1][2]), float(R[2][2])
+        measured = self.mass_kg * (G * b3z - (b3x * acc[0] + b3y * acc[1] + b3z * acc[2]))
+        if disturbance is not None:
+            fw = disturbance.force_ned_n
+            along_v = b3x * float(v[0]) + b3y * float(v[1]) + b3z * float(v[2])
+            measured += (b3x * fw[0] + b3y * fw[1] + b3z * fw[2]
+                         - disturbance.drag_n_s_per_m[1] * along_v)
         self._peak("thrust_mismatch", measured / commanded, prm.min_thrust_ratio, self._phase, t_s, lower=True)
         if measured >= prm.min_thrust_ratio * commanded:
             self._mismatch_since = None

@@ -56,6 +56,10 @@ class SupervisorParams:
     """A forced disarm not confirmed within this (injected clock): give up, stream stopped.
     Long enough for a lockstep emulator to notice the stream has stopped (it waits
     ``--lockstep-timeout`` before running on) and deliver a delayed command."""
+    timesync_wait_s: float = 2.0
+    """Vehicle time from the first sample to wait for a TIMESYNC answer before arming. With no
+    answer and no configured ``fixed_delay_s`` the link delay is unknown: the take-off is
+    refused (the controller predicts across that delay, and the gate judges it)."""
     offboard_stream_min_s: float = 0.7
     """Vehicle time the idle stream runs before OFFBOARD is requested (vehicle needs 0.5 s)."""
     spool_s: float = 1.0

@@ -2,16 +2,27 @@
 
 A mixin of :class:`mavreg.daemon.supervisor.Supervisor` (it shares its state).
 
+The rule: **the motors are never stopped in the air because a bound fired.** A safety
+action must not be worse than the fault it answers, and a vehicle whose motors stop falls.
+
 - **Recover** (:meth:`SafetyActions._recover`): a bound of the envelope is violated in
   flight. The maneuver (or hover) control is left for the recovery controller
   (:mod:`mavreg.control.recovery`): level, brake, climb to a safe altitude, hold; then land
-  (``fly``) or hold and wait for an upload (``serve``). Pending maneuvers are dropped.
-- **Stop the motors** (:meth:`SafetyActions._terminate`): after an impact, a violation during
-  a recovery, a recovery not settled within its time limit, a violation at the ground, or
-  more violations than ``max_recoveries``. COMMAND_LONG ARM_DISARM param1 = 0, param2 = 21196
-  (forced), repeated every ``disarm_retry_s`` until acknowledged or reported disarmed; the
-  actuator stream stops for good, so the vehicle's own failsafe is in charge of whatever is
-  left. No thrust is ever commanded again.
+  (``fly``) or hold and wait for an upload (``serve``). Pending maneuvers are dropped. A
+  recovery is judged over ``recovery.timeout_s``, not by one sample: a bound that fires
+  while it flies is announced once and the recovery goes on.
+- **Land with the recovery controller** (:meth:`SafetyActions._recovery_land`): a recovery
+  that has not settled within its time, a violation after ``max_recoveries``, or a
+  violation near the ground (within ``impact_altitude_m``). The recovery controller,
+  which holds any attitude, descends at the landing speed; at touchdown the rotors spool
+  down and the vehicle is disarmed, as in a normal landing. Bounds that fire on the way
+  down are announced once; the landing goes on.
+- **Stop the motors** (:meth:`SafetyActions._terminate`): only after an impact, i.e. ground
+  contact confirmed by the telemetry (within ``impact_altitude_m`` of the take-off altitude
+  and descending or moving faster than the impact bounds, an acceleration spike there, or
+  thrust contradicted there). COMMAND_LONG ARM_DISARM param1 = 0, param2 = 21196 (forced),
+  repeated every ``disarm_retry_s`` until acknowledged or reported disarmed; the actuator
+  stream stops for good. No thrust is ever commanded again.
 - **Hand over** (:meth:`SafetyActions._hand_over`): the link is lost (no sample for
   ``stale_timeout_s``), the controller output is not finite, or the vehicle left OFFBOARD:
   the stream stops for good and the vehicle's failsafe flies.
@@ -19,8 +30,8 @@ A mixin of :class:`mavreg.daemon.supervisor.Supervisor` (it shares its state).
   the maneuver is not flown; hold, then land (``fly``) or keep holding (``serve``).
 
 Every action is an :class:`~mavreg.daemon.phases.Event`, a log line (the app prints events)
-and a STATUSTEXT to the vehicle (CRITICAL for recover / stop / hand over, WARNING for a
-refusal or a hard landing); the first bound violated is kept as the flight's
+and a STATUSTEXT to the vehicle (CRITICAL for recover / land / stop / hand over, WARNING for
+a refusal or a hard landing); the first bound violated is kept as the flight's
 :class:`~mavreg.daemon.phases.Failure`, with every action taken after it.
 
 Gaps (docs/safety.md): a complete sample that follows the previous one by more than
@@ -70,20 +81,33 @@ class SafetyActions:
 
     # ------------------------------------------------------------------ violations
     def _violation(self, v: Violation, out) -> None:
-        """Act on a violated bound: recover, or stop the motors."""
+        """Act on a violated bound: recover, land with the recovery controller, or (after an
+        impact only) stop the motors."""
         self._fail(v.bound, v.phase, v.t_s, v.s_m, v.value, v.limit, v.unit, v.detail)
         sample = self.last_sample
         at_ground = sample is not None and self.monitor.altitude_m(sample.x[:3]) <= self.envelope.impact_altitude_m
         if v.impact:
             self._terminate(out, f"impact: {v.describe()}")
+        elif self._recovery_landing:
+            self._note_bound(out, v, "landing on")
+        elif self.phase == Phase.RECOVER and v.bound == "recovery_timeout":
+            self._recovery_land(out, f"recovery not settled: {v.describe()}")
         elif self.phase == Phase.RECOVER:
-            self._terminate(out, f"recovery failed: {v.describe()}")
+            self._note_bound(out, v, "recovery goes on, judged over "
+                             f"{self.envelope.recovery.timeout_s:g} s")
         elif at_ground:
-            self._terminate(out, f"at the ground: {v.describe()}")
+            self._recovery_land(out, f"at the ground: {v.describe()}")
         elif self._recoveries >= self.envelope.recovery.max_recoveries:
-            self._terminate(out, f"recovery {self._recoveries + 1} not allowed: {v.describe()}")
+            self._recovery_land(out, f"recovery {self._recoveries + 1} not allowed: {v.describe()}")
         else:
             self._recover(v, out)
+
+    def _note_bound(self, out, v: Violation, then: str) -> None:
+        """A bound that fired while the recovery controller flies: announced once per bound."""
+        if v.bound in self._noted_bounds:
+            return
+        self._noted_bounds.add(v.bound)
+        self._announce(out, "bound", mm.SEVERITY_WARNING, f"{v.describe()}; {then}")
 
     def _recover(self, v: Violation, out) -> None:
         s = self.last_sample
@@ -93,12 +117,30 @@ class SafetyActions:
         self._pending.clear()
         self._active = None
         self._settled_since = None
+        self._noted_bounds = set()
         self._s = math.nan
         safe = self.envelope.recovery.safe_altitude_m
         self._announce(out, "recover", mm.SEVERITY_CRITICAL, f"{v.describe()}; recovering: level, brake, "
                        f"climb to {safe:g} m, hold" + (f" (dropped {dropped})" if dropped else ""))
         self._note_action("recovery")
         self._set_phase(out, Phase.RECOVER, f"recovery {self._recoveries} begins")
+
+    def _recovery_land(self, out, why: str) -> None:
+        """Land where the vehicle is with the recovery controller (any attitude), at the
+        landing speed; the landing's touchdown, spool-down and disarm follow."""
+        s = self.last_sample
+        if self.phase != Phase.RECOVER:
+            self.recovery.start(s.x[:3], s.velocity_ned_m_s, s.rotation, self._ground_z)
+        self.recovery.land(self._ground_z, self.params.land_speed_m_s)
+        self._recovery_landing = True
+        self._pending.clear()
+        self._active = None
+        self._noted_bounds = set()
+        self._s = math.nan
+        self._announce(out, "recovery_land", mm.SEVERITY_CRITICAL,
+                       f"{why}; landing with the recovery controller at {self.params.land_speed_m_s:g} m/s")
+        self._note_action("landing (recovery controller)")
+        self._set_phase(out, Phase.LAND, "landing where it is with the recovery controller")
 
     def _recovery_timeout(self, t_s: float):
         """A Violation when the recovery has not settled within its time limit."""
@@ -109,7 +151,8 @@ class SafetyActions:
         return None
 
     def _terminate(self, out, why: str) -> None:
-        """Stop the motors: forced disarm until confirmed, no actuator stream ever again."""
+        """Stop the motors: forced disarm until confirmed, no actuator stream ever again.
+        Only after an impact (ground contact), never in the air."""
         self._announce(out, "motors_stopped", mm.SEVERITY_CRITICAL, f"{why}; forced disarm")
         self._note_action("motors stopped (forced disarm)")
         self._active = None

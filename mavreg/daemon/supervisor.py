@@ -12,7 +12,9 @@ Phases::
     preflight -> takeoff -> hold -> run_in -> maneuver -> hold (at exit) -> land -> disarmed
                              ^  (health gate)  |_________|   (next upload)
     takeoff..land --(bound violated)--> recover -> land (fly) | hold (serve)
-    any armed --(impact, failed recovery)--> terminate -> disarmed      (motors stopped)
+    recover --(not settled in time)--> land (recovery controller) -> disarmed
+    near the ground, or past max_recoveries --(bound violated)--> land (recovery controller)
+    any armed --(impact: ground contact)--> terminate -> disarmed      (motors stopped)
     any armed --(link lost, non-finite output, vehicle left OFFBOARD)--> aborted
 
 Every complete sample goes through :meth:`Supervisor._on_sample`: gap policy, the
@@ -118,6 +120,9 @@ class Supervisor(FlightPhases, SafetyActions):
         self._land_requested = False
         self._s = math.nan
         self._recoveries = 0
+        self._recovery_landing = False
+        """The recovery controller is landing the vehicle (phase LAND)."""
+        self._noted_bounds: set = set()
         self._settled_since: float | None = None
         self._actions: list[str] = []
         self._gate_wait_t0: float | None = None
@@ -325,7 +330,8 @@ class Supervisor(FlightPhases, SafetyActions):
             self._gap(t - prev.time_s, now_s - prev_now, out)
         if self.phase in AIRBORNE:
             v = self.monitor.check_state(t, self.phase, self._s, sample.position_ned, sample.velocity_ned,
-                                         sample.rows, sample.rates) or self._recovery_timeout(t)
+                                         sample.rows, sample.rates, self.forecaster.disturbance
+                                         ) or self._recovery_timeout(t)
             if v is not None:
                 self._violation(v, out)
         if self.phase not in AIRBORNE:
@@ -339,9 +345,10 @@ class Supervisor(FlightPhases, SafetyActions):
             v = self.monitor.check_tracking(t, phase, tracking)
             if v is not None:
                 self._violation(v, out)
-                if self.phase != Phase.RECOVER:
-                    return
-                rotors, record, _ = self._control(sample, x, out)
+                if self.phase not in AIRBORNE:
+                    return                 # motors stopped (an impact)
+                if self.phase != phase:    # this sample is answered by the recovery controller
+                    rotors, record, _ = self._control(sample, x, out)
         if not np.all(np.isfinite(rotors)):
             self._non_finite(np.asarray(rotors, dtype=float), out)
             return

@@ -27,7 +27,8 @@ def _fly(gap_s: float, fill: bool):
         msgs = [veh.heartbeat()] if (veh.t_ms % 1000 == 0 or veh.heartbeat_due) else []
         veh.heartbeat_due = False
         if not in_gap:
-            msgs += veh.telemetry()
+            msgs += veh.outbox + veh.telemetry()
+            veh.outbox = []
         outs = [sup.handle(m, now) for m in msgs]
         if in_gap:
             outs.append(sup.fill_gap(now + 0.5 / RATE))

@@ -87,12 +87,16 @@ class SimVehicle:
 
     ``mass_scale`` makes it heavier than the design; it accepts a disarm in flight only
     with the force code (as PX4 does) and sends a HEARTBEAT at once on an arming change;
-    ``ignore_disarm`` commands are dropped unanswered (a lossy uplink)."""
+    ``ignore_disarm`` commands are dropped unanswered (a lossy uplink). It answers TIMESYNC
+    requests with its own clock, as PX4, ArduPilot and firmware_sim do, unless
+    ``answer_timesync`` is False."""
 
-    def __init__(self, rate_hz=250, mass_scale=1.0, ignore_disarm=0):
+    def __init__(self, rate_hz=250, mass_scale=1.0, ignore_disarm=0, answer_timesync=True):
         self.dt = 1.0 / rate_hz
         self.model = QuadrotorModel.from_vehicle(replace(VEHICLE, mass_kg=VEHICLE.mass_kg * mass_scale))
         self.ignore_disarm = ignore_disarm
+        self.answer_timesync = answer_timesync
+        self.outbox = []
         self.heartbeat_due = False
         self.acks = []
         self.x = np.zeros(12)
@@ -131,6 +135,8 @@ class SimVehicle:
             self.heartbeat_due = was != self.armed
             if not self.armed:
                 self.main, self.sub = PX4_MAIN_AUTO, PX4_SUB_LOITER
+        elif t == "TIMESYNC" and msg.tc1 == 0 and self.answer_timesync:
+            self.outbox.append(wire(mavlink2.MAVLink_timesync_message(self.t_ms * 1_000_000, msg.ts1)))
         elif t == "COMMAND_LONG" and msg.command == 176:
             if self.stream_since is not None and self.t_ms - self.stream_since >= 500:
                 self.main, self.sub = PX4_MAIN_OFFBOARD, 0
@@ -183,7 +189,8 @@ def run(sup, veh, seconds, on_step=None):
         now = veh.t_ms / 1000.0
         due = veh.t_ms % 1000 == 0 or veh.heartbeat_due
         veh.heartbeat_due = False
-        msgs = ([veh.heartbeat()] if due else []) + veh.telemetry()
+        msgs = ([veh.heartbeat()] if due else []) + veh.outbox + veh.telemetry()
+        veh.outbox = []
         if on_step is not None:
             msgs = on_step(veh, msgs)
         for m in msgs:

@@ -4,6 +4,7 @@ over, refuse at the gate, gaps, the honest outcome."""
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -84,18 +85,22 @@ def test_push_off_the_path_recovers_then_lands():
     assert sup.status()["failure"]["bound"] == "position_error"
 
 
-def test_pushed_down_harder_than_the_rotors_can_hold_stops_the_motors():
+def test_pushed_down_harder_than_the_rotors_can_hold_stops_the_motors_only_at_the_ground():
     """Pushed down at 60 m/s^2 (more than the rotors' 64 m/s^2 minus g) from the 2 m hold: a
-    tracking bound starts a recovery; the recovery's full thrust does not show in the
-    measured acceleration (thrust mismatch), or the ground comes first (impact): either way
-    the motors are stopped by a forced disarm, and not one rotor command is sent after it."""
+    tracking bound starts a recovery; its full thrust does not show in the measured
+    acceleration (thrust mismatch) but that, in the air, only lets the recovery go on. The
+    ground comes: the impact stops the motors by a forced disarm, there and not before, and
+    not one rotor command is sent after it."""
     sup = make_supervisor(FakePlan())
     veh = SimVehicle()
     _, throw = gust(sup, lambda s: s.phase == Phase.HOLD, 2, 60.0, 0.4)
     events, logs, sent = run(sup, veh, 30.0, throw)
     assert [e.kind for e in events if e.kind in ("recover", "motors_stopped")] == ["recover", "motors_stopped"]
     stop = next(e for e in events if e.kind == "motors_stopped")
-    assert "thrust_mismatch" in stop.detail or "impact" in stop.detail
+    assert "impact" in stop.detail
+    altitude = float(re.search(r"at (-?[0-9.]+) m above the take-off point", stop.detail).group(1))
+    assert altitude <= EnvelopeParams().impact_altitude_m           # at the ground, not in the air
+    assert min(-r.x[2] for r in logs if r.phase == Phase.RECOVER) > altitude
     assert sup.phase == Phase.DISARMED and not veh.armed
     assert sup.failure.phase == Phase.HOLD
     assert "motors stopped (forced disarm)" in sup.failure.action
@@ -129,16 +134,24 @@ def test_forced_disarm_repeats_until_the_vehicle_obeys():
     assert np.all(gaps >= 100) and np.all(gaps <= 108)       # every disarm_retry_s (0.1 s)
 
 
-def test_a_recovery_that_does_not_settle_in_time_stops_the_motors():
+def test_a_recovery_that_does_not_settle_in_time_lands_with_the_recovery_controller():
+    """A recovery given 0.3 s to settle (it needs more): not a forced disarm in the air but a
+    landing where it is, by the recovery controller, at the landing speed; touchdown,
+    spool-down and disarm as in any landing. Rotor commands go out all the way down."""
     env = EnvelopeParams(recovery=replace(EnvelopeParams().recovery, timeout_s=0.3))
     sup = make_supervisor(FakePlan(length_m=3.0), envelope=env)
     veh = SimVehicle()
     _, shove = gust(sup, in_maneuver, 1, 3.0, 3.0)
-    events, _, sent = run(sup, veh, 30.0, shove)
-    stop = next(e for e in events if e.kind == "motors_stopped")
-    assert "recovery failed" in stop.detail and "recovery_timeout" in stop.detail
-    assert sup.phase == Phase.DISARMED and sup.failure.bound == "position_error"
-    assert _actuators(sent, after_ms=round(stop.time_s * 1000)) == []
+    events, logs, sent = run(sup, veh, 60.0, shove)
+    assert "motors_stopped" not in _kinds(events)
+    land = next(e for e in events if e.kind == "recovery_land")
+    assert "recovery not settled" in land.detail and "recovery_timeout" in land.detail
+    assert _phases(events)[-2:] == [Phase.LAND, Phase.DISARMED]
+    assert sup.failure.bound == "position_error" and "landing (recovery controller)" in sup.failure.action
+    assert sup._touchdown_speed is not None and sup._touchdown_speed < 0.5
+    assert not veh.armed and abs(veh.x[2]) < 1e-9
+    down = np.array([r.x[2] for r in logs if r.phase == Phase.LAND])
+    assert down.min() < -1.0 and len(_actuators(sent, after_ms=round(land.time_s * 1000))) > 500
 
 
 def test_gate_refuses_a_heavier_vehicle_and_lands():
@@ -294,3 +307,37 @@ def test_a_clean_flight_through_an_estimator_and_a_link_fires_nothing():
     print(f"\nestimator + link: closest bound {worst[0]} at {100 * worst[1]['ratio']:.0f} % of its limit")
     assert worst[1]["ratio"] < 0.5
     assert peaks["altitude_floor"]["ratio"] < 0.55                 # the plan flies at 2 m, floor 1 m
+
+
+def test_a_vehicle_that_never_answers_timesync_is_refused_take_off_in_one_line():
+    """No TIMESYNC answer and no configured delay: the link delay the controller predicts
+    across is unknown. The daemon waits ``timesync_wait_s`` of vehicle time, then refuses
+    before arming, names fixed_delay_s, and the vehicle never leaves the ground."""
+    sup = make_supervisor(FakePlan())
+    veh = SimVehicle(answer_timesync=False)
+    events, logs, sent = run(sup, veh, 10.0)
+    assert sup.phase == Phase.DISARMED and sup.failure.bound == "gate_no_timesync"
+    assert sup.failure.phase == Phase.PREFLIGHT and "fixed_delay_s" in sup.failure.detail
+    assert not any(m.get_type() == "COMMAND_LONG" and m.command == 400 and m.param1 == 1.0 for _, m in sent)
+    assert Phase.TAKEOFF not in _phases(events) and veh.x[2] == 0.0
+    assert 2.0 <= sup.failure.value < 2.1                          # waited timesync_wait_s, no longer
+    assert len(sup.failure.line().splitlines()) == 1
+
+
+def test_a_configured_delay_flies_a_vehicle_without_timesync():
+    """The same vehicle with fixed_delay_s set: nothing to wait for, the flight is flown."""
+    sup = make_supervisor(FakePlan())
+    sup.fixed_delay_s = 0.004
+    veh = SimVehicle(answer_timesync=False)
+    run(sup, veh, 60.0)
+    assert sup.succeeded, sup.failure
+
+
+def test_a_plan_outside_the_geofence_is_refused_before_take_off():
+    """The geofence ceiling below the plan: refused on the ground (not after a long climb)."""
+    env = replace(EnvelopeParams(), geofence_ceiling_m=1.0)
+    sup = make_supervisor(FakePlan(), envelope=env)
+    veh = SimVehicle()
+    events, _, sent = run(sup, veh, 10.0)
+    assert sup.failure.bound == "gate_plan_geofence" and sup.failure.phase == Phase.PREFLIGHT
+    assert Phase.TAKEOFF not in _phases(events) and not veh.armed
