@@ -9,7 +9,9 @@ HELP = "validate a maneuver YAML, check feasibility, build the gain schedule (no
 DESCRIPTION = """\
 Load a maneuver file, build its path, nominal state and input by differential flatness,
 check them against the vehicle (per-rotor thrust in [0, max_rotor_thrust_n], minimum speed,
-curvature continuity) and compute the s-scheduled LQR gains. Prints a summary, or JSON with
+curvature continuity) and against the flight envelope the daemon holds it to (altitude floor
+and geofence of the controller file's envelope: section, for a take-off at the local origin
+0, 0, 0), and compute the s-scheduled LQR gains. Prints a summary, or JSON with
 --json (feasible, length_m, thrust_n {min, max, at_highest_point}, rotor_force_n {min, max},
 torque_nm {max_abs}, segments, ...).
 
@@ -30,11 +32,28 @@ def run(args) -> int:
     vehicle, controller = load_model_params(args)
     plan = plan_file(args.maneuver, vehicle, controller, laps=args.laps, strict=False)
     summary = plan.summary()
+    _check_envelope(plan, controller.envelope, summary)
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
         print(format_summary(summary))
     return 0 if summary["feasible"] else 1
+
+
+def _check_envelope(plan, envelope, summary: dict) -> None:
+    """The daemon's floor and geofence (the controller file's ``envelope:``), seen from a
+    take-off at the local origin: a plan that leaves them would be refused before take-off."""
+    from ..daemon.gate import nominal_points, plan_outside_envelope
+    origin = (0.0, 0.0, 0.0)
+    bad = plan_outside_envelope(nominal_points(plan), origin, envelope)
+    summary["envelope"] = {"takeoff_point_ned_m": list(origin), "inside": bad is None,
+                           "bound": None if bad is None else bad.bound,
+                           "detail": None if bad is None else bad.detail}
+    if bad is not None:
+        summary["feasible"] = False
+        summary["violations"].append(f"{bad.detail}: {bad.value:.2f} {bad.unit} (limit {bad.limit:.2f} "
+                                     f"{bad.unit}, take-off at the origin; the envelope: section of the "
+                                     "controller file)")
 
 
 def format_summary(d: dict) -> str:
