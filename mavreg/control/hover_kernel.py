@@ -5,7 +5,7 @@ derivatives, or the hold past its end) and turns its acceleration, less an estim
 disturbance force, into the attitude and thrust that give it (exact, the drag taken at the
 attitude it tilts, three passes), its velocity into that body frame, its jerk into
 small-angle rates; :func:`feedback` forms ``u = u_ref - K (x - x_ref)`` (yaw error
-wrapped) and the rotor forces (:func:`~mavreg.control.step_kernel.yaw_then_lift`). Between
+wrapped, the velocity error in the reference's body frame) and the rotor forces (:func:`~mavreg.control.step_kernel.yaw_then_lift`). Between
 the two, the caller picks the gain for the reference's yaw (cached per yaw).
 
 Plain floats, compiled by numba (:func:`mavreg.accel.njit`) where available; the numpy step
@@ -21,7 +21,7 @@ import math
 
 from ..accel import njit
 from ..config.vehicle import G
-from ..model.rotation_kernel import mtv, rpy_matrix, wrap
+from ..model.rotation_kernel import mtv, mv, rpy_matrix, wrap
 from .compensation_kernel import extra_force
 from .step_kernel import yaw_then_lift
 
@@ -92,10 +92,17 @@ def reference(ref, coeffs, t, ramp, end_v, has_dist, dcxy, dcz, dfx, dfy, dfz, m
 
 @njit
 def feedback(out, x, ref, K, Minv, fmax):
-    """u = u_ref - K e, e = x - x_ref (angles wrapped), and the rotor forces, into ``out``."""
+    """u = u_ref - K e, e = x - x_ref (angles wrapped; the velocity error taken in the
+    reference's body frame, :meth:`~mavreg.control.hover.HoverController.error`), and the
+    rotor forces, into ``out``."""
     for i in range(12):
         e = x[i] - ref[i]
         out[8 + i] = wrap(e) if 3 <= i < 6 else e
+    R = rpy_matrix(x[3], x[4], x[5])
+    Rr = rpy_matrix(ref[3], ref[4], ref[5])
+    vn = mv(R, x[6], x[7], x[8])
+    vb = mtv(Rr, vn[0], vn[1], vn[2])
+    out[14], out[15], out[16] = vb[0] - ref[6], vb[1] - ref[7], vb[2] - ref[8]
     for r in range(4):
         acc = 0.0
         for i in range(12):
