@@ -13,7 +13,13 @@ curvature continuity) and against the flight envelope the daemon holds it to (al
 and geofence of the controller file's envelope: section, for a take-off at the local origin
 0, 0, 0), and compute the s-scheduled LQR gains. Prints a summary, or JSON with
 --json (feasible, length_m, thrust_n {min, max, at_highest_point}, rotor_force_n {min, max},
-torque_nm {max_abs}, segments, ...).
+torque_nm {max_abs}, segments, margins, ...).
+
+Margins (docs/robustness.md, "Margins"): the delay and common rotor-gain margins of the
+hover LQR and of the maneuver regulator (the worst over the plan, and where), on the design
+model with the vehicle's rotor lag, the loop broken at the rotor commands. JSON: margins
+{rotor_time_constant_s, hover {delay_margin_ms, gain_margin [low, high], ...}, maneuver
+{delay_margin_ms, worst_s_m, gain_margin, gain_margin_s_m, nodes, frozen_unstable_s_m}}.
 
 Exit status: 0 feasible, 1 infeasible (the reasons say where in s and by how much),
 2 invalid file or arguments.
@@ -29,8 +35,9 @@ def add_arguments(p):
 
 def run(args) -> int:
     from ..maneuver.plan import plan_file
+    from ..maneuver.robustness import with_margins
     vehicle, controller = load_model_params(args)
-    plan = plan_file(args.maneuver, vehicle, controller, laps=args.laps, strict=False)
+    plan = with_margins(plan_file(args.maneuver, vehicle, controller, laps=args.laps, strict=False))
     summary = plan.summary()
     _check_envelope(plan, controller.envelope, summary)
     if args.json:
@@ -70,5 +77,30 @@ def format_summary(d: dict) -> str:
         "  segments: " + ", ".join(f"{s['name']} [{s['s_start_m']:.2f}, {s['s_end_m']:.2f})"
                                    for s in d["segments"]),
     ]
+    if "margins" in d:
+        lines += ["  " + line for line in format_margins(d["margins"])]
     lines += [f"  violation: {v}" for v in d["violations"]]
     return "\n".join(lines)
+
+
+def _gain(g) -> str:
+    lo, hi = g
+    return f"x{float(lo):.2f}..x{float(hi):.2f}" if hi != "inf" else f"x{float(lo):.2f}..inf"
+
+
+def format_margins(m: dict) -> list[str]:
+    """One line for the hover, one for the maneuver (units in the text)."""
+    h = m["hover"]
+    out = [f"margins (rotor lag {m['rotor_time_constant_s'] * 1e3:.0f} ms, loop broken at the rotor "
+           f"commands): hover delay {float(h['delay_margin_ms']):.1f} ms, gain {_gain(h['gain_margin'])}"]
+    r = m.get("maneuver")
+    if r is not None:
+        line = (f"  maneuver delay {float(r['delay_margin_ms']):.1f} ms (worst at s = "
+                f"{float(r['worst_s_m']):.2f} m), gain {_gain(r['gain_margin'])} (s = "
+                f"{float(r['gain_margin_s_m'][0]):.2f}, "
+                f"{float(r['gain_margin_s_m'][1]):.2f} m), {r['nodes']} nodes, frozen-time")
+        if r["frozen_unstable_s_m"]:
+            line += "; not Hurwitz frozen (left out) at s in " + ", ".join(
+                f"[{a:.2f}, {b:.2f}]" for a, b in r["frozen_unstable_s_m"]) + " m"
+        out.append(line)
+    return out

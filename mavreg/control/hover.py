@@ -227,15 +227,19 @@ class HoverController:
         key = round(wrap(float(yaw_rad)), 3)          # wrapped to (-pi, pi], scalar
         K = self._gains.get(key)
         if K is None:
-            x0 = np.zeros(NX)
-            x0[5] = key
-            A, B = model_jacobians(self.model.f, x0, self.model.hover_input())
-            Q = np.diag(self.params.q)
-            R = np.diag(self.params.r)
-            P = solve_continuous_are(A, B, Q, R)
-            K = np.linalg.solve(R, B.T @ P)
-            self._gains[key] = K
+            K = self._gains[key] = self.design_loop(key)[2]
         return K
+
+    def design_loop(self, yaw_rad: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(A (12, 12), B (12, 4), K (4, 12)): the design model linearized at level hover with
+        yaw ``yaw_rad`` (in time, ideal rotors) and the LQR gain on it (not cached)."""
+        x0 = np.zeros(NX)
+        x0[5] = yaw_rad
+        A, B = model_jacobians(self.model.f, x0, self.model.hover_input())
+        Q = np.diag(self.params.q)
+        R = np.diag(self.params.r)
+        P = solve_continuous_are(A, B, Q, R)
+        return A, B, np.linalg.solve(R, B.T @ P)
 
     def reference(self, ramp: Ramp, t_s: float, disturbance=None) -> tuple[np.ndarray, np.ndarray]:
         """(x_ref (12,), u_ref (4,)) of a ramp at time ``t_s``: the attitude and thrust that give

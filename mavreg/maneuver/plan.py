@@ -71,6 +71,9 @@ class Plan:
     attitude_error: str = "rpy"
     """The gains' attitude error: ``rpy`` (the paper's roll-pitch-yaw differences) or
     ``so3`` (the rotation vector Log(Rbar^T R), :mod:`mavreg.model.so3`)."""
+    margins: object | None = None
+    """Delay and gain margins (:class:`~mavreg.maneuver.robustness.PlanMargins`), when computed
+    (:func:`~mavreg.maneuver.robustness.with_margins`): not by planning itself."""
 
     def nominal_attitude(self, s: float) -> np.ndarray:
         """Rbar(s) (3, 3) between the grid rows around s (clamped), by the cubic in the
@@ -140,6 +143,7 @@ class Plan:
                               "attitude_error": self.attitude_error,
                               "max_abs_gain": float(np.abs(self.K).max())},
             "segments": [{"name": n, "s_start_m": a, "s_end_m": b} for n, a, b in self.segments],
+            **({} if self.margins is None else {"margins": self.margins.as_dict()}),
         }
 
 
