@@ -17,7 +17,7 @@ from ..model.rotation import rpy_to_matrix
 from ..model.rotation_kernel import rpy_matrix
 from . import flightpath as fp
 from . import messages as mm
-from .gate import GateVerdict, plan_outside_envelope
+from .gate import GateVerdict, MarginCheck, delay_margin_of, plan_outside_envelope
 from .monitor import Tracking
 from .phases import LogRecord, Phase
 
@@ -94,7 +94,7 @@ class FlightPhases:
             if t - self._stream_start_t >= self.params.offboard_stream_min_s:
                 self._command(out, mm.set_offboard(sysid, compid))
         else:
-            verdict = self.gate.link_verdict()
+            verdict = self.gate.link_verdict(self._gate_margin(self._pending[0][0]))
             if verdict is not None:
                 self._refuse(verdict, out, Phase.PREFLIGHT)
                 self._land_requested = True          # disarm on the ground
@@ -275,7 +275,19 @@ class FlightPhases:
             return None
         plan, _, pts = self._pending[0]
         bad = plan_outside_envelope(pts, self.monitor.origin, self.envelope)
-        return bad if bad is not None else self.gate.evaluate()
+        return bad if bad is not None else self.gate.evaluate(self._gate_margin(plan))
+
+    def _gate_margin(self, plan) -> MarginCheck | None:
+        """The delay margin the gate holds the link to (:meth:`HealthGate.link_verdict`), with the
+        link delay the prediction covers; None: the plan has no margins."""
+        margin = delay_margin_of(plan)
+        if margin is None:
+            return None
+        covered = None
+        if self.forecaster.predict:
+            cap = self.forecaster.predictor.max_horizon_s
+            covered = min(self.link_delay_s(), cap) - self.vehicle.estimate_latency_s
+        return MarginCheck(*margin, covered, self.forecaster.period_s)
 
     def _start_exit_hold(self, sample, out) -> None:
         p = sample.x[:3]

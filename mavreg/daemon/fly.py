@@ -174,6 +174,7 @@ def _finish(opts, daemon, ctrl, record_path, emulator_code, wall_s) -> int:
         "touchdown_speed_m_s": sup.status()["touchdown_speed_m_s"],
         "maneuver": plan.name if plan else str(opts.maneuver_path),
         "length_m": plan.length_m if plan else float("nan"),
+        "margins": plan.margins.as_dict() if plan is not None and plan.margins is not None else None,
         "flight_time_s": float(ctrl["t_s"][-1] - ctrl["t_s"][0]) if ctrl["t_s"].size else 0.0,
         "wall_time_s": wall_s,
         "emulator_exit_code": emulator_code,

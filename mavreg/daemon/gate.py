@@ -11,7 +11,10 @@ before symptoms, so the reason names what is wrong):
 - rotor commands that do not clip, and do not chatter (high-pass SD of each rotor,
   ``sqrt(mean(diff(f)^2) / 2)``, which is the SD of white noise and ~0 for smooth commands);
 - tracking: largest distance from the hold point and largest attitude error within bounds;
-- the link's delay and jitter within bounds, when known (unknown does not block).
+- the link's delay and jitter within bounds, when known (unknown does not block);
+- the link's *unmodelled* delay (:func:`unmodelled_delay_s`) at most half the delay margin of
+  the loops about to fly (the maneuver's and the hover's, :mod:`mavreg.maneuver.robustness`),
+  when both are known.
 
 A failing check is a :class:`GateVerdict` with the bound, the value and the limit.
 """
@@ -20,14 +23,19 @@ from __future__ import annotations
 import collections
 import math
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import numpy as np
 
 from ..config.envelope import EnvelopeParams
 from ..config.vehicle import G
 
-__all__ = ["GateVerdict", "HealthGate", "nominal_points", "plan_outside_envelope"]
+__all__ = ["GateVerdict", "HealthGate", "nominal_points", "plan_outside_envelope", "MarginCheck",
+           "delay_margin_of", "unmodelled_delay_s", "JITTER_SIGMAS"]
+
+JITTER_SIGMAS = 3.0
+"""A predicted delay is the median of the last replies: each sample's own delay is within this
+many jitter SDs of it."""
 
 
 @dataclass(frozen=True)
@@ -69,6 +77,44 @@ def plan_outside_envelope(points, origin_m, envelope: EnvelopeParams) -> GateVer
     return None
 
 
+def delay_margin_of(plan) -> tuple[float, str] | None:
+    """(the least delay margin, which loop) of a plan's maneuver and hover
+    (:class:`~mavreg.maneuver.robustness.PlanMargins`), or None where not computed."""
+    m = getattr(plan, "margins", None)
+    if m is None:
+        return None
+    man = m.maneuver.delay_margin_s if m.maneuver is not None else math.nan
+    hover = m.hover.delay_margin_s
+    man, hover = (x if math.isfinite(x) else math.inf for x in (man, hover))
+    return (man, f"maneuver {plan.name!r}") if man <= hover else (hover, "hover")
+
+
+class MarginCheck(NamedTuple):
+    """What the gate holds the link's unmodelled delay to (:meth:`HealthGate.link_verdict`)."""
+
+    delay_margin_s: float
+    loop: str
+    """Which loop the margin is of (``maneuver 'name'`` or ``hover``)."""
+    predicted_s: float | None
+    """The link delay the prediction covers; None: no prediction."""
+    period_s: float = 0.0
+    """The control period: TIMESYNC reads one more than the delay the commands act with."""
+
+
+def unmodelled_delay_s(delay_s: float, jitter_s: float, predicted_s: float | None,
+                       period_s: float = 0.0) -> float:
+    """The part of the measured sample-to-actuation delay ``delay_s`` the controller does not
+    model. Without prediction (``predicted_s`` None) all of it, less the control period
+    ``period_s`` that TIMESYNC reads beyond the commands' effective delay (docs/identify.md:
+    2.0 ms on the ideal lockstep world, whose commands act at once). With prediction across
+    ``predicted_s``, the difference (a horizon capped, or a configured delay that is not the
+    measured one) plus ``JITTER_SIGMAS`` times the jitter ``jitter_s`` (the prediction uses
+    the median)."""
+    if predicted_s is None:
+        return max(float(delay_s) - float(period_s), 0.0)
+    return abs(float(delay_s) - float(predicted_s)) + JITTER_SIGMAS * float(jitter_s)
+
+
 class HealthGate:
     """Judges the last ``window_s`` of a hold.
 
@@ -102,10 +148,13 @@ class HealthGate:
         """Whether a full window has been seen."""
         return len(self._rows) > 2 and self._rows[-1][0] - self._rows[0][0] >= 0.9 * self.params.window_s
 
-    def link_verdict(self) -> GateVerdict | None:
-        """The link's failing check (delay, then jitter), or None when it passes or is unknown.
-        Also asked before take-off: a vehicle whose link the controller cannot fly over does
-        not leave the ground."""
+    def link_verdict(self, margin: MarginCheck | None = None) -> GateVerdict | None:
+        """The link's failing check (delay, then jitter, then the delay margin), or None when it
+        passes or is unknown. Also asked before take-off: a vehicle whose link the controller
+        cannot fly over does not leave the ground.
+
+        ``margin``: the delay margin to hold the unmodelled delay (:func:`unmodelled_delay_s`)
+        to, at most half of it; None: not checked."""
         g = self.params
         link = self.link_health() if self.link_health is not None else None
         if link is None:
@@ -117,10 +166,21 @@ class HealthGate:
         if jitter > g.max_link_jitter_s:
             return GateVerdict(False, "gate_link_jitter", float(jitter), g.max_link_jitter_s, "s",
                                "link jitter beyond what the controller tolerates")
+        if margin is None or not math.isfinite(margin[0]):
+            return None
+        tau_s, what, predicted_s, period_s = margin
+        late = unmodelled_delay_s(delay, jitter, predicted_s, period_s)
+        if late > tau_s / 2:
+            how = (f"of {delay * 1e3:.1f} ms measured, not predicted" if predicted_s is None else
+                   f"of {delay * 1e3:.1f} ms measured, {predicted_s * 1e3:.1f} ms predicted, jitter included")
+            return GateVerdict(False, "gate_delay_margin", late, tau_s / 2, "s",
+                               f"unmodelled link delay {late * 1e3:.1f} ms ({how}) is more than half the "
+                               f"{what}'s delay margin {tau_s * 1e3:.1f} ms")
         return None
 
-    def evaluate(self) -> GateVerdict:
-        """The first failing check over the window, or a pass (call when :meth:`ready`)."""
+    def evaluate(self, margin: MarginCheck | None = None) -> GateVerdict:
+        """The first failing check over the window, or a pass (call when :meth:`ready`);
+        ``margin`` as :meth:`link_verdict`."""
         g = self.params
         rows = np.array(self._rows)
         pos, att, f = rows[:, 1], rows[:, 2], rows[:, 3:7]
@@ -144,7 +204,7 @@ class HealthGate:
         if att.max() > g.max_attitude_error_rad:
             return GateVerdict(False, "gate_attitude", float(att.max()), g.max_attitude_error_rad, "rad",
                                "the hold is not level")
-        link = self.link_verdict()
+        link = self.link_verdict(margin)
         if link is not None:
             return link
         return PASS

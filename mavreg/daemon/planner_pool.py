@@ -4,8 +4,10 @@ Planning (loader, nominal, feasibility, Riccati sweep) is seconds of CPU-bound P
 that holds the GIL, so a thread would stall the control loop; it runs in a
 :class:`concurrent.futures.ProcessPoolExecutor` (one worker, ``spawn`` context, so the
 worker shares no sockets or event loop with the daemon) through ``loop.run_in_executor``.
-The worker loads the vehicle and controller files once and returns the picklable Plan,
-or the one-line reason a user error (ConfigError, ManeuverError) gave.
+The worker loads the vehicle and controller files once and returns the picklable Plan with
+its delay and gain margins (:func:`~mavreg.maneuver.robustness.with_margins`, which the
+health gate holds the link to), or the one-line reason a user error (ConfigError,
+ManeuverError) gave.
 
 The worker's initializer (:func:`_init_worker`):
 
@@ -68,11 +70,12 @@ def _params(vehicle_path: str, controller_path: str):
 
 
 def plan_in_worker(yaml_text: str, source: str, vehicle_path: str, controller_path: str) -> PlanResult:
-    """Validate and plan one maneuver (runs in the worker process)."""
+    """Validate and plan one maneuver, with its margins (runs in the worker process)."""
     from ..maneuver.plan import plan_text
+    from ..maneuver.robustness import with_margins
     try:
         vehicle, controller = _params(vehicle_path, controller_path)
-        return PlanResult(plan_text(yaml_text, source, vehicle, controller))
+        return PlanResult(with_margins(plan_text(yaml_text, source, vehicle, controller)))
     except ValueError as exc:   # ConfigError, ManeuverError: the user's file is at fault
         return PlanResult(None, " ".join(str(exc).split()))
 
