@@ -179,7 +179,8 @@ class DisturbanceObserver:
             y0, y1, y2 = innovation_m_s
             v0, v1, v2 = v
             status = ok.update(self._kf, self.P, float(dt_s), self.mass_kg, self._r,
-                               self.params.drag_learning_min_speed_m_s, np.asarray(R, dtype=float),
+                               self.params.drag_learning_min_speed_m_s,
+                               self.params.thrust_scale_learning_max_axial_speed_m_s, np.asarray(R, dtype=float),
                                float(v0), float(v1), float(v2), float(thrust_n), float(y0), float(y1), float(y2))
             if status == ok.REJECTED:
                 self.rejected += 1
@@ -195,6 +196,9 @@ class DisturbanceObserver:
         p = self.params
         if float(np.linalg.norm(v)) < p.drag_learning_min_speed_m_s:
             H[:, 0:2] = 0.0                  # drag unobservable (and biased) at low speed
+        if abs(float(np.asarray(R, dtype=float)[:, 2] @ np.asarray(v, dtype=float))) > \
+                p.thrust_scale_learning_max_axial_speed_m_s:
+            H[:, 5] = 0.0                    # the thrust scale and the axial drag look alike
         S = H @ self.P @ H.T + self._r * np.eye(3)
         if float(y @ np.linalg.solve(S, y)) > _GATE_CHI2:
             self.rejected += 1           # an outlier (a telemetry stall, a bump): not a force

@@ -65,10 +65,11 @@ def _cholesky_solve3(l00, l10, l20, l11, l21, l22, c0, c1, c2):
 
 
 @njit
-def update(kf, P, dt, mass, r, min_speed, R, vx, vy, vz, thrust, y0, y1, y2):
+def update(kf, P, dt, mass, r, min_speed, max_axial_speed, R, vx, vy, vz, thrust, y0, y1, y2):
     """One measurement (see the module docstring): attitude ``R`` (3, 3), velocity
     ``(vx, vy, vz)`` NED and commanded thrust ``thrust`` over the interval ``dt``, innovation
-    ``(y0, y1, y2)``. Returns :data:`SKIPPED` (a non-finite innovation), :data:`REJECTED`
+    ``(y0, y1, y2)``. The drag columns are 0 below the speed ``min_speed``, the thrust scale's
+    above the axial speed ``max_axial_speed``. Returns :data:`SKIPPED` (a non-finite innovation), :data:`REJECTED`
     (the gate) or :data:`UPDATED`."""
     if not (math.isfinite(y0) and math.isfinite(y1) and math.isfinite(y2)):
         return SKIPPED
@@ -77,16 +78,18 @@ def update(kf, P, dt, mass, r, min_speed, R, vx, vy, vz, thrust, y0, y1, y2):
     bx, by, bz = R[0, 2], R[1, 2], R[2, 2]
     along = bx * vx + by * vy + bz * vz
     g = dt / mass
-    H = np.zeros((3, 6))               # (dt / m) Phi; the drag columns stay 0 below min_speed
+    H = np.zeros((3, 6))               # (dt / m) Phi; columns left 0 where unobservable
     v = (vx, vy, vz)
     b = (bx, by, bz)
     learn_drag = math.sqrt(vx * vx + vy * vy + vz * vz) >= min_speed
+    learn_scale = abs(along) <= max_axial_speed
     for a in range(3):
         if learn_drag:
             H[a, 0] = -(v[a] - along * b[a]) * g
             H[a, 1] = -along * b[a] * g
         H[a, 2 + a] = g
-        H[a, 5] = -thrust * b[a] * g
+        if learn_scale:
+            H[a, 5] = -thrust * b[a] * g
     HP = np.empty((3, 6))
     _matmul_into(H, P, HP, False)
     # S = H P H^T + r I, then its Cholesky factor L

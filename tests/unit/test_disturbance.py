@@ -88,21 +88,23 @@ def test_turn_rate_of_a_compensation_that_rotates_with_the_path():
     assert math.degrees(xc[4]) < -10.0        # pitched nose-down into the drag (0.34*8 N of 7.3 N)
 
 
-def _truth_run(truth_drag, truth_force, truth_scale, seconds=4.0, seed=0):
+def _truth_run(truth_drag, truth_force, truth_scale, seconds=4.0, seed=0, v0=(6.0, -4.0, 0.0), params=None,
+               extra_thrust_n=0.0, swing=0.6):
     """Open-loop flight of the design model with a known extra force model; the forecaster's
-    observer sees its samples (with velocity noise) and commands."""
+    observer sees its samples (with velocity noise) and commands. Level at ``v0`` (NED); the
+    thrust swings by ``swing`` about the hover thrust plus ``extra_thrust_n``."""
     rng = np.random.default_rng(seed)
     dt = 0.002
-    params = DisturbanceParams(enabled=True)
+    params = DisturbanceParams(enabled=True) if params is None else params
     fc = Forecaster(VEHICLE, dt, predict=True, disturbance=params)
     truth = StatePredictor(VEHICLE, max_step_s=dt, max_horizon_s=0.1)
-    hover = M * G / 4
+    hover = (M * G + extra_thrust_n) / 4
     fc.reset((hover,) * 4)
     truth.reset((hover,) * 4)
     fc.observing = True
     x = np.zeros(12)
     x[2] = -100.0
-    x[6:8] = (6.0, -4.0)                  # flying north-west at 7.2 m/s, level
+    x[6:9] = v0                           # by default north-west at 7.2 m/s, level
     R = np.eye(3)
     delay = 0.012
     for k in range(int(seconds / dt)):
@@ -110,7 +112,7 @@ def _truth_run(truth_drag, truth_force, truth_scale, seconds=4.0, seed=0):
         noisy = x.copy()
         noisy[6:9] += rng.normal(0.0, 0.002, 3)
         fc.update(t, noisy, R, delay)
-        f = hover * (1.0 + 0.6 * math.sin(2 * math.pi * 1.3 * t))       # thrust swings (excites the scale)
+        f = hover * (1.0 + swing * math.sin(2 * math.pi * 1.3 * t))       # thrust swings (excites the scale)
         cmd = fc.command(t, (f, f, f, f))
         truth.record(t, cmd)
         p = truth.predict(t, x, R, dt, delay_s=delay, external_force_n=truth_force,
@@ -130,6 +132,19 @@ def test_observer_recovers_drag_wind_force_and_thrust_scale():
     # the applied estimate follows at bounded rates, never ahead of the estimate
     applied = obs.applied
     assert abs(applied.thrust_scale - 1.0) <= 0.1 * 4.0 + 1e-9
+
+
+def test_a_climb_is_not_read_as_a_thrust_scale_error():
+    """Climbing at 1.8 m/s, under the drag-learning speed: the axial drag (0.65 N s/m, 1.2 N)
+    pushes along the thrust axis exactly as a thrust scale of 0.84 would. The scale is not
+    learned at that axial speed and stays at the truth, 1. Negative control: learned at any
+    axial speed, it drifts (to 0.92 here; the 25 m take-off's went 1.00 -> 0.86)."""
+    climb = dict(seconds=8.0, v0=(0.0, 0.0, -1.8), extra_thrust_n=0.65 * 1.8, swing=0.1)   # a steady climb
+    ours = _truth_run((0.35, 0.65), (0.0, 0.0, 0.0), 1.0, **climb).estimate
+    assert ours.thrust_scale == pytest.approx(1.0, abs=0.01)
+    anywhere = DisturbanceParams(enabled=True, thrust_scale_learning_max_axial_speed_m_s=100.0)
+    drifted = _truth_run((0.35, 0.65), (0.0, 0.0, 0.0), 1.0, params=anywhere, **climb).estimate
+    assert drifted.thrust_scale < 0.95
 
 
 def test_observer_without_a_disturbance_sees_no_force():
