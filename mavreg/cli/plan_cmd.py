@@ -95,10 +95,11 @@ def format_margins(m: dict) -> list[str]:
            f"commands): hover delay {float(h['delay_margin_ms']):.1f} ms, gain {_gain(h['gain_margin'])}"]
     r = m.get("maneuver")
     if r is not None:
+        edges = [f"{name} at s = {float(s):.2f} m" for name, s in zip(("low", "high"), r["gain_margin_s_m"])
+                 if s != "nan"]
         line = (f"  maneuver delay {float(r['delay_margin_ms']):.1f} ms (worst at s = "
-                f"{float(r['worst_s_m']):.2f} m), gain {_gain(r['gain_margin'])} (s = "
-                f"{float(r['gain_margin_s_m'][0]):.2f}, "
-                f"{float(r['gain_margin_s_m'][1]):.2f} m), {r['nodes']} nodes, frozen-time")
+                f"{float(r['worst_s_m']):.2f} m), gain {_gain(r['gain_margin'])}"
+                + (f" ({', '.join(edges)})" if edges else "") + f", {r['nodes']} nodes, frozen-time")
         if r["frozen_unstable_s_m"]:
             line += "; not Hurwitz frozen (left out) at s in " + ", ".join(
                 f"[{a:.2f}, {b:.2f}]" for a, b in r["frozen_unstable_s_m"]) + " m"
