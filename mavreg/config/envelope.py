@@ -158,7 +158,12 @@ class EnvelopeParams:
     """The projection on the path not unique for this long: s is no longer meaningful."""
     min_progress_m_s: float = field(default=0.05, metadata={"min": 0.0})
     """ds/dt below this counts as stuck (plans fly at 0.2 m/s or more)."""
-    max_stall_s: float = field(default=1.0, metadata=_POS)
+    max_stall_s: float = field(default=4.0, metadata=_POS)
+    """Stuck (or carried back) for this long: the maneuver is given up. A gust against a slow
+    vehicle carries it back along the path by design: the speed governor gives way instead
+    of tilting against it, and the vehicle resumes where it is. The paper's 8 N, 1 s gust at
+    0.75 m/s carries it back 1.6 m and it resumes 2.5-3 s after the gust began (1 s gave up
+    every such flight)."""
     progress_window_s: float = field(default=0.2, metadata=_POS)
     """ds/dt is measured over this window (estimator noise averages out)."""
     saturation_window_s: float = field(default=0.5, metadata=_POS)
