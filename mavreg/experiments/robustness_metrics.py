@@ -9,7 +9,9 @@ recording's first position):
 - **maneuver / loop error**: the largest distance from the path over the maneuver's samples
   (from the start of the maneuver phase to the phase after it), and over those in the laps
   segment (the loop; none for a maneuver without one) (:mod:`.record`). **Max attitude
-  error**: over the maneuver.
+  error**: over the maneuver. **Overspeed**: the largest true speed along the path over the
+  profile's speed at the same s (:func:`.disturbance_metrics.overspeed`): a regulator that
+  catches up after a gust shows it here.
 - **lowest altitude**: the lowest true altitude from the end of the take-off (the first
   phase after it) to the first of: a landing, hand-over, disarm or motor stop (phases
   ``land``, ``aborted``, ``disarmed``, ``terminate``), the first ground contact (counted as
@@ -30,6 +32,8 @@ from __future__ import annotations
 import json
 
 import numpy as np
+
+from .disturbance_metrics import along_track_speed, overspeed
 
 __all__ = ["IMPACT_SPEED_M_S", "STOPPED_FORCE_N", "STOPPED_MIN_S", "STOPPED_ALTITUDE_M", "TOUCHDOWN_SAMPLES",
            "altitude_above_takeoff", "judging_window", "lowest_altitude", "touchdowns",
@@ -210,6 +214,8 @@ def robustness_metrics(plan, trace, flight, spec) -> dict:
         "maneuver_status": flight.status, "maneuver_completed": bool(flight.completed),
         "maneuver_max_error_m": _peak(e), "loop_max_error_m": None if loop is None else _peak(e[loop]),
         "max_attitude_error_deg": _peak(att),
+        "overspeed_m_s": (overspeed(along_track_speed(plan.path, trace.s_m, flight.velocity_m_s), trace.s_m,
+                                    plan.s, plan.speed_m_s) if trace.t_s.size else None),
         "maneuver_duration_s": float(trace.t_s[-1] - trace.t_s[0]) if trace.t_s.size else None,
         "safety": safety, "cause": "" if safety == "ok" else _cause(f, flight),
         "extra": {k: v for k, v in (flight.extra or {}).items() if k != "flight"},

@@ -135,12 +135,15 @@ def _outcome(spec, flight_judged, status="completed"):
     from types import SimpleNamespace as NS
     from mavreg.experiments.robustness_metrics import robustness_metrics
     from mavreg.experiments.runner import RunOutcome
-    plan = NS(name="toy", laps_segment="loop", segments=[("run_up", 0.0, 10.0), ("loop", 10.0, 20.0)])
     s = np.linspace(0.0, 25.0, 251)
+    tangent_x = NS(length_m=25.0, evaluate=lambda q: (None, np.tile(np.eye(3), (np.size(q), 1, 1))))
+    plan = NS(name="toy", laps_segment="loop", segments=[("run_up", 0.0, 10.0), ("loop", 10.0, 20.0)],
+              path=tangent_x, s=s, speed_m_s=np.full(s.size, 4.8))        # flown at 5 m/s along x
     e = np.where((s >= 10) & (s < 20), 0.02, 0.05)
     trace = NS(t_s=s / 5, s_m=s, transverse_error_m=e, attitude_error_deg=np.full(s.size, 3.0))
     extra = {} if flight_judged is None else {"flight": flight_judged, "wall_time_s": 1.0}
     flight = NS(extra=extra, status=status, completed=status == "completed",
+                velocity_m_s=np.tile([5.0, 0.0, 0.0], (s.size, 1)),
                 reason="mavreg fly exit 2: bad argument" if flight_judged is None else "")
     return RunOutcome(spec, robustness_metrics(plan, trace, flight, spec), None)
 
@@ -168,6 +171,7 @@ def test_each_flight_is_classed_and_the_report_lists_every_flight_that_was_not_o
     ms = [o.metrics for o in outs[:4]]
     assert [m["safety"] for m in ms] == ["ok", "failed, safe", "unsafe", "not flown"]
     assert [m["ok"] for m in ms] == [True, False, False, False]
+    assert ms[0]["overspeed_m_s"] == pytest.approx(0.2)          # 5 m/s flown on a 4.8 m/s profile
     assert ms[0]["maneuver_max_error_m"] == 0.05 and ms[0]["loop_max_error_m"] == 0.02
     assert ms[0]["max_attitude_error_deg"] == 3.0 and ms[0]["cause"] == ""
     assert ms[2]["cause"].startswith("motors stopped in the air at 2.5 m; hit the ground at 4.2 m/s; rate_error")
