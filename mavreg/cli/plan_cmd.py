@@ -35,7 +35,7 @@ def add_arguments(p):
 
 def run(args) -> int:
     from ..maneuver.plan import plan_file
-    from ..maneuver.robustness import with_margins
+    from ..maneuver.plan_margins import with_margins
     vehicle, controller = load_model_params(args)
     plan = with_margins(plan_file(args.maneuver, vehicle, controller, laps=args.laps, strict=False))
     summary = plan.summary()

@@ -13,7 +13,7 @@ before symptoms, so the reason names what is wrong):
 - tracking: largest distance from the hold point and largest attitude error within bounds;
 - the link's delay and jitter within bounds, when known (unknown does not block);
 - the link's *unmodelled* delay (:func:`unmodelled_delay_s`) at most half the delay margin of
-  the loops about to fly (the maneuver's and the hover's, :mod:`mavreg.maneuver.robustness`),
+  the loops about to fly (the maneuver's and the hover's, :mod:`mavreg.maneuver.plan_margins`),
   when both are known.
 
 A failing check is a :class:`GateVerdict` with the bound, the value and the limit.
@@ -79,7 +79,7 @@ def plan_outside_envelope(points, origin_m, envelope: EnvelopeParams) -> GateVer
 
 def delay_margin_of(plan) -> tuple[float, str] | None:
     """(the least delay margin, which loop) of a plan's maneuver and hover
-    (:class:`~mavreg.maneuver.robustness.PlanMargins`), or None where not computed."""
+    (:class:`~mavreg.maneuver.plan_margins.PlanMargins`), or None where not computed."""
     m = getattr(plan, "margins", None)
     if m is None:
         return None

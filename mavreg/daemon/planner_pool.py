@@ -5,7 +5,7 @@ that holds the GIL, so a thread would stall the control loop; it runs in a
 :class:`concurrent.futures.ProcessPoolExecutor` (one worker, ``spawn`` context, so the
 worker shares no sockets or event loop with the daemon) through ``loop.run_in_executor``.
 The worker loads the vehicle and controller files once and returns the picklable Plan with
-its delay and gain margins (:func:`~mavreg.maneuver.robustness.with_margins`, which the
+its delay and gain margins (:func:`~mavreg.maneuver.plan_margins.with_margins`, which the
 health gate holds the link to), or the one-line reason a user error (ConfigError,
 ManeuverError) gave.
 
@@ -72,7 +72,7 @@ def _params(vehicle_path: str, controller_path: str):
 def plan_in_worker(yaml_text: str, source: str, vehicle_path: str, controller_path: str) -> PlanResult:
     """Validate and plan one maneuver, with its margins (runs in the worker process)."""
     from ..maneuver.plan import plan_text
-    from ..maneuver.robustness import with_margins
+    from ..maneuver.plan_margins import with_margins
     try:
         vehicle, controller = _params(vehicle_path, controller_path)
         return PlanResult(with_margins(plan_text(yaml_text, source, vehicle, controller)))

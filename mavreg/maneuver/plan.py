@@ -72,8 +72,8 @@ class Plan:
     """The gains' attitude error: ``rpy`` (the paper's roll-pitch-yaw differences) or
     ``so3`` (the rotation vector Log(Rbar^T R), :mod:`mavreg.model.so3`)."""
     margins: object | None = None
-    """Delay and gain margins (:class:`~mavreg.maneuver.robustness.PlanMargins`), when computed
-    (:func:`~mavreg.maneuver.robustness.with_margins`): not by planning itself."""
+    """Delay and gain margins (:class:`~mavreg.maneuver.plan_margins.PlanMargins`), when computed
+    (:func:`~mavreg.maneuver.plan_margins.with_margins`): not by planning itself."""
 
     def nominal_attitude(self, s: float) -> np.ndarray:
         """Rbar(s) (3, 3) between the grid rows around s (clamped), by the cubic in the

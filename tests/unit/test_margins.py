@@ -1,4 +1,4 @@
-"""Delay and gain margins (mavreg.control.margins, mavreg.maneuver.robustness): closed forms,
+"""Delay and gain margins (mavreg.control.margins, mavreg.maneuver.plan_margins): closed forms,
 against the simulator on the design model, and the default controller's targets (issue 18)."""
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from mavreg.control.margins import (delay_margins, gain_margins, lag_model_loop,
 from mavreg.daemon.gate import HealthGate, MarginCheck, delay_margin_of, unmodelled_delay_s
 from mavreg.config.envelope import EnvelopeParams
 from mavreg.maneuver.plan import plan_file
-from mavreg.maneuver.robustness import SLOW_RAD_S, hover_margins, maneuver_loops, with_margins
+from mavreg.maneuver.plan_margins import SLOW_RAD_S, hover_margins, maneuver_loops, with_margins
 from mavreg.model.mixer import Mixer, mixer_matrix
 from mavreg.model.quadrotor import QuadrotorModel
 from mavreg.sim.closed_loop import SimOptions, simulate
