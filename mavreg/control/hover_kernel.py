@@ -25,7 +25,10 @@ from ..model.rotation_kernel import mtv, mv, rpy_matrix, wrap
 from .compensation_kernel import extra_force
 from .step_kernel import yaw_then_lift
 
-__all__ = ["reference", "feedback", "REF_SIZE", "OUT_SIZE"]
+__all__ = ["reference", "feedback", "REF_SIZE", "OUT_SIZE", "MIN_TILT_COS"]
+
+MIN_TILT_COS = 0.5
+"""The tilt compensation's cosine is bounded below by this (60 deg): at most twice the thrust."""
 
 REF_SIZE = 16
 OUT_SIZE = 20
@@ -93,8 +96,10 @@ def reference(ref, coeffs, t, ramp, end_v, has_dist, dcxy, dcz, dfx, dfy, dfz, m
 @njit
 def feedback(out, x, ref, K, Minv, fmax):
     """u = u_ref - K e, e = x - x_ref (angles wrapped; the velocity error taken in the
-    reference's body frame, :meth:`~mavreg.control.hover.HoverController.error`), and the
-    rotor forces, into ``out``."""
+    reference's body frame, :meth:`~mavreg.control.hover.HoverController.error`), the
+    collective divided by the cosine of the tilt from the reference
+    (:meth:`~mavreg.control.hover.HoverController.tilt_compensated`), and the rotor forces,
+    into ``out``."""
     for i in range(12):
         e = x[i] - ref[i]
         out[8 + i] = wrap(e) if 3 <= i < 6 else e
@@ -108,4 +113,5 @@ def feedback(out, x, ref, K, Minv, fmax):
         for i in range(12):
             acc += K[r, i] * out[8 + i]
         out[r] = ref[12 + r] - acc
+    out[0] /= max(R[2] * Rr[2] + R[5] * Rr[5] + R[8] * Rr[8], MIN_TILT_COS)
     yaw_then_lift(Minv, out[0:4], fmax, out[4:8])
