@@ -61,11 +61,15 @@ def run_campaign(exp: Experiment, via: str, jobs: int, out_dir: Path, command: s
         figures = group2_figures(out_dir, plan, outcomes, via)
     extra = {}
     if exp.kind == ROBUSTNESS:
-        extra = {"sitl": {"world": exp.world, "lockstep": True, "controller_file": str(exp.controller_path),
-                          "envelope_changes": None},
-                 "cells": [{"name": c.name, "group": c.group, "title": c.title, "emulator_args": list(c.emulator_args),
+        extra = {"cells": [{"name": c.name, "group": c.group, "title": c.title, "emulator_args": list(c.emulator_args),
                             "maneuver": str(c.maneuver_path), "saturation_n": c.saturation_n,
                             "gust_place": c.gust_place, "mismatch": c.mismatch} for c in exp.cells]}
+        if via == "sim":
+            from .robustness_sim import sim_description
+            extra["sim"] = sim_description()
+        else:
+            extra["sitl"] = {"world": exp.world, "lockstep": True, "controller_file": str(exp.controller_path),
+                             "envelope_changes": None}
     elif via == "sitl":
         from .via_sitl import EXPERIMENT_ENVELOPE
         extra = {"sitl": {"world": "ideal", "lockstep": True, "controller_file": "controller_experiment.yaml",

@@ -23,6 +23,9 @@ do). Groups of cells (``--cells`` takes a group or a cell name):
 - ``maneuvers``: every other file of ``params/maneuvers/`` on the default world (the barrel
   roll is the baseline).
 
+``--via sim`` flies the cells the design model represents, the maneuver alone, on a
+design-model version of the realistic world (:mod:`.robustness_sim`).
+
 Seeds: flight ``k`` of every cell uses the emulator noise seed ``run_seed(seed, k)``
 (common random numbers: cells differ by their factor, not by their noise); the mismatch
 cell's flight ``k`` also draws its airframe from ``run_seed(seed, MISMATCH_STREAM + k)``.
@@ -38,7 +41,7 @@ from .definitions import BARREL_ROLL, REGULATOR, Experiment, RunSpec, gust, run_
 
 __all__ = ["ROBUSTNESS", "Cell", "RobustSpec", "RobustnessExperiment", "all_cells", "select_cells",
            "robustness", "DEFAULT_FLIGHTS", "MISMATCH_STREAM", "GUST_FORCE_N", "WIND3_FROM_DEG",
-           "WIND6_FROM_DEG", "ROUND_TRIPS_MS", "JITTER_MS", "ROTOR_LIMITS_N", "SIM_UNSUPPORTED", "check_emulator"]
+           "WIND6_FROM_DEG", "ROUND_TRIPS_MS", "JITTER_MS", "ROTOR_LIMITS_N", "check_emulator"]
 
 ROBUSTNESS = "robustness"
 """Kind of the robustness experiment: each flight judged by the daemon's outcome and its safety."""
@@ -55,10 +58,6 @@ JITTER_MS = 5.0
 """Half-width of each direction's uniform delay spread (clipped to the delay: none at 0 ms)."""
 ROTOR_LIMITS_N = (8.5, 7.0)
 MANEUVERS_DIR = PARAMS_DIR / "maneuvers"
-SIM_UNSUPPORTED = ("robustness flies via sitl only: every cell is judged by the daemon's safety layer, which "
-                   "the design model does not run, and the design model lacks the realistic world of every cell "
-                   "(link delay and loss, TIMESYNC, estimator errors, drag for the wind, thrust scale) and the "
-                   "emulator's drawn airframes; use --via sitl")
 
 
 @dataclass(frozen=True)
@@ -106,6 +105,11 @@ class RobustnessExperiment(Experiment):
     """False: the controller file flies as is (the other experiments widen its envelope)."""
     flights: int = DEFAULT_FLIGHTS
     cells: tuple[Cell, ...] = ()
+    via: str = "sitl"
+    """``sitl``: the whole flight against firmware_sim; ``sim``: the maneuver on the design
+    model (:mod:`.robustness_sim`)."""
+    skipped: tuple[tuple[str, str], ...] = ()
+    """(cell, why) of the chosen cells that do not fly this way."""
 
 
 def _delay_args(rtt_ms: int) -> tuple[str, ...]:

@@ -26,6 +26,7 @@ OUTCOME_STYLE = {
     "ok": dict(color="tab:green", marker="o", s=16, label="ok"),
     "failed, safe": dict(color="tab:orange", marker="o", s=20, label="failed, safe"),
     "unsafe": dict(color="tab:red", marker="X", s=36, label="unsafe"),
+    "failed": dict(color="tab:red", marker="o", s=20, label="failed"),          # via sim: diverged, timed out
     "not flown": dict(color="0.4", marker="s", s=14, label="not flown"),
 }
 _DPI = 85
@@ -73,6 +74,8 @@ def robustness_figures(out_dir: Path, outcomes, cells) -> list[Path]:
     ax_e.xaxis.set_minor_formatter(NullFormatter())
     lows = [m["lowest_altitude_m"] for m in rows if m.get("lowest_altitude_m") is not None]
     ax_h.set_xlim(-0.2, max(3.5, max(lows, default=0.0) + 0.3))
+    if not lows:                                   # via sim: the maneuver alone, no take-off
+        ax_h.text(0.5, 0.5, "via sitl only", transform=ax_h.transAxes, ha="center", color="0.4")
     ax_e.axvline(0.5, color="0.5", ls="--", lw=0.8)
     ax_e.set_xlabel("largest distance from the path, maneuver (m; open: loop; dashed: envelope 0.5 m)",
                     fontsize=8)

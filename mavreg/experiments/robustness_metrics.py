@@ -25,7 +25,9 @@ recording's first position):
   with every rotor's applied force under :data:`STOPPED_FORCE_N` (0.1 N, 1.4 % of the
   nominal hover's); the daemon's own ``motors_stopped`` event is kept beside it.
 - **safety**: ``ok``; ``failed, safe`` (failed, no ground impact, motors never stopped in
-  the air); ``unsafe`` (either); ``not flown`` (``mavreg fly`` left no recording).
+  the air); ``unsafe`` (either); ``not flown`` (``mavreg fly`` left no recording). Via sim
+  (the maneuver alone on the design model): ``ok`` (it reached the path's end) or ``failed``
+  (diverged or timed out); the whole-flight numbers are None.
 """
 from __future__ import annotations
 
@@ -37,7 +39,8 @@ from .disturbance_metrics import along_track_speed, overspeed
 
 __all__ = ["IMPACT_SPEED_M_S", "STOPPED_FORCE_N", "STOPPED_MIN_S", "STOPPED_ALTITUDE_M", "TOUCHDOWN_SAMPLES",
            "altitude_above_takeoff", "judging_window", "lowest_altitude", "touchdowns",
-           "motors_stopped_in_air", "judge_flight", "robustness_metrics", "SAFETY_CLASSES"]
+           "motors_stopped_in_air", "judge_flight", "robustness_metrics", "SAFETY_CLASSES",
+           "SIM_CLASSES"]
 
 IMPACT_SPEED_M_S = 1.0
 STOPPED_FORCE_N = 0.1
@@ -47,6 +50,9 @@ TOUCHDOWN_SAMPLES = 3
 CRASH_EXIT_CODE = 3
 """firmware_sim's exit status for a touchdown too fast or too tilted."""
 SAFETY_CLASSES = ("ok", "failed, safe", "unsafe", "not flown")
+SIM_CLASSES = ("ok", "failed", "not flown")
+"""Via sim (:mod:`.robustness_sim`): the maneuver reached its end (ok) or diverged or timed out
+(failed); the design model has no safety layer to judge."""
 _WINDOW_ENDS = ("land", "aborted", "disarmed", "terminate")
 
 
@@ -181,6 +187,8 @@ def _peak(values) -> float | None:
 def _safety(f: dict | None) -> str:
     if f is None:
         return "not flown"
+    if f.get("via") == "sim":                  # the maneuver alone: reached its end or not
+        return "ok" if f["result"] == "ok" else "failed"
     if f["ground_impact"] or f["motors_stopped_in_air"]:
         return "unsafe"
     return "ok" if f["result"] == "ok" else "failed, safe"

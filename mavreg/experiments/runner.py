@@ -82,7 +82,10 @@ def _execute(job: _Job) -> RunOutcome:
         maneuver = getattr(spec, "maneuver_path", None) or exp.maneuver_path    # robustness: the run's own
         plan = plan_for(Path(maneuver), Path(exp.vehicle_path), Path(exp.controller_path), spec.laps)
         robust = exp.kind == ROBUSTNESS
-        if job.via == "sim":
+        if job.via == "sim" and robust:
+            from .robustness_sim import fly_robust_sim
+            flight = fly_robust_sim(plan, spec, Path(exp.controller_path))
+        elif job.via == "sim":
             from .via_sim import fly_sim
             flight = fly_sim(plan, spec, Path(exp.controller_path))
         else:

@@ -30,7 +30,7 @@ from ..trackers.tvlqr import TimeVaryingLqr, TvlqrWeights
 from .definitions import REGULATOR, SE3, TVLQR
 from .record import Flight
 
-__all__ = ["fly_sim", "tracker_for", "EXTRA_TIME_S", "CONTROL_PERIOD_S"]
+__all__ = ["fly_sim", "flight_from_result", "tracker_for", "EXTRA_TIME_S", "CONTROL_PERIOD_S"]
 
 EXTRA_TIME_S = 10.0
 """Time allowed beyond the nominal's to reach the path's end: a regulator pushed back resumes
@@ -102,6 +102,11 @@ def fly_sim(plan, spec, controller_path: Path | None = None) -> Flight:
         res = run.result
     else:
         res = _fly_tracker(plan, spec, tracker_for(plan, controller_path, spec.controller))
+    return flight_from_result(res, spec.saturation_n)
+
+
+def flight_from_result(res, saturation_n: float | None, extra: dict | None = None) -> Flight:
+    """The :class:`~.record.Flight` of a design-model run (a :class:`~mavreg.sim.closed_loop.SimResult`)."""
     x = res.x
     R = rpy_to_matrix(*x[:, 3:6].T).transpose(2, 0, 1)
     v_ned = np.einsum("kij,kj->ki", R, x[:, 6:9])
@@ -109,7 +114,7 @@ def fly_sim(plan, spec, controller_path: Path | None = None) -> Flight:
     return Flight(t_s=res.t, position_m=x[:, :3], rotation=R, velocity_m_s=v_ned,
                   rotor_command_n=res.rotor_command_n, rotor_applied_n=res.rotor_applied_n,
                   status=status, reason=res.reason, completed=status == "completed",
-                  saturation_n=spec.saturation_n, extra={})
+                  saturation_n=saturation_n, extra={} if extra is None else extra)
 
 
 def _fly_tracker(plan, spec, tracker):

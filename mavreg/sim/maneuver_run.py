@@ -7,6 +7,7 @@ import numpy as np
 
 import dataclasses
 
+from ..config.disturbance import DisturbanceParams
 from ..config.regulation import AllocationParams, SpeedGovernorParams
 from ..control.forecast import Forecaster
 from ..control.regulator import ManeuverRegulator
@@ -42,7 +43,9 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
                         command_delay_s: float = 0.0, estimate_noise: EstimateNoise | None = None,
                         predict: bool = False, assumed_delay_s: float | None = None,
                         start_s_m: float = 0.0, allocation: AllocationParams | None = None,
-                        speed_governor: SpeedGovernorParams | None = None) -> ManeuverRun:
+                        speed_governor: SpeedGovernorParams | None = None, thrust_scale: float = 1.0,
+                        max_prediction_s: float = 0.1, disturbance: DisturbanceParams | None = None,
+                        true_metrics: bool = True) -> ManeuverRun:
     """Start at the nominal entry state plus ``offset_m`` and fly to the end of the path
     (with ``start_s_m``: at the nominal state at that arc length plus ``offset_m``).
 
@@ -56,10 +59,12 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
     ``measurement_delay_s`` late, corrupted by ``estimate_noise`` (seeded by ``seed``), and
     its command reaches the rotors ``command_delay_s`` later. With ``predict`` it first
     predicts the state across ``assumed_delay_s`` (default: the true round trip) with
-    :class:`~mavreg.control.forecast.Forecaster`.
-
-    ``allocation`` and ``speed_governor`` (the controller file's sections) go to the
-    :class:`~mavreg.control.regulator.ManeuverRegulator` (default: the paper's regulator).
+    :class:`~mavreg.control.forecast.Forecaster`, at most ``max_prediction_s`` ahead; with
+    ``disturbance`` enabled its observer runs from the start and the regulator compensates
+    its estimate, as in the daemon (needs ``predict``). The rotors give ``thrust_scale`` of
+    their command (the controller is not told). ``allocation`` and ``speed_governor`` (the
+    controller file's sections) go to the regulator (default: the paper's). ``true_metrics``
+    False leaves out ``metrics["true"]`` (a quarter of a run's CPU).
     """
     vehicle = plan.vehicle
     period = 1.0 / control_rate_hz
@@ -77,11 +82,7 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
     rng = np.random.default_rng(seed)
     corrupt = None if estimate_noise is None else EstimateCorruptor(estimate_noise, period, rng)
     horizon = measurement_delay_s + command_delay_s if assumed_delay_s is None else assumed_delay_s
-    forecaster = None
-    if predict:
-        forecaster = Forecaster(dataclasses.replace(vehicle, rotor_time_constant_s=rotor_time_constant_s),
-                                period)
-        forecaster.reset(reg.mixer_inverse @ plan.u[0])
+    forecaster = _forecaster(plan, reg, rotor_time_constant_s, period, predict, max_prediction_s, disturbance)
 
     def controller(t, x):
         R = None
@@ -90,7 +91,7 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
         if forecaster is not None:
             t_sample = t - measurement_delay_s
             fc = forecaster.update(t_sample, x, rpy_to_matrix(*x[3:6]) if R is None else R, horizon)
-            out = reg.step(fc.x, fc.rotor_forces_n)
+            out = reg.step(fc.x, fc.rotor_forces_n, forecaster.disturbance)
             command = forecaster.command(t_sample, out.rotor_forces_n)
         else:
             out = reg.step(x)
@@ -104,21 +105,46 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
     opts = SimOptions(initial_state=tuple(x0), dt_s=dt_s, control_period_steps=steps,
                       max_duration_s=duration, inertia_kg_m2=inertia_kg_m2,
                       rotor_noise_sd_n=rotor_noise_sd_n, seed=seed, saturation_n=saturation_n,
-                      rotor_time_constant_s=rotor_time_constant_s,
+                      rotor_time_constant_s=rotor_time_constant_s, thrust_scale=thrust_scale,
                       measurement_delay_s=measurement_delay_s, command_delay_s=command_delay_s,
                       force_fn=None if gust_force_n is None else window_force(gust_force_n, *gust_window_s),
                       done=lambda t, x: reg.s >= plan.length_m - 1e-6,
                       attitude="so3" if plan.attitude_error == "so3" else "rpy")
     result = simulate(QuadrotorModel.from_vehicle(vehicle),
                       Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m), controller, opts)
+    return _run(plan, result, (log_s, log_w, log_tube), (steps, dt_s, control_rate_hz),
+                saturation_n or vehicle.max_rotor_thrust_n, true_metrics)
+
+
+def _forecaster(plan: Plan, reg: ManeuverRegulator, rotor_time_constant_s: float, period_s: float,
+                predict: bool, max_prediction_s: float, disturbance: DisturbanceParams | None):
+    """The prediction across the delay (and the disturbance observer) of :func:`fly_on_design_model`;
+    None without ``predict``."""
+    observe = disturbance is not None and disturbance.enabled
+    if observe and not predict:
+        raise ValueError("the disturbance observer runs in the forecaster: it needs predict=True")
+    if not predict:
+        return None
+    forecaster = Forecaster(dataclasses.replace(plan.vehicle, rotor_time_constant_s=rotor_time_constant_s),
+                            period_s, max_horizon_s=max_prediction_s, disturbance=disturbance)
+    forecaster.observing = observe
+    forecaster.reset(reg.mixer_inverse @ plan.u[0])
+    return forecaster
+
+
+def _run(plan: Plan, result: SimResult, logs, rate, max_rotor_thrust_n: float, true_metrics: bool) -> ManeuverRun:
+    """The :class:`ManeuverRun` of a flown ``result``, the regulator's logs (s, w, in tube) and
+    its ``rate`` (physics steps per control period, physics step, control rate in Hz)."""
+    log_s, log_w, log_tube = logs
+    steps, dt_s, control_rate_hz = rate
     s = np.clip(np.array(log_s), 0.0, plan.length_m)  # the extension before 0 counts as the first segment
     w = np.array(log_w).reshape(-1, 11)
     rotors = result.rotor_command_n[::steps][: len(s)]
     metrics = tracking_metrics(s, w, plan.segments, rotor_forces_n=rotors,
-                               max_rotor_thrust_n=saturation_n or vehicle.max_rotor_thrust_n,
-                               dt_s=steps * dt_s)
-    metrics["true"] = true_errors(plan, result.x[:, :3],
-                                  rpy_to_matrix(*result.x[:, 3:6].T).transpose(2, 0, 1))
+                               max_rotor_thrust_n=max_rotor_thrust_n, dt_s=steps * dt_s)
+    if true_metrics:
+        metrics["true"] = true_errors(plan, result.x[:, :3],
+                                      rpy_to_matrix(*result.x[:, 3:6].T).transpose(2, 0, 1))
     metrics["rotor_jitter_n"] = rotor_jitter_n(rotors, control_rate_hz)
     metrics = {"stable": result.status.value != "diverged",
                "completed": result.status.value == "completed",

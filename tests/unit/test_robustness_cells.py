@@ -132,7 +132,7 @@ def test_a_gust_window_starts_at_its_own_seeds_reference(tmp_path):
 
 
 @pytest.mark.parametrize("argv, needle", [
-    (["--via", "sim"], "robustness flies via sitl only"),
+    (["--via", "sim", "--cells", "wind3-from-090"], "cannot fly via sim: wind3-from-090"),
     (["--flights", "0"], "--flights must be at least 1, got 0"),
     (["--flights", "many"], "--flights must be a whole number"),
     (["--cells", "nowhere"], "unknown cell or group 'nowhere'"),
