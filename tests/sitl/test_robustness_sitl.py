@@ -40,9 +40,10 @@ def test_a_baseline_and_a_no_timesync_flight_are_judged_and_written(tmp_path):
     else:
         assert base["safety"] != "ok" and base["first_bound"] and base["cause"]
     assert nots["emulator_args"] == ["--no-timesync"] and nots["seed"] == base["seed"]   # common noise
-    assert nots["safety"] in ("ok", "failed, safe")            # refused or flown, never unsafe
-    if nots["result"] != "ok":
-        assert nots["first_bound"] and nots["action"] and nots["cause"]
+    # no TIMESYNC and no fixed_delay_s: refused on the ground, in one line that says what to set
+    assert nots["safety"] == "failed, safe" and nots["first_bound"] == "gate_no_timesync"
+    assert nots["bound_phase"] == "preflight" and "fixed_delay_s" in nots["cause"]
+    assert nots["lowest_altitude_m"] is None or nots["lowest_altitude_m"] < 0.05
     summary = res["summary"]
     assert summary["runs"] == 2 and summary["flights_per_cell"] == 1
     assert list(summary["by_cell"]) == ["baseline", "no-timesync"]
