@@ -253,9 +253,9 @@ def test_violation_reads_in_one_line():
 def test_window_search_selects_exactly_the_rows_a_full_filter_selects():
     """The bisection of the sliding windows against filtering every row (the old way), with
     now and then a row older than the one before it (a gap-filling command's time)."""
-    from mavreg.daemon.monitor import _Series
+    from mavreg.daemon.series import Series
     rng = np.random.default_rng(4)
-    s = _Series()
+    s = Series()
     rows = []                                       # every row kept, as the old deque held them
     t = 0.0
     for k in range(3000):
