@@ -334,12 +334,14 @@ class EnvelopeMonitor:
         dt = t_s - q[0][0]
         if dt >= prm.progress_window_s:
             rate = (tr.s_m - q[0][1]) / dt
-            self._peak("progress", rate, prm.min_progress_m_s, Phase.MANEUVER, t_s, lower=True)
             if rate >= prm.min_progress_m_s:
                 self._stall_since = None
             else:
                 if self._stall_since is None:
                     self._stall_since = t_s - dt
+                # how close: the time stalled against max_stall_s (what fires), not the rate,
+                # whose ratio is infinite as soon as a gust carries the vehicle back
+                self._peak("progress", t_s - self._stall_since, prm.max_stall_s, Phase.MANEUVER, t_s)
                 if t_s - self._stall_since >= prm.max_stall_s:
                     return fail("progress", rate, prm.min_progress_m_s, "m/s",
                                 f"ds/dt under the bound for {t_s - self._stall_since:.2f} s")
