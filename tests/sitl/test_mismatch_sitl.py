@@ -18,7 +18,8 @@ from sitl_helpers import BARREL, load_record, mavreg
 pytestmark = pytest.mark.sitl
 
 
-def test_barrel_roll_on_a_mismatched_airframe_runs_to_the_ground(tmp_path):
+@pytest.mark.slow          # 17 s; the 100-flight campaign (docs/robustness.md) and the unit tests of
+def test_barrel_roll_on_a_mismatched_airframe_runs_to_the_ground(tmp_path):   # the draws cover it
     out = tmp_path / "out"
     p = mavreg("fly", str(BARREL), "--lockstep", "--out", str(out), "--timeout-s", "300",
                "--emulator-arg=--mismatch-seed", "--emulator-arg=3")

@@ -119,6 +119,7 @@ def test_thrust_loss_and_wind_are_estimated_and_compensated(tmp_path, realistic_
     assert loop["max_m"] <= 0.03 and loop["max_speed_error_m_s"] <= 0.4 and check(est)
 
 
+@pytest.mark.slow          # 18 s: the observer's negative control; before each release
 def test_without_the_observer_the_drag_throws_the_loop_off(tmp_path, realistic_plan):
     """The same flight as the first test with the observer off: the drag it no longer knows
     costs the loop several centimetres (the comparison in docs/robustness.md)."""
