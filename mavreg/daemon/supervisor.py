@@ -171,7 +171,8 @@ class Supervisor(FlightPhases, SafetyActions):
         return out
 
     def heartbeat(self) -> object:
-        return mm.daemon_heartbeat(self.phase not in (Phase.ABORTED, Phase.TERMINATE, Phase.RECOVER))
+        return mm.daemon_heartbeat(self.phase not in (Phase.ABORTED, Phase.TERMINATE, Phase.RECOVER)
+                                   and not self._recovery_landing)
 
     def status(self) -> dict:
         c = self.counters

@@ -142,8 +142,15 @@ def test_a_recovery_that_does_not_settle_in_time_lands_with_the_recovery_control
     sup = make_supervisor(FakePlan(length_m=3.0), envelope=env)
     veh = SimVehicle()
     _, shove = gust(sup, in_maneuver, 1, 3.0, 3.0)
-    events, logs, sent = run(sup, veh, 60.0, shove)
+    landing_status = []
+
+    def hook(v, msgs):
+        if sup._recovery_landing and sup.phase == Phase.LAND:
+            landing_status.append(sup.heartbeat().system_status)   # the daemon says it is in trouble
+        return shove(v, msgs)
+    events, logs, sent = run(sup, veh, 60.0, hook)
     assert "motors_stopped" not in _kinds(events)
+    assert landing_status and set(landing_status) == {mavlink2.MAV_STATE_CRITICAL}
     land = next(e for e in events if e.kind == "recovery_land")
     assert "recovery not settled" in land.detail and "recovery_timeout" in land.detail
     assert _phases(events)[-2:] == [Phase.LAND, Phase.DISARMED]
