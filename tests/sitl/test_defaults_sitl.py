@@ -10,6 +10,7 @@ import subprocess
 import sys
 
 import pytest
+from test_robustness_sitl import RECORD_FIELDS
 
 pytestmark = pytest.mark.sitl
 
@@ -21,6 +22,13 @@ def test_the_run_up_gust_and_7n_rotors_are_flown_ok_with_the_defaults(tmp_path):
                            "--out", str(out)], capture_output=True, text=True, timeout=400)
     runs = {m["cell"]: m for m in json.loads((out / "results.json").read_text())["runs"]}
     gust, sat = runs["gust-run-up"], runs["rotors-7n"]
+    for m in (gust, sat):                          # the campaign's record of a flown flight
+        assert set(RECORD_FIELDS) <= set(m), set(RECORD_FIELDS) - set(m)
+        assert (out / "runs" / f"{m['index']:03d}" / "summary.json").exists()
+        assert m["flight_time_s"] > 10.0 and m["loop_max_error_m"] <= m["maneuver_max_error_m"]
+        assert m["lowest_altitude_m"] > 1.0 and m["max_touchdown_speed_m_s"] < 1.0
+        assert m["ground_impact"] is False and m["motors_stopped_in_air"] is False
+        assert m["first_bound"] is None and m["cause"] == ""
     print(f"\ngust: {gust['maneuver_max_error_m']:.3f} m, overspeed {gust['overspeed_m_s']:.3f} m/s; "
           f"7 N: loop {sat['loop_max_error_m']:.3f} m")
     # 8 N against the run-up for 1 s at 8 m/s: on the path within 10 cm, no catch-up, ok

@@ -37,6 +37,7 @@ def test_the_fly_command_gives_the_plant_to_the_emulator_and_the_offset_to_the_d
     assert ctrl.q_position == load_controller(g1.controller_path).q_position     # the paper's gains
 
 
+@pytest.mark.slow          # 20 s; group 1 via sim runs in the unit tests; before each release
 def test_one_group1_run_via_sitl_converges_before_the_loop(tmp_path):
     exp = paper_group1(0, samples=1)
     exp = replace(exp, runs=exp.runs[1:])                  # a drawn inertia, 0.6 m off in each axis

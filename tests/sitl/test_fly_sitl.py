@@ -83,6 +83,7 @@ def test_fly_outputs_and_summary(ideal_flight):
     assert "loop" in text and "max e_t cm" in text
 
 
+@pytest.mark.slow          # 15 s; the realistic world's flights fly the same lag; before each release
 def test_barrel_roll_with_default_motor_lag(tmp_path, barrel_plan):
     f = fly_lockstep(tmp_path)
     assert f["code"] == 0 and f["emu_code"] == 0, "\n".join(f["lines"][-30:])
