@@ -76,7 +76,6 @@ class FlightPhases:
             bad = plan_outside_envelope(self._pending[0][2], sample.x[:3], self.envelope)
             if bad is not None:                            # as the hold's gate would, before take-off
                 self._refuse(bad, out, Phase.PREFLIGHT)
-                self._land_requested = True
                 return
             if self.fixed_delay_s is None and self.timesync.estimate() is None:
                 waited = t - self._stream_start_t
@@ -87,7 +86,6 @@ class FlightPhases:
                     "no TIMESYNC answer from the vehicle, so the link delay the controller predicts "
                     "across is unknown: set fixed_delay_s in the controller file to the vehicle's "
                     "sample-to-actuation delay, or enable TIMESYNC on the vehicle"), out, Phase.PREFLIGHT)
-                self._land_requested = True                # stay disarmed on the ground
                 return
             self._command(out, mm.arm_disarm(sysid, compid, True))
         elif not st.offboard:
@@ -97,7 +95,6 @@ class FlightPhases:
             verdict = self.gate.link_verdict(self._gate_margin(self._pending[0][0]))
             if verdict is not None:
                 self._refuse(verdict, out, Phase.PREFLIGHT)
-                self._land_requested = True          # disarm on the ground
                 return
             self._start_takeoff(sample, out)
 
@@ -141,7 +138,7 @@ class FlightPhases:
         if self.phase == Phase.RECOVER:
             return self._recover_control(sample, x, out)
         if self.phase == Phase.LAND and self._recovery_landing:
-            rotors, record = self._recovery_step(sample, x)
+            rotors, record, _, _ = self._recovery_step(sample, x)
             return self._land_logic(sample, rotors, out), record, None
         t = sample.time_s
         if self.phase in (Phase.TAKEOFF, Phase.LAND):     # the observer learns clear of the ground
@@ -189,17 +186,17 @@ class FlightPhases:
         return rotors, record, tracking
 
     def _recovery_step(self, sample, x):
-        """(rotor forces, log record) of the recovery controller on state ``x``."""
+        """(rotor forces, log record, NED velocity, R) of the recovery controller on state ``x``."""
         R = rpy_to_matrix(*x[3:6])
-        o = self.recovery.step(sample.time_s, x[:3], R @ x[6:9], R, x[9:12])
+        v_ned = R @ x[6:9]
+        o = self.recovery.step(sample.time_s, x[:3], v_ned, R, x[9:12])
         u = np.concatenate([[o.thrust_n], o.torque_n_m])
-        return o.rotor_forces_n, self._record(sample, math.nan, _NAN11, u, o.rotor_forces_n)
+        return o.rotor_forces_n, self._record(sample, math.nan, _NAN11, u, o.rotor_forces_n), v_ned, R
 
     def _recover_control(self, sample, x, out):
         t = sample.time_s
-        rotors, record = self._recovery_step(sample, x)
-        R = rpy_to_matrix(*x[3:6])
-        if self.recovery.settled(x[:3], R @ x[6:9], R):
+        rotors, record, v_ned, R = self._recovery_step(sample, x)
+        if self.recovery.settled(x[:3], v_ned, R):
             if self._settled_since is None:
                 self._settled_since = t
             if t - self._settled_since >= self.envelope.recovery.settle_s:

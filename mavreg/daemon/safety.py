@@ -109,16 +109,23 @@ class SafetyActions:
         self._noted_bounds.add(v.bound)
         self._announce(out, "bound", mm.SEVERITY_WARNING, f"{v.describe()}; {then}")
 
-    def _recover(self, v: Violation, out) -> None:
-        s = self.last_sample
-        self._recoveries += 1
-        self.recovery.start(s.x[:3], s.velocity_ned_m_s, s.rotation, self._ground_z)
+    def _to_recovery_controller(self, start: bool) -> list:
+        """The recovery controller takes over (``start``: from the last sample): the maneuver
+        and pending ones are dropped; their names are returned."""
+        if start:
+            s = self.last_sample
+            self.recovery.start(s.x[:3], s.velocity_ned_m_s, s.rotation, self._ground_z)
         dropped = [p.name for p, _, _ in self._pending]
         self._pending.clear()
         self._active = None
-        self._settled_since = None
         self._noted_bounds = set()
         self._s = math.nan
+        return dropped
+
+    def _recover(self, v: Violation, out) -> None:
+        self._recoveries += 1
+        dropped = self._to_recovery_controller(start=True)
+        self._settled_since = None
         safe = self.envelope.recovery.safe_altitude_m
         self._announce(out, "recover", mm.SEVERITY_CRITICAL, f"{v.describe()}; recovering: level, brake, "
                        f"climb to {safe:g} m, hold" + (f" (dropped {dropped})" if dropped else ""))
@@ -128,15 +135,9 @@ class SafetyActions:
     def _recovery_land(self, out, why: str) -> None:
         """Land where the vehicle is with the recovery controller (any attitude), at the
         landing speed; the landing's touchdown, spool-down and disarm follow."""
-        s = self.last_sample
-        if self.phase != Phase.RECOVER:
-            self.recovery.start(s.x[:3], s.velocity_ned_m_s, s.rotation, self._ground_z)
+        self._to_recovery_controller(start=self.phase != Phase.RECOVER)
         self.recovery.land(self._ground_z, self.params.land_speed_m_s)
         self._recovery_landing = True
-        self._pending.clear()
-        self._active = None
-        self._noted_bounds = set()
-        self._s = math.nan
         self._announce(out, "recovery_land", mm.SEVERITY_CRITICAL,
                        f"{why}; landing with the recovery controller at {self.params.land_speed_m_s:g} m/s")
         self._note_action("landing (recovery controller)")
@@ -190,8 +191,9 @@ class SafetyActions:
         self._set_phase(out, Phase.ABORTED, detail)
 
     def _refuse(self, verdict, out, phase: str = Phase.HOLD) -> None:
-        """The health gate did not pass in time (in the hold), or the link is known to be too
-        slow before take-off (``phase`` preflight): the maneuver is not flown."""
+        """The health gate did not pass in time (in the hold), or a check before take-off failed
+        (``phase`` preflight: the vehicle stays on the ground and is disarmed): the maneuver is
+        not flown."""
         plan = self._pending[0][0]
         t = self.last_sample.time_s
         self._fail(verdict.bound, phase, t, math.nan, verdict.value, verdict.limit, verdict.unit,
@@ -200,6 +202,7 @@ class SafetyActions:
         self._gate_wait_t0 = None
         if phase == Phase.PREFLIGHT:
             then = "staying on the ground, disarming"
+            self._land_requested = True
         else:
             then = "landing" if self.params.land_when_done or self._land_requested else "holding"
         self._announce(out, "refused", mm.SEVERITY_WARNING, f"maneuver {plan.name!r} refused by the health gate: "
