@@ -12,8 +12,8 @@ Acceptance rules (documented in docs/firmware_sim.md):
   finite (else ``non_finite``, whole message); controls 0..3 within [0, 1] +- 1e-6
   (else ``out_of_range``). A valid target keeps the stream alive; it is applied only
   while armed and in OFFBOARD (else counted ``not_armed_or_not_offboard``).
-- COMMAND_LONG: source system == ours or the GCS system id (default 255), any
-  component; ``target_system`` ours (or 0 broadcast), ``target_component`` ours or 0.
+- COMMAND_LONG: source system == ours or one of ``peer_system_ids`` (ground stations;
+  none by default), any component; ``target_system`` ours (or 0 broadcast), ``target_component`` ours or 0.
 - TIMESYNC: same source rule as COMMAND_LONG. A request (``tc1`` 0) is answered with
   ``tc1`` = our clock (sim time) in ns when it is handled and ``ts1`` echoed, as PX4
   does; a reply (``tc1`` != 0) sent to us is ``unsupported``, and so is every request with
@@ -52,8 +52,9 @@ class AutopilotConfig:
 
     system_id: int = 1
     component_id: int = 1
-    gcs_system_id: int = 255
-    """Commands are also accepted from this system id (a ground station)."""
+    peer_system_ids: tuple = ()
+    """COMMAND_LONG and TIMESYNC are also taken from these system ids (ground stations;
+    the link's peer filter must admit them too, :mod:`firmware_sim.peers`)."""
     max_rotor_thrust_n: float = 12.0
     offboard_loss_timeout_s: float = 0.25
     failsafe_hold_s: float = 1.5
@@ -215,7 +216,7 @@ class Autopilot:
 
     def _on_command(self, msg, t_s: float, state, on_ground: bool) -> None:
         cfg = self.cfg
-        if msg.get_srcSystem() not in (cfg.system_id, cfg.gcs_system_id):
+        if msg.get_srcSystem() != cfg.system_id and msg.get_srcSystem() not in cfg.peer_system_ids:
             self.drops["foreign_system"] += 1
             return
         if msg.target_system not in (0, cfg.system_id) or msg.target_component not in (0, cfg.component_id):
@@ -231,7 +232,7 @@ class Autopilot:
 
     def _on_timesync(self, msg, t_s: float) -> None:
         cfg = self.cfg
-        if msg.get_srcSystem() not in (cfg.system_id, cfg.gcs_system_id):
+        if msg.get_srcSystem() != cfg.system_id and msg.get_srcSystem() not in cfg.peer_system_ids:
             self.drops["foreign_system"] += 1
             return
         if msg.tc1 != 0 or not cfg.answer_timesync:   # a reply (we send no request), or not answering

@@ -13,6 +13,7 @@ from .autopilot import Autopilot, AutopilotConfig
 from .clock import StopRun, run_lockstep, run_realtime
 from .engine import Engine
 from .link import Link
+from .signing import Signing
 from .mismatch import BOUNDS, airframe_arrays, apply_mismatch, describe_airframe, draw_mismatch
 from mavreg.config.vehicle import EmulatorParams, load_vehicle
 
@@ -164,8 +165,15 @@ def build_parser() -> argparse.ArgumentParser:
     a("--failsafe-hold-s", type=_nonneg_float, default=1.5, metavar="S",
       help="failsafe: seconds of level/hold-altitude before landing (default %(default)s)")
     a("--system-id", type=_sysid, default=1, help="our MAVLink system id (default 1)")
-    a("--gcs-system-id", type=_sysid, default=255,
-      help="commands are also accepted from this system id (default 255)")
+    a("--peer-system-id", dest="peer_system_ids", type=_sysid, action="append", default=[],
+      metavar="N", help="also take commands from system N (repeatable; a ground station, e.g. 255 "
+      "QGroundControl/MAVProxy, 245 MAVSDK), once it has sent a HEARTBEAT. Default: only our own "
+      "system id, which the daemon uses")
+    a("--gcs-system-id", dest="peer_system_ids", type=_sysid, action="append", help=argparse.SUPPRESS)
+    a("--signing-key", default=None, metavar="FILE",
+      help="MAVLink 2 signing: sign every message and take only validly signed ones (FILE: 32 "
+      "bytes as 64 hex characters or base64, mode 0600; the timestamp state is kept beside it "
+      "in FILE.firmware-sim-state.json). Default: signing off")
     a("--no-timesync", action="store_true",
       help="ignore TIMESYNC requests (a vehicle that does not implement it): the peer cannot measure the link")
     a("--mass-kg", type=_positive_float, default=None, help="override the vehicle mass")
@@ -273,13 +281,15 @@ def build_engine(args) -> tuple[Engine, Recorder | None]:
     n = nominal.vehicle        # the autopilot is tuned on the file, as the offboard controller
     stab = Stabilizer(n.mass_kg, nominal.inertia_matrix_kg_m2, n.arm_length_m,
                       n.drag_torque_ratio_m, n.max_rotor_thrust_n)
-    cfg = AutopilotConfig(system_id=args.system_id, gcs_system_id=args.gcs_system_id,
+    cfg = AutopilotConfig(system_id=args.system_id, peer_system_ids=tuple(args.peer_system_ids),
                           answer_timesync=not args.no_timesync,
                           max_rotor_thrust_n=command_scale_n,
                           offboard_loss_timeout_s=args.offboard_loss_timeout,
                           failsafe_hold_s=args.failsafe_hold_s)
     ap = Autopilot(cfg, stab, n.mass_kg * G / 4)
-    link = Link(args.listen, args.system_id, cfg.component_id)
+    signing = Signing(args.signing_key, "firmware-sim") if args.signing_key is not None else None
+    link = Link(args.listen, args.system_id, cfg.component_id,
+                peer_system_ids=(args.system_id, *args.peer_system_ids), signing=signing)
     engine = Engine(sim, ap, link, world)
     if start is not None:
         link.send(ap.start_in_flight(0.0))
@@ -376,7 +386,7 @@ def _main(argv: list[str] | None) -> int:
             signal.signal(s, h)
         if recorder is not None:
             recorder.meta.update(stop_reason=reason, exit_code=int(code),
-                                 drops=engine.ap.drops, counters=engine.all_counters())
+                                 drops=engine.drops(), counters=engine.all_counters())
             recorder.save()
         engine.link.close()
     if not args.quiet:

@@ -189,6 +189,14 @@ class Engine:
                 self._handle(msgs, step)
 
     # ---------------------------------------------------------------- reporting
+    def drops(self) -> dict:
+        """Every drop counter: the autopilot's and the link's (signing, peers), summed by reason."""
+        out = dict(self.ap.drops)
+        link_filter = getattr(self.link, "filter", None)
+        for k, v in (link_filter.drops if link_filter is not None else {}).items():
+            out[k] = out.get(k, 0) + v
+        return out
+
     def all_counters(self) -> dict:
         """Loop counters and link statistics."""
         return {**self.counters, "telemetry_sent": self.downlink.sent, "telemetry_lost": self.downlink.lost,
@@ -204,7 +212,7 @@ class Engine:
         """One line: time, mode, armed, position, speed, drops, counters."""
         s = self.sim.state
         speed = math.sqrt(s[7] ** 2 + s[8] ** 2 + s[9] ** 2)
-        drops = " ".join(f"{k}={v}" for k, v in self.ap.drops.items() if v) or "none"
+        drops = " ".join(f"{k}={v}" for k, v in self.drops().items() if v) or "none"
         counters = {**self.counters, "telemetry_lost": self.downlink.lost, "commands_lost": self.uplink.lost}
         extra = " ".join(f"{k}={v}" for k, v in counters.items() if v)
         return (f"t={self.sim.t_s:9.3f}s {modes.MODE_NAMES.get(self.ap.mode, '?'):8s} "

@@ -1,7 +1,9 @@
 """UDP socket plus a MAVLink 2 codec (no blocking mavutil connection).
 
-Telemetry goes to every address a valid MAVLink message came from. Each datagram is
-parsed on its own: bytes of a datagram that do not form a complete message are counted
+Received messages pass :class:`firmware_sim.peers.PeerFilter` (configured peer systems,
+their component and address learned from their HEARTBEAT; with a signing key, validly
+signed and not replayed, :mod:`firmware_sim.signing`); telemetry goes to the learned
+peers' addresses only, signed when signing is on. Each datagram is parsed on its own: bytes of a datagram that do not form a complete message are counted
 as malformed and discarded, so one peer's garbage never corrupts another's message.
 
 Everything one :meth:`Link.send` is given (a control period's telemetry bundle, or the
@@ -20,15 +22,19 @@ import socket
 
 from pymavlink.dialects.v20 import common as mavlink2
 
+from .peers import PeerFilter
 from .wire import Wire
 
-__all__ = ["Link", "parse_listen_url", "MAX_PEERS", "MAX_DATAGRAM_BYTES", "io_impl"]
+__all__ = ["Link", "parse_listen_url", "MAX_DATAGRAM_BYTES", "io_impl"]
 
-MAX_PEERS = 8
 MAX_DATAGRAM_BYTES = 1400
 """Frames are packed together into datagrams up to this size (an Ethernet MTU with room)."""
 _MAX_DATAGRAM = 65535
 IO_ENV = "MAVREG_IO"
+
+
+def _as_is(frame: bytes) -> bytes:
+    return frame
 
 
 def io_impl() -> str:
@@ -77,9 +83,13 @@ class Link:
         Our identity in every message sent.
     io : {"fast", "reference"}, optional
         Default: :func:`io_impl`.
+    peer_system_ids : iterable of int, optional
+        Systems whose messages are taken (default: ours, the daemon's).
+    signing : Signing or None
     """
 
-    def __init__(self, url: str, system_id: int, component_id: int, io: str | None = None):
+    def __init__(self, url: str, system_id: int, component_id: int, io: str | None = None,
+                 peer_system_ids=None, signing=None):
         host, port = parse_listen_url(url)
         self.fast = (io_impl() if io is None else io) == "fast"
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -92,7 +102,11 @@ class Link:
         self.host, self.port = self.sock.getsockname()[:2]
         self.wire = Wire(system_id, component_id)
         self.mav = self.wire.mav                      # the reference codec (robust parsing)
-        self.peers: list = []
+        self.signing = signing
+        self.filter = PeerFilter(system_id, component_id,
+                                 (system_id,) if peer_system_ids is None else peer_system_ids, signing)
+        self.peers: list = self.filter.addresses
+        """The learned peers' addresses (the filter keeps this list)."""
         self.bytes_in = 0
         self.send_errors = 0
 
@@ -127,21 +141,18 @@ class Link:
         if self.mav.buf_len() > 0:
             msgs.append(mavlink2.MAVLink_bad_data(bytearray(self.mav.buf[self.mav.buf_index:]), "truncated"))
             self._reset_parser()
-        if addr not in self.peers and any(m.get_type() != "BAD_DATA" for m in msgs):
-            if len(self.peers) >= MAX_PEERS:
-                self.peers.pop(0)
-            self.peers.append(addr)
-        return msgs, addr
+        return self.filter.admit(msgs, addr), addr
 
     def send(self, msgs) -> None:
         """Pack each message once and send them all to every peer, in one datagram each."""
         if not msgs or not self.peers:
             return
+        sign = self.signing.sign if self.signing is not None else _as_is
         if not self.fast:
-            datagrams = [m.pack(self.mav) for m in msgs]
+            datagrams = [sign(m.pack(self.mav)) for m in msgs]
         else:
             pack = self.wire.pack
-            frames = [pack(m) for m in msgs]
+            frames = [sign(pack(m)) for m in msgs]
             if len(frames) == 1:
                 datagrams = frames
             else:
@@ -169,3 +180,5 @@ class Link:
 
     def close(self) -> None:
         self.sock.close()
+        if self.signing is not None:
+            self.signing.save()

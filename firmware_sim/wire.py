@@ -8,9 +8,10 @@ fast CRC (``fastcrc``), frame for frame identical to pymavlink:
 - :meth:`Wire.pack` packs any pymavlink message into a frame byte-identical to
   ``msg.pack(mav)`` (same sequence numbers, trailing-zero truncation, CRC); messages
   without a precompiled packer go through pymavlink.
-- :meth:`Wire.parse` decodes a plain MAVLink 2 frame (no signature) of a message with a
-  precompiled decoder into the same pymavlink message class, field values, header and
-  wire bytes as ``MAVLink.decode``; anything else goes to pymavlink's parser, as before.
+- :meth:`Wire.parse` decodes a MAVLink 2 frame (signed or not; the link checks the
+  signature, :mod:`firmware_sim.signing`) of a message with a precompiled decoder into the
+  same pymavlink message class, field values, header and wire bytes as ``MAVLink.decode``
+  without a key; anything else goes to pymavlink's parser, as before.
 
 The emulator stands for firmware written by someone else and imports nothing from
 mavreg but its configuration loader, so it carries its own copy of the daemon's codec
@@ -52,6 +53,7 @@ def crc_is_fast() -> bool:
 _STX = 0xFD
 _HEADER = struct.Struct("<BBBBBBBHB")
 _CRC = struct.Struct("<H")
+_SIG_LEN = 13
 _Header = mavlink2.MAVLink_header
 _TEMPLATE_KEYS = ("_payload", "_msgbuf", "_crc", "_header")
 
@@ -107,7 +109,7 @@ class _Spec:
                 flat.append(v)
         return self.unpacker.pack(*flat)
 
-    def message(self, t: tuple, frame: bytearray, header, plen: int, crc: int):
+    def message(self, t: tuple, frame: bytearray, header, plen: int, crc: int, sig: int = 0):
         d = dict(self.base)
         if self.plain:
             d.update(zip(self.names, t))
@@ -116,7 +118,7 @@ class _Spec:
                 d[name] = list(t[start:start + n]) if arr else t[start]
         d["_header"] = header
         d["_msgbuf"] = frame
-        d["_payload"] = frame[6:-2]
+        d["_payload"] = frame[6:-2 - sig]
         d["_crc"] = crc
         m = object.__new__(self.cls)
         m.__dict__ = d
@@ -177,23 +179,26 @@ class Wire:
         specs = _SPECS
         view = memoryview(data)
         while i < n:
-            if n - i < 12 or data[i] != _STX or data[i + 2] != 0:
-                break                    # MAVLink 1, signed, garbage or a short tail
+            flags = data[i + 2] if n - i >= 12 else 0xFF
+            if data[i] != _STX or flags & 0xFE:
+                break                    # MAVLink 1, unknown flags, garbage or a short tail
             plen = data[i + 1]
-            end = i + 12 + plen
+            sig = _SIG_LEN if flags else 0   # a signed frame: decoded here, verified by the link
+            end = i + 12 + plen + sig
             spec = specs.get(data[i + 7] | (data[i + 8] << 8) | (data[i + 9] << 16))
             if spec is None or end > n or plen > spec.size:
                 break
-            crc = data[end - 2] | (data[end - 1] << 8)
-            if mcrf4xx(spec.crc_extra, mcrf4xx(view[i + 1:end - 2])) != crc:
+            cend = end - sig
+            crc = data[cend - 2] | (data[cend - 1] << 8)
+            if mcrf4xx(spec.crc_extra, mcrf4xx(view[i + 1:cend - 2])) != crc:
                 break                    # pymavlink reports it (BAD_DATA) as the reference does
             if plen == spec.size:
                 t = spec.unpacker.unpack_from(data, i + 10)
             else:                        # MAVLink 2 dropped the payload's trailing zeros
-                t = spec.unpacker.unpack(bytes(view[i + 10:end - 2]) + bytes(spec.size - plen))
+                t = spec.unpacker.unpack(bytes(view[i + 10:cend - 2]) + bytes(spec.size - plen))
             frame = bytearray(view[i:end])
-            header = _Header(spec.id, 0, data[i + 3], plen, data[i + 4], data[i + 5], data[i + 6])
-            out.append(spec.message(t, frame, header, plen, crc))
+            header = _Header(spec.id, flags, data[i + 3], plen, data[i + 4], data[i + 5], data[i + 6])
+            out.append(spec.message(t, frame, header, plen, crc, sig))
             i = end
         self.fast_in += len(out)
         if i < n:

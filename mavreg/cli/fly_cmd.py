@@ -98,6 +98,10 @@ def add_arguments(p):
                    "velocity, and the regulator takes over there (the paper's Section 4: 0.6 0.6 0.6; "
                    "more than 0.5 m across the path needs a controller file whose envelope allows "
                    "it, see mavreg experiment) (default: 0 0 0)" % {"max": MAX_ENTRY_OFFSET_M})
+    p.add_argument("--signing-key", metavar="FILE", default=None,
+                   help="MAVLink 2 signing: sign every message and accept only validly signed ones "
+                   "(FILE: 32 bytes as 64 hex characters or base64, mode 0600; the bundled emulator "
+                   "gets the same key; docs/reliability.md) (default: signing off)")
     add_model_arguments(p, controller=REAL_CONTROLLER)
 
 
@@ -105,7 +109,10 @@ def run(args) -> int:
     from ..config.vehicle import load_vehicle
     from ..daemon.fly import FlyOptions, fly
     from ..daemon.link import parse_url
+    from ..daemon.signing import load_key
     maneuver = Path(args.maneuver)
+    if args.signing_key is not None:
+        load_key(args.signing_key)      # a bad key file: one line before anything starts
     if not maneuver.is_file():
         raise ValueError(f"{maneuver}: no such file")
     if args.vehicle is not None:
@@ -126,5 +133,6 @@ def run(args) -> int:
     opts = FlyOptions(maneuver, args.vehicle, Path(args.vehicle_params), Path(args.controller), out,
                       Path(args.socket) if args.socket else None, args.timeout_s, args.lockstep,
                       tuple(args.emulator_arg), args.control_rate_hz, args.vehicle_lockstep, args.world,
-                      args.stale_timeout_s, offset)
+                      args.stale_timeout_s, offset,
+                      Path(args.signing_key) if args.signing_key is not None else None)
     return fly(opts)

@@ -48,6 +48,10 @@ def add_arguments(p):
     p.add_argument("--vehicle-lockstep", action="store_true",
                    help="the vehicle is a lockstep simulator (it waits for each command): do not "
                    "fly telemetry gaps on the prediction (in real time the daemon does)")
+    p.add_argument("--signing-key", metavar="FILE", default=None,
+                   help="MAVLink 2 signing: sign every message and accept only validly signed ones "
+                   "(FILE: 32 bytes as 64 hex characters or base64, mode 0600; docs/reliability.md) "
+                   "(default: signing off)")
     add_model_arguments(p, controller=REAL_CONTROLLER)
 
 
@@ -59,7 +63,9 @@ def run(args) -> int:
     from ..daemon.endpoint import default_socket_path
     from ..daemon.link import parse_url
     from ..daemon.supervisor import Phase, SupervisorParams
+    from ..daemon.signing import Signing
     parse_url(args.vehicle)
+    signing = Signing(args.signing_key, "mavreg") if args.signing_key is not None else None
     if args.stale_timeout_s <= 0:
         raise ValueError(f"--stale-timeout-s must be positive, got {args.stale_timeout_s}")
     vehicle = load_vehicle(args.vehicle_params)
@@ -74,7 +80,7 @@ def run(args) -> int:
                           control_rate_hz=args.control_rate_hz)
     make_regulator = regulator_factory(vehicle, args.control_rate_hz, controller.disturbance,
                                       controller.allocation, controller.speed_governor)
-    daemon = Daemon(config, vehicle, make_regulator)
+    daemon = Daemon(config, vehicle, make_regulator, signing=signing)
     asyncio.run(daemon.run())
     if args.control_log:
         daemon.ctrl_log.save(args.control_log)

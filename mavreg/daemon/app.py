@@ -78,11 +78,17 @@ class DaemonConfig:
 
 
 class Daemon:
-    """One vehicle, one supervisor, optional control endpoint."""
+    """One vehicle, one supervisor, optional control endpoint.
+
+    ``signing`` (a :class:`mavreg.daemon.signing.Signing`, or None): sign every frame sent
+    and take only validly signed ones; its drop counters are in :meth:`status`.
+    """
 
     def __init__(self, config: DaemonConfig, vehicle: VehicleParams, regulator_factory: Callable,
-                 log: Callable[[str], None] | None = None, clock_s: Callable[[], float] = time.monotonic):
+                 log: Callable[[str], None] | None = None, clock_s: Callable[[], float] = time.monotonic,
+                 signing=None):
         self.config = config
+        self.signing = signing
         self.vehicle = vehicle
         self.clock_s = clock_s
         ctl = config.controller
@@ -192,6 +198,9 @@ class Daemon:
         st = self.supervisor.status()
         if self.link is not None:
             st["link"] = dict(self.link.counters.__dict__)
+        sg = self.signing
+        st["signing"] = None if sg is None else {"accepted": sg.accepted, **sg.drops,
+                                                 "state_file": str(sg.path)}
         st["uploads"] = dict(self.uploads)
         st["latency_ms"] = self.latency_summary()
         st["planning"] = 0 if self.pool is None else self.pool.busy
@@ -255,7 +264,8 @@ class Daemon:
             if self.config.tlog_path is not None:
                 self._tlog = TlogWriter(self.config.tlog_path)
             self.link = await open_link(self.config.vehicle_url, self.config.supervisor.vehicle_system_id,
-                                        self.config.supervisor.vehicle_component_id, self._on_message, self._tlog)
+                                        self.config.supervisor.vehicle_component_id, self._on_message, self._tlog,
+                                        signing=self.signing)
             self._tasks.append(asyncio.create_task(self._heartbeat_task(), name="heartbeat"))
             self._tasks.append(asyncio.create_task(self._tick_task(), name="tick"))
             if self.config.socket_path is not None:

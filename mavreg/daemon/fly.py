@@ -31,6 +31,7 @@ from .app import Daemon, DaemonConfig, regulator_factory
 from .ctrllog import load_control_log
 from .lifeline import wrap_command
 from .link import io_impl
+from .signing import Signing
 from .report import controller_metrics, format_summary, ground_truth_errors, plot_flight
 from .phases import Failure
 from .supervisor import Phase, SupervisorParams
@@ -64,6 +65,9 @@ class FlyOptions:
     entry_offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     """The run-in ends this far (NED) from the maneuver's entry: the regulator takes over off
     the path (experiments; :attr:`mavreg.daemon.phases.SupervisorParams.entry_offset_m`)."""
+    signing_key: Path | None = None
+    """MAVLink 2 signing key file (:mod:`mavreg.daemon.signing`); the bundled emulator gets
+    the same file. None: signing off."""
 
 
 def spawn_emulator(vehicle_path: Path, record: Path | None, lockstep: bool, extra: tuple[str, ...] = (),
@@ -135,7 +139,11 @@ def fly(opts: FlyOptions) -> int:
                           controller=controller, control_rate_hz=opts.control_rate_hz)
     make_regulator = regulator_factory(vehicle, opts.control_rate_hz, controller.disturbance,
                                       controller.allocation, controller.speed_governor)
-    daemon = Daemon(config, vehicle, make_regulator)
+    signing = Signing(opts.signing_key, "mavreg") if opts.signing_key is not None else None
+    daemon = Daemon(config, vehicle, make_regulator, signing=signing)
+    extra = tuple(opts.emulator_args)
+    if opts.signing_key is not None:
+        extra = ("--signing-key", str(opts.signing_key)) + extra
     proc = None
     emulator_code = None
     t0 = time.monotonic()
@@ -144,7 +152,7 @@ def fly(opts: FlyOptions) -> int:
             nonlocal proc
             if opts.vehicle_url is None:
                 proc, url = spawn_emulator(opts.vehicle_path, record_path, opts.lockstep,
-                                           opts.emulator_args, rate_hz=opts.control_rate_hz,
+                                           extra, rate_hz=opts.control_rate_hz,
                                            preset=opts.world)
                 daemon.config = replace(config, vehicle_url=url)
             await daemon.run([(text, str(opts.maneuver_path))], timeout_s=opts.timeout_s)

@@ -18,9 +18,12 @@ Both
 - parse each datagram with robust parsing (bad data counted), log every frame in and out
   to the ``.tlog``, and hand each decoded message to a callback with the time the
   datagram was read (``time.perf_counter_ns``);
-- accept datagrams only from the vehicle's address: fixed for ``udpout:HOST:PORT``,
-  learned from the first HEARTBEAT of the vehicle's system/component id for
-  ``udpin:HOST:PORT``; everything else is dropped and counted;
+- take a frame only if :class:`mavreg.daemon.peers.PeerFilter` does: the vehicle's
+  system/component id, from the vehicle's address (fixed for ``udpout:HOST:PORT``,
+  learned from the vehicle's first HEARTBEAT for ``udpin:HOST:PORT``), and, with a
+  signing key (:mod:`mavreg.daemon.signing`), validly signed and not replayed; everything
+  else is dropped and counted, and neither logged nor handed on;
+- sign every frame they send when signing is on;
 - pack outgoing messages with the daemon's own system id and component id 191
   (MAV_COMP_ID_ONBOARD_COMPUTER).
 """
@@ -35,6 +38,7 @@ from typing import Callable
 
 from pymavlink.dialects.v20 import common as mavlink2
 
+from .peers import PeerFilter
 from .tlog import TlogWriter
 from .wire import Wire
 
@@ -78,6 +82,14 @@ class LinkCounters:
     send_errors: int = 0
     not_decoded: int = 0
     """Frames logged but not decoded (the fast link: ATTITUDE once quaternions come)."""
+    foreign_system: int = 0
+    """Frames of another system/component id than the vehicle's (:mod:`.peers`)."""
+    unsigned: int = 0
+    bad_signature: int = 0
+    replayed: int = 0
+    setup_signing: int = 0
+    """With signing on: frames dropped as unsigned, wrongly signed, replayed; and
+    SETUP_SIGNING frames, always dropped."""
 
 
 class _Writer:
@@ -104,6 +116,8 @@ class MavlinkLink(asyncio.DatagramProtocol):
     on_message : callable(msg, t_recv_ns)
         Receives each decoded message from the vehicle's address.
     tlog : TlogWriter or None
+    signing : Signing or None
+        Sign what is sent, take only validly signed frames (:mod:`.signing`).
     """
 
     kind: str
@@ -113,8 +127,10 @@ class MavlinkLink(asyncio.DatagramProtocol):
     on_message: Callable
     tlog: TlogWriter | None = None
     counters: LinkCounters = field(default_factory=LinkCounters)
+    signing: object = None
 
     def __post_init__(self):
+        self.peer = PeerFilter(self.system_id, self.vehicle_component_id, self.vehicle_addr, self.signing)
         self.transport: asyncio.DatagramTransport | None = None
         self.last_send_ns = 0
         """``time.perf_counter_ns`` when the last rotor command was handed to ``sendto``."""
@@ -144,13 +160,15 @@ class MavlinkLink(asyncio.DatagramProtocol):
             if msg.get_type() == "BAD_DATA":
                 self.counters.bad_data += 1
                 continue
+            reason = self.peer.admit(msg.get_msgbuf(), addr)
+            if reason is not None:
+                self.counters.__dict__[reason] += 1
+                continue
             self.counters.messages_in += 1
             if self.tlog is not None:
                 self.tlog.write(msg.get_msgbuf())
-            if (self.vehicle_addr is None and msg.get_type() == "HEARTBEAT"
-                    and msg.get_srcSystem() == self.system_id
-                    and msg.get_srcComponent() == self.vehicle_component_id):
-                self.vehicle_addr = tuple(addr[:2])
+            if self.vehicle_addr is None:
+                self.vehicle_addr = self.peer.addr
                 self.connected.set()
             self.on_message(msg, t_ns)
 
@@ -174,6 +192,8 @@ class MavlinkLink(asyncio.DatagramProtocol):
         return sent
 
     def _write(self, buf: bytes) -> None:
+        if self.signing is not None:
+            buf = self.signing.sign(buf)
         if self._stamp:
             self.last_send_ns = time.perf_counter_ns()
         self.transport.sendto(buf, self.vehicle_addr)
@@ -184,6 +204,8 @@ class MavlinkLink(asyncio.DatagramProtocol):
     def close(self) -> None:
         if self.transport is not None:
             self.transport.close()
+        if self.signing is not None:
+            self.signing.save()
 
 
 def io_impl() -> str:
@@ -204,7 +226,7 @@ class FastLink:
     """
 
     def __init__(self, kind: str, vehicle_addr, system_id: int, vehicle_component_id: int,
-                 on_message: Callable, tlog: TlogWriter | None, sock: socket.socket):
+                 on_message: Callable, tlog: TlogWriter | None, sock: socket.socket, signing=None):
         self.kind = kind
         self.vehicle_addr = vehicle_addr
         self.system_id = system_id
@@ -214,6 +236,8 @@ class FastLink:
         self.counters = LinkCounters()
         self.sock = sock
         self.wire = Wire(system_id, OWN_COMPONENT_ID)
+        self.signing = signing
+        self.peer = PeerFilter(system_id, vehicle_component_id, vehicle_addr, signing)
         self.connected = asyncio.Event()
         if vehicle_addr is not None:
             self.connected.set()
@@ -259,10 +283,14 @@ class FastLink:
             c.bad_data += 1
             return
         tlog = self.tlog
+        admit = self.peer.admit
         for msg in msgs:
             # each frame is logged just before it is handled: the command answering a sample
             # follows that sample in the .tlog (mavreg identify pairs them so)
             if type(msg) is bytes:           # a frame the daemon has no use for: logged only
+                if (reason := admit(msg, addr)) is not None:
+                    c.__dict__[reason] += 1
+                    continue
                 c.messages_in += 1
                 c.not_decoded += 1
                 if tlog is not None:
@@ -271,16 +299,17 @@ class FastLink:
             if msg._type == "BAD_DATA":
                 c.bad_data += 1
                 continue
+            if (reason := admit(msg._msgbuf, addr)) is not None:
+                c.__dict__[reason] += 1
+                continue
             c.messages_in += 1
             if tlog is not None:
                 tlog.write(msg._msgbuf)
             if msg._type == "ATTITUDE_QUATERNION" and not self._skip:
                 # the state assembler ignores ATTITUDE from now on (mavreg.daemon.state)
                 self._skip = _AFTER_QUATERNION
-            if (self.vehicle_addr is None and msg._type == "HEARTBEAT"
-                    and msg.get_srcSystem() == self.system_id
-                    and msg.get_srcComponent() == self.vehicle_component_id):
-                self.vehicle_addr = tuple(addr[:2])
+            if self.vehicle_addr is None:    # the filter took the vehicle's first HEARTBEAT
+                self.vehicle_addr = self.peer.addr
                 self.connected.set()
             self.on_message(msg, time.perf_counter_ns())
 
@@ -294,6 +323,9 @@ class FastLink:
             return False
         pack = self.wire.pack
         frames = [pack(m) for m in msgs]
+        if self.signing is not None:
+            sign = self.signing.sign
+            frames = [sign(f) for f in frames]
         data = frames[0] if len(frames) == 1 else b"".join(frames)
         self.last_send_ns = time.perf_counter_ns()
         try:
@@ -313,14 +345,17 @@ class FastLink:
         if self._loop is not None and not self._loop.is_closed():
             self._loop.remove_reader(self.sock.fileno())
         self.sock.close()
+        if self.signing is not None:
+            self.signing.save()
 
 
 async def open_link(url: str, system_id: int, vehicle_component_id: int, on_message: Callable,
-                    tlog: TlogWriter | None, impl: str | None = None):
+                    tlog: TlogWriter | None, impl: str | None = None, signing=None):
     """Create the UDP endpoint for ``url`` and return its link.
 
     ``impl``: ``fast`` (:class:`FastLink`) or ``reference`` (:class:`MavlinkLink`);
     default: :func:`io_impl` (the :envvar:`MAVREG_IO` environment variable).
+    ``signing``: a :class:`mavreg.daemon.signing.Signing`, or None (signing off).
     """
     kind, host, port = parse_url(url)
     impl = io_impl() if impl is None else impl
@@ -328,7 +363,8 @@ async def open_link(url: str, system_id: int, vehicle_component_id: int, on_mess
     vehicle = (host, port) if kind == "udpout" else None
     local = (host, 0) if kind == "udpout" else (host, port)
     if impl == "reference":
-        proto = MavlinkLink(kind, vehicle, system_id, vehicle_component_id, on_message, tlog)
+        proto = MavlinkLink(kind, vehicle, system_id, vehicle_component_id, on_message, tlog,
+                            signing=signing)
         await loop.create_datagram_endpoint(lambda: proto, local_addr=local)
         return proto
     info = socket.getaddrinfo(local[0], local[1], type=socket.SOCK_DGRAM)[0]
@@ -341,6 +377,6 @@ async def open_link(url: str, system_id: int, vehicle_component_id: int, on_mess
         raise
     if vehicle is not None:
         vehicle = socket.getaddrinfo(host, port, family=info[0], type=socket.SOCK_DGRAM)[0][4][:2]
-    link = FastLink(kind, vehicle, system_id, vehicle_component_id, on_message, tlog, sock)
+    link = FastLink(kind, vehicle, system_id, vehicle_component_id, on_message, tlog, sock, signing)
     link.start(loop)
     return link

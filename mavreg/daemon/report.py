@@ -70,6 +70,7 @@ def format_summary(summary: dict) -> str:
                      f"{est['drag_n_s_per_m'][1]:.3f} N s/m, steady force N {est['force_ned_n'][0]:+.2f} "
                      f"E {est['force_ned_n'][1]:+.2f} N, thrust scale {est['thrust_scale']:.3f} "
                      f"({est['updates']} samples, {est['rejected']} refused)")
+    lines.extend(_link_line(summary.get("status") or {}))
     cm = summary.get("controller_metrics") or {}
     gt = summary.get("ground_truth") or {}
     lines.append(f"{'segment':<16}{'max e_t cm':>11}{'rms e_t cm':>11}{'true max cm':>12}"
@@ -96,6 +97,17 @@ def format_summary(summary: dict) -> str:
             lines.append(f"  t={ev['time_s'] if ev['time_s'] is not None else float('nan'):8.3f} s "
                          f"{ev['phase']:<9} {ev['detail']}")
     return "\n".join(lines)
+
+
+def _link_line(status: dict) -> list:
+    """One line on signing and what the link dropped, when signing is on or something was dropped."""
+    link, sg = status.get("link") or {}, status.get("signing")
+    names = ("unsigned", "bad_signature", "replayed", "setup_signing", "foreign_system", "foreign_address")
+    dropped = ", ".join(f"{k.replace('_', ' ')} {link[k]}" for k in names if link.get(k))
+    if sg is None and not dropped:
+        return []
+    head = f"link: signing on, {sg['accepted']} signed frames accepted" if sg else "link: signing off"
+    return [f"{head}; dropped: {dropped or 'none'}"]
 
 
 def plot_flight(path, ctrl: dict, plan, record: dict | None) -> None:

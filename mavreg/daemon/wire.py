@@ -7,11 +7,12 @@ commands a period, that was the largest share of the daemon's own time. :class:`
 the same work for the messages the control loop handles every period with one
 ``struct`` call each and pymavlink's own fast CRC (``fastcrc``):
 
-- :meth:`Wire.parse` splits a datagram into frames; a plain MAVLink 2 frame (no
-  signature) of a message in :data:`FAST_IDS` is checked (length, CRC with its
-  ``crc_extra``) and decoded into the same pymavlink message class, with the same field
-  values, header and wire bytes as ``MAVLink.decode`` gives. Anything else (MAVLink 1,
-  signed frames, other messages, garbage, a frame cut short) goes to pymavlink's own
+- :meth:`Wire.parse` splits a datagram into frames; a MAVLink 2 frame of a message in
+  :data:`FAST_IDS` is checked (length, CRC with its ``crc_extra``) and decoded into the
+  same pymavlink message class, with the same field values, header and wire bytes
+  (signature included) as ``MAVLink.decode`` without a key gives; the signature of a
+  signed frame is the link's to check (:mod:`mavreg.daemon.signing`). Anything else
+  (MAVLink 1, other messages, garbage, a frame cut short) goes to pymavlink's own
   parser, exactly as the reference path does.
 - :meth:`Wire.pack` packs any pymavlink message into a frame byte-identical to
   ``msg.pack(mav)`` (same sequence numbers, trailing-zero truncation, CRC); messages
@@ -56,6 +57,7 @@ def crc_is_fast() -> bool:
 _STX = 0xFD
 _HEADER = struct.Struct("<BBBBBBBHB")
 _CRC = struct.Struct("<H")
+_SIG_LEN = 13
 _Header = mavlink2.MAVLink_header
 _TEMPLATE_KEYS = ("_payload", "_msgbuf", "_crc", "_header")
 
@@ -111,7 +113,7 @@ class _Spec:
                 flat.append(v)
         return self.unpacker.pack(*flat)
 
-    def message(self, t: tuple, frame: bytearray, header, plen: int, crc: int):
+    def message(self, t: tuple, frame: bytearray, header, plen: int, crc: int, sig: int = 0):
         d = dict(self.base)
         if self.plain:
             d.update(zip(self.names, t))
@@ -120,7 +122,7 @@ class _Spec:
                 d[name] = list(t[start:start + n]) if arr else t[start]
         d["_header"] = header
         d["_msgbuf"] = frame
-        d["_payload"] = frame[6:-2]
+        d["_payload"] = frame[6:-2 - sig]
         d["_crc"] = crc
         m = object.__new__(self.cls)
         m.__dict__ = d
@@ -185,15 +187,18 @@ class Wire:
         specs = _SPECS
         view = memoryview(data)
         while i < n:
-            if n - i < 12 or data[i] != _STX or data[i + 2] != 0:
-                break                    # MAVLink 1, signed, garbage or a short tail
+            flags = data[i + 2] if n - i >= 12 else 0xFF
+            if data[i] != _STX or flags & 0xFE:
+                break                    # MAVLink 1, unknown flags, garbage or a short tail
             plen = data[i + 1]
-            end = i + 12 + plen
+            sig = _SIG_LEN if flags else 0   # a signed frame: decoded here, verified by the link
+            end = i + 12 + plen + sig
             spec = specs.get(data[i + 7] | (data[i + 8] << 8) | (data[i + 9] << 16))
             if spec is None or end > n or plen > spec.size:
                 break
-            crc = data[end - 2] | (data[end - 1] << 8)
-            if mcrf4xx(spec.crc_extra, mcrf4xx(view[i + 1:end - 2])) != crc:
+            cend = end - sig
+            crc = data[cend - 2] | (data[cend - 1] << 8)
+            if mcrf4xx(spec.crc_extra, mcrf4xx(view[i + 1:cend - 2])) != crc:
                 break                    # pymavlink reports it (BAD_DATA) as the reference does
             if spec.id in skip:
                 out.append(bytes(view[i:end]))
@@ -202,10 +207,10 @@ class Wire:
             if plen == spec.size:
                 t = spec.unpacker.unpack_from(data, i + 10)
             else:                        # MAVLink 2 dropped the payload's trailing zeros
-                t = spec.unpacker.unpack(bytes(view[i + 10:end - 2]) + bytes(spec.size - plen))
+                t = spec.unpacker.unpack(bytes(view[i + 10:cend - 2]) + bytes(spec.size - plen))
             frame = bytearray(view[i:end])
-            header = _Header(spec.id, 0, data[i + 3], plen, data[i + 4], data[i + 5], data[i + 6])
-            out.append(spec.message(t, frame, header, plen, crc))
+            header = _Header(spec.id, flags, data[i + 3], plen, data[i + 4], data[i + 5], data[i + 6])
+            out.append(spec.message(t, frame, header, plen, crc, sig))
             i = end
         self.fast_in += len(out)
         if i < n:

@@ -18,13 +18,14 @@ HOVER = VEHICLE.mass_kg * 9.81 / 4 / VEHICLE.max_rotor_thrust_n
 _mav = mavlink2.MAVLink(None, 1, 191)
 
 
-def make(start=None):
+def make(start=None, peer_system_ids=(255,)):
     p = build_sim_params(VEHICLE, 500, 1000, 0)
     sim = Simulation(p, parse_start(start) if start else None)
     v = p.vehicle
     stab = Stabilizer(v.mass_kg, p.inertia_matrix_kg_m2, v.arm_length_m, v.drag_torque_ratio_m,
                       v.max_rotor_thrust_n)
-    ap = Autopilot(AutopilotConfig(max_rotor_thrust_n=v.max_rotor_thrust_n), stab, v.mass_kg * 9.81 / 4)
+    ap = Autopilot(AutopilotConfig(max_rotor_thrust_n=v.max_rotor_thrust_n, peer_system_ids=peer_system_ids),
+                   stab, v.mass_kg * 9.81 / 4)     # a ground station (255) configured as a peer
     if start:
         ap.start_in_flight(0.0)
     return sim, ap
@@ -132,6 +133,9 @@ def test_drops_are_counted():
                         "unsupported": 1}
     out = ap.handle(command(400, 1, src=(255, 190)), 0.0, s, g)  # a GCS may arm
     assert ack(out) == 0 and ap.armed
+    sim, ap = make(peer_system_ids=())                            # by default only our own system
+    assert ap.handle(command(400, 1, src=(255, 190)), 0.0, sim.state, sim.on_ground) == []
+    assert ap.drops["foreign_system"] == 1 and not ap.armed
 
 
 def test_heartbeat_encodes_mode_and_armed():

@@ -135,7 +135,8 @@ def test_bad_input_is_dropped_counted_and_sim_keeps_running(tmp_path):
 
 
 def test_mavutil_connection_sees_heartbeat_arms_and_reads_telemetry():
-    with Emulator("--preset", "ideal") as emu:
+    # a ground station (system 255) is a peer only when configured so (docs/firmware_sim.md)
+    with Emulator("--preset", "ideal", "--peer-system-id", "255") as emu:
         conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{emu.port}", source_system=255,
                                           source_component=190)
         conn.mav.heartbeat_send(6, 8, 0, 0, 0)
