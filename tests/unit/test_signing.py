@@ -1,4 +1,7 @@
-"""MAVLink 2 signing on the daemon's side (mavreg.daemon.signing, .peers): sans-I/O, no sockets."""
+"""MAVLink 2 signing (mavreg.daemon.signing, .peers): sans-I/O, no sockets.
+
+The verifier tests run on the emulator's own implementation too (firmware_sim.signing, which
+shares no code with mavreg's), with frames signed by the daemon's signer and by pymavlink."""
 from __future__ import annotations
 
 import os
@@ -8,6 +11,7 @@ import sys
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
+from firmware_sim import signing as fsim_signing
 from mavreg.daemon import signing as sg
 from mavreg.daemon.peers import PeerFilter
 from mavreg.daemon.tlog import TlogWriter
@@ -36,14 +40,20 @@ def forged(msg, ts, sysid=1, compid=1):
     return signed(msg, ts, sysid, compid, key=os.urandom(32))
 
 
+@pytest.fixture(params=["mavreg", "firmware_sim"])
+def mod(request):
+    """The daemon's signing module, or the emulator's."""
+    return sg if request.param == "mavreg" else fsim_signing
+
+
 def write_key(path, text, mode=0o600):
     path.write_text(text)
     os.chmod(path, mode)
     return path
 
 
-def test_good_signature_accepted_and_pymavlink_agrees():
-    v = sg.Verifier(KEY, T0)
+def test_good_signature_accepted_and_pymavlink_agrees(mod):
+    v = mod.Verifier(KEY, T0)
     frame = signed(hb(), T0 + 5)
     assert v.check(frame) is None and v.streams[(0, 1, 1)] == T0 + 5
     other = mavlink2.MAVLink(None)           # an independent implementation checks our signature
@@ -55,8 +65,8 @@ def test_good_signature_accepted_and_pymavlink_agrees():
     assert v.check(disarm().pack(src)) is None
 
 
-def test_unsigned_and_badly_signed_dropped_and_counted_radio_status_allowed(tmp_path):
-    s = sg.Signing(write_key(tmp_path / "k", KEY.hex()), "t")
+def test_unsigned_and_badly_signed_dropped_and_counted_radio_status_allowed(tmp_path, mod):
+    s = mod.Signing(write_key(tmp_path / "k", KEY.hex()), "t")
     unsigned = Wire(1, 1).pack(disarm())
     assert s.check(unsigned) == "unsigned"
     bad = bytearray(signed(disarm(), s.verifier.newest_ticks + 1))
@@ -70,18 +80,18 @@ def test_unsigned_and_badly_signed_dropped_and_counted_radio_status_allowed(tmp_
     assert s.drops == {"unsigned": 2, "bad_signature": 2, "replayed": 0} and s.accepted == 1
 
 
-def test_replay_of_a_captured_frame_dropped():
-    v = sg.Verifier(KEY, T0)
+def test_replay_of_a_captured_frame_dropped(mod):
+    v = mod.Verifier(KEY, T0)
     first, second = signed(hb(), T0 + 1), signed(disarm(), T0 + 2)
     assert v.check(first) is None and v.check(second) is None
     assert v.check(second) == "replayed" and v.check(first) == "replayed"
     assert v.check(signed(hb(), T0 + 3)) is None
 
 
-def test_forged_future_timestamp_does_not_block_the_genuine_stream():
+def test_forged_future_timestamp_does_not_block_the_genuine_stream(mod):
     attack = forged(disarm(), T0 + 10**9)          # about three hours ahead, wrong signature
     genuine = signed(hb(), T0 + 1)
-    v = sg.Verifier(KEY, T0)
+    v = mod.Verifier(KEY, T0)
     assert v.check(attack) == "bad_signature"
     assert (0, 1, 1) not in v.streams
     assert v.check(genuine) is None                 # the stream is not blocked
@@ -94,8 +104,8 @@ def test_forged_future_timestamp_does_not_block_the_genuine_stream():
     assert mav.parse_buffer(genuine)[0].get_type() == "BAD_DATA"       # blocked for three hours
 
 
-def test_new_stream_more_than_a_minute_old_rejected():
-    v = sg.Verifier(KEY, T0)
+def test_new_stream_more_than_a_minute_old_rejected(mod):
+    v = mod.Verifier(KEY, T0)
     minute = 60 * sg.TICKS_PER_S
     assert v.check(signed(hb(), T0 - minute - 1, sysid=2)) == "replayed"
     assert v.check(signed(hb(), T0 - minute + 1, sysid=3)) is None       # within the minute
@@ -103,8 +113,8 @@ def test_new_stream_more_than_a_minute_old_rejected():
     assert v.newest_ticks == T0 + 100
 
 
-def test_stream_table_bounded_and_eviction_reopens_nothing():
-    v = sg.Verifier(KEY, T0)
+def test_stream_table_bounded_and_eviction_reopens_nothing(mod):
+    v = mod.Verifier(KEY, T0)
     captured = signed(hb(), T0 + 1, sysid=1)
     assert v.check(captured) is None
     for k in range(100):
@@ -132,10 +142,10 @@ class _Counting:
         self.check = verifier.check
 
 
-def test_timestamp_persisted_and_a_restart_refuses_earlier_frames(tmp_path):
+def test_timestamp_persisted_and_a_restart_refuses_earlier_frames(tmp_path, mod):
     key = write_key(tmp_path / "key", KEY.hex())
     wall = [1.7e9]
-    a = sg.Signing(key, "mavreg", wall_s=lambda: wall[0])
+    a = mod.Signing(key, "mavreg", wall_s=lambda: wall[0])
     t = a.verifier.newest_ticks
     captured = [signed(hb(), t + k) for k in range(1, 4)]
     assert [a.check(f) for f in captured] == [None] * 3
@@ -144,20 +154,20 @@ def test_timestamp_persisted_and_a_restart_refuses_earlier_frames(tmp_path):
     state = (tmp_path / "key.mavreg-state.json")
     assert oct(state.stat().st_mode & 0o777) == "0o600" and KEY.hex() not in state.read_text()
     wall[0] -= 3600                                  # restarted with a clock an hour behind
-    b = sg.Signing(key, "mavreg", wall_s=lambda: wall[0])
+    b = mod.Signing(key, "mavreg", wall_s=lambda: wall[0])
     assert [b.check(f) for f in captured] == ["replayed"] * 3
     assert b.signer.timestamp >= int.from_bytes(sent[-12:-6], "little")   # never reuses a timestamp
     assert b.check(signed(hb(), t + 10)) is None
     # without the state file the same restart would take the captured frames back (negative control)
     state.unlink()
-    c = sg.Signing(key, "mavreg", wall_s=lambda: wall[0])
+    c = mod.Signing(key, "mavreg", wall_s=lambda: wall[0])
     assert c.check(captured[-1]) is None
 
 
-def test_key_file_rules(tmp_path):
-    assert sg.load_key(write_key(tmp_path / "hex", KEY.hex() + "\n")) == KEY
+def test_key_file_rules(tmp_path, mod):
+    assert mod.load_key(write_key(tmp_path / "hex", KEY.hex() + "\n")) == KEY
     import base64
-    assert sg.load_key(write_key(tmp_path / "b64", base64.b64encode(KEY).decode())) == KEY
+    assert mod.load_key(write_key(tmp_path / "b64", base64.b64encode(KEY).decode())) == KEY
     secret = KEY.hex()
     for name, text, mode, match in (("open", secret, 0o644, "group or others"),
                                     ("gw", secret, 0o620, "group or others"),
@@ -165,10 +175,10 @@ def test_key_file_rules(tmp_path):
                                     ("junk", "not a key at all", 0o600, "expected 32 bytes"),
                                     ("zero", "00" * 32, 0o600, "all-zero")):
         with pytest.raises(ValueError, match=match) as exc:
-            sg.load_key(write_key(tmp_path / name, text, mode))
+            mod.load_key(write_key(tmp_path / name, text, mode))
         assert secret not in str(exc.value) and "\n" not in str(exc.value)
     with pytest.raises(ValueError, match="signing key"):
-        sg.load_key(tmp_path / "missing")
+        mod.load_key(tmp_path / "missing")
 
 
 def test_fly_refuses_a_readable_key_file_in_one_line(tmp_path):
