@@ -113,6 +113,13 @@ def test_signed_link_takes_only_the_signed_peer(key_file):
         assert d["bad_signature"] == 1 and d["unsigned"] == 4 and d["replayed"] == 3
         assert d["foreign_system"] == 1 and d["foreign_address"] == 1
         assert "unsigned=4" in engine.status_line()
+        # MAVLink 1 frames switched nothing off: everything the vehicle sent is signed and verifies
+        engine.begin_period()
+        daemon.sock.settimeout(2.0)
+        checker = mavlink2.MAVLink(None)
+        checker.signing.secret_key = KEY
+        frames = checker.parse_buffer(daemon.sock.recv(65535))
+        assert frames and all(m._signed for m in frames)
     finally:
         for s in (daemon, thief, holder):
             s.close()

@@ -213,3 +213,36 @@ def test_tlog_never_holds_setup_signing(tmp_path):
         w.write_many([Wire(1, 1).pack(hb()), setup])
     data = (tmp_path / "t.tlog").read_bytes()
     assert w.count == 1 and KEY not in data and len(data) == 8 + len(Wire(1, 1).pack(hb()))
+
+
+@pytest.mark.parametrize("impl", ["fast", "reference"])
+def test_both_links_take_only_signed_vehicle_frames_and_sign_what_they_send(tmp_path, impl):
+    """The links' receive path (fed directly, no socket) and send path with signing on."""
+    from mavreg.daemon.link import FastLink, MavlinkLink
+    signing = sg.Signing(write_key(tmp_path / "key", KEY.hex()), "t")
+    got, sent = [], []
+    tlog = TlogWriter(tmp_path / "t.tlog")
+    if impl == "fast":
+        sock = type("S", (), {"sendto": lambda self, d, a: sent.append(bytes(d)), "close": lambda self: None})()
+        link = FastLink("udpin", None, 1, 1, lambda m, t: got.append(m), tlog, sock, signing)
+    else:
+        link = MavlinkLink("udpin", None, 1, 1, lambda m, t: got.append(m), tlog, signing=signing)
+        link.transport = type("T", (), {"sendto": lambda self, d, a: sent.append(bytes(d)),
+                                        "is_closing": lambda self: False, "close": lambda self: None})()
+    t = signing.verifier.newest_ticks
+    quat = mavlink2.MAVLink_attitude_quaternion_message(10, 1, 0, 0, 0, 0, 0, 0, [0, 0, 0, 0])
+    link.datagram_received(Wire(1, 1).pack(quat), VEHICLE)                     # unsigned
+    link.datagram_received(forged(hb(), t + 10**9), VEHICLE)                   # forged
+    link.datagram_received(signed(hb(), t + 1) + signed(quat, t + 2), VEHICLE)
+    link.datagram_received(signed(quat, t + 3), ("10.0.0.9", 5000))           # not the vehicle's address
+    link.datagram_received(signed(quat, t + 2), VEHICLE)                       # replayed
+    assert [m.get_type() for m in got] == ["HEARTBEAT", "ATTITUDE_QUATERNION"]
+    c = link.counters
+    assert (c.unsigned, c.bad_signature, c.replayed, c.foreign_address) == (1, 1, 1, 1)
+    assert link.send(disarm())
+    assert sent[0][2] & 1
+    other = mavlink2.MAVLink(None)
+    other.signing.secret_key = KEY
+    assert other.parse_buffer(sent[0])[0]._signed               # pymavlink verifies what we sent
+    link.close()
+    tlog.close()
