@@ -64,6 +64,7 @@ SAVE_EVERY_S = 10.0
 """The state file is rewritten at least this often while frames are signed (the
 specification asks for at least once a minute), and at close."""
 _IFLAG_SIGNED = 0x01
+_CRC_EXTRA = {mid: bytes([cls.crc_extra]) for mid, cls in mavlink2.mavlink_map.items()}
 _SIG_LEN = 13
 _MAX_KEY_FILE_BYTES = 4096
 
@@ -134,7 +135,7 @@ class Verifier:
 
     def __init__(self, key: bytes, newest_ticks: int = 0, streams: dict | None = None,
                  max_streams: int = MAX_STREAMS):
-        self._key = bytes(key)
+        self._keyed = hashlib.sha256(bytes(key))     # SHA-256 state after the key, copied per frame
         self.newest_ticks = int(newest_ticks)
         self.max_streams = int(max_streams)
         self.streams: OrderedDict = OrderedDict(sorted((streams or {}).items(), key=lambda kv: kv[1]))
@@ -157,8 +158,9 @@ class Verifier:
         if n != 12 + frame[1] + _SIG_LEN:
             return "bad_signature"
         frame = bytes(frame)
-        expected = hashlib.sha256(self._key + frame[:-6]).digest()[:6]
-        if not hmac.compare_digest(expected, frame[-6:]):
+        h = self._keyed.copy()
+        h.update(memoryview(frame)[:-6])
+        if not hmac.compare_digest(h.digest()[:6], frame[-6:]):
             return "bad_signature"
         ts = int.from_bytes(frame[-12:-6], "little")
         stream = (frame[-13], frame[5], frame[6])
@@ -195,7 +197,7 @@ class Signer:
     """
 
     def __init__(self, key: bytes, clock_ticks: Callable[[], int], start_ticks: int = 0, link_id: int = 0):
-        self._key = bytes(key)
+        self._keyed = hashlib.sha256(bytes(key))
         self._clock = clock_ticks
         self.timestamp = int(start_ticks)
         self._link = bytes([link_id & 0xFF])
@@ -206,12 +208,14 @@ class Signer:
             return bytes(frame)
         body = bytearray(frame[:-2])
         body[2] |= _IFLAG_SIGNED
-        crc_extra = bytes([mavlink2.mavlink_map[_msgid(frame)].crc_extra])
+        crc_extra = _CRC_EXTRA[_msgid(frame)]
         body += mcrf4xx(crc_extra, mcrf4xx(memoryview(body)[1:])).to_bytes(2, "little")
         ts = max(self.timestamp + 1, self._clock())
         self.timestamp = ts
         body += self._link + ts.to_bytes(6, "little")
-        return bytes(body + hashlib.sha256(self._key + body).digest()[:6])
+        h = self._keyed.copy()
+        h.update(body)
+        return bytes(body + h.digest()[:6])
 
 
 def state_path(key_path, role: str) -> Path:
