@@ -47,7 +47,7 @@ def _attack(fly, stop: threading.Event, sent: list) -> None:
             for f in frames:
                 s.sendto(f, ("127.0.0.1", port))
             sent[0] += len(frames)
-            time.sleep(0.02)
+            time.sleep(0.05)
     finally:
         s.close()
 
