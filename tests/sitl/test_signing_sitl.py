@@ -52,13 +52,10 @@ def _attack(fly, stop: threading.Event, sent: list) -> None:
         s.close()
 
 
-def test_signed_flight_ignores_unsigned_and_forged_commands(tmp_path):
-    key = tmp_path / "key"
-    key.write_text(os.urandom(32).hex())
-    key.chmod(0o600)
-    out = tmp_path / "out"
+def _fly_under_attack(tmp_path, *fly_args):
+    """``mavreg fly`` of the hop with the attacker running; (exit code, fly process, frames sent)."""
     fly = mavreg("fly", str(HOP), "--lockstep", "--world", "ideal", "--controller", str(CONTROLLER),
-                 "--signing-key", str(key), "--out", str(out), "--timeout-s", "120")
+                 "--out", str(tmp_path / "out"), "--timeout-s", "120", *fly_args)
     stop, sent = threading.Event(), [0]
     t = threading.Thread(target=_attack, args=(fly, stop, sent), daemon=True)
     t.start()
@@ -68,6 +65,16 @@ def test_signed_flight_ignores_unsigned_and_forged_commands(tmp_path):
         stop.set()
         t.join(10)
         fly.stop()
+    return code, fly, sent[0]
+
+
+def test_signed_flight_ignores_unsigned_and_forged_commands(tmp_path):
+    key = tmp_path / "key"
+    key.write_text(os.urandom(32).hex())
+    key.chmod(0o600)
+    out = tmp_path / "out"
+    code, fly, n_sent = _fly_under_attack(tmp_path, "--signing-key", str(key))
+    sent = [n_sent]
     summary = json.loads((out / "summary.json").read_text())
     with np.load(out / "groundtruth.npz") as z:
         meta = json.loads(str(z["meta_json"]))
@@ -85,6 +92,17 @@ def test_signed_flight_ignores_unsigned_and_forged_commands(tmp_path):
         assert drops[reason] == 0, reason
     assert summary["status"]["signing"]["accepted"] > 1000
     assert _key_not_in(out, key)
+
+
+@pytest.mark.slow          # about 30 s; the negative control of the test above, before releases
+def test_without_signing_the_same_attack_takes_the_vehicle(tmp_path):
+    """The attacker's unsigned HEARTBEAT under the daemon's ids moves the vehicle's peer (and its
+    telemetry) to the attacker, whose commands it would now obey: the daemon never gets a
+    sample and the flight fails. Signing is what stops it."""
+    code, fly, n_sent = _fly_under_attack(tmp_path, "--timeout-s", "20")
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    print(f"\nunsigned flight under attack: exit {code}, {summary['reason']!r}")
+    assert n_sent > 0 and code == 1 and summary["result"] == "failed"
 
 
 def _key_not_in(out: Path, key: Path) -> bool:
