@@ -5,8 +5,7 @@ shares no code with mavreg's), with frames signed by the daemon's signer and by 
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
+from pathlib import Path
 
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
@@ -181,14 +180,16 @@ def test_key_file_rules(tmp_path, mod):
         mod.load_key(tmp_path / "missing")
 
 
-def test_fly_refuses_a_readable_key_file_in_one_line(tmp_path):
+def test_fly_and_serve_refuse_a_readable_key_file_in_one_line(tmp_path, capsys):
+    from mavreg.cli.main import main
     key = write_key(tmp_path / "key", KEY.hex(), 0o644)
-    r = subprocess.run([sys.executable, "-m", "mavreg.cli.main", "fly", "params/maneuvers/barrel_roll.yaml",
-                        "--signing-key", str(key), "--out", str(tmp_path / "out")],
-                       capture_output=True, text=True, timeout=60)
-    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
-    assert "chmod 600" in r.stderr and KEY.hex() not in r.stderr + r.stdout
-    assert not (tmp_path / "out").exists()
+    maneuver = Path(__file__).resolve().parents[2] / "params/maneuvers/barrel_roll.yaml"
+    for argv in (["fly", str(maneuver), "--out", str(tmp_path / "out")],
+                 ["serve", "--socket", str(tmp_path / "s.sock")]):
+        assert main([*argv, "--signing-key", str(key)]) == 2
+        out, err = capsys.readouterr()
+        assert err.count("\n") == 1 and "chmod 600" in err and KEY.hex() not in err + out, err
+    assert not (tmp_path / "out").exists() and not (tmp_path / "s.sock").exists()
 
 
 def test_peer_filter_daemon_side():
