@@ -5,7 +5,7 @@ import math
 import time
 from pathlib import Path
 
-from .common import REAL_CONTROLLER, add_model_arguments
+from .common import REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, gcs_config
 
 MAX_ENTRY_OFFSET_M = 2.0
 """Longest --entry-offset: an experiment's start error, not a relocation of the maneuver."""
@@ -98,6 +98,7 @@ def add_arguments(p):
                    "velocity, and the regulator takes over there (the paper's Section 4: 0.6 0.6 0.6; "
                    "more than 0.5 m across the path needs a controller file whose envelope allows "
                    "it, see mavreg experiment) (default: 0 0 0)" % {"max": MAX_ENTRY_OFFSET_M})
+    add_gcs_arguments(p)
     add_model_arguments(p, controller=REAL_CONTROLLER)
 
 
@@ -121,10 +122,11 @@ def run(args) -> int:
     if not all(math.isfinite(v) for v in offset) or math.hypot(*offset) > MAX_ENTRY_OFFSET_M:
         raise ValueError(f"--entry-offset must be finite and at most {MAX_ENTRY_OFFSET_M:g} m long, "
                          f"got {' '.join(f'{v:g}' for v in offset)}")
+    gcs = gcs_config(args)
     load_vehicle(args.vehicle_params)   # a bad vehicle file is a user error before anything starts
     out = Path(args.out) if args.out else Path("flights") / time.strftime("%Y%m%d-%H%M%S")
     opts = FlyOptions(maneuver, args.vehicle, Path(args.vehicle_params), Path(args.controller), out,
                       Path(args.socket) if args.socket else None, args.timeout_s, args.lockstep,
                       tuple(args.emulator_arg), args.control_rate_hz, args.vehicle_lockstep, args.world,
-                      args.stale_timeout_s, offset)
+                      args.stale_timeout_s, offset, gcs["gcs_urls"], gcs["gcs"])
     return fly(opts)

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .common import REAL_CONTROLLER, add_model_arguments
+from .common import REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, gcs_config
 
 HELP = "run the offboard daemon: fly maneuvers uploaded on the control endpoint"
 DESCRIPTION = """\
@@ -48,6 +48,7 @@ def add_arguments(p):
     p.add_argument("--vehicle-lockstep", action="store_true",
                    help="the vehicle is a lockstep simulator (it waits for each command): do not "
                    "fly telemetry gaps on the prediction (in real time the daemon does)")
+    add_gcs_arguments(p)
     add_model_arguments(p, controller=REAL_CONTROLLER)
 
 
@@ -60,6 +61,7 @@ def run(args) -> int:
     from ..daemon.link import parse_url
     from ..daemon.supervisor import Phase, SupervisorParams
     parse_url(args.vehicle)
+    gcs = gcs_config(args)
     if args.stale_timeout_s <= 0:
         raise ValueError(f"--stale-timeout-s must be positive, got {args.stale_timeout_s}")
     vehicle = load_vehicle(args.vehicle_params)
@@ -71,7 +73,7 @@ def run(args) -> int:
                           SupervisorParams(land_when_done=False, stale_timeout_s=args.stale_timeout_s,
                                            gap_fill=not args.vehicle_lockstep),
                           envelope=controller.envelope, controller=controller,
-                          control_rate_hz=args.control_rate_hz)
+                          control_rate_hz=args.control_rate_hz, **gcs)
     make_regulator = regulator_factory(vehicle, args.control_rate_hz, controller.disturbance,
                                       controller.allocation, controller.speed_governor)
     daemon = Daemon(config, vehicle, make_regulator)
