@@ -3,8 +3,8 @@
 A ground station (QGroundControl, MAVProxy) attached with ``--gcs`` watches the flight
 live. :class:`GcsHub` decides, with the time injected and no sockets:
 
-- **to the ground station**: every message the vehicle sends, unchanged (its own system
-  and component id, its own bytes), streamed telemetry at most
+- **to the ground station**: every message the vehicle sends but its TIMESYNC answers,
+  unchanged (its own system and component id, its own bytes), streamed telemetry at most
   :attr:`GcsParams.stream_rate_hz` per message type; the daemon's HEARTBEAT (component
   191, MAV_TYPE_ONBOARD_CONTROLLER) and a NAMED_VALUE_INT ``mr_phase`` of its phase code
   once a second; its STATUSTEXTs (the safety actions the vehicle also gets) and one
@@ -48,6 +48,9 @@ EVENT_TYPES = frozenset({
     "NAMED_VALUE_INT"})
 """Messages that are events, not streams: never thinned by the per-type rate limit (a
 parameter list or a mode change must arrive whole), only by the queue and token bucket."""
+
+NOT_SHOWN = frozenset({"TIMESYNC"})
+"""The vehicle's messages not forwarded: its TIMESYNC answers belong to the daemon's link."""
 
 NEVER_FORWARDED = frozenset({"HEARTBEAT", "TIMESYNC"})
 """A ground station's HEARTBEAT would arm the vehicle's own ground-station-loss failsafe on a
@@ -324,7 +327,9 @@ class GcsHub:
 
     def vehicle_message(self, msg, now_s: float) -> None:
         """One message from the vehicle, forwarded as it came (its bytes, its ids)."""
-        self._offer_all(msg.get_msgbuf(), msg.get_type(), now_s)
+        mtype = msg.get_type()
+        if mtype not in NOT_SHOWN:
+            self._offer_all(msg.get_msgbuf(), mtype, now_s)
 
     def daemon_output(self, messages, events, now_s: float) -> None:
         """The daemon's STATUSTEXTs among ``messages``, and a STATUSTEXT per phase event."""

@@ -75,20 +75,20 @@ class GcsLink:
         self._closed = False
 
     async def open(self) -> None:
-        """Create every socket and the sending task."""
+        """Create every socket and the sending task; ValueError (one line) if one cannot be opened."""
         self._loop = asyncio.get_running_loop()
-        try:
-            for i, url in enumerate(self.urls):
+        for i, url in enumerate(self.urls):
+            try:
                 self.endpoints.append(_open_socket(url))
-                self._loop.add_reader(self.endpoints[i].sock.fileno(), self._readable, i)
-                ep = self.endpoints[i]
-                where = (f"sending to {ep.peer[0]}:{ep.peer[1]}" if ep.fixed else
-                         "listening on {}:{}".format(*ep.sock.getsockname()[:2]))
-                self.log(f"ground station {url}: {where} "
-                         f"({'commands allowed' if self.hub.params.allow_commands else 'read-only'})")
-        except OSError:
-            self.close()
-            raise
+            except OSError as exc:           # unknown host, port in use: the user's mistake, one line
+                self.close()
+                raise ValueError(f"--gcs {url!r}: {exc.strerror or exc}") from None
+            self._loop.add_reader(self.endpoints[i].sock.fileno(), self._readable, i)
+            ep = self.endpoints[i]
+            where = (f"sending to {ep.peer[0]}:{ep.peer[1]}" if ep.fixed else
+                     "listening on {}:{}".format(*ep.sock.getsockname()[:2]))
+            self.log(f"ground station {url}: {where} "
+                     f"({'commands allowed' if self.hub.params.allow_commands else 'read-only'})")
         self._task = asyncio.create_task(self._send_task(), name="gcs")
 
     # ------------------------------------------------------------------ hooks

@@ -125,3 +125,22 @@ def test_udpin_endpoint_answers_the_ground_station_that_spoke_first():
     before, got = asyncio.run(_udpin_session())
     assert before["dropped_queue"] == 2 and before["to_gcs"] == 0
     assert [m.get_type() for m in got] == ["HEARTBEAT", "NAMED_VALUE_INT"]
+
+
+def test_an_endpoint_that_cannot_open_is_one_line():
+    async def go(url):
+        link = GcsLink([url], 1, GcsParams(), _Clock(), lambda: True, lambda m: True, lambda: None,
+                       lambda line: None)
+        await link.open()
+    busy = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    busy.bind(("127.0.0.1", 0))
+    try:
+        for url in ("udpout:no-such-host.invalid:14550", f"udpin:127.0.0.1:{busy.getsockname()[1]}"):
+            try:
+                asyncio.run(go(url))
+            except ValueError as exc:
+                assert str(exc).startswith(f"--gcs {url!r}: ") and "\n" not in str(exc)
+            else:
+                raise AssertionError(f"{url} opened")
+    finally:
+        busy.close()

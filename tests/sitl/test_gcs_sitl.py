@@ -1,0 +1,118 @@
+"""End-to-end: MAVProxy attached through ``mavreg fly --gcs`` watches a lockstep flight live.
+
+MAVProxy listens (``--master udpin:``) as it does for a vehicle; the daemon sends to it
+(``--gcs udpout:``). What MAVProxy prints is what a pilot at its console sees; its ``--out``
+re-forwards everything it received to a pymavlink listener here, which checks the messages
+MAVProxy does not print (it prints STATUSTEXTs of the autopilot component only).
+"""
+from __future__ import annotations
+
+import json
+import socket
+import sys
+import threading
+import time
+
+import pytest
+from pymavlink.dialects.v20 import common as mavlink2
+
+from sitl_helpers import REPO, Proc, mavreg
+
+pytestmark = pytest.mark.sitl
+
+try:
+    import MAVProxy  # noqa: F401
+except ImportError:
+    pytest.skip("MAVProxy is not installed: pip install -e '.[gcs]' (the ground-station extra)",
+                allow_module_level=True)
+
+HOP = REPO / "tests/sitl/gcs_hop.yaml"
+OFFBOARD = 6 << 16
+
+
+class _Listener:
+    """Everything MAVProxy's --out sends, parsed, collected by a thread."""
+
+    def __init__(self):
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.settimeout(0.2)
+        self.port = self.sock.getsockname()[1]
+        self.msgs: list = []
+        self._stop = threading.Event()
+        self._parser = mavlink2.MAVLink(None)
+        self._parser.robust_parsing = True
+        self._t = threading.Thread(target=self._run, daemon=True)
+        self._t.start()
+
+    def _run(self):
+        while not self._stop.is_set():
+            try:
+                data = self.sock.recv(65535)
+            except socket.timeout:
+                continue
+            self.msgs.extend(m for m in self._parser.parse_buffer(data) or [] if m.get_type() != "BAD_DATA")
+
+    def close(self):
+        self._stop.set()
+        self._t.join(5)
+        self.sock.close()
+
+
+def _free_udp_port() -> int:
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    return port
+
+
+def test_mavproxy_sees_the_vehicle_its_modes_and_the_daemons_messages(tmp_path):
+    t0 = time.monotonic()
+    listener = _Listener()
+    port = _free_udp_port()
+    mp = Proc([sys.executable, "-u", "-m", "MAVProxy.mavproxy", "--master", f"udpin:127.0.0.1:{port}",
+               "--out", f"udp:127.0.0.1:{listener.port}", "--daemon", "--non-interactive", "--no-state"],
+              cwd=tmp_path)
+    try:
+        mp.wait_line("Waiting for heartbeat", 60)
+        t1 = time.monotonic()
+        fly = mavreg("fly", str(HOP), "--lockstep", "--world", "ideal", "--out", str(tmp_path / "out"),
+                     "--timeout-s", "120", "--gcs", f"udpout:127.0.0.1:{port}")
+        code = fly.wait(180)
+        t2 = time.monotonic()
+        time.sleep(1.0)                   # what is in flight to MAVProxy and back out
+    finally:
+        mp.stop()
+        listener.close()
+    print(f"\nMAVProxy ready after {t1 - t0:.1f} s, flight {t2 - t1:.1f} s, stopped after {time.monotonic() - t2:.1f} s")
+    assert code == 0, "\n".join(fly.lines[-30:])
+    seen = mp.lines
+    print("\nMAVProxy printed:\n  " + "\n  ".join(ln for ln in seen if not ln.startswith("Unloading")))
+    # MAVProxy attached: the vehicle (1:1) and the daemon's own component (1:191)
+    for needle in ("Detected vehicle 1:1 ", "Detected vehicle 1:191 ", "online system 1", "ARMED",
+                   "DISARMED"):
+        assert any(needle in ln for ln in seen), needle
+    modes = [ln.split("Mode ", 1)[1] for ln in seen if "> Mode " in ln or ln.startswith("Mode ")]
+    assert len(set(modes)) >= 2, modes                       # its mode changes, announced
+    assert any(m in ("OFFBOARD", "Mode(393216)") for m in modes), modes
+    assert any(ln.startswith("AP: ") for ln in seen)         # the vehicle's STATUSTEXTs
+    # behind MAVProxy: the vehicle's telemetry and the daemon's messages, with their ids
+    got = listener.msgs
+    kinds = {(m.get_type(), m.get_srcSystem(), m.get_srcComponent()) for m in got}
+    print("re-forwarded by MAVProxy: " + ", ".join(f"{t} {s}:{c}" for t, s, c in sorted(kinds)))
+    assert ("HEARTBEAT", 1, 1) in kinds and ("HEARTBEAT", 1, 191) in kinds
+    assert any(m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1 and m.custom_mode == OFFBOARD
+               for m in got)
+    north = [m.x for m in got if m.get_type() == "LOCAL_POSITION_NED"]
+    assert north and max(north) > 4.0                        # the hop, seen live
+    texts = [m.text for m in got if m.get_type() == "STATUSTEXT" and m.get_srcComponent() == 191]
+    print("the daemon's STATUSTEXTs: " + " | ".join(texts))
+    for phase in ("takeoff", "maneuver", "land", "disarmed"):
+        assert any(t.startswith(f"mavreg phase {phase}:") for t in texts), (phase, texts)
+    # read-only: what MAVProxy sent (heartbeats, parameter and stream requests) was dropped
+    gcs = json.loads((tmp_path / "out/summary.json").read_text())["status"]["gcs"][0]
+    print(f"ground-station counters: {gcs}")
+    assert gcs["from_gcs"] > 0 and gcs["to_vehicle"] == 0
+    assert gcs["dropped_never"] + gcs["dropped_read_only"] == gcs["from_gcs"]
+    assert gcs["dropped_queue"] == 0 and gcs["send_errors"] == 0
