@@ -116,3 +116,67 @@ def test_mavproxy_sees_the_vehicle_its_modes_and_the_daemons_messages(tmp_path):
     assert gcs["from_gcs"] > 0 and gcs["to_vehicle"] == 0
     assert gcs["dropped_never"] + gcs["dropped_read_only"] == gcs["from_gcs"]
     assert gcs["dropped_queue"] == 0 and gcs["send_errors"] == 0
+
+
+class _HostileGcs(_Listener):
+    """A ground station (pymavlink) that, once the maneuver begins, asks for everything that
+    would fight the daemon, one harmless query, and a landing."""
+
+    def __init__(self):
+        self.sent = False
+        self.replies: list = []
+        super().__init__()
+
+    def _run(self):
+        gcs = mavlink2.MAVLink(None, srcSystem=255, srcComponent=190)
+        cmd = mavlink2.MAVLink_command_long_message
+        while not self._stop.is_set():
+            try:
+                data, addr = self.sock.recvfrom(65535)
+            except socket.timeout:
+                continue
+            msgs = [m for m in self._parser.parse_buffer(data) or [] if m.get_type() != "BAD_DATA"]
+            self.msgs.extend(msgs)
+            if self.sent:
+                continue
+            if any(m.get_type() == "STATUSTEXT" and m.text.startswith("mavreg phase maneuver") for m in msgs):
+                self.sent = True
+                batch = [cmd(1, 1, mavlink2.MAV_CMD_COMPONENT_ARM_DISARM, 0, 0, 21196, 0, 0, 0, 0, 0),
+                         cmd(1, 1, mavlink2.MAV_CMD_DO_SET_MODE, 0, 1, 4, 3, 0, 0, 0, 0),
+                         mavlink2.MAVLink_set_actuator_control_target_message(0, 0, 1, 1, [0.0] * 8),
+                         mavlink2.MAVLink_manual_control_message(1, 0, 0, 0, 0, 0),
+                         cmd(1, 1, mavlink2.MAV_CMD_REQUEST_MESSAGE, 0, 148, 0, 0, 0, 0, 0, 0),
+                         cmd(1, 1, mavlink2.MAV_CMD_NAV_LAND, 0, 0, 0, 0, 0, 0, 0, 0)]
+                self.sock.sendto(b"".join(m.pack(gcs) for m in batch), addr)
+
+
+@pytest.mark.slow
+def test_allowed_commands_cannot_fight_the_daemon_in_flight(tmp_path):
+    """With --gcs-allow-commands, a forced disarm, a mode change, zero rotor set-points and
+    manual control sent mid-maneuver are refused; the query passes, the landing request
+    becomes the daemon's; the flight ends as it would have."""
+    gcs = _HostileGcs()
+    try:
+        fly = mavreg("fly", str(HOP), "--lockstep", "--world", "ideal", "--out", str(tmp_path / "out"),
+                     "--timeout-s", "120", "--gcs", f"udpout:127.0.0.1:{gcs.port}", "--gcs-allow-commands")
+        code = fly.wait(180)
+    finally:
+        gcs.close()
+    assert gcs.sent
+    assert code == 0, "\n".join(fly.lines[-30:])
+    summary = json.loads((tmp_path / "out/summary.json").read_text())
+    st = summary["status"]["gcs"][0]
+    print(f"\nground-station counters: {st}")
+    assert (st["refused"], st["to_vehicle"], st["land_requests"]) == (4, 1, 1)
+    assert any(e["kind"] == "land_requested" for e in summary["events"])
+    denied = {m.command for m in gcs.msgs if m.get_type() == "COMMAND_ACK" and m.get_srcComponent() == 191
+              and m.result == mavlink2.MAV_RESULT_DENIED}
+    assert denied == {mavlink2.MAV_CMD_COMPONENT_ARM_DISARM, mavlink2.MAV_CMD_DO_SET_MODE}
+    texts = [m.text for m in gcs.msgs if m.get_type() == "STATUSTEXT" and m.get_srcComponent() == 191]
+    assert "mavreg gcs: land requested; the daemon lands" in texts
+    # the vehicle never saw the refused ones: it stayed armed in OFFBOARD until the daemon landed
+    vehicle_texts = [m.text for m in gcs.msgs if m.get_type() == "STATUSTEXT" and m.get_srcComponent() == 1]
+    assert not any("disarm" in t and "force" in t for t in vehicle_texts)
+    modes = [m.custom_mode for m in gcs.msgs if m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1
+             and m.base_mode & mavlink2.MAV_MODE_FLAG_SAFETY_ARMED]
+    assert modes and set(modes[modes.index(OFFBOARD):]) == {OFFBOARD}
