@@ -141,6 +141,8 @@ class GcsCounters:
     dropped_read_only: int = 0
     dropped_never: int = 0
     """The ground station's HEARTBEAT and TIMESYNC (never forwarded)."""
+    dropped_unknown: int = 0
+    """Valid frames of messages outside the common dialect (never forwarded)."""
     refused: int = 0
     """Messages refused while the daemon flies (``--gcs-allow-commands``)."""
     to_vehicle: int = 0
@@ -169,6 +171,8 @@ def judge(msg, allow_commands: bool, in_control: bool) -> tuple[str, str]:
     mtype = msg.get_type()
     if mtype == "BAD_DATA":
         return DROP, "not MAVLink"
+    if mtype.startswith("UNKNOWN_"):
+        return DROP, "a message outside the common dialect"
     if mtype in NEVER_FORWARDED:
         return DROP, f"a ground station's {mtype} is never forwarded"
     if not allow_commands:
@@ -285,6 +289,8 @@ class GcsForwarder:
                 refused.append((msg, why))
             elif msg.get_type() in NEVER_FORWARDED:
                 c.dropped_never += 1
+            elif msg.get_type().startswith("UNKNOWN_"):
+                c.dropped_unknown += 1
             else:
                 c.dropped_read_only += 1
                 if msg.get_type() in ("COMMAND_LONG", "COMMAND_INT"):
@@ -316,6 +322,9 @@ class GcsHub:
         self.endpoints = [GcsForwarder(params) for _ in range(n_endpoints)]
         self.wire = Wire(system_id, OWN_COMPONENT_ID)
         self._text_id = 0
+        """STATUSTEXT chunk ids 32768-65535: the supervisor's own (repacked here with the same
+        component id) count up from 1, so the two never share an id in a ground station's
+        reassembly."""
 
     # -------------------------------------------------------------- to the GCS
     def _offer_all(self, frame: bytes, mtype: str, now_s: float) -> None:
@@ -348,8 +357,8 @@ class GcsHub:
 
     def text(self, severity: int, text: str, now_s: float, endpoint: int | None = None) -> None:
         """A STATUSTEXT of the daemon's (chunked when long) to one or every endpoint."""
-        self._text_id = self._text_id % 65535 + 1
-        for m in mm.statustext(severity, text, self._text_id):
+        self._text_id = self._text_id % 32768 + 1
+        for m in mm.statustext(severity, text, 32767 + self._text_id):
             if endpoint is None:
                 self._daemon(m, now_s)
             else:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import asyncio
 import socket
+import struct
 from typing import Callable
 
 from .gcs import GcsHub, GcsParams, parse_gcs_url
@@ -122,7 +123,10 @@ class GcsLink:
             if ep.peer is None and c.bad_data == bad:
                 ep.peer = tuple(addr[:2])
             for msg in res.forward:
-                self.to_vehicle(msg)
+                try:
+                    self.to_vehicle(msg)
+                except (ValueError, TypeError, NotImplementedError, struct.error):
+                    c.send_errors += 1       # a message that cannot be packed again: dropped
             if res.land:
                 self.request_land()
 

@@ -191,6 +191,15 @@ def test_garbage_from_the_ground_station_is_counted():
     assert len(hub2.receive(0, good, 0.0, in_control=True).forward) == 1
 
 
+def test_messages_outside_the_common_dialect_never_pass():
+    from pymavlink.dialects.v20 import ardupilotmega as apm
+    other = apm.MAVLink(None, srcSystem=255, srcComponent=190)
+    frame = apm.MAVLink_rally_fetch_point_message(1, 1, 0).pack(other)
+    hub = GcsHub(1, GcsParams(allow_commands=True), system_id=1)
+    assert hub.receive(0, frame, 0.0, in_control=False).forward == []
+    assert hub.endpoints[0].counters.dropped_unknown == 1
+
+
 def test_judge_verdicts():
     arm = _from(GCS, _command(mavlink2.MAV_CMD_COMPONENT_ARM_DISARM, 1.0))
     assert judge(arm, False, True)[0] == DROP
