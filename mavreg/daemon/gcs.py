@@ -7,8 +7,8 @@ live. :class:`GcsHub` decides, with the time injected and no sockets:
   unchanged (its own system and component id, its own bytes), streamed telemetry at most
   :attr:`GcsParams.stream_rate_hz` per message type; the daemon's HEARTBEAT (component
   191, MAV_TYPE_ONBOARD_CONTROLLER) and a NAMED_VALUE_INT ``mr_phase`` of its phase code
-  once a second; its STATUSTEXTs (the safety actions the vehicle also gets) and one
-  STATUSTEXT per phase change. Each endpoint has a bounded queue and a token bucket: a
+  once a second; its STATUSTEXTs (the safety actions the vehicle also gets); at each phase
+  change a STATUSTEXT and ``mr_phase``. Each endpoint has a bounded queue and a token bucket: a
   slow ground station loses messages (counted), it never delays the control loop.
 - **from the ground station**: read-only by default, every message dropped and counted.
   With ``allow_commands`` (``--gcs-allow-commands``) :func:`judge` lets queries through
@@ -348,10 +348,14 @@ class GcsHub:
         for ev in events:
             if ev.kind == "phase":
                 self.text(mavlink2.MAV_SEVERITY_NOTICE, f"mavreg phase {ev.phase}: {ev.detail}", now_s)
+                self._phase_value(ev.phase, now_s)
 
     def heartbeat(self, hb, phase: str, now_s: float) -> None:
         """The daemon's HEARTBEAT and its phase code (NAMED_VALUE_INT ``mr_phase``)."""
         self._daemon(hb, now_s)
+        self._phase_value(phase, now_s)
+
+    def _phase_value(self, phase: str, now_s: float) -> None:
         self._daemon(mavlink2.MAVLink_named_value_int_message(
             int(now_s * 1e3) & 0xFFFFFFFF, b"mr_phase", PHASE_CODES.get(phase, -1)), now_s)
 

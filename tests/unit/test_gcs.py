@@ -67,12 +67,14 @@ def test_daemon_heartbeat_phase_and_statustexts_as_component_191():
     hub.daemon_output(safety + [actuator], [ev, other], 1.0)
     got = _parse(hub.drain(0, 1.0))
     assert {(m.get_srcSystem(), m.get_srcComponent()) for m in got} == {(3, 191)}
-    assert [m.get_type() for m in got] == ["HEARTBEAT", "NAMED_VALUE_INT", "STATUSTEXT", "STATUSTEXT"]
+    assert [m.get_type() for m in got] == ["HEARTBEAT", "NAMED_VALUE_INT", "STATUSTEXT", "STATUSTEXT",
+                                           "NAMED_VALUE_INT"]
     assert got[0].type == mavlink2.MAV_TYPE_ONBOARD_CONTROLLER
     assert got[1].name == "mr_phase" and got[1].value == 4          # PHASE_CODES["maneuver"]
     assert got[2].text == "mavreg recover: attitude 61 deg" and got[2].severity == mm.SEVERITY_CRITICAL
     assert got[3].text == "mavreg phase hold: take-off complete, holding"
-    assert [m.get_seq() for m in got] == [0, 1, 2, 3]              # one sequence of its own
+    assert got[4].name == "mr_phase" and got[4].value == 2          # the new phase at once
+    assert [m.get_seq() for m in got] == [0, 1, 2, 3, 4]           # one sequence of its own
 
 
 def test_streams_are_rate_limited_events_are_not():

@@ -81,7 +81,7 @@ def test_udpout_endpoint_sees_the_flight_and_is_read_only():
     got, replies, to_vehicle, lands, st, lines = asyncio.run(_session(allow=False, in_control=True))
     ids = [(m.get_type(), m.get_srcSystem(), m.get_srcComponent()) for m in got]
     assert ids == [("HEARTBEAT", 1, 1), ("HEARTBEAT", 1, 191), ("NAMED_VALUE_INT", 1, 191),
-                   ("STATUSTEXT", 1, 191)]
+                   ("STATUSTEXT", 1, 191), ("NAMED_VALUE_INT", 1, 191)]
     assert got[3].text == "mavreg phase takeoff: take-off from z=0.00 m"
     assert to_vehicle == [] and lands == []
     assert st["from_gcs"] == 4 and st["dropped_never"] == 1 and st["dropped_read_only"] == 3
