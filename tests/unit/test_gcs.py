@@ -226,3 +226,19 @@ def test_parse_gcs_url_rejects_with_one_line(url):
     with pytest.raises(ValueError) as e:
         parse_gcs_url(url)
     assert "--gcs" in str(e.value) and "\n" not in str(e.value)
+
+
+def test_fly_and_serve_take_gcs_options():
+    from mavreg.cli.common import gcs_config
+    from mavreg.cli.main import build_parser
+    parser, _ = build_parser()
+    for argv in (["serve"], ["fly", "m.yaml"]):
+        args = parser.parse_args(argv + ["--gcs", "udpout:127.0.0.1", "--gcs", "udpin:0.0.0.0:14551",
+                                         "--gcs-allow-commands"])
+        cfg = gcs_config(args)
+        assert cfg["gcs_urls"] == ("udpout:127.0.0.1", "udpin:0.0.0.0:14551")
+        assert cfg["gcs"].allow_commands
+        plain = gcs_config(parser.parse_args(argv))
+        assert plain["gcs_urls"] == () and not plain["gcs"].allow_commands
+        with pytest.raises(ValueError, match="needs a --gcs"):
+            gcs_config(parser.parse_args(argv + ["--gcs-allow-commands"]))
