@@ -309,7 +309,7 @@ class Daemon:
             await self.endpoint.close(f"the daemon is stopping (phase {self.supervisor.phase}{why})")
         if self.gcs is not None:
             self.gcs.flush()                # the last phase change and STATUSTEXTs
-            self.gcs.close()
+            await self.gcs.aclose()
         if self.link is not None:
             self.link.close()
         if self._tlog is not None:

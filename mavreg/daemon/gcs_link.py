@@ -156,6 +156,12 @@ class GcsLink:
     def status(self) -> list[dict]:
         return [dict(s, url=url) for s, url in zip(self.hub.status(), self.urls)]
 
+    async def aclose(self) -> None:
+        """:meth:`close`, then wait for the sending task to end."""
+        self.close()
+        if self._task is not None:
+            await asyncio.gather(self._task, return_exceptions=True)
+
     def close(self) -> None:
         """Stop the task and close the sockets (idempotent)."""
         if self._closed:

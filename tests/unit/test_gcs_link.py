@@ -72,7 +72,8 @@ async def _session(allow: bool, in_control: bool):
         replies = await asyncio.to_thread(_recv_all, gcs)
         return got, replies, to_vehicle, lands, link.status()[0], lines
     finally:
-        link.close()
+        await link.aclose()
+        assert link._task.done()
         gcs.close()
         stranger.close()
 
