@@ -289,7 +289,7 @@ class Daemon:
 
     async def _open_gcs(self) -> None:
         """The ground-station endpoints: the vehicle's telemetry and the daemon's messages out,
-        the ground station's messages judged by :func:`mavreg.daemon.gcs.judge`."""
+        the ground station's messages judged by :func:`mavreg.daemon.gcs_policy.judge`."""
         def land() -> None:
             self._emit(self.supervisor.request_land(self.clock_s()))
         self.gcs = GcsLink(self.config.gcs_urls, self.config.supervisor.vehicle_system_id, self.config.gcs,

@@ -8,10 +8,11 @@ live. :class:`GcsHub` decides, with the time injected and no sockets:
   :attr:`GcsParams.stream_rate_hz` per message type; the daemon's HEARTBEAT (component
   191, MAV_TYPE_ONBOARD_CONTROLLER) and a NAMED_VALUE_INT ``mr_phase`` of its phase code
   once a second; its STATUSTEXTs (the safety actions the vehicle also gets); at each phase
-  change a STATUSTEXT and ``mr_phase``. Each endpoint has a bounded queue and a token bucket: a
-  slow ground station loses messages (counted), it never delays the control loop.
+  change a STATUSTEXT and ``mr_phase``. Each endpoint has a bounded queue and a token
+  bucket: a slow ground station loses messages (counted), it never delays the control loop.
 - **from the ground station**: read-only by default, every message dropped and counted.
-  With ``allow_commands`` (``--gcs-allow-commands``) :func:`judge` lets queries through
+  With ``allow_commands`` (``--gcs-allow-commands``)
+  :func:`mavreg.daemon.gcs_policy.judge` lets queries through
   while the daemon flies, turns a land or return request into the daemon's own landing,
   and refuses whatever would fight the daemon (mode, arming, set-points, parameters,
   missions, actuators); after the flight (disarmed or aborted) everything but the ground
@@ -30,17 +31,16 @@ from dataclasses import dataclass, field
 from pymavlink.dialects.v20 import common as mavlink2
 
 from . import messages as mm
+from .gcs_policy import FORWARD, LAND, NEVER_FORWARDED, REFUSE, judge
 from .phases import PHASE_CODES
 from .wire import Wire
 
 __all__ = ["GCS_DEFAULT_PORT", "GcsParams", "GcsCounters", "GcsForwarder", "GcsHub", "Received",
-           "judge", "parse_gcs_url", "FORWARD", "LAND", "DROP", "REFUSE"]
+           "parse_gcs_url"]
 
 GCS_DEFAULT_PORT = 14550
 """The UDP port QGroundControl listens on, and MAVProxy's usual ground-station port."""
 OWN_COMPONENT_ID = mavlink2.MAV_COMP_ID_ONBOARD_COMPUTER
-
-FORWARD, LAND, DROP, REFUSE = "forward", "land", "drop", "refuse"
 
 EVENT_TYPES = frozenset({
     "HEARTBEAT", "STATUSTEXT", "COMMAND_ACK", "PARAM_VALUE", "AUTOPILOT_VERSION", "PROTOCOL_VERSION",
@@ -51,28 +51,6 @@ parameter list or a mode change must arrive whole), only by the queue and token 
 
 NOT_SHOWN = frozenset({"TIMESYNC"})
 """The vehicle's messages not forwarded: its TIMESYNC answers belong to the daemon's link."""
-
-NEVER_FORWARDED = frozenset({"HEARTBEAT", "TIMESYNC"})
-"""A ground station's HEARTBEAT would arm the vehicle's own ground-station-loss failsafe on a
-link it does not own; its TIMESYNC would disturb the daemon's link-delay measurement."""
-
-QUERY_MESSAGES = frozenset({
-    "PARAM_REQUEST_READ", "PARAM_REQUEST_LIST", "REQUEST_DATA_STREAM", "MISSION_REQUEST_LIST",
-    "MISSION_REQUEST_INT", "MISSION_REQUEST", "AUTOPILOT_VERSION_REQUEST", "LOG_REQUEST_LIST"})
-"""Messages that only ask the vehicle for information: forwarded even during a flight."""
-
-QUERY_COMMANDS = frozenset({
-    mavlink2.MAV_CMD_REQUEST_MESSAGE, mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL,
-    mavlink2.MAV_CMD_GET_MESSAGE_INTERVAL, mavlink2.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES,
-    mavlink2.MAV_CMD_REQUEST_PROTOCOL_VERSION, mavlink2.MAV_CMD_GET_HOME_POSITION,
-    mavlink2.MAV_CMD_REQUEST_FLIGHT_INFORMATION})
-"""COMMAND_LONG/COMMAND_INT commands that only ask for information or a telemetry rate."""
-
-LAND_COMMANDS = frozenset({mavlink2.MAV_CMD_NAV_LAND, mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH})
-_PX4_SUB_RTL = 5
-_LAND_MODES = frozenset({(mm.PX4_MAIN_AUTO, mm.PX4_SUB_LAND), (mm.PX4_MAIN_AUTO, _PX4_SUB_RTL)})
-"""PX4 (main, sub) modes that ask for a landing: AUTO.LAND and AUTO.RTL."""
-
 
 def parse_gcs_url(url: str) -> tuple[str, str, int]:
     """``udpout:HOST[:PORT]`` or ``udpin:HOST[:PORT]`` -> (kind, host, port); port 14550 if omitted
@@ -147,46 +125,6 @@ class GcsCounters:
     """Messages refused while the daemon flies (``--gcs-allow-commands``)."""
     to_vehicle: int = 0
     land_requests: int = 0
-
-
-def _is_land_request(msg, mtype: str) -> bool:
-    if mtype in ("COMMAND_LONG", "COMMAND_INT"):
-        if msg.command in LAND_COMMANDS:
-            return True
-        if msg.command == mavlink2.MAV_CMD_DO_SET_MODE:
-            return (int(msg.param2), int(msg.param3)) in _LAND_MODES
-        return False
-    if mtype == "SET_MODE":
-        cm = int(msg.custom_mode)
-        return ((cm >> 16) & 0xFF, (cm >> 24) & 0xFF) in _LAND_MODES
-    return False
-
-
-def judge(msg, allow_commands: bool, in_control: bool) -> tuple[str, str]:
-    """What to do with one message from a ground station: (FORWARD | LAND | DROP | REFUSE, why).
-
-    ``in_control``: the daemon is running a flight (every phase but disarmed and aborted,
-    preflight included: it may arm at any moment).
-    """
-    mtype = msg.get_type()
-    if mtype == "BAD_DATA":
-        return DROP, "not MAVLink"
-    if mtype.startswith("UNKNOWN_"):
-        return DROP, "a message outside the common dialect"
-    if mtype in NEVER_FORWARDED:
-        return DROP, f"a ground station's {mtype} is never forwarded"
-    if not allow_commands:
-        return DROP, "read-only (--gcs-allow-commands)"
-    if _is_land_request(msg, mtype):
-        return (LAND, "landing by the daemon") if in_control else (FORWARD, "")
-    if not in_control:
-        return FORWARD, ""
-    if mtype in QUERY_MESSAGES:
-        return FORWARD, ""
-    if mtype in ("COMMAND_LONG", "COMMAND_INT") and msg.command in QUERY_COMMANDS:
-        return FORWARD, ""
-    what = f"command {msg.command}" if mtype in ("COMMAND_LONG", "COMMAND_INT") else mtype
-    return REFUSE, f"{what} refused while mavreg flies"
 
 
 @dataclass

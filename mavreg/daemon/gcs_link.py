@@ -49,7 +49,7 @@ class GcsLink:
     clock_s : callable
         Monotonic seconds (rate limits, token buckets).
     in_control : callable
-        ``() -> bool``: the daemon is running a flight (:func:`mavreg.daemon.gcs.judge`).
+        ``() -> bool``: the daemon is running a flight (:func:`mavreg.daemon.gcs_policy.judge`).
     to_vehicle : callable
         ``msg -> bool``: send an allowed ground-station message to the vehicle.
     request_land : callable

@@ -5,8 +5,8 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
 from mavreg.daemon import messages as mm
-from mavreg.daemon.gcs import (DROP, FORWARD, LAND, REFUSE, GcsHub, GcsParams, judge,
-                               parse_gcs_url)
+from mavreg.daemon.gcs import GcsHub, GcsParams, parse_gcs_url
+from mavreg.daemon.gcs_policy import DROP, FORWARD, LAND, REFUSE, judge
 from mavreg.daemon.phases import Event
 
 VEHICLE = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
@@ -200,6 +200,14 @@ def test_messages_outside_the_common_dialect_never_pass():
     hub = GcsHub(1, GcsParams(allow_commands=True), system_id=1)
     assert hub.receive(0, frame, 0.0, in_control=False).forward == []
     assert hub.endpoints[0].counters.dropped_unknown == 1
+
+
+def test_non_finite_mode_parameters_are_refused_not_a_crash():
+    hub = GcsHub(1, GcsParams(allow_commands=True), system_id=1)
+    nan = float("nan")
+    msg = _command(mavlink2.MAV_CMD_DO_SET_MODE, 1.0, nan, float("inf"))
+    res = hub.receive(0, msg.pack(GCS), 0.0, in_control=True)
+    assert res.forward == [] and not res.land and hub.endpoints[0].counters.refused == 1
 
 
 def test_judge_verdicts():
