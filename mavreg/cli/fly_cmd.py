@@ -5,7 +5,7 @@ import math
 import time
 from pathlib import Path
 
-from .common import REAL_CONTROLLER, add_model_arguments
+from .common import REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, gcs_config
 
 MAX_ENTRY_OFFSET_M = 2.0
 """Longest --entry-offset: an experiment's start error, not a relocation of the maneuver."""
@@ -102,6 +102,7 @@ def add_arguments(p):
                    help="MAVLink 2 signing: sign every message and accept only validly signed ones "
                    "(FILE: 32 bytes as 64 hex characters or base64, mode 0600; the bundled emulator "
                    "gets the same key; docs/reliability.md) (default: signing off)")
+    add_gcs_arguments(p)
     add_model_arguments(p, controller=REAL_CONTROLLER)
 
 
@@ -128,11 +129,13 @@ def run(args) -> int:
     if not all(math.isfinite(v) for v in offset) or math.hypot(*offset) > MAX_ENTRY_OFFSET_M:
         raise ValueError(f"--entry-offset must be finite and at most {MAX_ENTRY_OFFSET_M:g} m long, "
                          f"got {' '.join(f'{v:g}' for v in offset)}")
+    gcs = gcs_config(args)
     load_vehicle(args.vehicle_params)   # a bad vehicle file is a user error before anything starts
     out = Path(args.out) if args.out else Path("flights") / time.strftime("%Y%m%d-%H%M%S")
     opts = FlyOptions(maneuver, args.vehicle, Path(args.vehicle_params), Path(args.controller), out,
                       Path(args.socket) if args.socket else None, args.timeout_s, args.lockstep,
                       tuple(args.emulator_arg), args.control_rate_hz, args.vehicle_lockstep, args.world,
                       args.stale_timeout_s, offset,
-                      Path(args.signing_key) if args.signing_key is not None else None)
+                      signing_key=Path(args.signing_key) if args.signing_key is not None else None,
+                      gcs_urls=gcs["gcs_urls"], gcs=gcs["gcs"])
     return fly(opts)

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .common import REAL_CONTROLLER, add_model_arguments
+from .common import REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, gcs_config
 
 HELP = "run the offboard daemon: fly maneuvers uploaded on the control endpoint"
 DESCRIPTION = """\
@@ -52,6 +52,7 @@ def add_arguments(p):
                    help="MAVLink 2 signing: sign every message and accept only validly signed ones "
                    "(FILE: 32 bytes as 64 hex characters or base64, mode 0600; docs/reliability.md) "
                    "(default: signing off)")
+    add_gcs_arguments(p)
     add_model_arguments(p, controller=REAL_CONTROLLER)
 
 
@@ -66,6 +67,7 @@ def run(args) -> int:
     from ..daemon.signing import Signing
     parse_url(args.vehicle)
     signing = Signing(args.signing_key, "mavreg") if args.signing_key is not None else None
+    gcs = gcs_config(args)
     if args.stale_timeout_s <= 0:
         raise ValueError(f"--stale-timeout-s must be positive, got {args.stale_timeout_s}")
     vehicle = load_vehicle(args.vehicle_params)
@@ -77,7 +79,7 @@ def run(args) -> int:
                           SupervisorParams(land_when_done=False, stale_timeout_s=args.stale_timeout_s,
                                            gap_fill=not args.vehicle_lockstep),
                           envelope=controller.envelope, controller=controller,
-                          control_rate_hz=args.control_rate_hz)
+                          control_rate_hz=args.control_rate_hz, **gcs)
     make_regulator = regulator_factory(vehicle, args.control_rate_hz, controller.disturbance,
                                       controller.allocation, controller.speed_governor)
     daemon = Daemon(config, vehicle, make_regulator, signing=signing)

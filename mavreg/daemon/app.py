@@ -28,6 +28,8 @@ from ..control.regulator import ManeuverRegulator
 from ..control.sample_warmup import warm_up_sample_kernels
 from .ctrllog import ControlLog
 from .endpoint import EndpointServer
+from .gcs import GcsParams
+from .gcs_link import GcsLink
 from .link import FastLink, MavlinkLink, open_link
 from .planner_pool import PlannerDied, PlannerPool
 from .supervisor import Output, Phase, Supervisor, SupervisorParams
@@ -75,6 +77,9 @@ class DaemonConfig:
     ``max_prediction_s``). None: no prediction."""
     control_rate_hz: float = 500.0
     """The vehicle's telemetry (control) rate: the prediction's integration step."""
+    gcs_urls: tuple[str, ...] = ()
+    """Ground stations to forward the flight to (``--gcs``; :mod:`mavreg.daemon.gcs`)."""
+    gcs: GcsParams = field(default_factory=GcsParams)
 
 
 class Daemon:
@@ -108,6 +113,7 @@ class Daemon:
         self.pool: PlannerPool | None = None
         self.link: FastLink | MavlinkLink | None = None
         self.endpoint: EndpointServer | None = None
+        self.gcs: GcsLink | None = None
         self._tlog: TlogWriter | None = None
         self._tasks: list[asyncio.Task] = []
         self._stop = asyncio.Event()
@@ -124,6 +130,8 @@ class Daemon:
             self.log(ev.line())
         if out.log is not None:
             self.ctrl_log.append(out.log)
+        if self.gcs is not None:
+            self.gcs.daemon_output(out)
         if self.supervisor.finished:
             self._stop.set()
         return sent_actuator
@@ -135,6 +143,8 @@ class Daemon:
             if self.supervisor.phase == Phase.MANEUVER:
                 self.maneuver_latency_ns.append(dt)
             self._arm_gap_timer(1.5)
+        if self.gcs is not None:            # after the command: a ground station never delays it
+            self.gcs.vehicle_message(msg)
 
     def _arm_gap_timer(self, periods: float) -> None:
         """(Re)start the timer that fills a telemetry gap (real time only)."""
@@ -152,8 +162,11 @@ class Daemon:
 
     async def _heartbeat_task(self) -> None:
         while True:
+            hb = self.supervisor.heartbeat()
             if self.link is not None:
-                self.link.send(self.supervisor.heartbeat())
+                self.link.send(hb)
+            if self.gcs is not None:
+                self.gcs.heartbeat(hb, self.supervisor.phase)
             await asyncio.sleep(HEARTBEAT_S)
 
     async def _tick_task(self) -> None:
@@ -202,6 +215,8 @@ class Daemon:
         st["signing"] = None if sg is None else {"accepted": sg.accepted, **sg.drops,
                                                  "state_file": str(sg.path)}
         st["uploads"] = dict(self.uploads)
+        if self.gcs is not None:
+            st["gcs"] = self.gcs.status()
         st["latency_ms"] = self.latency_summary()
         st["planning"] = 0 if self.pool is None else self.pool.busy
         est = self.supervisor.timesync.estimate()
@@ -266,6 +281,8 @@ class Daemon:
             self.link = await open_link(self.config.vehicle_url, self.config.supervisor.vehicle_system_id,
                                         self.config.supervisor.vehicle_component_id, self._on_message, self._tlog,
                                         signing=self.signing)
+            if self.config.gcs_urls:
+                await self._open_gcs()
             self._tasks.append(asyncio.create_task(self._heartbeat_task(), name="heartbeat"))
             self._tasks.append(asyncio.create_task(self._tick_task(), name="tick"))
             if self.config.socket_path is not None:
@@ -280,6 +297,16 @@ class Daemon:
         finally:
             await self._shutdown(loop, install_signals)
 
+    async def _open_gcs(self) -> None:
+        """The ground-station endpoints: the vehicle's telemetry and the daemon's messages out,
+        the ground station's messages judged by :func:`mavreg.daemon.gcs_policy.judge`."""
+        def land() -> None:
+            self._emit(self.supervisor.request_land(self.clock_s()))
+        self.gcs = GcsLink(self.config.gcs_urls, self.config.supervisor.vehicle_system_id, self.config.gcs,
+                           self.clock_s, lambda: not self.supervisor.finished,
+                           lambda msg: self.link is not None and self.link.send(msg), land, self.log)
+        await self.gcs.open()
+
     async def _shutdown(self, loop, signals_installed: bool) -> None:
         if self._gap_timer is not None:
             self._gap_timer.cancel()
@@ -290,6 +317,9 @@ class Daemon:
         if self.endpoint is not None:
             why = f"; {self.supervisor.reason}" if self.supervisor.reason else ""
             await self.endpoint.close(f"the daemon is stopping (phase {self.supervisor.phase}{why})")
+        if self.gcs is not None:
+            self.gcs.flush()                # the last phase change and STATUSTEXTs
+            await self.gcs.aclose()
         if self.link is not None:
             self.link.close()
         if self._tlog is not None:

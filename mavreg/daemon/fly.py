@@ -29,6 +29,7 @@ from ..config.controller import load_controller
 from ..config.vehicle import load_vehicle
 from .app import Daemon, DaemonConfig, regulator_factory
 from .ctrllog import load_control_log
+from .gcs import GcsParams
 from .lifeline import wrap_command
 from .link import io_impl
 from .signing import Signing
@@ -68,6 +69,9 @@ class FlyOptions:
     signing_key: Path | None = None
     """MAVLink 2 signing key file (:mod:`mavreg.daemon.signing`); the bundled emulator gets
     the same file. None: signing off."""
+    gcs_urls: tuple[str, ...] = ()
+    gcs: GcsParams = GcsParams()
+    """Ground stations that watch the flight live (``--gcs``, :mod:`mavreg.daemon.gcs`)."""
 
 
 def spawn_emulator(vehicle_path: Path, record: Path | None, lockstep: bool, extra: tuple[str, ...] = (),
@@ -136,7 +140,8 @@ def fly(opts: FlyOptions) -> int:
                                                       gap_fill=not (opts.lockstep or opts.vehicle_lockstep),
                                                       entry_offset_m=tuple(opts.entry_offset_m)),
                           envelope=controller.envelope,
-                          controller=controller, control_rate_hz=opts.control_rate_hz)
+                          controller=controller, control_rate_hz=opts.control_rate_hz,
+                          gcs_urls=tuple(opts.gcs_urls), gcs=opts.gcs)
     make_regulator = regulator_factory(vehicle, opts.control_rate_hz, controller.disturbance,
                                       controller.allocation, controller.speed_governor)
     signing = Signing(opts.signing_key, "mavreg") if opts.signing_key is not None else None
