@@ -89,6 +89,10 @@ def add_arguments(p):
     p.add_argument("--vehicle-lockstep", action="store_true",
                    help="the --vehicle is a lockstep simulator (it waits for each command): do not "
                    "fly telemetry gaps on the prediction (in real time the daemon does)")
+    p.add_argument("--tlog-clock", choices=("vehicle", "wall"), default=None,
+                   help="the flight.tlog's timestamps: the vehicle's clock (the default with "
+                   "--lockstep or --vehicle-lockstep: log tools then show the flight's own "
+                   "durations) or the wall clock (the default in real time)")
     p.add_argument("--emulator-arg", action="append", default=[], metavar="ARG",
                    help="bundled emulator only: extra firmware_sim argument (repeatable), "
                    "e.g. --emulator-arg=--rotor-time-constant-s=0")
@@ -126,5 +130,6 @@ def run(args) -> int:
     opts = FlyOptions(maneuver, args.vehicle, Path(args.vehicle_params), Path(args.controller), out,
                       Path(args.socket) if args.socket else None, args.timeout_s, args.lockstep,
                       tuple(args.emulator_arg), args.control_rate_hz, args.vehicle_lockstep, args.world,
-                      args.stale_timeout_s, offset)
+                      args.stale_timeout_s, offset, tlog_clock=args.tlog_clock,
+                      argv=tuple(getattr(args, "command_line", ())))
     return fly(opts)

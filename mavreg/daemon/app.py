@@ -31,7 +31,7 @@ from .endpoint import EndpointServer
 from .link import FastLink, MavlinkLink, open_link
 from .planner_pool import PlannerDied, PlannerPool
 from .supervisor import Output, Phase, Supervisor, SupervisorParams
-from .tlog import TlogWriter
+from .tlog import TlogWriter, VehicleClock
 
 
 def regulator_factory(vehicle: VehicleParams, control_rate_hz: float,
@@ -75,6 +75,10 @@ class DaemonConfig:
     ``max_prediction_s``). None: no prediction."""
     control_rate_hz: float = 500.0
     """The vehicle's telemetry (control) rate: the prediction's integration step."""
+    tlog_clock: str = "wall"
+    """The ``.tlog``'s timestamps: ``wall`` (a vehicle in real time) or ``vehicle`` (a
+    lockstep simulator: the start's wall time plus the vehicle time elapsed,
+    :class:`mavreg.daemon.tlog.VehicleClock`)."""
 
 
 class Daemon:
@@ -253,7 +257,7 @@ class Daemon:
                 if not verdict["ok"]:
                     raise _InitialRejected(verdict["reason"] if "reason" in verdict else verdict["error"])
             if self.config.tlog_path is not None:
-                self._tlog = TlogWriter(self.config.tlog_path)
+                self._tlog = TlogWriter(self.config.tlog_path, self._tlog_clock())
             self.link = await open_link(self.config.vehicle_url, self.config.supervisor.vehicle_system_id,
                                         self.config.supervisor.vehicle_component_id, self._on_message, self._tlog)
             self._tasks.append(asyncio.create_task(self._heartbeat_task(), name="heartbeat"))
@@ -269,6 +273,15 @@ class Daemon:
                 self.log(f"timeout after {timeout_s:g} s in phase {self.supervisor.phase}")
         finally:
             await self._shutdown(loop, install_signals)
+
+    def _tlog_clock(self) -> Callable[[], float] | None:
+        """The ``.tlog``'s clock (:attr:`DaemonConfig.tlog_clock`); None: the wall clock."""
+        if self.config.tlog_clock == "wall":
+            return None
+        if self.config.tlog_clock != "vehicle":
+            raise ValueError(f"tlog clock {self.config.tlog_clock!r}: expected 'wall' or 'vehicle'")
+        sup = self.supervisor
+        return VehicleClock(lambda: None if sup.last_sample is None else sup.last_sample.time_s)
 
     async def _shutdown(self, loop, signals_installed: bool) -> None:
         if self._gap_timer is not None:
