@@ -1,0 +1,23 @@
+# Sourced by scripts/fly.sh and scripts/test.sh: `ensure_venv SPEC` makes .venv hold mavreg
+# installed as SPEC (e.g. '.' or '.[test]'), installing only when needed, so that a machine
+# once set up runs offline:
+#   - no .venv/bin/python: create the environment, then install;
+#   - pyproject.toml changed since the last install (its SHA-256 is kept, with each SPEC
+#     installed, in .venv/.mavreg-installed), or SPEC was never installed: install.
+# Otherwise nothing is downloaded. MAVREG_REINSTALL=1 forces the install. To add an extra
+# (e.g. gcs), change the SPEC passed by the calling script: '.[test,gcs]'.
+ensure_venv() {
+    local spec="$1" marker=.venv/.mavreg-installed hash line
+    hash="$(python3 -c 'import hashlib, sys; print(hashlib.sha256(open(sys.argv[1], "rb").read()).hexdigest())' pyproject.toml)"
+    line="$hash $spec"
+    if [ ! -x .venv/bin/python ]; then
+        python3 -m venv .venv
+        .venv/bin/python -m pip install --quiet --upgrade pip
+    elif [ "${MAVREG_REINSTALL:-0}" != 1 ] && [ -f "$marker" ] && grep -qxF -- "$line" "$marker"; then
+        return 0
+    fi
+    .venv/bin/python -m pip install --quiet -e "$spec"
+    # keep what was installed from this pyproject.toml (another SPEC may be there too)
+    { grep -s "^$hash " "$marker" | grep -vxF -- "$line"; echo "$line"; } > "$marker.new" || true
+    mv "$marker.new" "$marker"
+}
