@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import collections
+import dataclasses
 import signal
 import sys
 import time
@@ -89,6 +90,8 @@ class Daemon:
         self.config = config
         self.vehicle = vehicle
         self.clock_s = clock_s
+        self._start_s = clock_s()
+        """The injected clock when the daemon started: events carry the time since."""
         ctl = config.controller
         forecaster = Forecaster(vehicle, 1.0 / config.control_rate_hz,
                                 predict=ctl is not None and ctl.predict_delay,
@@ -117,6 +120,8 @@ class Daemon:
         sent_actuator = False
         if out.messages and self.link is not None and self.link.send_many(out.messages):
             sent_actuator = any(m.get_type() == "SET_ACTUATOR_CONTROL_TARGET" for m in out.messages)
+        if out.events or self.ctrl_log.clock_anchor is None:
+            self._stamp_events(out)
         for ev in out.events:
             self.ctrl_log.events.append(ev)
             self.log(ev.line())
@@ -125,6 +130,14 @@ class Daemon:
         if self.supervisor.finished:
             self._stop.set()
         return sent_actuator
+
+    def _stamp_events(self, out: Output) -> None:
+        """Give the events the daemon's clock; note both clocks at the vehicle's first sample
+        (the control log counts earlier events back from there on the vehicle's axis)."""
+        daemon_s = self.clock_s() - self._start_s
+        out.events[:] = [dataclasses.replace(ev, daemon_s=daemon_s) for ev in out.events]
+        if self.ctrl_log.clock_anchor is None and self.supervisor.last_sample is not None:
+            self.ctrl_log.clock_anchor = (daemon_s, self.supervisor.last_sample.time_s)
 
     def _on_message(self, msg, t_recv_ns: int) -> None:
         if self._emit(self.supervisor.handle(msg, self.clock_s())):
