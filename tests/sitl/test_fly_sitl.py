@@ -125,7 +125,13 @@ def test_fly_outputs_and_summary(ideal_flight):
     for blk in segs.values():
         assert blk["saturated_s"] == 0.0 and blk["rotor_command_n"]["max"] < 12.0
     text = "\n".join(ideal_flight["lines"])
-    assert "loop" in text and "max e_t cm" in text
+    assert "loop" in text and "max e_t mm" in text and "nan" not in text
+    # every event has a time: the daemon's clock always, the vehicle's (counted back before its
+    # first sample, so the queued upload is at a negative time)
+    ev = s["events"]
+    assert all(e["time_s"] is not None and e["daemon_time_s"] is not None for e in ev)
+    assert ev[0]["kind"] == "queued" and ev[0]["time_s"] < 0.0 < ev[0]["daemon_time_s"]
+    assert [e["time_s"] for e in ev] == sorted(e["time_s"] for e in ev)
     # how it was produced: the command, the files and their hashes, the software
     import hashlib
     prov = s["provenance"]
