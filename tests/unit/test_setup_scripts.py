@@ -41,12 +41,22 @@ def checkout(tmp_path):
 def test_installs_once_then_only_when_pyproject_or_the_extras_change(checkout):
     assert _ensure(checkout, ".[test]") == ["-m pip install --quiet -e .[test]"]    # no marker yet
     assert _ensure(checkout, ".[test]") == []                                       # set up: offline
-    assert _ensure(checkout, ".") == ["-m pip install --quiet -e ."]                # fly.sh's spec
-    assert _ensure(checkout, ".") == [] and _ensure(checkout, ".[test]") == []      # both remembered
+    assert _ensure(checkout, ".") == []                 # fly.sh after test.sh: the base is there
+    assert _ensure(checkout, ".[test,gcs]") == ["-m pip install --quiet -e .[test,gcs]"]   # a new extra
+    assert _ensure(checkout, ".[gcs]") == [] and _ensure(checkout, ".[test]") == []
     (checkout / "pyproject.toml").write_text('[project]\nname = "x"\ndependencies = ["numpy"]\n')
-    assert _ensure(checkout, ".[test]") == ["-m pip install --quiet -e .[test]"]    # pyproject changed
-    assert _ensure(checkout, ".") == ["-m pip install --quiet -e ."]
-    assert _ensure(checkout, ".[test]") == []
+    assert _ensure(checkout, ".") == ["-m pip install --quiet -e ."]                # pyproject changed
+    assert _ensure(checkout, ".") == []
+    assert _ensure(checkout, ".[test]") == ["-m pip install --quiet -e .[test]"]    # not from this one yet
+    assert _ensure(checkout, ".[test]") == [] and _ensure(checkout, ".") == []
+
+
+def test_reinstall_on_request(checkout):
+    _ensure(checkout, ".")
+    (checkout / "calls.log").write_text("")
+    r = subprocess.run(["bash", "-c", "source scripts/venv.sh; MAVREG_REINSTALL=1 ensure_venv ."],
+                       cwd=checkout, capture_output=True, text=True, timeout=30)
+    assert r.returncode == 0 and (checkout / "calls.log").read_text().count("pip install") == 1
 
 
 def test_a_failed_install_is_tried_again(checkout):
