@@ -81,6 +81,10 @@ class DaemonConfig:
     lockstep simulator: the start's wall time plus the vehicle time elapsed,
     :class:`mavreg.daemon.tlog.VehicleClock`)."""
 
+    def __post_init__(self):
+        if self.tlog_clock not in ("wall", "vehicle"):
+            raise ValueError(f"tlog clock {self.tlog_clock!r}: expected 'wall' or 'vehicle'")
+
 
 class Daemon:
     """One vehicle, one supervisor, optional control endpoint."""
@@ -291,8 +295,6 @@ class Daemon:
         """The ``.tlog``'s clock (:attr:`DaemonConfig.tlog_clock`); None: the wall clock."""
         if self.config.tlog_clock == "wall":
             return None
-        if self.config.tlog_clock != "vehicle":
-            raise ValueError(f"tlog clock {self.config.tlog_clock!r}: expected 'wall' or 'vehicle'")
         sup = self.supervisor
         return VehicleClock(lambda: None if sup.last_sample is None else sup.last_sample.time_s)
 

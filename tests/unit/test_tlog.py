@@ -79,3 +79,11 @@ def test_a_lockstep_tlog_spans_the_vehicle_time(tmp_path):
     while (m := conn.recv_match()) is not None:
         stamps.append(m._timestamp)
     assert abs(stamps[-1] - stamps[0] - 10.0) < 1e-6
+
+
+def test_an_unknown_tlog_clock_is_refused_in_one_line():
+    import pytest
+    from mavreg.daemon.app import DaemonConfig
+    from mavreg.daemon.supervisor import SupervisorParams
+    with pytest.raises(ValueError, match="tlog clock 'gps'"):
+        DaemonConfig("udpout:127.0.0.1:1", None, None, None, None, SupervisorParams(), tlog_clock="gps")
