@@ -14,7 +14,8 @@
   controller in the ideal world (one full period: telemetry out, command back, physics);
 - ``sitl_periods_per_s.regulator``: ``mavreg fly --lockstep`` flying the barrel roll with
   the real daemon, its default world and controller (realistic), periods per wall
-  second from the first to the last rotor command of the flight (from the ``.tlog``),
+  second from the first to the last rotor command of the flight (from the ``.tlog``, written
+  with ``--tlog-clock wall``: a lockstep flight's log follows the vehicle's clock otherwise),
   fast path against ``MAVREG_IO=reference`` for both processes;
   ``sitl_periods_per_s.regulator_ideal``: ``--world ideal`` with ``paper_lqr.yaml``;
   ``sitl_cycle_us.regulator_p50`` / ``_p99``: time between consecutive commands;
@@ -94,7 +95,7 @@ def fly_lockstep(io: str, world: str, out: Path) -> dict:
     ``world`` realistic: the default controller; ideal: ``paper_lqr.yaml`` (the paper's).
     """
     args = [sys.executable, "-m", "mavreg.cli.main", "fly", str(BARREL), "--lockstep", "--world", world,
-            "--out", str(out), "--timeout-s", "600"]
+            "--out", str(out), "--timeout-s", "600", "--tlog-clock", "wall"]
     if world == "ideal":
         args += ["--controller", str(PAPER_CONTROLLER)]
     p = subprocess.run(args, cwd=REPO, env=env_with_io(io), capture_output=True, text=True, timeout=900)

@@ -117,9 +117,10 @@ class Autopilot:
         return mavlink2.MAVLink_statustext_message(severity, text.encode()[:50], 0, 0)
 
     def heartbeat(self):
-        """HEARTBEAT describing the current mode and armed flag."""
+        """HEARTBEAT describing the current mode and armed flag, as PX4 announces itself
+        (``MAV_AUTOPILOT_PX4``: log tools and ground stations then name its modes)."""
         return mavlink2.MAVLink_heartbeat_message(
-            mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_GENERIC,
+            mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_PX4,
             modes.base_mode(self.armed), self.mode,
             mavlink2.MAV_STATE_ACTIVE if self.armed else mavlink2.MAV_STATE_STANDBY, 3)
 

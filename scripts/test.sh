@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Set up .venv (if needed) with mavreg and its test dependencies, then run the default
-# suite: unit, firmware_sim and end-to-end (sitl) tests; `-m slow` ones are left out.
+# Set up .venv with mavreg and its test dependencies (only when it is missing or
+# pyproject.toml changed: scripts/venv.sh), then run the default suite: unit, firmware_sim
+# and end-to-end (sitl) tests; `-m slow` ones are left out.
 #
 # The unit tests are pure or sans-I/O (an injected clock, no real-time flight), so they run
 # on two workers (pytest-xdist). The emulator and end-to-end tests start processes that talk
@@ -8,9 +9,8 @@
 # With arguments, they are handed to one plain pytest run instead (e.g. `-k governor`).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-python3 -m venv .venv
-.venv/bin/python -m pip install --quiet --upgrade pip
-.venv/bin/python -m pip install --quiet -e '.[test,gcs]'
+source scripts/venv.sh
+ensure_venv '.[test,gcs]'
 export PATH="$PWD/.venv/bin:$PATH"
 PYTEST=(.venv/bin/python -m pytest -q -p no:cacheprovider)
 if [ "$#" -gt 0 ]; then

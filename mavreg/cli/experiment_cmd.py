@@ -166,7 +166,7 @@ def run(args) -> int:
                + (f"--dask {shlex.quote(args.dask)} " if args.dask else f"--jobs {jobs} ")
                + f"--out {shlex.quote(str(out))}" + (" --keep-flight-files" if args.keep_flight_files else ""))
     camp = run_campaign(exp, args.via, jobs, out, command, keep_flight_files=args.keep_flight_files,
-                        dask_address=args.dask)
+                        dask_address=args.dask, argv=getattr(args, "command_line", None))
     sm = camp.results["summary"]
     crit = ("ok (flown, landed, nothing unsafe)" if robust and args.via == "sitl"
             else "converged before the loop" if "converged" in sm

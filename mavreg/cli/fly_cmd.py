@@ -32,12 +32,20 @@ the prediction (docs/robustness.md). A vehicle calibrated by 'mavreg identify'
 (--vehicle-params) feeds a known drag forward in the plan itself. The paper's design:
 --controller params/controller/paper_lqr.yaml.
 
-Outputs go to --out DIR (default: flights/<YYYYmmdd-HHMMSS>/): summary.json, flight.png
-(path in the maneuver's plane, errors against arc length), flight.tlog (every MAVLink
-message in and out; mavlogdump.py and MAVProxy read it), control.npz (s, w, u, rotor
-commands and phase per control step), groundtruth.npz (bundled emulator only). A
-per-segment summary is printed: max and RMS transverse error, max attitude error, peak
-rotor commands, time saturated.
+Outputs go to --out DIR (default: flights/<YYYYmmdd-HHMMSS>/): summary.json (results,
+events, and the provenance: command line, input files and their SHA-256, versions, git
+commit), flight.png (path in the maneuver's plane, errors against arc length), flight.tlog
+(every MAVLink message in and out; mavlogdump.py, mavflightmodes.py, MAVExplorer and MAVProxy
+read it; stamped with the vehicle's clock in lockstep, see --tlog-clock), control.npz (s, w,
+u, rotor commands and phase per control step), groundtruth.npz (bundled emulator only).
+
+A per-segment table is printed (a line under it says the same): e_t is the transverse
+error, the distance from the path, in mm (max and RMS as the controller estimated it; "true"
+from the emulator's ground truth); att the attitude error angle in deg ("true att" is taken
+against the plan's drag-free nominal attitude, so it includes the tilt flown on purpose
+against drag and wind: about 24 deg at 8 m/s in the realistic world); peak rotor the largest
+rotor force command in N; sat the time a rotor spent at its limit in s. Events give the
+vehicle's time (t) and the time since the daemon started (daemon).
 
 Rotor commands are SET_ACTUATOR_CONTROL_TARGET group 0 with a pass-through mixer
 (controls[0..3] = rotors 1..4 front, right, back, left, as a fraction of the maximum rotor
@@ -89,6 +97,10 @@ def add_arguments(p):
     p.add_argument("--vehicle-lockstep", action="store_true",
                    help="the --vehicle is a lockstep simulator (it waits for each command): do not "
                    "fly telemetry gaps on the prediction (in real time the daemon does)")
+    p.add_argument("--tlog-clock", choices=("vehicle", "wall"), default=None,
+                   help="the flight.tlog's timestamps: the vehicle's clock (the default with "
+                   "--lockstep or --vehicle-lockstep: log tools then show the flight's own "
+                   "durations) or the wall clock (the default in real time)")
     p.add_argument("--emulator-arg", action="append", default=[], metavar="ARG",
                    help="bundled emulator only: extra firmware_sim argument (repeatable), "
                    "e.g. --emulator-arg=--rotor-time-constant-s=0")
@@ -137,5 +149,6 @@ def run(args) -> int:
                       tuple(args.emulator_arg), args.control_rate_hz, args.vehicle_lockstep, args.world,
                       args.stale_timeout_s, offset,
                       signing_key=Path(args.signing_key) if args.signing_key is not None else None,
-                      gcs_urls=gcs["gcs_urls"], gcs=gcs["gcs"])
+                      gcs_urls=gcs["gcs_urls"], gcs=gcs["gcs"], tlog_clock=args.tlog_clock,
+                      argv=tuple(getattr(args, "command_line", ())))
     return fly(opts)

@@ -49,6 +49,7 @@ def build_parser() -> tuple[argparse.ArgumentParser, dict]:
 def _main(argv: list[str] | None) -> int:
     parser, modules = build_parser()
     args = parser.parse_args(argv)
+    args.command_line = ["mavreg", *(sys.argv[1:] if argv is None else argv)]   # for provenance
     try:
         return int(modules[args.command].run(args) or 0)
     except ValueError as exc:  # ConfigError, ManeuverError: the user's input is at fault

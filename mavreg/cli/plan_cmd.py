@@ -74,7 +74,7 @@ def format_summary(d: dict) -> str:
         f"  rotor force {rf['min']:.2f}..{rf['max']:.2f} N (limit {rf['limit']:.2f} N)",
         "  torque max |g1 g2 g3| " + " ".join(f"{t:.3f}" for t in d["torque_nm"]["max_abs"]) + " N m",
         f"  gains: {d['gain_schedule']['nodes']} nodes, terminal {d['gain_schedule']['terminal']}",
-        "  segments: " + ", ".join(f"{s['name']} [{s['s_start_m']:.2f}, {s['s_end_m']:.2f})"
+        "  segments (arc length s, m): " + ", ".join(f"{s['name']} [{s['s_start_m']:.2f}, {s['s_end_m']:.2f})"
                                    for s in d["segments"]),
     ]
     if "margins" in d:

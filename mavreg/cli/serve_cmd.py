@@ -35,7 +35,8 @@ def add_arguments(p):
     p.add_argument("--socket", metavar="PATH", default=None,
                    help="control endpoint (default: $MAVREG_SOCKET, $XDG_RUNTIME_DIR/mavreg.sock "
                    "or /tmp/mavreg-$UID/mavreg.sock)")
-    p.add_argument("--tlog", metavar="FILE", default=None, help="write a MAVLink .tlog here")
+    p.add_argument("--tlog", metavar="FILE", default=None, help="write a MAVLink .tlog here (stamped with the "
+                   "vehicle's clock with --vehicle-lockstep, else the wall clock)")
     p.add_argument("--control-log", metavar="FILE.npz", default=None,
                    help="write the controller log (s, w, u, phase) here on exit")
     p.add_argument("--control-rate-hz", type=float, default=500.0, metavar="HZ",
@@ -79,7 +80,8 @@ def run(args) -> int:
                           SupervisorParams(land_when_done=False, stale_timeout_s=args.stale_timeout_s,
                                            gap_fill=not args.vehicle_lockstep),
                           envelope=controller.envelope, controller=controller,
-                          control_rate_hz=args.control_rate_hz, **gcs)
+                          control_rate_hz=args.control_rate_hz, **gcs,
+                          tlog_clock="vehicle" if args.vehicle_lockstep else "wall")
     make_regulator = regulator_factory(vehicle, args.control_rate_hz, controller.disturbance,
                                       controller.allocation, controller.speed_governor)
     daemon = Daemon(config, vehicle, make_regulator, signing=signing)

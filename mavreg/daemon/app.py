@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import collections
+import dataclasses
 import signal
 import sys
 import time
@@ -33,7 +34,7 @@ from .gcs_link import GcsLink
 from .link import FastLink, MavlinkLink, open_link
 from .planner_pool import PlannerDied, PlannerPool
 from .supervisor import Output, Phase, Supervisor, SupervisorParams
-from .tlog import TlogWriter
+from .tlog import TlogWriter, VehicleClock
 
 
 def regulator_factory(vehicle: VehicleParams, control_rate_hz: float,
@@ -80,6 +81,14 @@ class DaemonConfig:
     gcs_urls: tuple[str, ...] = ()
     """Ground stations to forward the flight to (``--gcs``; :mod:`mavreg.daemon.gcs`)."""
     gcs: GcsParams = field(default_factory=GcsParams)
+    tlog_clock: str = "wall"
+    """The ``.tlog``'s timestamps: ``wall`` (a vehicle in real time) or ``vehicle`` (a
+    lockstep simulator: the start's wall time plus the vehicle time elapsed,
+    :class:`mavreg.daemon.tlog.VehicleClock`)."""
+
+    def __post_init__(self):
+        if self.tlog_clock not in ("wall", "vehicle"):
+            raise ValueError(f"tlog clock {self.tlog_clock!r}: expected 'wall' or 'vehicle'")
 
 
 class Daemon:
@@ -96,6 +105,8 @@ class Daemon:
         self.signing = signing
         self.vehicle = vehicle
         self.clock_s = clock_s
+        self._start_s = clock_s()
+        """The injected clock when the daemon started: events carry the time since."""
         ctl = config.controller
         forecaster = Forecaster(vehicle, 1.0 / config.control_rate_hz,
                                 predict=ctl is not None and ctl.predict_delay,
@@ -125,6 +136,8 @@ class Daemon:
         sent_actuator = False
         if out.messages and self.link is not None and self.link.send_many(out.messages):
             sent_actuator = any(m.get_type() == "SET_ACTUATOR_CONTROL_TARGET" for m in out.messages)
+        if out.events or self.ctrl_log.clock_anchor is None:
+            self._stamp_events(out)
         for ev in out.events:
             self.ctrl_log.events.append(ev)
             self.log(ev.line())
@@ -135,6 +148,14 @@ class Daemon:
         if self.supervisor.finished:
             self._stop.set()
         return sent_actuator
+
+    def _stamp_events(self, out: Output) -> None:
+        """Give the events the daemon's clock; note both clocks at the vehicle's first sample
+        (the control log counts earlier events back from there on the vehicle's axis)."""
+        daemon_s = self.clock_s() - self._start_s
+        out.events[:] = [dataclasses.replace(ev, daemon_s=daemon_s) for ev in out.events]
+        if self.ctrl_log.clock_anchor is None and self.supervisor.last_sample is not None:
+            self.ctrl_log.clock_anchor = (daemon_s, self.supervisor.last_sample.time_s)
 
     def _on_message(self, msg, t_recv_ns: int) -> None:
         if self._emit(self.supervisor.handle(msg, self.clock_s())):
@@ -277,7 +298,7 @@ class Daemon:
                 if not verdict["ok"]:
                     raise _InitialRejected(verdict["reason"] if "reason" in verdict else verdict["error"])
             if self.config.tlog_path is not None:
-                self._tlog = TlogWriter(self.config.tlog_path)
+                self._tlog = TlogWriter(self.config.tlog_path, self._tlog_clock())
             self.link = await open_link(self.config.vehicle_url, self.config.supervisor.vehicle_system_id,
                                         self.config.supervisor.vehicle_component_id, self._on_message, self._tlog,
                                         signing=self.signing)
@@ -306,6 +327,12 @@ class Daemon:
                            self.clock_s, lambda: not self.supervisor.finished,
                            lambda msg: self.link is not None and self.link.send(msg), land, self.log)
         await self.gcs.open()
+    def _tlog_clock(self) -> Callable[[], float] | None:
+        """The ``.tlog``'s clock (:attr:`DaemonConfig.tlog_clock`); None: the wall clock."""
+        if self.config.tlog_clock == "wall":
+            return None
+        sup = self.supervisor
+        return VehicleClock(lambda: None if sup.last_sample is None else sup.last_sample.time_s)
 
     async def _shutdown(self, loop, signals_installed: bool) -> None:
         if self._gap_timer is not None:

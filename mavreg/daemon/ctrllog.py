@@ -12,7 +12,11 @@ Arrays of ``control.npz`` (N control steps, float32 unless said):
 ``x``             (N, 12)   state used by the controller
 ``disturbance``   (N, 6)    observer estimate: c_xy, c_z (N s/m), force NED (N), thrust
                             scale (NaN without an observer; mavreg.control.disturbance)
-``events_json``   ()        JSON list of the supervisor's events (time, kind, phase, s, detail)
+``events_json``   ()        JSON list of the supervisor's events: ``time_s`` (vehicle time;
+                            an event before the vehicle's first sample is counted back from
+                            that sample on the daemon's clock, so it is negative or small;
+                            null only if no sample ever came), ``daemon_time_s`` (seconds
+                            since the daemon started), ``kind``, ``phase``, ``s_m``, ``detail``
 ================  ========  ==============================================================
 """
 from __future__ import annotations
@@ -36,6 +40,8 @@ class ControlLog:
         self._phase: list[int] = []
         self._t: list[float] = []
         self.events: list = []
+        self.clock_anchor: tuple[float, float] | None = None
+        """(daemon s, vehicle s) at the vehicle's first sample (set by the daemon)."""
 
     def __len__(self) -> int:
         return len(self._t)
@@ -55,14 +61,27 @@ class ControlLog:
             "s_m": rows[:, 0], "w": rows[:, 1:12], "u": rows[:, 12:16],
             "rotor_cmd_n": rows[:, 16:20], "x": rows[:, 20:32], "disturbance": rows[:, 32:38],
             "events_json": np.array(json.dumps([
-                {"time_s": None if math.isnan(e.time_s) else e.time_s, "kind": e.kind, "phase": e.phase,
-                 "s_m": None if math.isnan(e.s_m) else e.s_m, "detail": e.detail} for e in self.events])),
+                {"time_s": self._vehicle_time(e), "daemon_time_s": _num(e.daemon_s), "kind": e.kind,
+                 "phase": e.phase, "s_m": _num(e.s_m), "detail": e.detail} for e in self.events])),
         }
+
+    def _vehicle_time(self, e) -> float | None:
+        """The event's vehicle time, or (before the first sample) counted back from it."""
+        if math.isfinite(e.time_s):
+            return e.time_s
+        if self.clock_anchor is None or not math.isfinite(e.daemon_s):
+            return None
+        daemon_s, vehicle_s = self.clock_anchor
+        return vehicle_s - (daemon_s - e.daemon_s)
 
     def save(self, path: str | Path) -> Path:
         path = Path(path)
         np.savez_compressed(path, **self.arrays())
         return path
+
+
+def _num(x: float) -> float | None:
+    return x if math.isfinite(x) else None
 
 
 def load_control_log(path: str | Path) -> dict:

@@ -5,9 +5,11 @@ process (recording its ground truth), flies, stops the emulator, and writes into
 output directory:
 
 - ``summary.json``: result, the failure (first bound violated, where, by how much, what was
-  done), per-segment controller metrics, ground-truth errors, events;
+  done), per-segment controller metrics, ground-truth errors, events, and the provenance
+  (command line, input files and their SHA-256, software versions: :mod:`mavreg.provenance`);
 - ``flight.png``: the path in the maneuver's plane and the errors against arc length;
-- ``flight.tlog``: every MAVLink message in and out (pymavlink format);
+- ``flight.tlog``: every MAVLink message in and out (pymavlink format; stamped with the
+  vehicle's clock in lockstep, the wall clock in real time);
 - ``control.npz``: the controller's internals (see :mod:`mavreg.daemon.ctrllog`);
 - ``groundtruth.npz``: the emulator's recording (bundled emulator only).
 """
@@ -72,6 +74,12 @@ class FlyOptions:
     gcs_urls: tuple[str, ...] = ()
     gcs: GcsParams = GcsParams()
     """Ground stations that watch the flight live (``--gcs``, :mod:`mavreg.daemon.gcs`)."""
+    tlog_clock: str | None = None
+    """The ``.tlog``'s timestamps (:attr:`mavreg.daemon.app.DaemonConfig.tlog_clock`); None:
+    the vehicle's clock for a lockstep vehicle (``lockstep`` or ``vehicle_lockstep``), else
+    the wall clock."""
+    argv: tuple[str, ...] = ()
+    """The command line as typed, for the provenance in ``summary.json``."""
 
 
 def spawn_emulator(vehicle_path: Path, record: Path | None, lockstep: bool, extra: tuple[str, ...] = (),
@@ -141,7 +149,9 @@ def fly(opts: FlyOptions) -> int:
                                                       entry_offset_m=tuple(opts.entry_offset_m)),
                           envelope=controller.envelope,
                           controller=controller, control_rate_hz=opts.control_rate_hz,
-                          gcs_urls=tuple(opts.gcs_urls), gcs=opts.gcs)
+                          gcs_urls=tuple(opts.gcs_urls), gcs=opts.gcs,
+                          tlog_clock=opts.tlog_clock or ("vehicle" if opts.lockstep or opts.vehicle_lockstep
+                                                         else "wall"))
     make_regulator = regulator_factory(vehicle, opts.control_rate_hz, controller.disturbance,
                                       controller.allocation, controller.speed_governor)
     signing = Signing(opts.signing_key, "mavreg") if opts.signing_key is not None else None
@@ -197,6 +207,7 @@ def _finish(opts, daemon, ctrl, record_path, emulator_code, wall_s) -> int:
         "latency_ms": daemon.latency_summary(),
         "maneuver_latency_ms": daemon.latency_summary(maneuver_only=True),
         "events": events,
+        "provenance": _provenance(opts),
     }
     record = None
     if record_path is not None and record_path.exists() and man and plan is not None:
@@ -213,6 +224,17 @@ def _finish(opts, daemon, ctrl, record_path, emulator_code, wall_s) -> int:
     if not ok:
         print(f"flight failed: {failure.line()}")
     return 0 if ok else 1
+
+
+def _provenance(opts: FlyOptions) -> dict:
+    """The command, the input files and their hashes, the software (:mod:`mavreg.provenance`)."""
+    from ..provenance import provenance
+    world = None
+    if opts.vehicle_url is None:
+        world = " ".join([f"firmware_sim --preset {opts.world}", *(["--lockstep"] if opts.lockstep else []),
+                          *opts.emulator_args])
+    return provenance(opts.argv or sys.argv, {"maneuver": opts.maneuver_path, "vehicle": opts.vehicle_path,
+                                              "controller": opts.controller_path}, world)
 
 
 _EMULATOR_EXIT = {1: "internal error", 3: "crash", 4: "non-finite state", 5: "speed or body rate limit"}

@@ -34,6 +34,12 @@ __all__ = ["Violation", "Tracking", "EnvelopeMonitor"]
 _FLYING = (Phase.TAKEOFF, Phase.HOLD, Phase.RUN_IN, Phase.MANEUVER, Phase.LAND, Phase.RECOVER)
 _FLOOR = (Phase.HOLD, Phase.RUN_IN, Phase.MANEUVER)
 _KEYS: dict = {}       # phase -> the peak names of its tracking bounds
+PEAK_UNITS = {"impact_descent": "m/s", "impact_speed": "m/s", "impact_accel": "m/s^2", "position_jump": "m",
+              "body_rate": "rad/s", "altitude_floor": "m", "geofence": "ratio", "thrust_mismatch": "ratio",
+              "position_error": "m", "attitude_error": "rad", "rate_error": "rad/s", "progress": "s",
+              "saturation": "share"}
+"""The unit of each peak's value and limit (``status.envelope_peaks`` in summary.json), by
+the bound's name before its phase suffix (``attitude_error.maneuver``)."""
 
 
 @dataclass(frozen=True)
@@ -108,7 +114,8 @@ class EnvelopeMonitor:
             ratio = value / limit if limit > 0 else (0.0 if value <= 0 else math.inf)
         p = self.peaks.get(bound)
         if p is None or ratio > p["ratio"]:
-            self.peaks[bound] = {"ratio": ratio, "value": value, "limit": limit, "phase": phase, "t_s": t_s}
+            self.peaks[bound] = {"ratio": ratio, "value": value, "limit": limit,
+                                 "unit": PEAK_UNITS.get(bound.split(".", 1)[0], ""), "phase": phase, "t_s": t_s}
 
     # ------------------------------------------------------------------ context
     def set_origin(self, position_m) -> None:

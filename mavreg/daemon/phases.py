@@ -88,17 +88,26 @@ class SupervisorParams:
 
 @dataclass(frozen=True)
 class Event:
-    """A phase change or notable fact, stamped with vehicle time and arc length."""
+    """A phase change or notable fact, stamped with vehicle time and arc length.
+
+    ``time_s`` is the vehicle's time (NaN before its first sample); ``daemon_s`` the seconds
+    since the daemon started (its injected clock), which every event has: the daemon stamps
+    it (:class:`mavreg.daemon.app.Daemon`); NaN for a supervisor run without one (tests).
+    """
 
     time_s: float
     kind: str
     phase: str
     s_m: float
     detail: str
+    daemon_s: float = math.nan
 
     def line(self) -> str:
+        """One line: the daemon's clock, the vehicle's (blank before its first sample), the rest."""
         s = "" if math.isnan(self.s_m) else f" s={self.s_m:.3f} m"
-        return f"t={self.time_s:8.3f} s [{self.phase}] {self.kind}{s}: {self.detail}"
+        d = "" if math.isnan(self.daemon_s) else f"daemon {self.daemon_s:8.3f} s  "
+        t = f"vehicle t={self.time_s:8.3f} s" if math.isfinite(self.time_s) else " " * 20
+        return f"{d}{t} [{self.phase}] {self.kind}{s}: {self.detail}"
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,7 @@ from ..sim.metrics import rotor_jitter_n, tracking_metrics
 from ..sim.truth import quats_to_matrices, true_errors
 from .supervisor import PHASE_CODES, Phase
 
-__all__ = ["controller_metrics", "ground_truth_errors", "format_summary", "plot_flight"]
+__all__ = ["controller_metrics", "ground_truth_errors", "format_summary", "plot_flight", "TABLE_LEGEND"]
 
 
 def _maneuver_rows(ctrl: dict) -> np.ndarray:
@@ -53,6 +53,18 @@ def _f(v, scale=1.0, fmt="{:8.4f}") -> str:
     return "     n/a" if v is None or (isinstance(v, float) and math.isnan(v)) else fmt.format(v * scale)
 
 
+TABLE_LEGEND = ("columns: e_t = transverse error, the distance from the path (the controller's "
+                "estimate; 'true' from the emulator's ground truth), mm; att = attitude error angle, deg "
+                "('true': against the plan's drag-free nominal attitude, so it includes the tilt flown on "
+                "purpose against drag and wind); peak rotor = largest rotor force command, N; "
+                "sat = time with a rotor at its limit, s")
+"""One line under ``fly``'s table (and in ``mavreg fly --help``): what each column is."""
+
+EVENT_KINDS = ("phase", "touchdown", "command_refused", "gap", "recover", "recovered", "motors_stopped",
+               "hand_over", "refused", "hard_landing")
+"""The events listed under ``fly``'s table (all of them are in summary.json)."""
+
+
 def format_summary(summary: dict) -> str:
     """Human-readable per-segment table of a summary dict (see ``mavreg fly``)."""
     lines = [f"flight {summary['result']}: {summary['maneuver']} "
@@ -62,26 +74,27 @@ def format_summary(summary: dict) -> str:
     peaks = (summary.get("status") or {}).get("envelope_peaks") or {}
     if peaks:
         top = sorted(peaks.items(), key=lambda kv: -kv[1]["ratio"])[:4]
-        lines.append("closest to the envelope: " + ", ".join(
+        lines.append("closest to the envelope (share of the bound): " + ", ".join(
             f"{name} {100 * p['ratio']:.0f} %" for name, p in top))
     est = (summary.get("status") or {}).get("disturbance")
     if est:
-        lines.append(f"airframe as estimated: drag c_xy {est['drag_n_s_per_m'][0]:.3f} c_z "
-                     f"{est['drag_n_s_per_m'][1]:.3f} N s/m, steady force N {est['force_ned_n'][0]:+.2f} "
-                     f"E {est['force_ned_n'][1]:+.2f} N, thrust scale {est['thrust_scale']:.3f} "
+        f_n, f_e = est["force_ned_n"][0], est["force_ned_n"][1]
+        lines.append(f"airframe as estimated: drag c_xy {est['drag_n_s_per_m'][0]:.3f} N s/m, c_z "
+                     f"{est['drag_n_s_per_m'][1]:.3f} N s/m; steady force north {f_n:+.2f} N, east "
+                     f"{f_e:+.2f} N; thrust scale {est['thrust_scale']:.3f} "
                      f"({est['updates']} samples, {est['rejected']} refused)")
     lines.extend(_link_line(summary.get("status") or {}))
     cm = summary.get("controller_metrics") or {}
     gt = summary.get("ground_truth") or {}
-    lines.append(f"{'segment':<16}{'max e_t cm':>11}{'rms e_t cm':>11}{'true max cm':>12}"
+    lines.append(f"{'segment':<16}{'max e_t mm':>11}{'rms e_t mm':>11}{'true max mm':>12}"
                  f"{'max att deg':>12}{'true att deg':>13}{'peak rotor N':>13}{'sat s':>7}")
 
     def row(name, blk, g):
         te = blk.get("transverse_error_m") or {}
         ae = blk.get("attitude_error_deg") or {}
         rc = blk.get("rotor_command_n") or {}
-        return (f"{name:<16}{_f(te.get('max'), 100, '{:11.2f}')}{_f(te.get('rms'), 100, '{:11.2f}')}"
-                f"{_f((g or {}).get('max_m'), 100, '{:12.2f}')}{_f(ae.get('max'), 1, '{:12.2f}')}"
+        return (f"{name:<16}{_f(te.get('max'), 1e3, '{:11.1f}')}{_f(te.get('rms'), 1e3, '{:11.1f}')}"
+                f"{_f((g or {}).get('max_m'), 1e3, '{:12.1f}')}{_f(ae.get('max'), 1, '{:12.2f}')}"
                 f"{_f((g or {}).get('max_deg'), 1, '{:13.2f}')}"
                 f"{_f(rc.get('max'), 1, '{:13.2f}')}{_f(blk.get('saturated_s'), 1, '{:7.3f}')}")
 
@@ -89,13 +102,16 @@ def format_summary(summary: dict) -> str:
         lines.append(row(name, blk, (gt.get("segments") or {}).get(name)))
     if cm:
         lines.append(row("all", cm, gt))
+        lines.append(TABLE_LEGEND)
         if cm.get("rotor_jitter_n") is not None:
             lines.append(f"rotor command jitter (SD above 20 Hz, worst rotor): {cm['rotor_jitter_n']:.3f} N")
-    for ev in summary.get("events", []):
-        if ev["kind"] in ("phase", "touchdown", "command_refused", "gap", "recover", "recovered", "motors_stopped",
-                          "hand_over", "refused", "hard_landing"):
-            lines.append(f"  t={ev['time_s'] if ev['time_s'] is not None else float('nan'):8.3f} s "
-                         f"{ev['phase']:<9} {ev['detail']}")
+    shown = [ev for ev in summary.get("events", []) if ev["kind"] in EVENT_KINDS]
+    if shown:
+        lines.append("events (t: the vehicle's time; daemon: since the daemon started):")
+    for ev in shown:
+        t = f"t={ev['time_s']:8.3f} s" if ev.get("time_s") is not None else " " * 12
+        d = f"daemon {ev['daemon_time_s']:8.3f} s  " if ev.get("daemon_time_s") is not None else ""
+        lines.append(f"  {t}  {d}{ev['phase']:<9} {ev['detail']}")
     return "\n".join(lines)
 
 

@@ -5,6 +5,11 @@ epoch) followed by the raw bytes of one MAVLink message, exactly as it went over
 wire. ``mavlogdump.py``, MAVProxy and ``mavutil.mavlink_connection(path)`` read it.
 Messages in and out are both logged; the writer is buffered and flushed on close.
 A SETUP_SIGNING frame (it carries a signing key) is never written, whichever way it went.
+
+The timestamps come from an injected clock: the wall clock for a vehicle in real time,
+:class:`VehicleClock` for a lockstep simulator, whose flight runs faster (or slower) than
+the wall clock: there the log spans the flight's own (vehicle) time, so that log tools
+(MAVExplorer, ``mavflightmodes.py``) show its real durations.
 """
 from __future__ import annotations
 
@@ -13,7 +18,7 @@ import time
 from pathlib import Path
 from typing import Callable
 
-__all__ = ["TlogWriter"]
+__all__ = ["TlogWriter", "VehicleClock"]
 
 _TS = struct.Struct(">Q")
 _SETUP_SIGNING = 256
@@ -24,6 +29,40 @@ def _carries_key(frame) -> bool:
     return len(frame) >= 10 and frame[0] == 0xFD and (frame[7] | (frame[8] << 8) | (frame[9] << 16)) == _SETUP_SIGNING
 
 
+class VehicleClock:
+    """Seconds since the epoch that advance with the vehicle's clock.
+
+    ``wall_s()`` when created, plus the vehicle time elapsed since the first reading of
+    ``vehicle_time_s`` (None until the vehicle's first sample: the start time until then).
+    The result never goes back (a vehicle clock that restarts holds it still).
+
+    Parameters
+    ----------
+    vehicle_time_s : callable
+        ``() -> float | None``: the vehicle's time of its latest sample (s), None before one.
+    wall_s : callable, optional
+        Wall clock in seconds since the epoch, read once (``time.time`` by default).
+    """
+
+    def __init__(self, vehicle_time_s: Callable[[], float | None],
+                 wall_s: Callable[[], float] = time.time):
+        self._vehicle = vehicle_time_s
+        self._epoch_s = float(wall_s())
+        self._first_s: float | None = None
+        self._last_s = self._epoch_s
+
+    def __call__(self) -> float:
+        t = self._vehicle()
+        if t is None:
+            return self._last_s
+        if self._first_s is None:
+            self._first_s = t
+        now = self._epoch_s + (t - self._first_s)
+        if now > self._last_s:
+            self._last_s = now
+        return self._last_s
+
+
 class TlogWriter:
     """Append MAVLink message bytes with a timestamp.
 
@@ -32,7 +71,8 @@ class TlogWriter:
     path : path-like
         File to create (truncated if it exists).
     clock_s : callable, optional
-        Wall clock in seconds since the epoch (injected for tests); ``time.time`` by default.
+        Seconds since the epoch: ``time.time`` (the wall clock) by default, a
+        :class:`VehicleClock` for a lockstep vehicle, any callable in tests.
     """
 
     def __init__(self, path: str | Path, clock_s: Callable[[], float] | None = None):

@@ -35,10 +35,12 @@ class Campaign:
 
 def run_campaign(exp: Experiment, via: str, jobs: int, out_dir: Path, command: str,
                  progress=sys.stderr, keep_flight_files: bool = False,
-                 dask_address: str | None = None) -> Campaign:
+                 dask_address: str | None = None, argv: list[str] | None = None) -> Campaign:
     """Fly ``exp`` (:func:`.runner.run_experiment`, locally or on the Dask cluster at
     ``dask_address``) and write its figures, ``results.json`` and ``results.md`` into
-    ``out_dir``. Tracebacks of runs that raised go to ``errors.log``."""
+    ``out_dir``. Tracebacks of runs that raised go to ``errors.log``. ``command`` is the
+    command that repeats the campaign, ``argv`` the one typed (default: ``command``), for
+    the provenance (:mod:`mavreg.provenance`)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     t0 = time.monotonic()
@@ -76,6 +78,21 @@ def run_campaign(exp: Experiment, via: str, jobs: int, out_dir: Path, command: s
                           "envelope_changes": EXPERIMENT_ENVELOPE}}
     if dask_address is not None:
         extra["dask"] = dask_address
+    extra["provenance"] = _provenance(exp, via, command, argv)
     res = results_dict(exp, via, outcomes, command, min(jobs, len(exp.runs)), wall, figures, extra)
     files = [*write_results(out_dir, res), *figures]
     return Campaign(res, outcomes, files)
+
+
+def _provenance(exp: Experiment, via: str, command: str, argv: list[str] | None) -> dict:
+    """The command, the experiment's files with their hashes, the software (one builder for
+    every result file: :func:`mavreg.provenance.provenance`)."""
+    import shlex
+
+    from ..provenance import provenance
+    files = {"maneuver": exp.maneuver_path, "vehicle": exp.vehicle_path, "controller": exp.controller_path}
+    for cell in getattr(exp, "cells", ()):                  # robustness: each cell's maneuver
+        files[f"maneuver.{cell.name}"] = cell.maneuver_path
+    world = ("the design model (no firmware_sim)" if via == "sim"
+             else f"firmware_sim --preset {getattr(exp, 'world', None) or 'ideal'}, lockstep")
+    return provenance(argv if argv is not None else shlex.split(command), files, world)

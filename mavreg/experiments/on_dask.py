@@ -16,7 +16,6 @@ any run starts; a mismatch is one error naming the worker.
 """
 from __future__ import annotations
 
-import hashlib
 import os
 from pathlib import Path
 
@@ -35,19 +34,13 @@ def require_dask():
     return distributed
 
 
-def _sha256(path: str) -> str | None:
-    try:
-        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-    except OSError:
-        return None
-
-
 def worker_probe(files: list[str], out_dir: str | None) -> dict:
     """What a worker has: mavreg's code digest, each file's SHA-256 (None: unreadable), and
     whether ``out_dir`` is a writable directory there (None: not asked). The digest is read
     afresh (not the process's first, cached reading): the sources as they are now."""
     from ..maneuver.cache import code_digest
-    return {"code": code_digest.__wrapped__(), "files": {f: _sha256(f) for f in files},
+    from ..provenance import file_sha256
+    return {"code": code_digest.__wrapped__(), "files": {f: file_sha256(f) for f in files},
             "out_dir": None if out_dir is None else (os.path.isdir(out_dir) and os.access(out_dir, os.W_OK))}
 
 

@@ -20,7 +20,7 @@ def test_arm_disarm_acks_and_offboard_refused_without_stream():
         c = Client(emu.port)
         c.heartbeat()
         hb = c.wait_for("HEARTBEAT")
-        assert hb.type == mavlink2.MAV_TYPE_QUADROTOR and hb.autopilot == mavlink2.MAV_AUTOPILOT_GENERIC
+        assert hb.type == mavlink2.MAV_TYPE_QUADROTOR and hb.autopilot == mavlink2.MAV_AUTOPILOT_PX4
         assert hb.custom_mode == modes.HOLD and hb.base_mode == modes.BASE_MODE_CUSTOM
         assert hb.get_srcSystem() == 1 and hb.get_srcComponent() == 1
         c.command(SET_MODE, 1, 6)
@@ -142,6 +142,9 @@ def test_mavutil_connection_sees_heartbeat_arms_and_reads_telemetry():
         conn.mav.heartbeat_send(6, 8, 0, 0, 0)
         hb = conn.wait_heartbeat(timeout=5)
         assert hb is not None and conn.target_system == 1
+        # announced as PX4, so pymavlink names the mode as log tools and ground stations do
+        assert hb.autopilot == mavlink2.MAV_AUTOPILOT_PX4 and conn.flightmode == "LOITER"
+        assert mavutil.mode_string_v10(hb) == "LOITER"
         conn.mav.command_long_send(1, 1, ARM, 0, 1, 0, 0, 0, 0, 0, 0)
         ack = conn.recv_match(type="COMMAND_ACK", blocking=True, timeout=5)
         assert ack.result == mavlink2.MAV_RESULT_ACCEPTED

@@ -102,3 +102,27 @@ def env_without_display() -> dict:
     env = dict(os.environ)
     env["MPLBACKEND"] = "Agg"
     return env
+
+
+def flight_modes(tlog: Path) -> tuple[list[str], dict]:
+    """``mavflightmodes.py`` (pymavlink's tool) on a .tlog: the modes in the order it saw them,
+    and its "Time per mode" table, name -> (seconds as it prints them, whole; share of the log)."""
+    res = subprocess.run(["mavflightmodes.py", str(tlog)], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    changes = [ln.split("MAV.flightmode=")[1].split()[0] for ln in res.stdout.splitlines() if "flightmode=" in ln]
+    words = res.stdout.split("Time per mode:")[1].split()
+    table = {}
+    for name, hms, share in zip(words[::3], words[1::3], words[2::3]):
+        h, m, s = (int(x) for x in hms.split(":"))
+        table[name] = (3600 * h + 60 * m + s, float(share.rstrip("%")) / 100.0)
+    return changes, table
+
+
+def vehicle_samples(tlog: Path) -> np.ndarray:
+    """(N, 2): the .tlog's time stamp (s) and the vehicle's time (s) of each LOCAL_POSITION_NED."""
+    from pymavlink import mavutil
+    conn = mavutil.mavlink_connection(str(tlog))
+    rows = []
+    while (m := conn.recv_match(type="LOCAL_POSITION_NED")) is not None:
+        rows.append((m._timestamp, m.time_boot_ms / 1000.0))
+    return np.array(rows)

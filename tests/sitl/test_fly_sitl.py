@@ -12,7 +12,7 @@ import pytest
 from conftest import fly_lockstep
 from mavreg.daemon.ctrllog import load_control_log
 from mavreg.daemon.report import ground_truth_errors
-from sitl_helpers import BARREL, REPO, VEHICLE_IDEAL, tilt_deg
+from sitl_helpers import BARREL, REPO, VEHICLE_IDEAL, flight_modes, tilt_deg, vehicle_samples
 
 pytestmark = pytest.mark.sitl
 
@@ -69,6 +69,35 @@ def test_mavlogdump_reads_the_tlog(ideal_flight):
     assert any("COMMAND_ACK" in ln for ln in lines)
 
 
+def test_lockstep_tlog_follows_the_vehicle_clock(ideal_flight):
+    """A lockstep flight runs faster than real time: its .tlog is stamped with the vehicle's
+    clock (not the wall clock), so log tools show the flight's own durations."""
+    tlog = ideal_flight["out"] / "flight.tlog"
+    rows = vehicle_samples(tlog)
+    period_s = 1.0 / 500.0
+    stamp, vehicle = rows[:, 0] - rows[0, 0], rows[:, 1] - rows[0, 1]
+    # each sample is logged as it arrives, stamped with the vehicle time known then: the
+    # previous sample's (at most one sample period behind; time_boot_ms has 1 ms steps)
+    lag = vehicle - stamp
+    assert lag.min() >= -1e-6 and lag.max() <= period_s + 1e-3 + 1e-6, (lag.min(), lag.max())
+    assert vehicle[-1] > 40.0                                    # the whole flight
+    # mavflightmodes.py (pymavlink) names the PX4 modes and stamps each change on the vehicle's
+    # clock: LOITER lasts from the first sample to the switch to OFFBOARD, as the daemon saw it.
+    # (Its time in the last mode is extrapolated from the file's size: checked on the
+    # realistic world's flight, test_realistic_sitl.py, whose telemetry is never all zeros.)
+    changes, table = flight_modes(tlog)
+    assert changes == ["LOITER", "OFFBOARD"] and set(table) == {"LOITER", "OFFBOARD"}
+    events = ideal_flight["summary"]["events"]
+    offboard_t = next(e["time_s"] for e in events if e["kind"] == "vehicle" and "OFFBOARD" in e["detail"])
+    from pymavlink import mavutil
+    conn = mavutil.mavlink_connection(str(tlog))
+    modes = []
+    while (m := conn.recv_match(type="HEARTBEAT", condition=f'MAV.flightmode!="{conn.flightmode}"')) is not None:
+        modes.append((conn.flightmode, m._timestamp))
+    assert [name for name, _ in modes] == changes
+    assert abs((modes[1][1] - modes[0][1]) - (offboard_t - rows[0, 1])) <= period_s + 1e-3
+
+
 def test_fly_outputs_and_summary(ideal_flight):
     out = ideal_flight["out"]
     for name in ("summary.json", "flight.png", "flight.tlog", "control.npz"):
@@ -80,7 +109,22 @@ def test_fly_outputs_and_summary(ideal_flight):
     for blk in segs.values():
         assert blk["saturated_s"] == 0.0 and blk["rotor_command_n"]["max"] < 12.0
     text = "\n".join(ideal_flight["lines"])
-    assert "loop" in text and "max e_t cm" in text
+    assert "loop" in text and "max e_t mm" in text and "nan" not in text
+    # every event has a time: the daemon's clock always, the vehicle's (counted back before its
+    # first sample, so the queued upload is at a negative time)
+    ev = s["events"]
+    assert all(e["time_s"] is not None and e["daemon_time_s"] is not None for e in ev)
+    assert ev[0]["kind"] == "queued" and ev[0]["time_s"] < 0.0 < ev[0]["daemon_time_s"]
+    assert [e["time_s"] for e in ev] == sorted(e["time_s"] for e in ev)
+    # how it was produced: the command, the files and their hashes, the software
+    import hashlib
+    prov = s["provenance"]
+    assert prov["argv"][:3] == ["mavreg", "fly", str(BARREL)] and "--vehicle-lockstep" in prov["argv"]
+    assert prov["files"]["maneuver"]["sha256"] == hashlib.sha256(BARREL.read_bytes()).hexdigest()
+    assert prov["files"]["vehicle"]["sha256"] == hashlib.sha256(VEHICLE_IDEAL.read_bytes()).hexdigest()
+    assert len(prov["files"]["controller"]["sha256"]) == 64
+    assert prov["world"] is None                 # the vehicle was given by URL: not ours to describe
+    assert prov["mavreg_version"] and prov["python_version"] and prov["numpy_version"]
 
 
 @pytest.mark.slow          # 15 s; the realistic world's flights fly the same lag; before each release

@@ -18,7 +18,7 @@ import pytest
 from mavreg.daemon.ctrllog import load_control_log
 from mavreg.daemon.report import ground_truth_errors
 from mavreg.sim.metrics import rotor_jitter_n
-from sitl_helpers import BARREL, load_record, mavreg
+from sitl_helpers import BARREL, flight_modes, load_record, mavreg, vehicle_samples
 
 pytestmark = pytest.mark.sitl
 
@@ -89,6 +89,19 @@ def test_barrel_roll_on_a_realistic_vehicle(tmp_path, realistic_plan):
     # 10 ms down + 5 ms up, +-3 ms each, quantized to the 2 ms period: TIMESYNC sees 10-22 ms
     assert 10.0 <= delay["sample_to_actuation"] <= 22.0
     assert rec["on_ground"][-1] and not rec["armed"][-1]
+    # its lockstep .tlog runs on the vehicle's clock: pymavlink's mavflightmodes.py names the
+    # modes and times them as flown (the flight's vehicle time, not the wall time it took)
+    changes, table = flight_modes(f["out"] / "flight.tlog")
+    assert changes == ["LOITER", "OFFBOARD"]
+    events = f["summary"]["events"]
+    offboard_t = next(e["time_s"] for e in events if e["kind"] == "vehicle" and "OFFBOARD" in e["detail"])
+    samples = vehicle_samples(f["out"] / "flight.tlog")
+    loiter_s, offboard_s = offboard_t - samples[0, 1], samples[-1, 1] - offboard_t
+    total_s = loiter_s + offboard_s
+    print(f"mavflightmodes: {table}; flown LOITER {loiter_s:.2f} s, OFFBOARD {offboard_s:.2f} s")
+    assert -0.5 <= offboard_s - table["OFFBOARD"][0] < 1.5         # it prints whole seconds, cut
+    assert abs(table["LOITER"][1] * total_s - loiter_s) <= 0.05
+    assert abs(table["OFFBOARD"][1] * total_s - offboard_s) <= 0.5
 
 
 def test_a_50_ms_link_is_flown_on_prediction(tmp_path, realistic_plan):

@@ -98,7 +98,7 @@ def write_tlog(series: FlightSeries, path, link_delay_s: float = 0.018, timesync
             if k % int(round(1.0 / (series.t_s[1] - series.t_s[0]))) == 0:
                 on = bool(series.controlled[k])
                 tl.write(mavlink2.MAVLink_heartbeat_message(
-                    mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_GENERIC, 1 | (128 if on else 0),
+                    mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_PX4, 1 | (128 if on else 0),
                     (6 << 16) if on else (4 << 16) | (3 << 24), mavlink2.MAV_STATE_ACTIVE, 3).pack(veh))
             w, x, y, z = (float(a) for a in series.quaternion_wxyz[k])
             tl.write(mavlink2.MAVLink_attitude_quaternion_message(ms, w, x, y, z, 0.0, 0.0, 0.0).pack(veh))

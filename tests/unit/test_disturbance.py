@@ -214,6 +214,6 @@ def test_the_flight_summary_prints_the_estimate():
                "status": {"disturbance": {"drag_n_s_per_m": [0.381, 0.642], "force_ned_n": [-1.1, 0.02, 0.0],
                                           "thrust_scale": 0.903, "updates": 27000, "rejected": 3}}}
     text = format_summary(summary)
-    assert ("airframe as estimated: drag c_xy 0.381 c_z 0.642 N s/m, steady force N -1.10 E +0.02 N, "
-            "thrust scale 0.903 (27000 samples, 3 refused)") in text
+    assert ("airframe as estimated: drag c_xy 0.381 N s/m, c_z 0.642 N s/m; steady force north -1.10 N, "
+            "east +0.02 N; thrust scale 0.903 (27000 samples, 3 refused)") in text
     assert "airframe as estimated" not in format_summary({**summary, "status": {"disturbance": None}})

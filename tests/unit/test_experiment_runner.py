@@ -41,6 +41,10 @@ def test_group1_campaign_converges_and_writes_its_tables_and_figures(group1):
                  "errors.png"):
         assert (out / name).stat().st_size > 10_000 and f"]({name})" in md
     assert progress.count("\n") == 2 and "2/2 runs" in progress     # not a terminal: a line per run
+    prov = res["provenance"]                 # the same block as fly's summary.json (mavreg.provenance)
+    assert prov["argv"] == ["test", "command"] and prov["world"].startswith("the design model")
+    assert {"maneuver", "vehicle", "controller"} <= set(prov["files"])
+    assert all(len(f["sha256"]) == 64 for f in prov["files"].values())
 
 
 def test_results_do_not_depend_on_jobs(group1):

@@ -20,7 +20,7 @@ DMN = mavlink2.MAVLink(None, srcSystem=1, srcComponent=191)
 
 def _hb(armed, offboard):
     return mavlink2.MAVLink_heartbeat_message(
-        mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_GENERIC, 1 | (128 if armed else 0),
+        mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_PX4, 1 | (128 if armed else 0),
         (6 << 16) if offboard else (4 << 16) | (3 << 24), mavlink2.MAV_STATE_ACTIVE, 3).pack(VEH)
 
 

@@ -113,7 +113,7 @@ class SimVehicle:
         base = mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (
             mavlink2.MAV_MODE_FLAG_SAFETY_ARMED if self.armed else 0)
         return wire(mavlink2.MAVLink_heartbeat_message(
-            2, 0, base, (self.main << 16) | (self.sub << 24), 4, 3))
+            2, mavlink2.MAV_AUTOPILOT_PX4, base, (self.main << 16) | (self.sub << 24), 4, 3))
 
     def receive(self, msg):
         t = msg.get_type()

@@ -309,6 +309,8 @@ def test_a_clean_flight_through_an_estimator_and_a_link_fires_nothing():
     events, _, _ = run(sup, veh, 60.0)
     assert sup.succeeded, [e.line() for e in events][-6:]
     peaks = sup.status()["envelope_peaks"]
+    assert all(p["unit"] for p in peaks.values())              # summary.json names each value's unit
+    assert peaks["body_rate"]["unit"] == "rad/s" and peaks["attitude_error.maneuver"]["unit"] == "rad"
     where = {"altitude_floor", "geofence"}       # where the plan is, not how well it is flown
     worst = max(((k, v) for k, v in peaks.items() if k not in where), key=lambda kv: kv[1]["ratio"])
     print(f"\nestimator + link: closest bound {worst[0]} at {100 * worst[1]['ratio']:.0f} % of its limit")

@@ -50,3 +50,40 @@ def test_frames_sent_together_share_one_time_stamp(tmp_path):
     n0 = len(frames[0])
     assert raw == (12_500_000).to_bytes(8, "big") + frames[0] + (12_500_000).to_bytes(8, "big") + frames[1]
     assert len(raw) == 16 + n0 + len(frames[1])
+
+
+def test_vehicle_clock_starts_at_the_wall_time_and_follows_the_vehicle():
+    from mavreg.daemon.tlog import VehicleClock
+    vehicle = [None]
+    clock = VehicleClock(lambda: vehicle[0], wall_s=lambda: 1.7e9)
+    assert clock() == 1.7e9                      # before the vehicle's first sample: the start
+    vehicle[0] = 12.5                            # the vehicle's clock need not start at 0
+    assert clock() == 1.7e9
+    vehicle[0] = 42.5
+    assert clock() == 1.7e9 + 30.0               # vehicle seconds, however fast they came
+    vehicle[0] = 3.0                             # a vehicle clock that restarts holds the log still
+    assert clock() == 1.7e9 + 30.0
+
+
+def test_a_lockstep_tlog_spans_the_vehicle_time(tmp_path):
+    """Written through the writer: 10 vehicle seconds that took no wall time at all."""
+    from mavreg.daemon.tlog import VehicleClock
+    mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
+    vehicle = [None]
+    with TlogWriter(tmp_path / "v.tlog", VehicleClock(lambda: vehicle[0])) as tl:
+        for k in range(11):
+            vehicle[0] = float(k)
+            tl.write(mavlink2.MAVLink_local_position_ned_message(k * 1000, 0, 0, 0, 0, 0, 0).pack(mav))
+    conn = mavutil.mavlink_connection(str(tmp_path / "v.tlog"))
+    stamps = []
+    while (m := conn.recv_match()) is not None:
+        stamps.append(m._timestamp)
+    assert abs(stamps[-1] - stamps[0] - 10.0) < 1e-6
+
+
+def test_an_unknown_tlog_clock_is_refused_in_one_line():
+    import pytest
+    from mavreg.daemon.app import DaemonConfig
+    from mavreg.daemon.supervisor import SupervisorParams
+    with pytest.raises(ValueError, match="tlog clock 'gps'"):
+        DaemonConfig("udpout:127.0.0.1:1", None, None, None, None, SupervisorParams(), tlog_clock="gps")
