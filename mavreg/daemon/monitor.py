@@ -353,6 +353,8 @@ class EnvelopeMonitor:
         if t_s - self._phase_t0 < win or not len(c):
             return None
         recent = c.a[c.within(t_s, win, strict=True):]
+        if not len(recent):           # no command for a window (a gap, judged by the gap policy)
+            return None
         share = sum(recent) / len(recent)
         self._peak(f"saturation.{self._phase}", share, share_limit, self._phase, t_s)
         if share > share_limit:
