@@ -14,7 +14,7 @@ import struct
 from pymavlink.dialects.v20 import common as mavlink2
 
 __all__ = ["ALL_CLASSES", "DAEMON_ACTS_ON", "VEHICLE_ACTS_ON", "EXTREME_FLOATS", "layout", "random_message",
-           "pack", "damaged", "random_bytes", "KINDS", "draw"]
+           "pack", "damaged", "random_bytes", "KINDS", "draw", "draw_frames", "aim"]
 
 ALL_CLASSES = tuple(sorted(mavlink2.mavlink_map.values(), key=lambda c: c.id))
 """Every message class of the common dialect (pymavlink's ``mavlink_map``)."""
@@ -119,10 +119,12 @@ def aim(rng: random.Random, msg) -> None:
 KINDS = ("bytes", "damaged", "any_message", "acted_on", "extreme")
 
 
-def draw(rng: random.Random, kind: str, acts_on: tuple, system_id: int = 1, component_id: int = 1) -> bytes:
-    """One datagram of ``kind`` (see :data:`KINDS`): 1-3 frames for the message kinds."""
+def draw_frames(rng: random.Random, kind: str, acts_on: tuple, system_id: int = 1,
+                component_id: int = 1) -> list:
+    """The frames of one datagram of ``kind`` (see :data:`KINDS`): 1-3 frames for the message
+    kinds, one blob of random bytes for ``bytes``."""
     if kind == "bytes":
-        return random_bytes(rng)
+        return [random_bytes(rng)]
     frames = []
     for _ in range(rng.randint(1, 3)):
         cls = rng.choice(ALL_CLASSES) if kind in ("any_message", "damaged") else rng.choice(acts_on)
@@ -133,4 +135,9 @@ def draw(rng: random.Random, kind: str, acts_on: tuple, system_id: int = 1, comp
             aim(rng, msg)
         f = pack(msg, sysid, compid, rng.randrange(256))
         frames.append(damaged(rng, f) if kind == "damaged" else f)
-    return b"".join(frames)
+    return frames
+
+
+def draw(rng: random.Random, kind: str, acts_on: tuple, system_id: int = 1, component_id: int = 1) -> bytes:
+    """One datagram of ``kind``: :func:`draw_frames` joined."""
+    return b"".join(draw_frames(rng, kind, acts_on, system_id, component_id))
