@@ -89,3 +89,33 @@ def safe_end(f: dict) -> dict:
     return {"on_ground": bool(rec["on_ground"][-1]), "armed": bool(armed[-1]),
             "disarmed_in_air": int(sum(alt[i] > GROUND_Z_M for i in disarm)),
             "max_speed_m_s": float(np.linalg.norm(rec["velocity_ned_m_s"], axis=1).max())}
+
+
+def fly_through_proxy(tmp: Path, faults: str, maneuver: Path = NEAR) -> dict:
+    """A real-time flight through the UDP proxy (``python -m mavreg.tools.faultlink``, wall
+    clock): firmware_sim in real time <- proxy <- ``mavreg fly``; the proxy's counters too."""
+    import sys
+    from sitl_helpers import Proc
+    record = tmp / "groundtruth.npz"
+    t0 = time.monotonic()
+    emu, url = start_emulator(record)
+    proxy = fly = None
+    out = tmp / "out"
+    try:
+        port = url.rsplit(":", 1)[1]
+        proxy = Proc([sys.executable, "-m", "mavreg.tools.faultlink", "--listen", "127.0.0.1:0",
+                      "--vehicle", f"127.0.0.1:{port}", "--both", faults, "--seed", "0"])
+        line = proxy.wait_line("faultlink listening on", 30)
+        listen = line.split()[3]
+        fly = mavreg("fly", str(maneuver), "--vehicle", f"udpout:{listen}", "--out", str(out),
+                     "--controller", str(REAL_CONTROLLER), "--timeout-s", "200")
+        code = fly.wait(260)
+    finally:
+        if fly is not None:
+            fly.stop()
+        if proxy is not None:
+            proxy.stop()
+        emu_code = emu.stop()
+    summary = json.loads((out / "summary.json").read_text())
+    return {"code": code, "emu_code": emu_code, "summary": summary, "record": load_record(record),
+            "lines": fly.lines, "proxy_lines": proxy.lines, "wall_s": time.monotonic() - t0}
