@@ -9,9 +9,13 @@ clean, 10 %, 30 % and a 0.5 s outage mid-maneuver.
 """
 from __future__ import annotations
 
+import json
+import re
+
+import numpy as np
 import pytest
 
-from link_faults_helpers import NEAR, events, fly_faulted, safe_end, true_errors
+from link_faults_helpers import NEAR, events, fly_faulted, fly_through_proxy, safe_end, true_errors
 from sitl_helpers import BARREL
 
 pytestmark = pytest.mark.sitl
@@ -30,7 +34,6 @@ def test_barrel_roll_near_through_10_percent_loss_and_jitter(tmp_path):
     gt = true_errors(f, NEAR)
     # the clean flight's true error up to 23 s: 3.65 cm (max), 1.47 cm (rms); this one (seed 0): 3.34, 1.67
     assert gt["max_m"] < 0.08 and gt["rms_m"] < 0.03, gt
-    import json
     meta = json.loads(str(rec["meta_json"]))
     c = meta["counters"]
     assert c["commands_lost"] > 0.08 * c["commands_received"]     # the faults did act
@@ -66,7 +69,6 @@ def test_half_second_outage_mid_maneuver_triggers_the_failsafe_and_is_not_resume
     assert ("recover", "maneuver") in kinds and ("hand_over", "recover") in kinds, kinds
     assert all(p != "maneuver" for k, p in kinds if k == "phase")   # never back to the maneuver
     rec = f["record"]
-    import numpy as np
     modes = rec["custom_mode"][(rec["t_s"] > 35.0) & (rec["t_s"] < 36.0)]
     assert np.any(modes != modes[0])                              # the vehicle's failsafe switched mode
     end = safe_end(f)
@@ -80,8 +82,6 @@ def test_real_time_flight_through_the_udp_proxy(tmp_path):
     machine brings its own delays (a clean real-time flight through the proxy failed its
     take-off on a loaded machine), so the flight is judged for safety only: it completes, or
     the daemon's safety takes over, and no motor stops in the air; the proxy did its faults."""
-    import re
-    from link_faults_helpers import fly_through_proxy
     f = fly_through_proxy(tmp_path, LOSS10)
     fail = f["summary"]["failure"]
     assert f["summary"]["result"] == "ok" or "motors stopped" not in fail["action"], fail

@@ -119,7 +119,8 @@ def test_extreme_state_in_flight_never_raises_nor_commands_non_finite():
         q = [rng.choice(EXTREME_FLOATS) if rng.random() < 0.3 else v for v in (1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)]
         p = [rng.choice(EXTREME_FLOATS) if rng.random() < 0.3 else v for v in (0.0, 0.0, -2.0, 0.0, 0.0, 0.0)]
         n0 = sup.assembler.counters.non_finite
-        for m in (mavlink2.MAVLink_attitude_quaternion_message(t_ms, *q), mavlink2.MAVLink_local_position_ned_message(t_ms, *p)):
+        for m in (mavlink2.MAVLink_attitude_quaternion_message(t_ms, *q),
+                  mavlink2.MAVLink_local_position_ned_message(t_ms, *p)):
             out = sup.handle(wire(m), t_ms / 1000.0)
             for o in out.messages:
                 if o.get_type() == "SET_ACTUATOR_CONTROL_TARGET":

@@ -39,7 +39,7 @@ from __future__ import annotations
 import heapq
 import math
 import random
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, fields
 from typing import Any, Callable
 
 __all__ = ["FaultParams", "FaultCounters", "FaultLine", "flip_bits", "parse_faults", "SPEC_KEYS"]
