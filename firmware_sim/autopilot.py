@@ -7,13 +7,14 @@ clock: tests drive it directly.
 Acceptance rules (documented in docs/firmware_sim.md):
 
 - SET_ACTUATOR_CONTROL_TARGET: source system == ours; ``target_system`` == ours and
-  ``target_component`` 0 or ours; the first component that sends one becomes the
-  offboard peer, others are ``foreign_component``; ``group_mlx`` 0; all 8 controls
+  ``target_component`` 0 or ours; the first component that sends a valid one becomes the
+  offboard peer (a malformed target claims nothing), others are ``foreign_component``; ``group_mlx`` 0; all 8 controls
   finite (else ``non_finite``, whole message); controls 0..3 within [0, 1] +- 1e-6
   (else ``out_of_range``). A valid target keeps the stream alive; it is applied only
   while armed and in OFFBOARD (else counted ``not_armed_or_not_offboard``).
 - COMMAND_LONG: source system == ours or one of ``peer_system_ids`` (ground stations;
-  none by default), any component; ``target_system`` ours (or 0 broadcast), ``target_component`` ours or 0.
+  none by default), any component; ``target_system`` ours (or 0 broadcast), ``target_component`` ours or 0;
+  a parameter the command reads that is not finite: ``non_finite``, denied.
 - TIMESYNC: same source rule as COMMAND_LONG. A request (``tc1`` 0) is answered with
   ``tc1`` = our clock (sim time) in ns when it is handled and ``ts1`` echoed, as PX4
   does; a reply (``tc1`` != 0) sent to us is ``unsupported``, and so is every request with
@@ -44,6 +45,9 @@ _ACCEPTED = mavlink2.MAV_RESULT_ACCEPTED
 _DENIED = mavlink2.MAV_RESULT_DENIED
 _TEMP_REJECTED = mavlink2.MAV_RESULT_TEMPORARILY_REJECTED
 _UNSUPPORTED = mavlink2.MAV_RESULT_UNSUPPORTED
+_COMMAND_PARAMS = {mavlink2.MAV_CMD_COMPONENT_ARM_DISARM: ("param1", "param2"),
+                   mavlink2.MAV_CMD_DO_SET_MODE: ("param1", "param2", "param3")}
+"""The parameters each handled command reads: a non-finite one is ``non_finite``, denied."""
 
 
 @dataclass(frozen=True)
@@ -193,8 +197,8 @@ class Autopilot:
     def _on_target(self, msg, t_s: float) -> None:
         cfg = self.cfg
         reason = self.target_drop_reason(msg)
-        if self.offboard_component is None and reason not in ("foreign_system", "wrong_target"):
-            self.offboard_component = msg.get_srcComponent()    # the first one to address us
+        if self.offboard_component is None and reason is None:
+            self.offboard_component = msg.get_srcComponent()    # the first valid one to address us
         if reason is not None:
             self.drops[reason] += 1
             return
@@ -222,6 +226,11 @@ class Autopilot:
             return
         if msg.target_system not in (0, cfg.system_id) or msg.target_component not in (0, cfg.component_id):
             self.drops["wrong_target"] += 1
+            return
+        used = _COMMAND_PARAMS.get(msg.command, ())
+        if not all(math.isfinite(getattr(msg, p)) for p in used):
+            self.drops["non_finite"] += 1
+            self._ack(msg, _DENIED)
             return
         if msg.command == mavlink2.MAV_CMD_COMPONENT_ARM_DISARM:
             self._arm_disarm(msg, t_s, state, on_ground)

@@ -24,6 +24,7 @@ from .sim import Simulation
 from .stabilizer import Stabilizer
 from .status import ExitCode, SimStop
 from .wind import Wind, WindItem, parse_wind
+from .faults import link_faults_from_args
 from .world import PRESET_NAMES, PRESETS, build_world
 
 __all__ = ["main", "build_parser", "build_engine"]
@@ -215,6 +216,12 @@ def _add_mismatch_args(p: argparse.ArgumentParser) -> None:
 def _add_world_args(p: argparse.ArgumentParser) -> None:
     """The world's flags: link, estimator, air and battery (:mod:`firmware_sim.world`)."""
     w = p.add_argument_group("world", "link effects and estimator errors; each flag overrides the preset's value")
+    for flag, what in (("--link-faults", "both directions"), ("--uplink-faults", "commands (to the vehicle)"),
+                       ("--downlink-faults", "telemetry (from the vehicle)")):
+        w.add_argument(flag, action="append", default=[], metavar="SPEC",
+                       help=f"link faults of {what} after the preset's link, in simulation time: "
+                       "KEY=VALUE[,...], e.g. loss=0.1,jitter_ms=5,outage=15:0.5 (repeatable; "
+                       "docs/reliability.md)")
     w.add_argument("--preset", choices=PRESET_NAMES, default="realistic",
                    help="named world (default %(default)s; values below)")
     w.add_argument("--telemetry-delay-ms", type=_nonneg_float, default=None, metavar="MS",
@@ -288,9 +295,10 @@ def build_engine(args) -> tuple[Engine, Recorder | None]:
                           failsafe_hold_s=args.failsafe_hold_s)
     ap = Autopilot(cfg, stab, n.mass_kg * G / 4)
     signing = Signing(args.signing_key, "firmware-sim") if args.signing_key is not None else None
+    faults = link_faults_from_args(args.link_faults, args.uplink_faults, args.downlink_faults, args.seed)
     link = Link(args.listen, args.system_id, cfg.component_id,
                 peer_system_ids=(args.system_id, *args.peer_system_ids), signing=signing)
-    engine = Engine(sim, ap, link, world)
+    engine = Engine(sim, ap, link, world, faults)
     if start is not None:
         link.send(ap.start_in_flight(0.0))
     sim.record_initial(ap.armed, ap.mode)

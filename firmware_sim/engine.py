@@ -19,6 +19,7 @@ from . import modes
 from .autopilot import Autopilot, state_messages
 from .channel import Downlink, Uplink
 from .estimator import Estimator
+from .faults import FaultyDownlink, FaultyUplink
 from .link import Link
 from .sim import Simulation
 from .world import PRESETS, WorldPreset
@@ -38,6 +39,8 @@ class Engine:
     link : Link
     world : WorldPreset, optional
         Default: the ideal world.
+    link_faults : firmware_sim.faults.LinkFaults, optional
+        Faults after the world's link model, in simulation time (``--link-faults``).
 
     Attributes
     ----------
@@ -49,7 +52,7 @@ class Engine:
     """
 
     def __init__(self, sim: Simulation, autopilot: Autopilot, link: Link,
-                 world: WorldPreset | None = None):
+                 world: WorldPreset | None = None, link_faults=None):
         self.sim = sim
         self.ap = autopilot
         self.link = link
@@ -59,7 +62,11 @@ class Engine:
         self._substeps = p.substeps
         self.downlink = Downlink(self.world.link, p.rate_hz, p.substeps, p.seed)
         self.uplink = Uplink(self.world.link, p.physics_hz, p.seed)
-        self._direct = self.world.link.ideal       # ideal link: send at once, skip the delay lines
+        if link_faults is not None:
+            self.downlink = FaultyDownlink(self.downlink, link_faults.down, p.rate_hz)
+            self.uplink = FaultyUplink(self.uplink, link_faults.up, p.physics_hz)
+        # ideal link: send at once, skip the delay lines
+        self._direct = self.world.link.ideal and link_faults is None
         est = self.world.estimator
         latency_steps = int(math.floor(est.latency_ms * 1e-3 * p.physics_hz + 0.5))
         self.estimator = Estimator(est, 1.0 / p.rate_hz, p.seed) if est.has_errors else None

@@ -78,7 +78,7 @@ def run(args) -> int:
                           Path(args.socket) if args.socket else default_socket_path(),
                           Path(args.tlog) if args.tlog else None,
                           SupervisorParams(land_when_done=False, stale_timeout_s=args.stale_timeout_s,
-                                           gap_fill=not args.vehicle_lockstep),
+                                           gap_fill=not args.vehicle_lockstep, lockstep=args.vehicle_lockstep),
                           envelope=controller.envelope, controller=controller,
                           control_rate_hz=args.control_rate_hz, **gcs,
                           tlog_clock="vehicle" if args.vehicle_lockstep else "wall")

@@ -146,6 +146,7 @@ def fly(opts: FlyOptions) -> int:
                           tlog_path=opts.out_dir / "flight.tlog",
                           supervisor=SupervisorParams(land_when_done=True, stale_timeout_s=opts.stale_timeout_s,
                                                       gap_fill=not (opts.lockstep or opts.vehicle_lockstep),
+                                                      lockstep=opts.lockstep or opts.vehicle_lockstep,
                                                       entry_offset_m=tuple(opts.entry_offset_m)),
                           envelope=controller.envelope,
                           controller=controller, control_rate_hz=opts.control_rate_hz,

@@ -155,7 +155,22 @@ class EnvelopeMonitor:
 
         speed = math.sqrt(vx * vx + vy * vy + vz * vz)
         alt = math.nan if self.origin is None else self.origin[2] - pz
-        # 1. impact: at the ground at speed, or an acceleration no rotor can produce
+        # 1. a sample that contradicts the one before (an estimate that jumped) is judged as such
+        # before anything is concluded from it: one absurd sample is a recovery, never an impact
+        if prev is not None and 0.0 < t_s - prev[0] <= 0.5:
+            dt = t_s - prev[0]
+            (qx, qy, qz), (ux, uy, uz) = prev[1], prev[2]
+            ex = px - qx - 0.5 * (ux + vx) * dt
+            ey = py - qy - 0.5 * (uy + vy) * dt
+            ez = pz - qz - 0.5 * (uz + vz) * dt
+            jump = math.sqrt(ex * ex + ey * ey + ez * ez)
+            limit = prm.max_position_jump_m + 0.5 * self.max_accel_m_s2 * dt * dt
+            self._peak("position_jump", jump, limit, phase, t_s)
+            if jump > limit:
+                return self._fail(phase, t_s, s_m, "position_jump", jump, limit, "m",
+                                  f"position moved {jump:.2f} m more than the velocity explains over "
+                                  f"{dt * 1e3:.0f} ms")
+        # impact: at the ground at speed, or an acceleration no rotor can produce
         if alt <= prm.impact_altitude_m:
             self._peak("impact_descent", vz, prm.impact_descent_m_s, phase, t_s)
             self._peak("impact_speed", speed, prm.impact_speed_m_s, phase, t_s)
@@ -177,19 +192,6 @@ class EnvelopeMonitor:
                                   prm.impact_accel_m_s2, "m/s^2",
                                   f"acceleration spike {a:.0f} m/s^2 from the reported velocity", at_ground)
         # 2. telemetry that contradicts itself or the commands
-        if prev is not None and 0.0 < t_s - prev[0] <= 0.5:
-            dt = t_s - prev[0]
-            (qx, qy, qz), (ux, uy, uz) = prev[1], prev[2]
-            ex = px - qx - 0.5 * (ux + vx) * dt
-            ey = py - qy - 0.5 * (uy + vy) * dt
-            ez = pz - qz - 0.5 * (uz + vz) * dt
-            jump = math.sqrt(ex * ex + ey * ey + ez * ez)
-            limit = prm.max_position_jump_m + 0.5 * self.max_accel_m_s2 * dt * dt
-            self._peak("position_jump", jump, limit, phase, t_s)
-            if jump > limit:
-                return self._fail(phase, t_s, s_m, "position_jump", jump, limit, "m",
-                                  f"position moved {jump:.2f} m more than the velocity explains over "
-                                  f"{dt * 1e3:.0f} ms")
         v_bad = self._thrust_check(t_s, R, v, disturbance)
         if v_bad is not None:
             measured, commanded, lasted = v_bad
@@ -360,6 +362,8 @@ class EnvelopeMonitor:
         if t_s - self._phase_t0 < win or not len(c):
             return None
         recent = c.a[c.within(t_s, win, strict=True):]
+        if not len(recent):           # no command for a window (a gap, judged by the gap policy)
+            return None
         share = sum(recent) / len(recent)
         self._peak(f"saturation.{self._phase}", share, share_limit, self._phase, t_s)
         if share > share_limit:

@@ -82,6 +82,10 @@ class SupervisorParams:
     from the prediction of the last one (:meth:`Supervisor.fill_gap`), as far as the
     prediction horizon reaches. Off for a lockstep simulator, which waits for each command
     (an extra command there would answer a sample that has not been sent)."""
+    lockstep: bool = False
+    """The vehicle is a lockstep simulator: its time is the only clock that tells a gap (the
+    wall clock does not pass while it runs ahead without commands, e.g. through a telemetry
+    outage), so a gap of vehicle time alone is judged (docs/safety.md, *Gaps*)."""
     euler_pitch_limit_rad: float = math.radians(75.0)
     hover: HoverParams = field(default_factory=HoverParams)
 

@@ -226,8 +226,10 @@ class SafetyActions:
 
         The vehicle flew that long on a command computed from older state only when both
         are long: in lockstep the vehicle waits for the daemon (wall gaps are harmless), and a
-        vehicle-time jump that arrives at once is a clock step, not a blind flight."""
-        gap = min(vehicle_gap_s, wall_gap_s)
+        vehicle-time jump that arrives at once is a clock step, not a blind flight. A lockstep
+        vehicle (``params.lockstep``) runs ahead only when it has no sample to be answered (a
+        telemetry outage): there the vehicle time alone counts."""
+        gap = vehicle_gap_s if self.params.lockstep else min(vehicle_gap_s, wall_gap_s)
         if gap <= self.envelope.maneuver_gap_s:
             return
         self.counters.gaps += 1
