@@ -1,6 +1,7 @@
 """The emulator's parameters: a vehicle YAML (mavreg's validating loader) plus overrides.
 
-``mavreg.config`` is the only part of mavreg firmware_sim imports.
+``mavreg.config`` (the parameter files) is the only part of mavreg firmware_sim imports, besides
+the fault-injection test tool ``mavreg.tools.faultlink`` (``--link-faults``); no control code.
 """
 from __future__ import annotations
 
