@@ -3,16 +3,17 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import math
 import os
 import signal
 import sys
 import textwrap
 
+from .argtypes import (_checked, _input_file, _nonneg_float, _nonneg_int, _output_file, _positive_float,
+                       _positive_int, _probability, _sysid, _unit_scale)
 from .autopilot import Autopilot, AutopilotConfig
 from .clock import StopRun, run_lockstep, run_realtime
 from .engine import Engine
-from .link import Link
+from .link import Link, parse_listen_url
 from .mismatch import BOUNDS, airframe_arrays, apply_mismatch, describe_airframe, draw_mismatch
 from mavreg.config.vehicle import EmulatorParams, load_vehicle
 
@@ -25,7 +26,13 @@ from .status import ExitCode, SimStop
 from .wind import Wind, WindItem, parse_wind
 from .world import PRESET_NAMES, PRESETS, build_world
 
-__all__ = ["main", "build_parser", "build_engine"]
+__all__ = ["main", "build_parser", "build_engine", "BadInput"]
+
+
+class BadInput(ValueError):
+    """A bad flag value or vehicle file, found while the run is built: one line, exit 2.
+
+    Any other exception while building or running is a bug (a traceback, exit 1)."""
 
 DESCRIPTION = """\
 A software-in-the-loop quadrotor that speaks MAVLink 2 over UDP: quaternion rigid body
@@ -43,7 +50,8 @@ The first stdout line is 'firmware_sim listening on udpin:HOST:PORT'; the second
 ('firmware_sim world: ...') names the preset, its values and any overrides; with
 --mismatch-seed a third one ('firmware_sim airframe: key=value ...') gives the true
 airframe drawn around the vehicle file.
-Exit status: 0 done or signalled, 1 internal error, 2 bad input, 3 crash,
+Exit status: 0 done or signalled, 1 internal error (a bug: a traceback
+and a request to report it), 2 bad input (a flag, a file; checked before the run), 3 crash,
 4 non-finite state, 5 speed or body rate limit. See docs/firmware_sim.md."""
 
 
@@ -62,66 +70,6 @@ def _presets_epilog() -> str:
     return "\n".join(lines)
 
 
-def _float_above(minimum: float, inclusive: bool):
-    """An argparse type: a finite float > minimum (>= with ``inclusive``)."""
-    op = ">=" if inclusive else ">"
-
-    def parse(text: str) -> float:
-        try:
-            v = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-        if not (math.isfinite(v) and (v >= minimum if inclusive else v > minimum)):
-            raise argparse.ArgumentTypeError(f"expected a finite number {op} {minimum:g}, got {text!r}")
-        return v
-    return parse
-
-
-_positive_float = _float_above(0.0, inclusive=False)
-_nonneg_float = _float_above(0.0, inclusive=True)
-
-
-def _probability(text: str) -> float:
-    v = _nonneg_float(text)
-    if v > 1.0:
-        raise argparse.ArgumentTypeError(f"expected a probability in [0, 1], got {text!r}")
-    return v
-
-
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if v <= 0:
-        raise argparse.ArgumentTypeError(f"expected an integer > 0, got {text!r}")
-    return v
-
-
-def _nonneg_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
-    return v
-
-
-def _unit_scale(text: str) -> float:
-    v = _positive_float(text)
-    if v > 1.0:
-        raise argparse.ArgumentTypeError(f"expected a number in (0, 1], got {text!r}")
-    return v
-
-
-def _sysid(text: str) -> int:
-    v = _positive_int(text)
-    if v > 255:
-        raise argparse.ArgumentTypeError(f"expected a MAVLink system id 1..255, got {text!r}")
-    return v
-
-
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str):        # one line, exit 2
         self.exit(int(ExitCode.USAGE), f"firmware-sim: error: {message}\n")
@@ -131,10 +79,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="firmware-sim", description=DESCRIPTION, epilog=_presets_epilog(),
                 formatter_class=argparse.RawDescriptionHelpFormatter)
     a = p.add_argument
-    a("--listen", default="udpin:127.0.0.1:14540", metavar="URL",
+    a("--listen", default="udpin:127.0.0.1:14540", metavar="URL", type=_checked(parse_listen_url, "URL"),
       help="UDP address to listen on, udpin:HOST:PORT; port 0 picks a free port "
            "(default %(default)s)")
-    a("--vehicle", default=None, metavar="YAML",
+    a("--vehicle", default=None, metavar="YAML", type=_input_file,
       help="vehicle parameter file (default params/vehicles/mk_quadro.yaml of this repository)")
     a("--rate-hz", type=_positive_int, default=500,
       help="control and telemetry rate (default %(default)s)")
@@ -149,15 +97,15 @@ def build_parser() -> argparse.ArgumentParser:
     a("--lockstep-stall-speed", type=_nonneg_float, default=1.0, metavar="X",
       help="while no commands stream in lockstep, run at X times real time; 0 = as fast "
            "as possible (default %(default)s)")
-    a("--seed", type=int, default=0, help="seed of the rotor noise and perturbations (default 0)")
-    a("--start", default=None, metavar="STATE",
+    a("--seed", type=_nonneg_int, default=0, help="seed of the rotor noise and perturbations (default 0)")
+    a("--start", default=None, metavar="STATE", type=_checked(parse_start, "STATE"),
       help="start in flight, armed and in OFFBOARD, e.g. 'z_m=-5,vy_m_s=8,roll_deg=120'. "
            f"Keys (missing = 0): {', '.join(START_KEYS)}. Position and velocity NED, "
            "attitude ZYX, body rates FRD. Default: on the ground, disarmed, HOLD")
-    a("--wind", action="append", default=None, metavar="SPEC",
+    a("--wind", action="append", default=None, metavar="SPEC", type=_checked(parse_wind, "SPEC"),
       help="repeatable: velocity:VN,VE,VD or force:FN,FE,FD (m/s or N, NED), optionally "
            "@T0:T1 for a gust window in sim seconds, e.g. force:0,2,0@3:3.5")
-    a("--record", default=None, metavar="FILE.npz",
+    a("--record", default=None, metavar="FILE.npz", type=_output_file,
       help="write the true state and rotor forces of every physics step to FILE.npz")
     a("--offboard-loss-timeout", type=_positive_float, default=0.25, metavar="S",
       help="sim seconds without a valid actuator target before the failsafe (default %(default)s)")
@@ -236,7 +184,18 @@ def _add_world_args(p: argparse.ArgumentParser) -> None:
 
 
 def build_engine(args) -> tuple[Engine, Recorder | None]:
-    """Everything the run needs, from parsed arguments. Raises ValueError on bad input."""
+    """Everything the run needs, from parsed arguments. Raises :class:`BadInput` (a
+    ValueError) on bad input: a value the validators of the world, the vehicle file, the
+    parameters, --start, --wind or --mismatch-* refuse, or a --listen that cannot be bound."""
+    try:
+        world, vehicle_path, vehicle, nominal, params, start, items = _read_inputs(args)
+    except ValueError as exc:     # every ValueError of the validators: ConfigError included
+        raise BadInput(str(exc)) from None
+    return _assemble(args, world, vehicle_path, vehicle, nominal, params, start, items)
+
+
+def _read_inputs(args):
+    """Validate the flags and the vehicle file (each validator raises ValueError)."""
     vehicle_path = args.vehicle if args.vehicle is not None else default_vehicle_path()
     world = build_world(args.preset, telemetry_delay_ms=args.telemetry_delay_ms,
                         telemetry_jitter_ms=args.telemetry_jitter_ms,
@@ -249,10 +208,15 @@ def build_engine(args) -> tuple[Engine, Recorder | None]:
     vehicle = load_vehicle(vehicle_path)
     vehicle = dataclasses.replace(vehicle, emulator=world.airframe.apply(vehicle.emulator))
     nominal, params = _sim_params(args, vehicle)
-    command_scale_n = (args.max_rotor_thrust_n if args.max_rotor_thrust_n is not None
-                       else vehicle.max_rotor_thrust_n)     # thrust asked for by a control of 1
     start = parse_start(args.start) if args.start is not None else None
     items = [parse_wind(w) for w in (args.wind or ())]
+    return world, vehicle_path, vehicle, nominal, params, start, items
+
+
+def _assemble(args, world, vehicle_path, vehicle, nominal, params, start, items):
+    """The engine from validated inputs (an exception here is a bug, but for --listen)."""
+    command_scale_n = (args.max_rotor_thrust_n if args.max_rotor_thrust_n is not None
+                       else vehicle.max_rotor_thrust_n)     # thrust asked for by a control of 1
     if world.airframe.wind_speed_m_s:
         items.append(WindItem("velocity", world.airframe.wind_ned_m_s))
     wind = Wind(items)
@@ -279,7 +243,10 @@ def build_engine(args) -> tuple[Engine, Recorder | None]:
                           offboard_loss_timeout_s=args.offboard_loss_timeout,
                           failsafe_hold_s=args.failsafe_hold_s)
     ap = Autopilot(cfg, stab, n.mass_kg * G / 4)
-    link = Link(args.listen, args.system_id, cfg.component_id)
+    try:
+        link = Link(args.listen, args.system_id, cfg.component_id)
+    except ValueError as exc:     # --listen: cannot bind (in use, no such address)
+        raise BadInput(str(exc)) from None
     engine = Engine(sim, ap, link, world)
     if start is not None:
         link.send(ap.start_in_flight(0.0))
@@ -346,9 +313,15 @@ def _main(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     try:
         engine, recorder = build_engine(args)
-    except ValueError as exc:            # ConfigError included
-        print(f"firmware-sim: error: {exc}", file=sys.stderr)
+    except (BadInput, OSError) as exc:   # a bad value or file; OSError: a file it cannot read or write
+        print(f"firmware-sim: error: {' '.join(str(exc).split())[:400]}", file=sys.stderr)
         return int(ExitCode.USAGE)
+    except Exception:                     # a bug: not the user's input
+        import traceback
+        traceback.print_exc()
+        print("firmware-sim: this is a bug in firmware_sim: please report it with the command line and "
+              f"the traceback above (exit {int(ExitCode.INTERNAL)})", file=sys.stderr)
+        return int(ExitCode.INTERNAL)
     print(f"firmware_sim listening on {engine.link.url}", flush=True)
     print(f"firmware_sim {engine.world.describe(engine.sim.params.vehicle.emulator)}", flush=True)
     if engine.sim.params.mismatch is not None:
