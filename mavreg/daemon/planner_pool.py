@@ -304,6 +304,11 @@ class PlannerPool:
             self.busy -= 1
 
     async def _plan_now(self, yaml_text: str, source: str) -> PlanResult:
+        if self.worker_pid is None:     # a replaced worker starts outside the plan's wall clock
+            try:
+                await self.warm_up()
+            except BrokenProcessPool:
+                self._restart()
         loop = asyncio.get_running_loop()
         args = (plan_in_worker, yaml_text, source, self.vehicle_path, self.controller_path, self.bounds)
         try:
