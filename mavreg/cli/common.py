@@ -16,6 +16,7 @@ import os
 from pathlib import Path
 
 __all__ = ["PARAMS_DIR", "add_model_arguments", "add_laps_argument", "load_model_params",
+           "add_planner_arguments", "planner_bounds",
            "Parser", "positive_float", "nonneg_float", "finite_float", "positive_int", "nonneg_int", "vehicle_url", "plot_file", "input_file",
            "output_file", "output_dir", "socket_path", "check_output_file", "check_output_dir"]
 
@@ -45,6 +46,27 @@ def add_model_arguments(p: argparse.ArgumentParser, controller: Path = DESIGN_CO
 def add_laps_argument(p: argparse.ArgumentParser) -> None:
     p.add_argument("--laps", type=positive_int, default=None, metavar="N",
                    help="fly the maneuver's laps segment N times (default: as in the file)")
+
+
+def add_planner_arguments(p: argparse.ArgumentParser) -> None:
+    """--planner-memory-mib, --planner-cpu-s: what one upload may cost the planner worker."""
+    from ..daemon.planner_pool import PlannerBounds
+    d = PlannerBounds()
+    p.add_argument("--planner-memory-mib", type=positive_int, default=d.memory_bytes >> 20, metavar="MIB",
+                   help="memory one upload's planning may add to the planner worker; beyond it the "
+                   "upload is rejected (default: %(default)s)")
+    p.add_argument("--planner-cpu-s", type=positive_float, default=d.cpu_s, metavar="S",
+                   help="CPU seconds one upload's planning may take; beyond them it is rejected "
+                   "(default: %(default)s)")
+
+
+def planner_bounds(args):
+    """The :class:`~mavreg.daemon.planner_pool.PlannerBounds` of the options above."""
+    import dataclasses
+
+    from ..daemon.planner_pool import PlannerBounds
+    return dataclasses.replace(PlannerBounds(), memory_bytes=args.planner_memory_mib << 20,
+                               cpu_s=args.planner_cpu_s)
 
 
 def load_model_params(args):

@@ -6,8 +6,9 @@ import time
 from pathlib import Path
 
 from ..errors import UsageError
-from .common import (REAL_CONTROLLER, add_model_arguments, check_output_dir, finite_float, input_file,
-                     output_dir, positive_float, socket_path, vehicle_url)
+from .common import (REAL_CONTROLLER, add_model_arguments, add_planner_arguments, check_output_dir,
+                     finite_float, input_file, output_dir, planner_bounds, positive_float, socket_path,
+                     vehicle_url)
 
 MAX_ENTRY_OFFSET_M = 2.0
 """Longest --entry-offset: an experiment's start error, not a relocation of the maneuver."""
@@ -101,6 +102,7 @@ def add_arguments(p):
                    "velocity, and the regulator takes over there (the paper's Section 4: 0.6 0.6 0.6; "
                    "more than 0.5 m across the path needs a controller file whose envelope allows "
                    "it, see mavreg experiment) (default: 0 0 0)" % {"max": MAX_ENTRY_OFFSET_M})
+    add_planner_arguments(p)
     add_model_arguments(p, controller=REAL_CONTROLLER)
 
 
@@ -124,5 +126,5 @@ def run(args) -> int:
     opts = FlyOptions(maneuver, args.vehicle, Path(args.vehicle_params), Path(args.controller), out,
                       Path(args.socket) if args.socket else None, args.timeout_s, args.lockstep,
                       tuple(args.emulator_arg), args.control_rate_hz, args.vehicle_lockstep, args.world,
-                      args.stale_timeout_s, offset)
+                      args.stale_timeout_s, offset, planner_bounds(args))
     return fly(opts)

@@ -3,7 +3,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .common import REAL_CONTROLLER, add_model_arguments, output_file, positive_float, socket_path, vehicle_url
+from .common import (REAL_CONTROLLER, add_model_arguments, add_planner_arguments, output_file, planner_bounds,
+                     positive_float, socket_path, vehicle_url)
 
 HELP = "run the offboard daemon: fly maneuvers uploaded on the control endpoint"
 DESCRIPTION = """\
@@ -50,6 +51,7 @@ def add_arguments(p):
     p.add_argument("--vehicle-lockstep", action="store_true",
                    help="the vehicle is a lockstep simulator (it waits for each command): do not "
                    "fly telemetry gaps on the prediction (in real time the daemon does)")
+    add_planner_arguments(p)
     add_model_arguments(p, controller=REAL_CONTROLLER)
 
 
@@ -69,7 +71,7 @@ def run(args) -> int:
                           SupervisorParams(land_when_done=False, stale_timeout_s=args.stale_timeout_s,
                                            gap_fill=not args.vehicle_lockstep),
                           envelope=controller.envelope, controller=controller,
-                          control_rate_hz=args.control_rate_hz)
+                          control_rate_hz=args.control_rate_hz, planner=planner_bounds(args))
     make_regulator = regulator_factory(vehicle, args.control_rate_hz, controller.disturbance,
                                       controller.allocation, controller.speed_governor)
     daemon = Daemon(config, vehicle, make_regulator)

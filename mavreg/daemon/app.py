@@ -30,7 +30,7 @@ from ..errors import EXIT_FAILED, UserError
 from .ctrllog import ControlLog
 from .endpoint import EndpointServer
 from .link import FastLink, MavlinkLink, open_link
-from .planner_pool import PlannerDied, PlannerPool
+from .planner_pool import PlannerBounds, PlannerDied, PlannerPool
 from .supervisor import Output, Phase, Supervisor, SupervisorParams
 from .tlog import TlogWriter
 
@@ -76,6 +76,8 @@ class DaemonConfig:
     ``max_prediction_s``). None: no prediction."""
     control_rate_hz: float = 500.0
     """The vehicle's telemetry (control) rate: the prediction's integration step."""
+    planner: PlannerBounds = field(default_factory=PlannerBounds)
+    """What one upload may cost the planner worker (memory, CPU, wall clock)."""
 
 
 class Daemon:
@@ -109,6 +111,10 @@ class Daemon:
         self._gap_timer: asyncio.TimerHandle | None = None
         self._signals = 0
         self.max_tick_gap_s = 0.0
+        self.max_tick_gap_phase = ""
+        self.max_tick_cpu_s = 0.0
+        """Most CPU the loop's thread used between two ticks: the gap is this plus the time the
+        process waited for a CPU (a loaded machine) or for events."""
         """Longest wall time between two runs of the tick task (the event loop's worst stall
         plus TICK_S): what a slow request or upload costs the control loop."""
 
@@ -155,12 +161,14 @@ class Daemon:
             await asyncio.sleep(HEARTBEAT_S)
 
     async def _tick_task(self) -> None:
-        last = time.perf_counter()
+        last, last_cpu = time.perf_counter(), time.thread_time()
         while True:
             await asyncio.sleep(TICK_S)
-            now = time.perf_counter()
-            self.max_tick_gap_s = max(self.max_tick_gap_s, now - last)
-            last = now
+            now, cpu = time.perf_counter(), time.thread_time()
+            if now - last > self.max_tick_gap_s:
+                self.max_tick_gap_s, self.max_tick_gap_phase = now - last, str(self.supervisor.phase)
+            self.max_tick_cpu_s = max(self.max_tick_cpu_s, cpu - last_cpu)
+            last, last_cpu = now, cpu
             self._emit(self.supervisor.tick(self.clock_s()))
 
     # ---------------------------------------------------------------- requests
@@ -208,7 +216,9 @@ class Daemon:
         st["uploads"] = dict(self.uploads)
         st["latency_ms"] = self.latency_summary()
         st["planning"] = 0 if self.pool is None else self.pool.busy
-        st["loop"] = {"max_tick_gap_ms": self.max_tick_gap_s * 1e3, "tick_ms": TICK_S * 1e3,
+        st["loop"] = {"max_tick_gap_ms": self.max_tick_gap_s * 1e3, "max_tick_gap_phase": self.max_tick_gap_phase,
+                      "max_tick_cpu_ms": self.max_tick_cpu_s * 1e3,
+                      "tick_ms": TICK_S * 1e3,
                       "endpoint_refused": 0 if self.endpoint is None else self.endpoint.refused}
         est = self.supervisor.timesync.estimate()
         st["link_delay_ms"] = None if est is None else {
@@ -256,7 +266,7 @@ class Daemon:
         if install_signals:
             for sig in (signal.SIGINT, signal.SIGTERM):
                 loop.add_signal_handler(sig, self.request_stop)
-        self.pool = PlannerPool(self.config.vehicle_path, self.config.controller_path)
+        self.pool = PlannerPool(self.config.vehicle_path, self.config.controller_path, self.config.planner)
         try:
             await self.pool.warm_up()
             ctl = self.config.controller        # compiled now, not in the take-off's first period

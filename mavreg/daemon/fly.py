@@ -33,6 +33,7 @@ from .lifeline import wrap_command
 from .link import io_impl
 from .report import controller_metrics, format_summary, ground_truth_errors, plot_flight
 from .phases import Failure
+from .planner_pool import PlannerBounds
 from .supervisor import Phase, SupervisorParams
 
 __all__ = ["FlyOptions", "fly", "spawn_emulator", "stop_process", "outcome"]
@@ -64,6 +65,8 @@ class FlyOptions:
     entry_offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     """The run-in ends this far (NED) from the maneuver's entry: the regulator takes over off
     the path (experiments; :attr:`mavreg.daemon.phases.SupervisorParams.entry_offset_m`)."""
+    planner: PlannerBounds = PlannerBounds()
+    """What one upload may cost the planner worker."""
 
 
 def spawn_emulator(vehicle_path: Path, record: Path | None, lockstep: bool, extra: tuple[str, ...] = (),
@@ -132,7 +135,8 @@ def fly(opts: FlyOptions) -> int:
                                                       gap_fill=not (opts.lockstep or opts.vehicle_lockstep),
                                                       entry_offset_m=tuple(opts.entry_offset_m)),
                           envelope=controller.envelope,
-                          controller=controller, control_rate_hz=opts.control_rate_hz)
+                          controller=controller, control_rate_hz=opts.control_rate_hz,
+                          planner=opts.planner)
     make_regulator = regulator_factory(vehicle, opts.control_rate_hz, controller.disturbance,
                                       controller.allocation, controller.speed_governor)
     daemon = Daemon(config, vehicle, make_regulator)
