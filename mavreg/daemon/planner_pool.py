@@ -78,8 +78,10 @@ class PlannerBounds:
     wall_s: float = 600.0
     """Wall seconds per plan before the worker is killed and replaced (the worker runs at the
     lowest priority: on a busy machine it waits)."""
-    result_bytes: int = 128 * _MIB
-    """Largest pickled plan sent back (the barrel roll: 20 MB)."""
+    result_bytes: int = 96 * _MIB
+    """Largest pickled plan sent back: unpickling it holds the daemon's interpreter lock, about
+    20 ms for the library's maneuvers (22-35 MiB: barrel roll 22, climbing helix 35), so at
+    most about 60 ms for a plan at this cap."""
     queue: int = 4
     """Uploads that may wait for the worker; more are rejected at once."""
 
