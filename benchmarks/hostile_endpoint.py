@@ -79,18 +79,23 @@ def _send(path, data: bytes, pace_s: float = 0.0) -> bytes:
     return buf
 
 
+def upload(text: str, name: str) -> bytes:
+    return (json.dumps({"op": "upload", "name": name, "yaml": text}) + "\n").encode()
+
+
 def _cases(path):
-    upload = lambda text, name: (json.dumps({"op": "upload", "name": name, "yaml": text}) + "\n").encode()
-    barrel = (PARAMS_DIR / "maneuvers/barrel_roll.yaml").read_text()
+    """(name, client) pairs; the payloads are built here, not while the ticker is watched."""
+    barrel = upload((PARAMS_DIR / "maneuvers/barrel_roll.yaml").read_text(), "barrel_roll.yaml")
+    huge, bomb, slow = upload("#" * (5 << 20), "huge.yaml"), upload(alias_bomb(10), "bomb.yaml"), upload("x" * 100, "s")
     return [
         ("malformed JSON", lambda: _send(path, b'{"op": "upload", "name": \n')),
-        ("5 MB request", lambda: _send(path, upload("#" * (5 << 20), "huge.yaml"))),
+        ("5 MB request", lambda: _send(path, huge)),
         ("1 MB without newline", lambda: _send(path, b"x" * (1 << 20))),
         ("9 slow clients (cap 8)", lambda: b"".join(
-            f for f in _parallel([lambda: _send(path, upload("x" * 100, "slow.yaml"), 0.2)] * 9))),
+            f for f in _parallel([lambda: _send(path, slow, 0.2)] * 9))),
         ("another uid", lambda: _as_other_user(path)),
-        ("alias bomb (10 levels)", lambda: _send(path, upload(alias_bomb(10), "bomb.yaml"))),
-        ("barrel roll (accepted)", lambda: _send(path, upload(barrel, "barrel_roll.yaml"))),
+        ("alias bomb (10 levels)", lambda: _send(path, bomb)),
+        ("barrel roll (accepted)", lambda: _send(path, barrel)),
         ("nothing, 30 s (the machine's own share of the gaps)", lambda: time.sleep(30) or b""),
     ]
 
@@ -135,9 +140,11 @@ async def main():
         await server.start()
         loop = asyncio.get_running_loop()
         try:
+            cases = _cases(path)             # built before the ticker is watched
+            ticker.reset()
             await asyncio.sleep(1.0)
             print(f"idle: longest tick gap {ticker.gap_s * 1e3:.1f} ms (CPU {ticker.cpu_s * 1e3:.1f} ms)")
-            for name, case in _cases(path):
+            for name, case in cases:
                 ticker.reset()
                 t0 = time.perf_counter()
                 reply = await loop.run_in_executor(None, case)
