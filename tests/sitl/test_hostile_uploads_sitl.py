@@ -1,7 +1,7 @@
 """End-to-end: a daemon flying the barrel roll on firmware_sim --lockstep receives hostile
-uploads (malformed JSON, 5 MB, a YAML alias bomb, another user) and flies on: each gets a
-one-line refusal or rejection, the flight lands ok, and its control loop is never stalled
-(issue 21: inputs that cannot hurt)."""
+uploads (malformed JSON, 5 MB, a YAML alias bomb) and flies on: each gets a one-line refusal
+or rejection and the flight lands ok. The longest gaps between the daemon's control ticks
+before, across and after the uploads are printed (issue 21: inputs that cannot hurt)."""
 from __future__ import annotations
 
 import json
@@ -11,13 +11,9 @@ import threading
 
 import pytest
 
-from pathlib import Path
-
-from sitl_helpers import CONTROLLER, VEHICLE_IDEAL, mavreg, start_emulator
+from conftest import fly_lockstep
+from sitl_helpers import VEHICLE_IDEAL
 from mavreg.daemon.endpoint import request
-
-HOP = Path(__file__).with_name("hostile_hop.yaml")
-"""A 6 m line at 2 m/s: the flight is not the subject here, and a short one keeps the test short."""
 
 pytestmark = pytest.mark.sitl
 
@@ -53,25 +49,6 @@ def _raw(path, data: bytes) -> bytes:
     return buf
 
 
-def _fly_hop(tmp, during, *fly_args) -> dict:
-    """The hop on firmware_sim --lockstep (ideal world; a 3 s lockstep timeout, so that a loaded
-    machine does not lose periods) flown by ``mavreg fly``; ``during(fly, emu)`` meanwhile."""
-    emu, url = start_emulator(tmp / "groundtruth.npz", "--lockstep", "--preset", "ideal", "--vehicle",
-                              str(VEHICLE_IDEAL), "--lockstep-timeout", "3")
-    out = tmp / "out"
-    try:
-        fly = mavreg("fly", str(HOP), "--vehicle", url, "--vehicle-lockstep", "--vehicle-params", str(VEHICLE_IDEAL),
-                     "--controller", str(CONTROLLER), "--out", str(out), "--timeout-s", "240", *fly_args)
-        try:
-            extra = during(fly, emu)
-        finally:
-            code = fly.wait(300)
-    finally:
-        emu.stop()
-    return {"code": code, "summary": json.loads((out / "summary.json").read_text()), "lines": fly.lines,
-            "extra": extra}
-
-
 def test_hostile_uploads_while_flying_are_refused_in_one_line_and_the_flight_lands(tmp_path):
     sock = tmp_path / "mavreg.sock"
     bomb = alias_bomb(10)                      # 530 bytes: hung the loader (3 GB in a minute)
@@ -98,8 +75,10 @@ def test_hostile_uploads_while_flying_are_refused_in_one_line_and_the_flight_lan
             emu.p.send_signal(signal.SIGCONT)
         return answers, before, loop_ms()
 
-    f = _fly_hop(tmp_path, during, "--socket", str(sock), "--stale-timeout-s", "300",
-                 "--planner-memory-mib", "384", "--planner-cpu-s", "10")
+    # a 3 s lockstep timeout: a loaded machine cannot make the vehicle fly a period uncommanded
+    f = fly_lockstep(tmp_path, ("--lockstep-timeout", "3"),
+                     ("--socket", str(sock), "--stale-timeout-s", "300",
+                      "--planner-memory-mib", "384", "--planner-cpu-s", "10"), during, vehicle=VEHICLE_IDEAL)
     answers, before, after = f["extra"]
     assert f["code"] == 0 and f["summary"]["result"] == "ok", "\n".join(f["lines"][-30:])
     print()
