@@ -64,6 +64,18 @@ def test_bad_input_is_one_line_and_exit_2_before_any_work(argv, words, tmp_path,
     assert "planned" not in line
 
 
+def test_upload_refuses_a_big_or_binary_file_before_connecting(tmp_path, capsys):
+    big = tmp_path / "big.yaml"
+    big.write_text("#" * (300 << 10))
+    binary = tmp_path / "binary.yaml"
+    binary.write_bytes(b"kind: \xff\xfe maneuver\n")
+    nowhere = str(tmp_path / "no.sock")
+    assert _run(["upload", str(big), "--socket", nowhere]) == EXIT_USAGE
+    assert "a maneuver file is at most" in _one_error_line(capsys, "upload")
+    assert _run(["upload", str(binary), "--socket", nowhere]) == EXIT_USAGE
+    assert "not UTF-8 text" in _one_error_line(capsys, "upload")
+
+
 def test_a_bad_key_in_a_file_is_exit_2_and_an_infeasible_maneuver_exit_1(tmp_path, capsys):
     text = open(BARREL).read()
     bad = tmp_path / "bad.yaml"
