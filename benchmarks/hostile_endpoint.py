@@ -86,7 +86,8 @@ def upload(text: str, name: str) -> bytes:
 def _cases(path):
     """(name, client) pairs; the payloads are built here, not while the ticker is watched."""
     barrel = upload((PARAMS_DIR / "maneuvers/barrel_roll.yaml").read_text(), "barrel_roll.yaml")
-    huge, bomb, slow = upload("#" * (5 << 20), "huge.yaml"), upload(alias_bomb(10), "bomb.yaml"), upload("x" * 100, "s")
+    huge, bomb = upload("#" * (5 << 20), "huge.yaml"), upload(alias_bomb(10), "bomb.yaml")
+    slow = upload("x" * 100, "slow.yaml")
     return [
         ("malformed JSON", lambda: _send(path, b'{"op": "upload", "name": \n')),
         ("5 MB request", lambda: _send(path, huge)),

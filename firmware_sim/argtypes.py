@@ -6,10 +6,12 @@ import argparse
 import math
 import os
 
-__all__ = ["_float_above", "_positive_float", "_nonneg_float", "_probability", "_positive_int", "_nonneg_int", "_unit_scale", "_sysid", "_checked", "_input_file", "_output_file"]
+__all__ = ["float_above", "positive_float", "nonneg_float", "probability",
+           "positive_int", "nonneg_int", "unit_scale", "sysid", "checked", "input_file",
+           "output_file"]
 
 
-def _float_above(minimum: float, inclusive: bool):
+def float_above(minimum: float, inclusive: bool):
     """An argparse type: a finite float > minimum (>= with ``inclusive``)."""
     op = ">=" if inclusive else ">"
 
@@ -24,18 +26,18 @@ def _float_above(minimum: float, inclusive: bool):
     return parse
 
 
-_positive_float = _float_above(0.0, inclusive=False)
-_nonneg_float = _float_above(0.0, inclusive=True)
+positive_float = float_above(0.0, inclusive=False)
+nonneg_float = float_above(0.0, inclusive=True)
 
 
-def _probability(text: str) -> float:
-    v = _nonneg_float(text)
+def probability(text: str) -> float:
+    v = nonneg_float(text)
     if v > 1.0:
         raise argparse.ArgumentTypeError(f"expected a probability in [0, 1], got {text!r}")
     return v
 
 
-def _positive_int(text: str) -> int:
+def positive_int(text: str) -> int:
     try:
         v = int(text)
     except ValueError:
@@ -45,7 +47,7 @@ def _positive_int(text: str) -> int:
     return v
 
 
-def _nonneg_int(text: str) -> int:
+def nonneg_int(text: str) -> int:
     try:
         v = int(text)
     except ValueError:
@@ -55,21 +57,21 @@ def _nonneg_int(text: str) -> int:
     return v
 
 
-def _unit_scale(text: str) -> float:
-    v = _positive_float(text)
+def unit_scale(text: str) -> float:
+    v = positive_float(text)
     if v > 1.0:
         raise argparse.ArgumentTypeError(f"expected a number in (0, 1], got {text!r}")
     return v
 
 
-def _sysid(text: str) -> int:
-    v = _positive_int(text)
+def sysid(text: str) -> int:
+    v = positive_int(text)
     if v > 255:
         raise argparse.ArgumentTypeError(f"expected a MAVLink system id 1..255, got {text!r}")
     return v
 
 
-def _checked(parse, what: str):
+def checked(parse, what: str):
     """An argparse type from a parser of firmware_sim that raises ValueError on bad text."""
     def convert(text: str):
         try:
@@ -81,7 +83,7 @@ def _checked(parse, what: str):
     return convert
 
 
-def _input_file(text: str) -> str:
+def input_file(text: str) -> str:
     """A readable regular file (the vehicle YAML)."""
     if not os.path.isfile(text) or not os.access(text, os.R_OK):
         why = ("is a directory" if os.path.isdir(text) else "not a readable regular file"
@@ -90,7 +92,7 @@ def _input_file(text: str) -> str:
     return text
 
 
-def _output_file(text: str) -> str:
+def output_file(text: str) -> str:
     """A file to write (--record): checked before the run, not after it."""
     parent = os.path.dirname(text) or "."
     if os.path.isdir(text):

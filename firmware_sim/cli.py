@@ -8,8 +8,8 @@ import signal
 import sys
 import textwrap
 
-from .argtypes import (_checked, _input_file, _nonneg_float, _nonneg_int, _output_file, _positive_float,
-                       _positive_int, _probability, _sysid, _unit_scale)
+from .argtypes import (checked, input_file, nonneg_float, nonneg_int, output_file, positive_float,
+                       positive_int, probability, sysid, unit_scale)
 from .autopilot import Autopilot, AutopilotConfig
 from .clock import StopRun, run_lockstep, run_realtime
 from .engine import Engine
@@ -79,57 +79,57 @@ def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="firmware-sim", description=DESCRIPTION, epilog=_presets_epilog(),
                 formatter_class=argparse.RawDescriptionHelpFormatter)
     a = p.add_argument
-    a("--listen", default="udpin:127.0.0.1:14540", metavar="URL", type=_checked(parse_listen_url, "URL"),
+    a("--listen", default="udpin:127.0.0.1:14540", metavar="URL", type=checked(parse_listen_url, "URL"),
       help="UDP address to listen on, udpin:HOST:PORT; port 0 picks a free port "
            "(default %(default)s)")
-    a("--vehicle", default=None, metavar="YAML", type=_input_file,
+    a("--vehicle", default=None, metavar="YAML", type=input_file,
       help="vehicle parameter file (default params/vehicles/mk_quadro.yaml of this repository)")
-    a("--rate-hz", type=_positive_int, default=500,
+    a("--rate-hz", type=positive_int, default=500,
       help="control and telemetry rate (default %(default)s)")
-    a("--physics-hz", type=_positive_int, default=1000,
+    a("--physics-hz", type=positive_int, default=1000,
       help="RK4 physics rate, an integer multiple of --rate-hz (default %(default)s)")
     a("--lockstep", action="store_true",
       help="advance one control period per SET_ACTUATOR_CONTROL_TARGET (deterministic) "
            "instead of the wall clock")
-    a("--lockstep-timeout", type=_positive_float, default=0.1, metavar="S",
+    a("--lockstep-timeout", type=positive_float, default=0.1, metavar="S",
       help="wall seconds to wait for a period's command before it counts as lost "
            "(default %(default)s)")
-    a("--lockstep-stall-speed", type=_nonneg_float, default=1.0, metavar="X",
+    a("--lockstep-stall-speed", type=nonneg_float, default=1.0, metavar="X",
       help="while no commands stream in lockstep, run at X times real time; 0 = as fast "
            "as possible (default %(default)s)")
-    a("--seed", type=_nonneg_int, default=0, help="seed of the rotor noise and perturbations (default 0)")
-    a("--start", default=None, metavar="STATE", type=_checked(parse_start, "STATE"),
+    a("--seed", type=nonneg_int, default=0, help="seed of the rotor noise and perturbations (default 0)")
+    a("--start", default=None, metavar="STATE", type=checked(parse_start, "STATE"),
       help="start in flight, armed and in OFFBOARD, e.g. 'z_m=-5,vy_m_s=8,roll_deg=120'. "
            f"Keys (missing = 0): {', '.join(START_KEYS)}. Position and velocity NED, "
            "attitude ZYX, body rates FRD. Default: on the ground, disarmed, HOLD")
-    a("--wind", action="append", default=None, metavar="SPEC", type=_checked(parse_wind, "SPEC"),
+    a("--wind", action="append", default=None, metavar="SPEC", type=checked(parse_wind, "SPEC"),
       help="repeatable: velocity:VN,VE,VD or force:FN,FE,FD (m/s or N, NED), optionally "
            "@T0:T1 for a gust window in sim seconds, e.g. force:0,2,0@3:3.5")
-    a("--record", default=None, metavar="FILE.npz", type=_output_file,
+    a("--record", default=None, metavar="FILE.npz", type=output_file,
       help="write the true state and rotor forces of every physics step to FILE.npz")
-    a("--offboard-loss-timeout", type=_positive_float, default=0.25, metavar="S",
+    a("--offboard-loss-timeout", type=positive_float, default=0.25, metavar="S",
       help="sim seconds without a valid actuator target before the failsafe (default %(default)s)")
-    a("--failsafe-hold-s", type=_nonneg_float, default=1.5, metavar="S",
+    a("--failsafe-hold-s", type=nonneg_float, default=1.5, metavar="S",
       help="failsafe: seconds of level/hold-altitude before landing (default %(default)s)")
-    a("--system-id", type=_sysid, default=1, help="our MAVLink system id (default 1)")
-    a("--gcs-system-id", type=_sysid, default=255,
+    a("--system-id", type=sysid, default=1, help="our MAVLink system id (default 1)")
+    a("--gcs-system-id", type=sysid, default=255,
       help="commands are also accepted from this system id (default 255)")
     a("--no-timesync", action="store_true",
       help="ignore TIMESYNC requests (a vehicle that does not implement it): the peer cannot measure the link")
-    a("--mass-kg", type=_positive_float, default=None, help="override the vehicle mass")
-    a("--inertia-kg-m2", type=_positive_float, nargs=3, default=None, metavar=("JX", "JY", "JZ"),
+    a("--mass-kg", type=positive_float, default=None, help="override the vehicle mass")
+    a("--inertia-kg-m2", type=positive_float, nargs=3, default=None, metavar=("JX", "JY", "JZ"),
       help="override the diagonal of the inertia matrix")
-    a("--inertia-scale", type=_positive_float, default=None, help="multiply the inertia diagonal")
-    a("--inertia-perturb-sd-kg-m2", type=_nonneg_float, default=None, metavar="SD",
+    a("--inertia-scale", type=positive_float, default=None, help="multiply the inertia diagonal")
+    a("--inertia-perturb-sd-kg-m2", type=nonneg_float, default=None, metavar="SD",
       help="add Gaussian noise of this SD to each principal moment (drawn from --seed)")
-    a("--rotor-time-constant-s", type=_nonneg_float, default=None, help="override the motor lag")
-    a("--rotor-noise-sd-n", type=_nonneg_float, default=None, help="override the thrust noise SD")
-    a("--max-rotor-thrust-n", type=_positive_float, default=None,
+    a("--rotor-time-constant-s", type=nonneg_float, default=None, help="override the motor lag")
+    a("--rotor-noise-sd-n", type=nonneg_float, default=None, help="override the thrust noise SD")
+    a("--max-rotor-thrust-n", type=positive_float, default=None,
       help="override the rotor saturation and the thrust a control value of 1 asks for")
-    a("--rotor-saturation-n", type=_positive_float, default=None, metavar="F",
+    a("--rotor-saturation-n", type=positive_float, default=None, metavar="F",
       help="the rotors give at most F N while a control value of 1 still asks for the maximum "
       "rotor thrust: a limit the offboard controller does not know of (the paper's 8.5 N and 7 N runs)")
-    a("--duration-s", type=_positive_float, default=None, metavar="S",
+    a("--duration-s", type=positive_float, default=None, metavar="S",
       help="stop after this much simulation time (default: run until signalled)")
     a("--quiet", action="store_true", help="no status line every second")
     _add_mismatch_args(p)
@@ -140,7 +140,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _add_mismatch_args(p: argparse.ArgumentParser) -> None:
     """``--mismatch-seed``, ``--mismatch-scale`` (:mod:`firmware_sim.mismatch`)."""
     p.add_argument(
-        "--mismatch-seed", type=_nonneg_int, default=None, metavar="N",
+        "--mismatch-seed", type=nonneg_int, default=None, metavar="N",
         help="fly a vehicle that is not its file: draw the true mass (+-15 %%), moments of "
              "inertia (+-30 %% each), rotor thrust constants (+-10 %% each), yaw-torque "
              "coefficient (+-30 %%), arm length (+-5 %%), rotor time constant (10-50 ms) and a "
@@ -148,7 +148,7 @@ def _add_mismatch_args(p: argparse.ArgumentParser) -> None:
              "--mass-kg, --inertia-*, --rotor-time-constant-s win over the draw. Default: the "
              "file's airframe")
     p.add_argument(
-        "--mismatch-scale", type=_unit_scale, default=None, metavar="X",
+        "--mismatch-scale", type=unit_scale, default=None, metavar="X",
         help="with --mismatch-seed: multiply every deviation from the file by X in (0, 1] "
              "(default 1)")
 
@@ -157,29 +157,29 @@ def _add_world_args(p: argparse.ArgumentParser) -> None:
     w = p.add_argument_group("world", "link effects and estimator errors; each flag overrides the preset's value")
     w.add_argument("--preset", choices=PRESET_NAMES, default="realistic",
                    help="named world (default %(default)s; values below)")
-    w.add_argument("--telemetry-delay-ms", type=_nonneg_float, default=None, metavar="MS",
+    w.add_argument("--telemetry-delay-ms", type=nonneg_float, default=None, metavar="MS",
                    help="mean delay of the telemetry (vehicle to peers), sim time")
-    w.add_argument("--telemetry-jitter-ms", type=_nonneg_float, default=None, metavar="MS",
+    w.add_argument("--telemetry-jitter-ms", type=nonneg_float, default=None, metavar="MS",
                    help="half-width of the uniform telemetry delay spread (<= the delay)")
-    w.add_argument("--command-delay-ms", type=_nonneg_float, default=None, metavar="MS",
+    w.add_argument("--command-delay-ms", type=nonneg_float, default=None, metavar="MS",
                    help="mean delay of commands (peers to vehicle), sim time")
-    w.add_argument("--command-jitter-ms", type=_nonneg_float, default=None, metavar="MS",
+    w.add_argument("--command-jitter-ms", type=nonneg_float, default=None, metavar="MS",
                    help="half-width of the uniform command delay spread (<= the delay)")
-    w.add_argument("--loss", type=_probability, default=None, metavar="P",
+    w.add_argument("--loss", type=probability, default=None, metavar="P",
                    help="probability that a telemetry message or a command datagram is lost (0..1)")
-    w.add_argument("--estimate-latency-ms", type=_nonneg_float, default=None, metavar="MS",
+    w.add_argument("--estimate-latency-ms", type=nonneg_float, default=None, metavar="MS",
                    help="the telemetry of time t describes the true state of t - MS")
-    w.add_argument("--estimator-scale", type=_nonneg_float, default=None, metavar="X",
+    w.add_argument("--estimator-scale", type=nonneg_float, default=None, metavar="X",
                    help="multiply every estimator error SD; 0 turns the errors off (latency kept)")
-    w.add_argument("--wind-speed-m-s", type=_nonneg_float, default=None, metavar="V",
+    w.add_argument("--wind-speed-m-s", type=nonneg_float, default=None, metavar="V",
                    help="steady horizontal wind speed (acts through the drag)")
     w.add_argument("--wind-from-deg", type=float, default=None, metavar="DEG",
                    help="compass direction the steady wind blows from (0 north, 90 east)")
-    w.add_argument("--thrust-scale", type=_positive_float, default=None, metavar="X",
+    w.add_argument("--thrust-scale", type=positive_float, default=None, metavar="X",
                    help="thrust the rotors give per unit commanded, 0.5..1.5 (0.9: a sagging battery)")
-    w.add_argument("--drag-n-s-per-m", type=_nonneg_float, nargs=3, default=None,
+    w.add_argument("--drag-n-s-per-m", type=nonneg_float, nargs=3, default=None,
                    metavar=("CX", "CY", "CZ"), help="body-frame linear drag coefficients")
-    w.add_argument("--parasitic-drag-n-s2-per-m2", type=_nonneg_float, nargs=3, default=None,
+    w.add_argument("--parasitic-drag-n-s2-per-m2", type=nonneg_float, nargs=3, default=None,
                    metavar=("CX", "CY", "CZ"), help="body-frame quadratic drag coefficients")
 
 

@@ -16,8 +16,8 @@ import os
 from pathlib import Path
 
 __all__ = ["PARAMS_DIR", "add_model_arguments", "add_laps_argument", "load_model_params",
-           "add_planner_arguments", "planner_bounds",
-           "Parser", "positive_float", "nonneg_float", "finite_float", "positive_int", "nonneg_int", "vehicle_url", "plot_file", "input_file",
+           "add_planner_arguments", "planner_bounds", "Parser", "positive_float", "nonneg_float",
+           "finite_float", "positive_int", "nonneg_int", "vehicle_url", "plot_file", "input_file",
            "output_file", "output_dir", "socket_path", "check_output_file", "check_output_dir"]
 
 PARAMS_DIR = Path(__file__).resolve().parents[2] / "params"
@@ -82,7 +82,8 @@ class Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see {self.prog} --help)\n")
 
 
-def _number(text: str) -> float:
+def finite_float(text: str) -> float:
+    """A finite number (no nan, no inf)."""
     try:
         v = float(text)
     except ValueError:
@@ -92,14 +93,9 @@ def _number(text: str) -> float:
     return v
 
 
-def finite_float(text: str) -> float:
-    """A finite number (no nan, no inf)."""
-    return _number(text)
-
-
 def positive_float(text: str) -> float:
     """A finite number > 0 (a rate, a timeout, a force limit)."""
-    v = _number(text)
+    v = finite_float(text)
     if not v > 0:
         raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
     return v
@@ -107,7 +103,7 @@ def positive_float(text: str) -> float:
 
 def nonneg_float(text: str) -> float:
     """A finite number >= 0 (a noise level)."""
-    v = _number(text)
+    v = finite_float(text)
     if v < 0:
         raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}")
     return v
