@@ -177,3 +177,28 @@ def test_firmware_sim_bad_flags_are_one_line_and_a_bug_is_a_traceback(monkeypatc
     assert fcli.main(["--listen", "udpin:127.0.0.1:0", "--duration-s", "0.01"]) == ExitCode.INTERNAL
     err = capsys.readouterr().err
     assert "Traceback" in err and "this is a bug in firmware_sim" in err
+
+
+def test_fly_gives_2_for_a_bad_file_and_1_for_an_infeasible_maneuver():
+    """``mavreg fly``'s maneuver is planned by the daemon's worker; its rejection keeps the
+    status of the error behind it (the worker's PlanResult.status), before any link opens."""
+    import asyncio
+
+    from mavreg.config.controller import load_controller
+    from mavreg.config.vehicle import load_vehicle
+    from mavreg.daemon.app import Daemon, DaemonConfig, regulator_factory
+    from mavreg.daemon.supervisor import SupervisorParams
+    from mavreg.errors import UserError
+    vehicle_path, controller_path = PARAMS_DIR / "vehicles/mk_quadro.yaml", PARAMS_DIR / "controller/paper_lqr.yaml"
+    vehicle = load_vehicle(vehicle_path)
+    config = DaemonConfig("udpout:127.0.0.1:9", vehicle_path, controller_path, None, None, SupervisorParams(),
+                          controller=load_controller(controller_path))
+    text = open(BARREL).read()
+    statuses = []
+    for bad in (text.replace("radius_m: 1.5", "radius_m: -1.5"), text.replace("to_m_s: 8.0", "to_m_s: 30.0")):
+        daemon = Daemon(config, vehicle, regulator_factory(vehicle, 500.0), log=lambda line: None)
+        with pytest.raises(UserError) as exc:
+            asyncio.run(daemon.run([(bad, "f.yaml")], install_signals=False))
+        assert daemon.link is None                       # refused before the link
+        statuses.append(exit_status_of(exc.value))
+    assert statuses == [EXIT_USAGE, EXIT_FAILED]
