@@ -279,7 +279,10 @@ def request(path: str | Path, req: dict, timeout_s: float = 120.0) -> dict:
     with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
         s.settimeout(timeout_s)
         s.connect(str(path))
-        s.sendall(data)
+        try:
+            s.sendall(data)
+        except (BrokenPipeError, ConnectionResetError):
+            pass   # refused before it was read (too many connections, another user): the reply waits
         buf = bytearray()
         while not buf.endswith(b"\n"):
             chunk = s.recv(65536)
