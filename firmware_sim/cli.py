@@ -3,16 +3,17 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import math
 import os
 import signal
 import sys
 import textwrap
 
+from .argtypes import (checked, input_file, nonneg_float, nonneg_int, output_file, positive_float,
+                       positive_int, probability, sysid, unit_scale)
 from .autopilot import Autopilot, AutopilotConfig
 from .clock import StopRun, run_lockstep, run_realtime
 from .engine import Engine
-from .link import Link
+from .link import Link, parse_listen_url
 from .signing import Signing
 from .mismatch import BOUNDS, airframe_arrays, apply_mismatch, describe_airframe, draw_mismatch
 from mavreg.config.vehicle import EmulatorParams, load_vehicle
@@ -27,7 +28,13 @@ from .wind import Wind, WindItem, parse_wind
 from .faults import link_faults_from_args
 from .world import PRESET_NAMES, PRESETS, build_world
 
-__all__ = ["main", "build_parser", "build_engine"]
+__all__ = ["main", "build_parser", "build_engine", "BadInput"]
+
+
+class BadInput(ValueError):
+    """A bad flag value or vehicle file, found while the run is built: one line, exit 2.
+
+    Any other exception while building or running is a bug (a traceback, exit 1)."""
 
 DESCRIPTION = """\
 A software-in-the-loop quadrotor that speaks MAVLink 2 over UDP: quaternion rigid body
@@ -45,7 +52,8 @@ The first stdout line is 'firmware_sim listening on udpin:HOST:PORT'; the second
 ('firmware_sim world: ...') names the preset, its values and any overrides; with
 --mismatch-seed a third one ('firmware_sim airframe: key=value ...') gives the true
 airframe drawn around the vehicle file.
-Exit status: 0 done or signalled, 1 internal error, 2 bad input, 3 crash,
+Exit status: 0 done or signalled, 1 internal error (a bug: a traceback
+and a request to report it), 2 bad input (a flag, a file; checked before the run), 3 crash,
 4 non-finite state, 5 speed or body rate limit. See docs/firmware_sim.md."""
 
 
@@ -64,66 +72,6 @@ def _presets_epilog() -> str:
     return "\n".join(lines)
 
 
-def _float_above(minimum: float, inclusive: bool):
-    """An argparse type: a finite float > minimum (>= with ``inclusive``)."""
-    op = ">=" if inclusive else ">"
-
-    def parse(text: str) -> float:
-        try:
-            v = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-        if not (math.isfinite(v) and (v >= minimum if inclusive else v > minimum)):
-            raise argparse.ArgumentTypeError(f"expected a finite number {op} {minimum:g}, got {text!r}")
-        return v
-    return parse
-
-
-_positive_float = _float_above(0.0, inclusive=False)
-_nonneg_float = _float_above(0.0, inclusive=True)
-
-
-def _probability(text: str) -> float:
-    v = _nonneg_float(text)
-    if v > 1.0:
-        raise argparse.ArgumentTypeError(f"expected a probability in [0, 1], got {text!r}")
-    return v
-
-
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if v <= 0:
-        raise argparse.ArgumentTypeError(f"expected an integer > 0, got {text!r}")
-    return v
-
-
-def _nonneg_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
-    return v
-
-
-def _unit_scale(text: str) -> float:
-    v = _positive_float(text)
-    if v > 1.0:
-        raise argparse.ArgumentTypeError(f"expected a number in (0, 1], got {text!r}")
-    return v
-
-
-def _sysid(text: str) -> int:
-    v = _positive_int(text)
-    if v > 255:
-        raise argparse.ArgumentTypeError(f"expected a MAVLink system id 1..255, got {text!r}")
-    return v
-
-
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str):        # one line, exit 2
         self.exit(int(ExitCode.USAGE), f"firmware-sim: error: {message}\n")
@@ -133,64 +81,64 @@ def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="firmware-sim", description=DESCRIPTION, epilog=_presets_epilog(),
                 formatter_class=argparse.RawDescriptionHelpFormatter)
     a = p.add_argument
-    a("--listen", default="udpin:127.0.0.1:14540", metavar="URL",
+    a("--listen", default="udpin:127.0.0.1:14540", metavar="URL", type=checked(parse_listen_url, "URL"),
       help="UDP address to listen on, udpin:HOST:PORT; port 0 picks a free port "
            "(default %(default)s)")
-    a("--vehicle", default=None, metavar="YAML",
+    a("--vehicle", default=None, metavar="YAML", type=input_file,
       help="vehicle parameter file (default params/vehicles/mk_quadro.yaml of this repository)")
-    a("--rate-hz", type=_positive_int, default=500,
+    a("--rate-hz", type=positive_int, default=500,
       help="control and telemetry rate (default %(default)s)")
-    a("--physics-hz", type=_positive_int, default=1000,
+    a("--physics-hz", type=positive_int, default=1000,
       help="RK4 physics rate, an integer multiple of --rate-hz (default %(default)s)")
     a("--lockstep", action="store_true",
       help="advance one control period per SET_ACTUATOR_CONTROL_TARGET (deterministic) "
            "instead of the wall clock")
-    a("--lockstep-timeout", type=_positive_float, default=0.1, metavar="S",
+    a("--lockstep-timeout", type=positive_float, default=0.1, metavar="S",
       help="wall seconds to wait for a period's command before it counts as lost "
            "(default %(default)s)")
-    a("--lockstep-stall-speed", type=_nonneg_float, default=1.0, metavar="X",
+    a("--lockstep-stall-speed", type=nonneg_float, default=1.0, metavar="X",
       help="while no commands stream in lockstep, run at X times real time; 0 = as fast "
            "as possible (default %(default)s)")
-    a("--seed", type=int, default=0, help="seed of the rotor noise and perturbations (default 0)")
-    a("--start", default=None, metavar="STATE",
+    a("--seed", type=nonneg_int, default=0, help="seed of the rotor noise and perturbations (default 0)")
+    a("--start", default=None, metavar="STATE", type=checked(parse_start, "STATE"),
       help="start in flight, armed and in OFFBOARD, e.g. 'z_m=-5,vy_m_s=8,roll_deg=120'. "
            f"Keys (missing = 0): {', '.join(START_KEYS)}. Position and velocity NED, "
            "attitude ZYX, body rates FRD. Default: on the ground, disarmed, HOLD")
-    a("--wind", action="append", default=None, metavar="SPEC",
+    a("--wind", action="append", default=None, metavar="SPEC", type=checked(parse_wind, "SPEC"),
       help="repeatable: velocity:VN,VE,VD or force:FN,FE,FD (m/s or N, NED), optionally "
            "@T0:T1 for a gust window in sim seconds, e.g. force:0,2,0@3:3.5")
-    a("--record", default=None, metavar="FILE.npz",
+    a("--record", default=None, metavar="FILE.npz", type=output_file,
       help="write the true state and rotor forces of every physics step to FILE.npz")
-    a("--offboard-loss-timeout", type=_positive_float, default=0.25, metavar="S",
+    a("--offboard-loss-timeout", type=positive_float, default=0.25, metavar="S",
       help="sim seconds without a valid actuator target before the failsafe (default %(default)s)")
-    a("--failsafe-hold-s", type=_nonneg_float, default=1.5, metavar="S",
+    a("--failsafe-hold-s", type=nonneg_float, default=1.5, metavar="S",
       help="failsafe: seconds of level/hold-altitude before landing (default %(default)s)")
-    a("--system-id", type=_sysid, default=1, help="our MAVLink system id (default 1)")
-    a("--peer-system-id", dest="peer_system_ids", type=_sysid, action="append", default=[],
+    a("--system-id", type=sysid, default=1, help="our MAVLink system id (default 1)")
+    a("--peer-system-id", dest="peer_system_ids", type=sysid, action="append", default=[],
       metavar="N", help="also take commands from system N (repeatable; a ground station, e.g. 255 "
       "QGroundControl/MAVProxy, 245 MAVSDK), once it has sent a HEARTBEAT. Default: only our own "
       "system id, which the daemon uses")
-    a("--gcs-system-id", dest="peer_system_ids", type=_sysid, action="append", help=argparse.SUPPRESS)
+    a("--gcs-system-id", dest="peer_system_ids", type=sysid, action="append", help=argparse.SUPPRESS)
     a("--signing-key", default=None, metavar="FILE",
       help="MAVLink 2 signing: sign every message and take only validly signed ones (FILE: 32 "
       "bytes as 64 hex characters or base64, mode 0600; the timestamp state is kept beside it "
       "in FILE.firmware-sim-state.json). Default: signing off")
     a("--no-timesync", action="store_true",
       help="ignore TIMESYNC requests (a vehicle that does not implement it): the peer cannot measure the link")
-    a("--mass-kg", type=_positive_float, default=None, help="override the vehicle mass")
-    a("--inertia-kg-m2", type=_positive_float, nargs=3, default=None, metavar=("JX", "JY", "JZ"),
+    a("--mass-kg", type=positive_float, default=None, help="override the vehicle mass")
+    a("--inertia-kg-m2", type=positive_float, nargs=3, default=None, metavar=("JX", "JY", "JZ"),
       help="override the diagonal of the inertia matrix")
-    a("--inertia-scale", type=_positive_float, default=None, help="multiply the inertia diagonal")
-    a("--inertia-perturb-sd-kg-m2", type=_nonneg_float, default=None, metavar="SD",
+    a("--inertia-scale", type=positive_float, default=None, help="multiply the inertia diagonal")
+    a("--inertia-perturb-sd-kg-m2", type=nonneg_float, default=None, metavar="SD",
       help="add Gaussian noise of this SD to each principal moment (drawn from --seed)")
-    a("--rotor-time-constant-s", type=_nonneg_float, default=None, help="override the motor lag")
-    a("--rotor-noise-sd-n", type=_nonneg_float, default=None, help="override the thrust noise SD")
-    a("--max-rotor-thrust-n", type=_positive_float, default=None,
+    a("--rotor-time-constant-s", type=nonneg_float, default=None, help="override the motor lag")
+    a("--rotor-noise-sd-n", type=nonneg_float, default=None, help="override the thrust noise SD")
+    a("--max-rotor-thrust-n", type=positive_float, default=None,
       help="override the rotor saturation and the thrust a control value of 1 asks for")
-    a("--rotor-saturation-n", type=_positive_float, default=None, metavar="F",
+    a("--rotor-saturation-n", type=positive_float, default=None, metavar="F",
       help="the rotors give at most F N while a control value of 1 still asks for the maximum "
       "rotor thrust: a limit the offboard controller does not know of (the paper's 8.5 N and 7 N runs)")
-    a("--duration-s", type=_positive_float, default=None, metavar="S",
+    a("--duration-s", type=positive_float, default=None, metavar="S",
       help="stop after this much simulation time (default: run until signalled)")
     a("--quiet", action="store_true", help="no status line every second")
     _add_mismatch_args(p)
@@ -201,7 +149,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _add_mismatch_args(p: argparse.ArgumentParser) -> None:
     """``--mismatch-seed``, ``--mismatch-scale`` (:mod:`firmware_sim.mismatch`)."""
     p.add_argument(
-        "--mismatch-seed", type=_nonneg_int, default=None, metavar="N",
+        "--mismatch-seed", type=nonneg_int, default=None, metavar="N",
         help="fly a vehicle that is not its file: draw the true mass (+-15 %%), moments of "
              "inertia (+-30 %% each), rotor thrust constants (+-10 %% each), yaw-torque "
              "coefficient (+-30 %%), arm length (+-5 %%), rotor time constant (10-50 ms) and a "
@@ -209,7 +157,7 @@ def _add_mismatch_args(p: argparse.ArgumentParser) -> None:
              "--mass-kg, --inertia-*, --rotor-time-constant-s win over the draw. Default: the "
              "file's airframe")
     p.add_argument(
-        "--mismatch-scale", type=_unit_scale, default=None, metavar="X",
+        "--mismatch-scale", type=unit_scale, default=None, metavar="X",
         help="with --mismatch-seed: multiply every deviation from the file by X in (0, 1] "
              "(default 1)")
 
@@ -224,34 +172,45 @@ def _add_world_args(p: argparse.ArgumentParser) -> None:
                        "docs/reliability.md)")
     w.add_argument("--preset", choices=PRESET_NAMES, default="realistic",
                    help="named world (default %(default)s; values below)")
-    w.add_argument("--telemetry-delay-ms", type=_nonneg_float, default=None, metavar="MS",
+    w.add_argument("--telemetry-delay-ms", type=nonneg_float, default=None, metavar="MS",
                    help="mean delay of the telemetry (vehicle to peers), sim time")
-    w.add_argument("--telemetry-jitter-ms", type=_nonneg_float, default=None, metavar="MS",
+    w.add_argument("--telemetry-jitter-ms", type=nonneg_float, default=None, metavar="MS",
                    help="half-width of the uniform telemetry delay spread (<= the delay)")
-    w.add_argument("--command-delay-ms", type=_nonneg_float, default=None, metavar="MS",
+    w.add_argument("--command-delay-ms", type=nonneg_float, default=None, metavar="MS",
                    help="mean delay of commands (peers to vehicle), sim time")
-    w.add_argument("--command-jitter-ms", type=_nonneg_float, default=None, metavar="MS",
+    w.add_argument("--command-jitter-ms", type=nonneg_float, default=None, metavar="MS",
                    help="half-width of the uniform command delay spread (<= the delay)")
-    w.add_argument("--loss", type=_probability, default=None, metavar="P",
+    w.add_argument("--loss", type=probability, default=None, metavar="P",
                    help="probability that a telemetry message or a command datagram is lost (0..1)")
-    w.add_argument("--estimate-latency-ms", type=_nonneg_float, default=None, metavar="MS",
+    w.add_argument("--estimate-latency-ms", type=nonneg_float, default=None, metavar="MS",
                    help="the telemetry of time t describes the true state of t - MS")
-    w.add_argument("--estimator-scale", type=_nonneg_float, default=None, metavar="X",
+    w.add_argument("--estimator-scale", type=nonneg_float, default=None, metavar="X",
                    help="multiply every estimator error SD; 0 turns the errors off (latency kept)")
-    w.add_argument("--wind-speed-m-s", type=_nonneg_float, default=None, metavar="V",
+    w.add_argument("--wind-speed-m-s", type=nonneg_float, default=None, metavar="V",
                    help="steady horizontal wind speed (acts through the drag)")
     w.add_argument("--wind-from-deg", type=float, default=None, metavar="DEG",
                    help="compass direction the steady wind blows from (0 north, 90 east)")
-    w.add_argument("--thrust-scale", type=_positive_float, default=None, metavar="X",
+    w.add_argument("--thrust-scale", type=positive_float, default=None, metavar="X",
                    help="thrust the rotors give per unit commanded, 0.5..1.5 (0.9: a sagging battery)")
-    w.add_argument("--drag-n-s-per-m", type=_nonneg_float, nargs=3, default=None,
+    w.add_argument("--drag-n-s-per-m", type=nonneg_float, nargs=3, default=None,
                    metavar=("CX", "CY", "CZ"), help="body-frame linear drag coefficients")
-    w.add_argument("--parasitic-drag-n-s2-per-m2", type=_nonneg_float, nargs=3, default=None,
+    w.add_argument("--parasitic-drag-n-s2-per-m2", type=nonneg_float, nargs=3, default=None,
                    metavar=("CX", "CY", "CZ"), help="body-frame quadratic drag coefficients")
 
 
 def build_engine(args) -> tuple[Engine, Recorder | None]:
-    """Everything the run needs, from parsed arguments. Raises ValueError on bad input."""
+    """Everything the run needs, from parsed arguments. Raises :class:`BadInput` (a
+    ValueError) on bad input: a value the validators of the world, the vehicle file, the
+    parameters, --start, --wind or --mismatch-* refuse, or a --listen that cannot be bound."""
+    try:
+        world, vehicle_path, vehicle, nominal, params, start, items = _read_inputs(args)
+    except ValueError as exc:     # every ValueError of the validators: ConfigError included
+        raise BadInput(str(exc)) from None
+    return _assemble(args, world, vehicle_path, vehicle, nominal, params, start, items)
+
+
+def _read_inputs(args):
+    """Validate the flags and the vehicle file (each validator raises ValueError)."""
     vehicle_path = args.vehicle if args.vehicle is not None else default_vehicle_path()
     world = build_world(args.preset, telemetry_delay_ms=args.telemetry_delay_ms,
                         telemetry_jitter_ms=args.telemetry_jitter_ms,
@@ -264,10 +223,15 @@ def build_engine(args) -> tuple[Engine, Recorder | None]:
     vehicle = load_vehicle(vehicle_path)
     vehicle = dataclasses.replace(vehicle, emulator=world.airframe.apply(vehicle.emulator))
     nominal, params = _sim_params(args, vehicle)
-    command_scale_n = (args.max_rotor_thrust_n if args.max_rotor_thrust_n is not None
-                       else vehicle.max_rotor_thrust_n)     # thrust asked for by a control of 1
     start = parse_start(args.start) if args.start is not None else None
     items = [parse_wind(w) for w in (args.wind or ())]
+    return world, vehicle_path, vehicle, nominal, params, start, items
+
+
+def _assemble(args, world, vehicle_path, vehicle, nominal, params, start, items):
+    """The engine from validated inputs (an exception here is a bug, but for --listen)."""
+    command_scale_n = (args.max_rotor_thrust_n if args.max_rotor_thrust_n is not None
+                       else vehicle.max_rotor_thrust_n)     # thrust asked for by a control of 1
     if world.airframe.wind_speed_m_s:
         items.append(WindItem("velocity", world.airframe.wind_ned_m_s))
     wind = Wind(items)
@@ -294,10 +258,13 @@ def build_engine(args) -> tuple[Engine, Recorder | None]:
                           offboard_loss_timeout_s=args.offboard_loss_timeout,
                           failsafe_hold_s=args.failsafe_hold_s)
     ap = Autopilot(cfg, stab, n.mass_kg * G / 4)
-    signing = Signing(args.signing_key, "firmware-sim") if args.signing_key is not None else None
-    faults = link_faults_from_args(args.link_faults, args.uplink_faults, args.downlink_faults, args.seed)
-    link = Link(args.listen, args.system_id, cfg.component_id,
-                peer_system_ids=(args.system_id, *args.peer_system_ids), signing=signing)
+    try:     # a bad --signing-key or --*-faults, a --listen that cannot be bound
+        signing = Signing(args.signing_key, "firmware-sim") if args.signing_key is not None else None
+        faults = link_faults_from_args(args.link_faults, args.uplink_faults, args.downlink_faults, args.seed)
+        link = Link(args.listen, args.system_id, cfg.component_id,
+                    peer_system_ids=(args.system_id, *args.peer_system_ids), signing=signing)
+    except ValueError as exc:
+        raise BadInput(str(exc)) from None
     engine = Engine(sim, ap, link, world, faults)
     if start is not None:
         link.send(ap.start_in_flight(0.0))
@@ -364,9 +331,15 @@ def _main(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     try:
         engine, recorder = build_engine(args)
-    except ValueError as exc:            # ConfigError included
-        print(f"firmware-sim: error: {exc}", file=sys.stderr)
+    except (BadInput, OSError) as exc:   # a bad value or file; OSError: a file it cannot read or write
+        print(f"firmware-sim: error: {' '.join(str(exc).split())[:400]}", file=sys.stderr)
         return int(ExitCode.USAGE)
+    except Exception:                     # a bug: not the user's input
+        import traceback
+        traceback.print_exc()
+        print("firmware-sim: this is a bug in firmware_sim: please report it with the command line and "
+              f"the traceback above (exit {int(ExitCode.INTERNAL)})", file=sys.stderr)
+        return int(ExitCode.INTERNAL)
     print(f"firmware_sim listening on {engine.link.url}", flush=True)
     print(f"firmware_sim {engine.world.describe(engine.sim.params.vehicle.emulator)}", flush=True)
     if engine.sim.params.mismatch is not None:

@@ -1,12 +1,25 @@
-"""Options every planning command shares: the vehicle and controller files."""
+"""Options the commands share: the vehicle and controller files, and typed converters.
+
+The converters (``type=`` of an argparse option) refuse a bad value while the command line
+is parsed, before any work, with one line (``mavreg CMD: error: argument --X: ...``, exit
+2): numbers (:func:`positive_float`, :func:`nonneg_float`, :func:`finite_float`,
+:func:`positive_int`), files to read (:func:`input_file`: exists, is a regular file, is
+readable) and places to write (:func:`output_file`, :func:`output_dir`: the directory
+exists or can be created, and is writable), so that a typo in ``--plot`` does not cost the
+simulation it follows.
+"""
 from __future__ import annotations
 
 import argparse
+import math
+import os
 from pathlib import Path
 
 __all__ = ["PARAMS_DIR", "add_model_arguments", "add_laps_argument", "load_model_params",
-           "add_gcs_arguments", "gcs_config"]
-
+           "add_gcs_arguments", "gcs_config",
+           "add_planner_arguments", "planner_bounds", "Parser", "positive_float", "nonneg_float",
+           "finite_float", "positive_int", "nonneg_int", "vehicle_url", "plot_file", "input_file",
+           "output_file", "output_dir", "socket_path", "check_output_file", "check_output_dir"]
 PARAMS_DIR = Path(__file__).resolve().parents[2] / "params"
 DEFAULT_VEHICLE = PARAMS_DIR / "vehicles" / "mk_quadro.yaml"
 PAPER_CONTROLLER = PARAMS_DIR / "controller" / "paper_lqr.yaml"
@@ -24,13 +37,80 @@ that fly a vehicle (fly, serve)."""
 
 
 def add_model_arguments(p: argparse.ArgumentParser, controller: Path = DESIGN_CONTROLLER) -> None:
-    p.add_argument("--vehicle-params", metavar="YAML", default=str(DEFAULT_VEHICLE),
+    p.add_argument("--vehicle-params", metavar="YAML", type=input_file, default=str(DEFAULT_VEHICLE),
                    help="vehicle parameter file (default: %(default)s)")
-    p.add_argument("--controller", metavar="YAML", default=str(controller),
+    p.add_argument("--controller", metavar="YAML", type=input_file, default=str(controller),
                    help="LQR weights (default: %(default)s)")
 
 
-def _laps(text: str) -> int:
+def add_laps_argument(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--laps", type=positive_int, default=None, metavar="N",
+                   help="fly the maneuver's laps segment N times (default: as in the file)")
+
+
+def add_planner_arguments(p: argparse.ArgumentParser) -> None:
+    """--planner-memory-mib, --planner-cpu-s: what one upload may cost the planner worker."""
+    from ..daemon.planner_pool import PlannerBounds
+    d = PlannerBounds()
+    p.add_argument("--planner-memory-mib", type=positive_int, default=d.memory_bytes >> 20, metavar="MIB",
+                   help="memory one upload's planning may add to the planner worker; beyond it the "
+                   "upload is rejected (default: %(default)s)")
+    p.add_argument("--planner-cpu-s", type=positive_float, default=d.cpu_s, metavar="S",
+                   help="CPU seconds one upload's planning may take; beyond them it is rejected "
+                   "(default: %(default)s)")
+
+
+def planner_bounds(args):
+    """The :class:`~mavreg.daemon.planner_pool.PlannerBounds` of the options above."""
+    import dataclasses
+
+    from ..daemon.planner_pool import PlannerBounds
+    return dataclasses.replace(PlannerBounds(), memory_bytes=args.planner_memory_mib << 20,
+                               cpu_s=args.planner_cpu_s)
+
+
+def load_model_params(args):
+    from ..config.controller import load_controller
+    from ..config.vehicle import load_vehicle
+    return load_vehicle(args.vehicle_params), load_controller(args.controller)
+
+
+class Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line: ``PROG: error: MESSAGE (see PROG --help)``."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see {self.prog} --help)\n")
+
+
+def finite_float(text: str) -> float:
+    """A finite number (no nan, no inf)."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return v
+
+
+def positive_float(text: str) -> float:
+    """A finite number > 0 (a rate, a timeout, a force limit)."""
+    v = finite_float(text)
+    if not v > 0:
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
+    return v
+
+
+def nonneg_float(text: str) -> float:
+    """A finite number >= 0 (a noise level)."""
+    v = finite_float(text)
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}")
+    return v
+
+
+def positive_int(text: str) -> int:
+    """A whole number >= 1."""
     try:
         n = int(text)
     except ValueError:
@@ -40,15 +120,15 @@ def _laps(text: str) -> int:
     return n
 
 
-def add_laps_argument(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--laps", type=_laps, default=None, metavar="N",
-                   help="fly the maneuver's laps segment N times (default: as in the file)")
-
-
-def load_model_params(args):
-    from ..config.controller import load_controller
-    from ..config.vehicle import load_vehicle
-    return load_vehicle(args.vehicle_params), load_controller(args.controller)
+def nonneg_int(text: str) -> int:
+    """A whole number >= 0 (a seed)."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if n < 0:
+        raise argparse.ArgumentTypeError(f"must be at least 0, got {n}")
+    return n
 
 
 def add_gcs_arguments(p: argparse.ArgumentParser) -> None:
@@ -65,10 +145,119 @@ def add_gcs_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def gcs_config(args) -> dict:
-    """The DaemonConfig fields of ``--gcs`` and ``--gcs-allow-commands``; ValueError on a bad URL."""
+    """The DaemonConfig fields of ``--gcs`` and ``--gcs-allow-commands``; UsageError on a bad URL."""
     from ..daemon.gcs import GcsParams, parse_gcs_url
+    from ..errors import UsageError
     for url in args.gcs:
-        parse_gcs_url(url)
+        try:
+            parse_gcs_url(url)
+        except ValueError as exc:
+            raise UsageError(str(exc)) from None
     if args.gcs_allow_commands and not args.gcs:
-        raise ValueError("--gcs-allow-commands needs a --gcs URL")
+        raise UsageError("--gcs-allow-commands needs a --gcs URL")
     return {"gcs_urls": tuple(args.gcs), "gcs": GcsParams(allow_commands=args.gcs_allow_commands)}
+def vehicle_url(text: str) -> str:
+    """udpin:HOST:PORT or udpout:HOST:PORT (mavreg.daemon.link.parse_url)."""
+    from ..daemon.link import parse_url
+    try:
+        parse_url(text)
+    except ValueError as exc:      # parse_url's only failure: the text is not such a URL
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
+PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
+
+
+def plot_file(text: str) -> str:
+    """A figure to write: :func:`output_file` with a suffix matplotlib writes."""
+    if Path(text).suffix.lower() not in PLOT_SUFFIXES:
+        raise argparse.ArgumentTypeError(f"{text}: expected a file name ending in "
+                                         f"{', '.join(PLOT_SUFFIXES)}")
+    return output_file(text)
+
+
+def input_file(text: str) -> str:
+    """A path to a regular file this process can read (not a directory, not /dev/zero)."""
+    p = Path(text)
+    try:
+        p.stat()
+    except OSError as exc:
+        raise argparse.ArgumentTypeError(f"{text}: {exc.strerror or exc}") from None
+    if p.is_dir():
+        raise argparse.ArgumentTypeError(f"{text}: is a directory, not a file")
+    if not p.is_file():
+        raise argparse.ArgumentTypeError(f"{text}: not a regular file")
+    if not os.access(p, os.R_OK):
+        raise argparse.ArgumentTypeError(f"{text}: permission denied (not readable)")
+    return text
+
+
+def _writable_dir(d: Path, what: str) -> str | None:
+    """Why the directory ``d`` (or the nearest existing one above it) cannot take ``what``."""
+    probe = d
+    while not probe.exists():
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if not probe.is_dir():
+        return f"{probe} is not a directory"
+    if probe != d and what == "file":
+        return f"no such directory {d}"
+    if not os.access(probe, os.W_OK | os.X_OK):
+        return f"directory {probe} is not writable"
+    return None
+
+
+def check_output_file(text: str) -> str | None:
+    """Why a file cannot be written at ``text`` (None: it can, as far as can be told)."""
+    p = Path(text)
+    if p.is_dir():
+        return f"{text}: is a directory"
+    if p.exists() and not os.access(p, os.W_OK):
+        return f"{text}: permission denied (not writable)"
+    why = _writable_dir(p.parent if str(p.parent) else Path("."), "file")
+    return None if why is None else f"{text}: {why}"
+
+
+def check_output_dir(text: str) -> str | None:
+    """Why a directory cannot be created or written at ``text`` (None: it can)."""
+    p = Path(text)
+    if p.exists() and not p.is_dir():
+        return f"{text}: exists and is not a directory"
+    why = _writable_dir(p, "dir")
+    return None if why is None else f"{text}: {why}"
+
+
+def output_file(text: str) -> str:
+    """A file to write (its directory exists and is writable); the argparse type."""
+    why = check_output_file(text)
+    if why is not None:
+        raise argparse.ArgumentTypeError(why)
+    return text
+
+
+UNIX_PATH_MAX = 107
+"""Longest Unix socket path (sun_path is 108 bytes on Linux, with the terminating NUL)."""
+
+
+def socket_path(text: str) -> str:
+    """A Unix socket to listen on: not a directory, short enough, in a directory that exists
+    or can be created (the endpoint creates it, mode 0700)."""
+    p = Path(text)
+    if p.is_dir():
+        raise argparse.ArgumentTypeError(f"{text}: is a directory")
+    if len(os.fsencode(text)) > UNIX_PATH_MAX:
+        raise argparse.ArgumentTypeError(f"{text}: a Unix socket path is at most {UNIX_PATH_MAX} bytes")
+    why = check_output_dir(str(p.parent))
+    if why is not None:
+        raise argparse.ArgumentTypeError(why)
+    return text
+
+
+def output_dir(text: str) -> str:
+    """A directory to write into (exists or can be created, writable); the argparse type."""
+    why = check_output_dir(text)
+    if why is not None:
+        raise argparse.ArgumentTypeError(why)
+    return text

@@ -6,6 +6,9 @@ import shlex
 import time
 from pathlib import Path
 
+from ..errors import UsageError
+from .common import check_output_dir
+
 HELP = ("rerun the paper's experiments (Section 4) and its Fig. 1 against time-indexed trackers, "
         "on the design model or over MAVLink; tables and figures")
 DESCRIPTION = """\
@@ -106,9 +109,9 @@ def _whole(text: str, what: str, minimum: int) -> int:
     try:
         n = int(text)
     except (TypeError, ValueError):
-        raise ValueError(f"{what} must be a whole number, got {text!r}") from None
+        raise UsageError(f"{what} must be a whole number, got {text!r}") from None
     if n < minimum:
-        raise ValueError(f"{what} must be at least {minimum}, got {n}")
+        raise UsageError(f"{what} must be at least {minimum}, got {n}")
     return n
 
 
@@ -136,30 +139,30 @@ def run(args) -> int:
     from ..experiments.campaign import run_campaign
     from ..experiments.runner import VIAS
     if args.name not in _names():
-        raise ValueError(f"unknown experiment {args.name!r}; choose one of {', '.join(_names())}")
+        raise UsageError(f"unknown experiment {args.name!r}; choose one of {', '.join(_names())}")
     robust = args.name == "robustness"
     if args.via is None:
         args.via = "sitl" if robust else "sim"
     if args.via not in VIAS:
-        raise ValueError(f"--via must be one of {', '.join(VIAS)}, got {args.via!r}")
+        raise UsageError(f"--via must be one of {', '.join(VIAS)}, got {args.via!r}")
     seed = _whole(args.seed, "--seed", 0)
     jobs = (os.cpu_count() or 1) if args.jobs is None else _whole(args.jobs, "--jobs", 1)
     if args.keep_flight_files and args.via != "sitl":
-        raise ValueError("--keep-flight-files applies only to --via sitl")
+        raise UsageError("--keep-flight-files applies only to --via sitl")
     if not robust and (args.flights is not None or args.cells is not None):
-        raise ValueError("--flights and --cells apply only to the robustness experiment")
+        raise UsageError("--flights and --cells apply only to the robustness experiment")
     exp = _build(args, seed)
     if args.dask is not None and args.jobs is not None:
-        raise ValueError("--jobs sizes the local process pool; with --dask the cluster's workers fly the runs")
+        raise UsageError("--jobs sizes the local process pool; with --dask the cluster's workers fly the runs")
     if args.dask is not None:
         from ..experiments.on_dask import require_dask
         require_dask()
     out = Path(args.out) if args.out else (Path("experiments")
                                            / f"{args.name}-{args.via}-{time.strftime('%Y%m%d-%H%M%S')}")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ValueError(f"--out {out}: {exc.strerror or exc}") from None
+    why = check_output_dir(str(out))
+    if why is not None:
+        raise UsageError(f"--out {why}")
+    out.mkdir(parents=True, exist_ok=True)
     command = (f"mavreg experiment {args.name} --via {args.via} --seed {seed} "
                + (f"--flights {exp.flights} " if robust else "")
                + (f"--cells {shlex.quote(args.cells)} " if robust and args.cells else "")

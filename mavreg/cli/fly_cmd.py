@@ -5,7 +5,10 @@ import math
 import time
 from pathlib import Path
 
-from .common import REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, gcs_config
+from ..errors import UsageError
+from .common import (REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, add_planner_arguments, check_output_dir,
+                     finite_float, input_file, output_dir, planner_bounds, positive_float, socket_path,
+                     vehicle_url, gcs_config)
 
 MAX_ENTRY_OFFSET_M = 2.0
 """Longest --entry-offset: an experiment's start error, not a relocation of the maneuver."""
@@ -59,23 +62,24 @@ action is also sent to the vehicle as a STATUSTEXT.
 
 Exit status: 0 the maneuver was flown within its envelope and the vehicle landed (touchdown
 under 1 m/s) and disarmed; 1 the flight failed: the first bound violated (where, by how much,
-what was done) is printed in one line and kept in summary.json under "failure"; 2 bad file
-or arguments.
+what was done) is printed in one line and kept in summary.json under "failure" (also: the
+maneuver cannot be flown); 2 bad file or arguments (--out and --socket are checked before
+anything starts).
 """
 
 
 def add_arguments(p):
-    p.add_argument("maneuver", metavar="FILE", help="maneuver YAML (kind: maneuver)")
-    p.add_argument("--vehicle", metavar="URL", default=None,
+    p.add_argument("maneuver", metavar="FILE", type=input_file, help="maneuver YAML (kind: maneuver)")
+    p.add_argument("--vehicle", metavar="URL", type=vehicle_url, default=None,
                    help="vehicle connection, udpout:HOST:PORT or udpin:HOST:PORT "
                    "(default: start the bundled firmware_sim on a free loopback port)")
-    p.add_argument("--out", metavar="DIR", default=None,
+    p.add_argument("--out", metavar="DIR", type=output_dir, default=None,
                    help="output directory (default: flights/<timestamp>/)")
-    p.add_argument("--socket", metavar="PATH", default=None,
+    p.add_argument("--socket", metavar="PATH", type=socket_path, default=None,
                    help="also accept uploads on this Unix socket during the flight (default: none)")
-    p.add_argument("--timeout-s", type=float, default=300.0, metavar="S",
+    p.add_argument("--timeout-s", type=positive_float, default=300.0, metavar="S",
                    help="give up (exit 1) after this many wall seconds (default: %(default)s)")
-    p.add_argument("--control-rate-hz", type=float, default=500.0, metavar="HZ",
+    p.add_argument("--control-rate-hz", type=positive_float, default=500.0, metavar="HZ",
                    help="the vehicle's telemetry/control rate; the bundled emulator is started "
                    "at it and the regulator leads its feedforward by half its period "
                    "(default %(default)s)")
@@ -90,7 +94,7 @@ def add_arguments(p):
                    "params/controller/paper_lqr.yaml). See docs/firmware_sim.md and docs/robustness.md")
     p.add_argument("--lockstep", action="store_true",
                    help="bundled emulator only: run it in lockstep (faster than real time)")
-    p.add_argument("--stale-timeout-s", type=float, default=0.5, metavar="S",
+    p.add_argument("--stale-timeout-s", type=positive_float, default=0.5, metavar="S",
                    help="link lost: stop streaming for good when no complete state arrives for S "
                    "wall seconds; shorter pauses are ridden out in hover (docs/safety.md) "
                    "(default: %(default)s)")
@@ -104,7 +108,7 @@ def add_arguments(p):
     p.add_argument("--emulator-arg", action="append", default=[], metavar="ARG",
                    help="bundled emulator only: extra firmware_sim argument (repeatable), "
                    "e.g. --emulator-arg=--rotor-time-constant-s=0")
-    p.add_argument("--entry-offset", nargs=3, type=float, default=(0.0, 0.0, 0.0), metavar=("DN", "DE", "DD"),
+    p.add_argument("--entry-offset", nargs=3, type=finite_float, default=(0.0, 0.0, 0.0), metavar=("DN", "DE", "DD"),
                    help="start the maneuver off its path: the hold point and the end of the run-in "
                    "move by this NED offset (m, at most %(max)g m) from the entry, with the entry's "
                    "velocity, and the regulator takes over there (the paper's Section 4: 0.6 0.6 0.6; "
@@ -115,40 +119,36 @@ def add_arguments(p):
                    "(FILE: 32 bytes as 64 hex characters or base64, mode 0600; the bundled emulator "
                    "gets the same key; docs/reliability.md) (default: signing off)")
     add_gcs_arguments(p)
+    add_planner_arguments(p)
     add_model_arguments(p, controller=REAL_CONTROLLER)
 
 
 def run(args) -> int:
     from ..config.vehicle import load_vehicle
     from ..daemon.fly import FlyOptions, fly
-    from ..daemon.link import parse_url
     from ..daemon.signing import load_key
     maneuver = Path(args.maneuver)
     if args.signing_key is not None:
         load_key(args.signing_key)      # a bad key file: one line before anything starts
-    if not maneuver.is_file():
-        raise ValueError(f"{maneuver}: no such file")
     if args.vehicle is not None:
-        parse_url(args.vehicle)
         if args.lockstep or args.emulator_arg or args.world != "realistic":
-            raise ValueError("--lockstep, --world and --emulator-arg apply only to the bundled "
+            raise UsageError("--lockstep, --world and --emulator-arg apply only to the bundled "
                              "emulator (no --vehicle)")
-    if not args.stale_timeout_s > 0:
-        raise ValueError(f"--stale-timeout-s must be positive, got {args.stale_timeout_s}")
-    if args.timeout_s <= 0:
-        raise ValueError(f"--timeout-s must be positive, got {args.timeout_s}")
     offset = tuple(float(v) for v in args.entry_offset)
-    if not all(math.isfinite(v) for v in offset) or math.hypot(*offset) > MAX_ENTRY_OFFSET_M:
-        raise ValueError(f"--entry-offset must be finite and at most {MAX_ENTRY_OFFSET_M:g} m long, "
+    if math.hypot(*offset) > MAX_ENTRY_OFFSET_M:
+        raise UsageError(f"--entry-offset must be at most {MAX_ENTRY_OFFSET_M:g} m long, "
                          f"got {' '.join(f'{v:g}' for v in offset)}")
     gcs = gcs_config(args)
     load_vehicle(args.vehicle_params)   # a bad vehicle file is a user error before anything starts
     out = Path(args.out) if args.out else Path("flights") / time.strftime("%Y%m%d-%H%M%S")
+    why = check_output_dir(str(out))    # the default --out too, before the flight
+    if why is not None:
+        raise UsageError(f"--out {why}")
     opts = FlyOptions(maneuver, args.vehicle, Path(args.vehicle_params), Path(args.controller), out,
                       Path(args.socket) if args.socket else None, args.timeout_s, args.lockstep,
                       tuple(args.emulator_arg), args.control_rate_hz, args.vehicle_lockstep, args.world,
                       args.stale_timeout_s, offset,
                       signing_key=Path(args.signing_key) if args.signing_key is not None else None,
                       gcs_urls=gcs["gcs_urls"], gcs=gcs["gcs"], tlog_clock=args.tlog_clock,
-                      argv=tuple(getattr(args, "command_line", ())))
+                      argv=tuple(getattr(args, "command_line", ())), planner=planner_bounds(args))
     return fly(opts)

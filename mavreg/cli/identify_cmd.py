@@ -6,7 +6,8 @@ import math
 import re
 from pathlib import Path
 
-from .common import DEFAULT_VEHICLE
+from ..errors import UsageError
+from .common import DEFAULT_VEHICLE, input_file, nonneg_int, output_file
 
 HELP = "fit thrust scale, drag and rotor time constant to a flight; optionally write a vehicle YAML"
 DESCRIPTION = """\
@@ -76,10 +77,10 @@ def _arg_error(msg: str):
 
 def add_arguments(p):
     p.add_argument("flight", metavar="FLIGHT", help="a 'mavreg fly' output directory or a .tlog file")
-    p.add_argument("--vehicle-params", metavar="YAML", default=str(DEFAULT_VEHICLE),
+    p.add_argument("--vehicle-params", metavar="YAML", type=input_file, default=str(DEFAULT_VEHICLE),
                    help="the vehicle file the flight was flown with: mass, maximum rotor thrust, "
                    "estimate latency (default: %(default)s)")
-    p.add_argument("--write-vehicle", metavar="OUT.yaml", default=None,
+    p.add_argument("--write-vehicle", metavar="OUT.yaml", type=output_file, default=None,
                    help="write a copy of the vehicle file with the identified values filled in")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--delay", type=_delay, default="auto", metavar="auto|timesync|search|MS",
@@ -90,7 +91,7 @@ def add_arguments(p):
                    "(default: auto)")
     p.add_argument("--replicates", type=_replicates, default=300, metavar="N",
                    help="bootstrap replicates for the intervals (default: %(default)s)")
-    p.add_argument("--seed", type=int, default=0, help="bootstrap seed (default: %(default)s)")
+    p.add_argument("--seed", type=nonneg_int, default=0, help="bootstrap seed (default: %(default)s)")
 
 
 def run(args) -> int:
@@ -98,8 +99,6 @@ def run(args) -> int:
     from ..identify.fit import FitOptions, identify
     from ..identify.flightlog import read_flight
     vehicle = load_vehicle(args.vehicle_params)
-    if args.write_vehicle is not None and not Path(args.write_vehicle).parent.is_dir():
-        raise ValueError(f"--write-vehicle {args.write_vehicle}: no such directory")
     series = read_flight(args.flight)
     delay, source = _resolve_delay(args.delay, series.link_delay_s, vehicle.estimate_latency_s)
     result = identify(series, vehicle.mass_kg, vehicle.max_rotor_thrust_n,
@@ -127,7 +126,7 @@ def _resolve_delay(spec, link_delay_s, estimate_latency_s):
     if spec == "search" or (spec == "auto" and link_delay_s is None):
         return None, "searched jointly with tau" + (" (the flight has no TIMESYNC)" if spec == "auto" else "")
     if link_delay_s is None:
-        raise ValueError("--delay timesync: the flight has no TIMESYNC replies; use --delay search or MS")
+        raise UsageError("--delay timesync: the flight has no TIMESYNC replies; use --delay search or MS")
     d = link_delay_s + estimate_latency_s
     return d, (f"TIMESYNC {1e3 * link_delay_s:.1f} ms + the vehicle file's estimate latency "
                f"{1e3 * estimate_latency_s:.1f} ms")

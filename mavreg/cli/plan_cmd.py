@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import json
 
-from .common import add_laps_argument, add_model_arguments, load_model_params
+from .common import add_laps_argument, add_model_arguments, input_file, load_model_params
 
 HELP = "validate a maneuver YAML, check feasibility, build the gain schedule (nothing flies)"
 DESCRIPTION = """\
@@ -21,13 +21,13 @@ model with the vehicle's rotor lag, the loop broken at the rotor commands. JSON:
 {rotor_time_constant_s, hover {delay_margin_ms, gain_margin [low, high], ...}, maneuver
 {delay_margin_ms, worst_s_m, gain_margin, gain_margin_s_m, nodes, frozen_unstable_s_m}}.
 
-Exit status: 0 feasible, 1 infeasible (the reasons say where in s and by how much),
-2 invalid file or arguments.
+Exit status: 0 feasible, 1 infeasible (the reasons say where in s and by how much) or a
+geometry that cannot be flown, 2 invalid file or arguments.
 """
 
 
 def add_arguments(p):
-    p.add_argument("maneuver", metavar="FILE", help="maneuver YAML (kind: maneuver)")
+    p.add_argument("maneuver", metavar="FILE", type=input_file, help="maneuver YAML (kind: maneuver)")
     add_laps_argument(p)
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     add_model_arguments(p)

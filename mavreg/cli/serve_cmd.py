@@ -3,7 +3,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .common import REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, gcs_config
+from .common import (REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, add_planner_arguments,
+                     gcs_config, output_file, planner_bounds, positive_float, socket_path, vehicle_url)
 
 HELP = "run the offboard daemon: fly maneuvers uploaded on the control endpoint"
 DESCRIPTION = """\
@@ -25,24 +26,26 @@ Writes a .tlog of every MAVLink message (--tlog, default none) and the controlle
 (--control-log, default none).
 
 Exit status: 0 landed and disarmed or stopped on request; 1 the flight was aborted (stale
-state, non-finite output, the vehicle left OFFBOARD); 2 bad arguments.
+state, non-finite output, the vehicle left OFFBOARD); 2 bad arguments or files (--tlog,
+--control-log and --socket are checked before the daemon starts), or another daemon serves
+on the socket.
 """
 
 
 def add_arguments(p):
-    p.add_argument("--vehicle", metavar="URL", default="udpout:127.0.0.1:14540",
+    p.add_argument("--vehicle", metavar="URL", type=vehicle_url, default="udpout:127.0.0.1:14540",
                    help="vehicle connection, udpout:HOST:PORT or udpin:HOST:PORT (default: %(default)s)")
-    p.add_argument("--socket", metavar="PATH", default=None,
+    p.add_argument("--socket", metavar="PATH", type=socket_path, default=None,
                    help="control endpoint (default: $MAVREG_SOCKET, $XDG_RUNTIME_DIR/mavreg.sock "
                    "or /tmp/mavreg-$UID/mavreg.sock)")
-    p.add_argument("--tlog", metavar="FILE", default=None, help="write a MAVLink .tlog here (stamped with the "
-                   "vehicle's clock with --vehicle-lockstep, else the wall clock)")
-    p.add_argument("--control-log", metavar="FILE.npz", default=None,
+    p.add_argument("--tlog", metavar="FILE", type=output_file, default=None, help="write a MAVLink .tlog "
+                   "here (stamped with the vehicle's clock with --vehicle-lockstep, else the wall clock)")
+    p.add_argument("--control-log", metavar="FILE.npz", type=output_file, default=None,
                    help="write the controller log (s, w, u, phase) here on exit")
-    p.add_argument("--control-rate-hz", type=float, default=500.0, metavar="HZ",
+    p.add_argument("--control-rate-hz", type=positive_float, default=500.0, metavar="HZ",
                    help="the vehicle's telemetry/control rate; the regulator leads its "
                    "feedforward by half its period (default %(default)s)")
-    p.add_argument("--stale-timeout-s", type=float, default=0.5, metavar="S",
+    p.add_argument("--stale-timeout-s", type=positive_float, default=0.5, metavar="S",
                    help="link lost: stop streaming for good when no complete state arrives for S "
                    "seconds; shorter pauses are ridden out in hover, a recovery starts after 0.1 s "
                    "in a maneuver (docs/safety.md) (default: %(default)s)")
@@ -54,6 +57,7 @@ def add_arguments(p):
                    "(FILE: 32 bytes as 64 hex characters or base64, mode 0600; docs/reliability.md) "
                    "(default: signing off)")
     add_gcs_arguments(p)
+    add_planner_arguments(p)
     add_model_arguments(p, controller=REAL_CONTROLLER)
 
 
@@ -63,14 +67,10 @@ def run(args) -> int:
     from ..config.vehicle import load_vehicle
     from ..daemon.app import Daemon, DaemonConfig, regulator_factory
     from ..daemon.endpoint import default_socket_path
-    from ..daemon.link import parse_url
     from ..daemon.supervisor import Phase, SupervisorParams
     from ..daemon.signing import Signing
-    parse_url(args.vehicle)
     signing = Signing(args.signing_key, "mavreg") if args.signing_key is not None else None
     gcs = gcs_config(args)
-    if args.stale_timeout_s <= 0:
-        raise ValueError(f"--stale-timeout-s must be positive, got {args.stale_timeout_s}")
     vehicle = load_vehicle(args.vehicle_params)
     from ..config.controller import load_controller
     controller = load_controller(args.controller)
@@ -80,7 +80,7 @@ def run(args) -> int:
                           SupervisorParams(land_when_done=False, stale_timeout_s=args.stale_timeout_s,
                                            gap_fill=not args.vehicle_lockstep, lockstep=args.vehicle_lockstep),
                           envelope=controller.envelope, controller=controller,
-                          control_rate_hz=args.control_rate_hz, **gcs,
+                          control_rate_hz=args.control_rate_hz, **gcs, planner=planner_bounds(args),
                           tlog_clock="vehicle" if args.vehicle_lockstep else "wall")
     make_regulator = regulator_factory(vehicle, args.control_rate_hz, controller.disturbance,
                                       controller.allocation, controller.speed_governor)

@@ -4,7 +4,12 @@ from __future__ import annotations
 import json
 import sys
 
-from .common import add_laps_argument, add_model_arguments, load_model_params
+from ..errors import UsageError
+from .common import (add_laps_argument, add_model_arguments, finite_float, input_file, load_model_params,
+                     nonneg_float, nonneg_int, plot_file, positive_float)
+
+PHYSICS_STEP_S = 1e-3
+"""The design model's RK4 step (mavreg.sim.maneuver_run): --rate-hz divides its rate."""
 
 HELP = "fly a maneuver with the regulator on the design model; tracking errors against s"
 DESCRIPTION = """\
@@ -19,30 +24,42 @@ Reports, overall and per named segment: transverse position error (max, RMS), at
 error (max), rotor command range and time saturated. With --json: stable, completed,
 transverse_error_m {max, rms}, attitude_error_deg {max}, segments {...}.
 
-Exit status: 0 stable and completed, 1 diverged or not completed, 2 invalid input.
+Exit status: 0 stable and completed, 1 diverged or not completed (or the maneuver cannot
+be flown), 2 invalid input (options, files; --plot is checked before the simulation).
 """
 
 
+def control_rate_hz(text: str) -> float:
+    """--rate-hz: a positive rate whose period is a whole number of physics steps."""
+    import argparse
+    rate = positive_float(text)
+    steps = round(1.0 / (rate * PHYSICS_STEP_S))
+    if steps < 1 or abs(steps * PHYSICS_STEP_S * rate - 1.0) > 1e-9:
+        raise argparse.ArgumentTypeError(f"expected 1000 Hz divided by a whole number (1000, 500, 250, "
+                                         f"...; the model steps every {PHYSICS_STEP_S * 1e3:g} ms), got {text!r}")
+    return rate
+
+
 def add_arguments(p):
-    p.add_argument("maneuver", metavar="FILE", help="maneuver YAML (kind: maneuver)")
-    p.add_argument("--offset", nargs=3, type=float, default=(0.0, 0.0, 0.0),
+    p.add_argument("maneuver", metavar="FILE", type=input_file, help="maneuver YAML (kind: maneuver)")
+    p.add_argument("--offset", nargs=3, type=finite_float, default=(0.0, 0.0, 0.0),
                    metavar=("DX", "DY", "DZ"), help="initial position offset, NED metres")
-    p.add_argument("--noise-n", type=float, default=0.0, metavar="SD",
+    p.add_argument("--noise-n", type=nonneg_float, default=0.0, metavar="SD",
                    help="Gaussian noise SD on each rotor force, N (default 0)")
-    p.add_argument("--saturation-n", type=float, default=None, metavar="F",
+    p.add_argument("--saturation-n", type=positive_float, default=None, metavar="F",
                    help="per-rotor saturation, N, known to the controller's allocation and speed "
                         "governor (default: none)")
     add_laps_argument(p)
-    p.add_argument("--seed", type=int, default=None, metavar="N", help="noise seed")
-    p.add_argument("--rate-hz", type=float, default=1000.0, help="controller rate (default 1000)")
-    p.add_argument("--inertia-kg-m2", nargs=3, type=float, default=None,
+    p.add_argument("--seed", type=nonneg_int, default=None, metavar="N", help="noise seed")
+    p.add_argument("--rate-hz", type=control_rate_hz, default=1000.0, help="controller rate (default 1000)")
+    p.add_argument("--inertia-kg-m2", nargs=3, type=positive_float, default=None,
                    metavar=("JX", "JY", "JZ"), help="plant inertia (default: the design's)")
-    p.add_argument("--gust-n", nargs=3, type=float, default=None, metavar=("FN", "FE", "FD"),
+    p.add_argument("--gust-n", nargs=3, type=finite_float, default=None, metavar=("FN", "FE", "FD"),
                    help="an external force on the vehicle, NED newtons (with --gust-window)")
-    p.add_argument("--gust-window", nargs=2, type=float, default=(0.0, 1.0), metavar=("T0", "T1"),
+    p.add_argument("--gust-window", nargs=2, type=finite_float, default=(0.0, 1.0), metavar=("T0", "T1"),
                    help="when the gust acts, seconds from the start (default 0 1)")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON")
-    p.add_argument("--plot", metavar="PNG", default=None,
+    p.add_argument("--plot", metavar="PNG", type=plot_file, default=None,
                    help="save a plot of the path and the errors against s")
     add_model_arguments(p)
 
@@ -51,12 +68,8 @@ def run(args) -> int:
     from ..maneuver.plan import plan_file
     from ..config.regulation import told_rotor_limit
     from ..sim.maneuver_run import fly_on_design_model
-    if args.noise_n < 0:
-        raise ValueError(f"--noise-n must be >= 0, got {args.noise_n}")
-    if args.saturation_n is not None and args.saturation_n <= 0:
-        raise ValueError(f"--saturation-n must be > 0, got {args.saturation_n}")
     if not args.gust_window[0] <= args.gust_window[1]:
-        raise ValueError(f"--gust-window must be T0 <= T1, got {args.gust_window}")
+        raise UsageError(f"--gust-window must be T0 <= T1, got {' '.join(f'{t:g}' for t in args.gust_window)}")
     vehicle, controller = load_model_params(args)
     plan = plan_file(args.maneuver, vehicle, controller, laps=args.laps)
     print(f"{plan.name}: planned, {plan.length_m:.1f} m in {plan.duration_s:.1f} s; simulating",

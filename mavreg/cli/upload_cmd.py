@@ -4,6 +4,9 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from ..errors import UsageError
+from .common import input_file, positive_float
+
 HELP = "upload a maneuver YAML to a running `mavreg serve` (or ask it to land / report)"
 DESCRIPTION = """\
 Send FILE to the daemon's control endpoint and print its verdict: "accepted" (the maneuver
@@ -24,11 +27,11 @@ _MAX_FILE_BYTES = 200 * 1024
 
 def add_arguments(p):
     g = p.add_mutually_exclusive_group(required=True)
-    g.add_argument("maneuver", metavar="FILE", nargs="?", help="maneuver YAML (kind: maneuver)")
+    g.add_argument("maneuver", metavar="FILE", nargs="?", type=input_file, help="maneuver YAML (kind: maneuver)")
     g.add_argument("--land", action="store_true", help="ask the daemon to land and disarm")
     g.add_argument("--status", action="store_true", help="print the daemon's status as JSON")
     p.add_argument("--socket", metavar="PATH", default=None, help="control endpoint (default: see above)")
-    p.add_argument("--timeout-s", type=float, default=120.0, metavar="S",
+    p.add_argument("--timeout-s", type=positive_float, default=120.0, metavar="S",
                    help="wait this long for the verdict (default: %(default)s)")
 
 
@@ -41,19 +44,17 @@ def run(args) -> int:
         req = {"op": "status"}
     else:
         f = Path(args.maneuver)
-        if not f.is_file():
-            raise ValueError(f"{f}: no such file")
         if f.stat().st_size > _MAX_FILE_BYTES:
-            raise ValueError(f"{f}: {f.stat().st_size} bytes; a maneuver file is at most {_MAX_FILE_BYTES}")
+            raise UsageError(f"{f}: {f.stat().st_size} bytes; a maneuver file is at most {_MAX_FILE_BYTES}")
         try:
             text = f.read_text(encoding="utf-8")
         except UnicodeDecodeError:
-            raise ValueError(f"{f}: not UTF-8 text") from None
+            raise UsageError(f"{f}: not UTF-8 text") from None
         req = {"op": "upload", "name": str(f), "yaml": text}
     try:
         resp = request(path, req, args.timeout_s)
     except (OSError, TimeoutError) as exc:
-        raise ValueError(f"no daemon answering on {path} ({exc.__class__.__name__}: {exc})") from None
+        raise UsageError(f"no daemon answering on {path} ({exc.__class__.__name__}: {exc})") from None
     if args.status:
         print(json.dumps(resp.get("status", resp), indent=1))
         return 0 if resp.get("ok") else 1

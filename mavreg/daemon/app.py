@@ -27,12 +27,13 @@ from ..config.vehicle import VehicleParams
 from ..control import fastpath
 from ..control.regulator import ManeuverRegulator
 from ..control.sample_warmup import warm_up_sample_kernels
+from ..errors import EXIT_FAILED, UserError
 from .ctrllog import ControlLog
 from .endpoint import EndpointServer
 from .gcs import GcsParams
 from .gcs_link import GcsLink
 from .link import FastLink, MavlinkLink, open_link
-from .planner_pool import PlannerDied, PlannerPool
+from .planner_pool import PlannerBounds, PlannerDied, PlannerPool
 from .supervisor import Output, Phase, Supervisor, SupervisorParams
 from .tlog import TlogWriter, VehicleClock
 
@@ -85,6 +86,8 @@ class DaemonConfig:
     """The ``.tlog``'s timestamps: ``wall`` (a vehicle in real time) or ``vehicle`` (a
     lockstep simulator: the start's wall time plus the vehicle time elapsed,
     :class:`mavreg.daemon.tlog.VehicleClock`)."""
+    planner: PlannerBounds = field(default_factory=PlannerBounds)
+    """What one upload may cost the planner worker (memory, CPU, wall clock)."""
 
     def __post_init__(self):
         if self.tlog_clock not in ("wall", "vehicle"):
@@ -130,6 +133,13 @@ class Daemon:
         self._stop = asyncio.Event()
         self._gap_timer: asyncio.TimerHandle | None = None
         self._signals = 0
+        self.max_tick_gap_s = 0.0
+        self.max_tick_gap_phase = ""
+        self.max_tick_cpu_s = 0.0
+        """Most CPU the loop's thread used between two ticks: the gap is this plus the time the
+        process waited for a CPU (a loaded machine) or for events."""
+        """Longest wall time between two runs of the tick task (the event loop's worst stall
+        plus TICK_S): what a slow request or upload costs the control loop."""
 
     # ------------------------------------------------------------------ wiring
     def _emit(self, out: Output) -> bool:
@@ -191,33 +201,44 @@ class Daemon:
             await asyncio.sleep(HEARTBEAT_S)
 
     async def _tick_task(self) -> None:
+        last, last_cpu = time.perf_counter(), time.thread_time()
         while True:
             await asyncio.sleep(TICK_S)
+            now, cpu = time.perf_counter(), time.thread_time()
+            if now - last > self.max_tick_gap_s:
+                self.max_tick_gap_s, self.max_tick_gap_phase = now - last, str(self.supervisor.phase)
+            self.max_tick_cpu_s = max(self.max_tick_cpu_s, cpu - last_cpu)
+            last, last_cpu = now, cpu
             self._emit(self.supervisor.tick(self.clock_s()))
 
     # ---------------------------------------------------------------- requests
     async def offer_text(self, yaml_text: str, source: str) -> dict:
         """Plan an upload in the worker and queue it; a rejection changes nothing."""
+        return (await self._offer(yaml_text, source))[0]
+
+    async def _offer(self, yaml_text: str, source: str) -> tuple[dict, int]:
+        """(the response, the exit status a rejection means: :mod:`mavreg.errors`)."""
         if self.supervisor.finished:
-            return {"ok": False, "verdict": "rejected", "reason": f"the flight is over ({self.supervisor.phase})"}
+            return ({"ok": False, "verdict": "rejected", "reason": f"the flight is over ({self.supervisor.phase})"},
+                    EXIT_FAILED)
         try:
             result = await self.pool.plan(yaml_text, source)
         except PlannerDied as exc:
             self.log(f"upload {source!r} failed: {exc}")
-            return {"ok": False, "error": str(exc)}
+            return {"ok": False, "error": str(exc)}, EXIT_FAILED
         if not result.accepted:
             self.uploads["rejected"] += 1
             self.log(f"upload {source!r} rejected: {result.reason}")
-            return {"ok": False, "verdict": "rejected", "reason": result.reason}
-        try:
-            self._emit(self.supervisor.offer_plan(result.plan, self.clock_s()))
-        except ValueError as exc:
-            return {"ok": False, "verdict": "rejected", "reason": str(exc)}
+            return {"ok": False, "verdict": "rejected", "reason": result.reason}, result.status
+        if self.supervisor.finished or self.supervisor.phase == Phase.TERMINATE:   # ended while planning
+            return ({"ok": False, "verdict": "rejected", "reason": f"the flight is over ({self.supervisor.phase})"},
+                    EXIT_FAILED)
+        self._emit(self.supervisor.offer_plan(result.plan, self.clock_s()))
         self.uploads["accepted"] += 1
         self.plans.append(result.plan)
         where = "now (at a safe point)" if self.supervisor.at_safe_point() else "at the next safe point (hold)"
         return {"ok": True, "verdict": "accepted", "plan": _jsonable(result.plan.summary()),
-                "detail": f"{result.plan.name!r} queued; it starts {where}"}
+                "detail": f"{result.plan.name!r} queued; it starts {where}"}, 0
 
     async def handle_request(self, req: dict) -> dict:
         op = req["op"]
@@ -240,6 +261,10 @@ class Daemon:
             st["gcs"] = self.gcs.status()
         st["latency_ms"] = self.latency_summary()
         st["planning"] = 0 if self.pool is None else self.pool.busy
+        st["loop"] = {"max_tick_gap_ms": self.max_tick_gap_s * 1e3, "max_tick_gap_phase": self.max_tick_gap_phase,
+                      "max_tick_cpu_ms": self.max_tick_cpu_s * 1e3,
+                      "tick_ms": TICK_S * 1e3,
+                      "endpoint_refused": 0 if self.endpoint is None else self.endpoint.refused}
         est = self.supervisor.timesync.estimate()
         st["link_delay_ms"] = None if est is None else {
             "sample_to_actuation": est.delay_s * 1e3, "jitter": est.jitter_s * 1e3,
@@ -286,7 +311,7 @@ class Daemon:
         if install_signals:
             for sig in (signal.SIGINT, signal.SIGTERM):
                 loop.add_signal_handler(sig, self.request_stop)
-        self.pool = PlannerPool(self.config.vehicle_path, self.config.controller_path)
+        self.pool = PlannerPool(self.config.vehicle_path, self.config.controller_path, self.config.planner)
         try:
             await self.pool.warm_up()
             ctl = self.config.controller        # compiled now, not in the take-off's first period
@@ -294,9 +319,9 @@ class Daemon:
                                    0.1 if ctl is None else ctl.max_prediction_s,
                                    None if ctl is None else ctl.disturbance, self.config.supervisor.hover)
             for text, source in initial or []:
-                verdict = await self.offer_text(text, source)
+                verdict, status = await self._offer(text, source)
                 if not verdict["ok"]:
-                    raise _InitialRejected(verdict["reason"] if "reason" in verdict else verdict["error"])
+                    raise _InitialRejected(verdict["reason"] if "reason" in verdict else verdict["error"], status)
             if self.config.tlog_path is not None:
                 self._tlog = TlogWriter(self.config.tlog_path, self._tlog_clock())
             self.link = await open_link(self.config.vehicle_url, self.config.supervisor.vehicle_system_id,
@@ -358,8 +383,13 @@ class Daemon:
                 loop.remove_signal_handler(sig)
 
 
-class _InitialRejected(ValueError):
-    """The maneuver given on the command line does not plan (a user error)."""
+class _InitialRejected(UserError):
+    """The maneuver given on the command line does not plan: a bad file (exit 2) or a
+    maneuver that cannot be flown (exit 1)."""
+
+    def __init__(self, reason: str, status: int):
+        super().__init__(reason)
+        self.exit_status = status
 
 
 def _jsonable(obj):

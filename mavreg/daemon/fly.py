@@ -37,6 +37,7 @@ from .link import io_impl
 from .signing import Signing
 from .report import controller_metrics, format_summary, ground_truth_errors, plot_flight
 from .phases import Failure
+from .planner_pool import PlannerBounds
 from .supervisor import Phase, SupervisorParams
 
 __all__ = ["FlyOptions", "fly", "spawn_emulator", "stop_process", "outcome"]
@@ -61,10 +62,10 @@ class FlyOptions:
     vehicle_lockstep: bool = False
     """The vehicle (``--vehicle``) is a lockstep simulator: no telemetry gaps to fly through."""
     world: str = "realistic"
-    stale_timeout_s: float = 0.5
-    """Wall seconds without a complete sample before the link counts as lost."""
     """The bundled emulator's world preset: ``realistic`` (link delay, jitter and loss, an
     EKF-like estimate in telemetry) or ``ideal`` (the true state at once: the paper's world)."""
+    stale_timeout_s: float = 0.5
+    """Wall seconds without a complete sample before the link counts as lost."""
     entry_offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     """The run-in ends this far (NED) from the maneuver's entry: the regulator takes over off
     the path (experiments; :attr:`mavreg.daemon.phases.SupervisorParams.entry_offset_m`)."""
@@ -80,6 +81,8 @@ class FlyOptions:
     the wall clock."""
     argv: tuple[str, ...] = ()
     """The command line as typed, for the provenance in ``summary.json``."""
+    planner: PlannerBounds = PlannerBounds()
+    """What one upload may cost the planner worker."""
 
 
 def spawn_emulator(vehicle_path: Path, record: Path | None, lockstep: bool, extra: tuple[str, ...] = (),
@@ -152,7 +155,8 @@ def fly(opts: FlyOptions) -> int:
                           controller=controller, control_rate_hz=opts.control_rate_hz,
                           gcs_urls=tuple(opts.gcs_urls), gcs=opts.gcs,
                           tlog_clock=opts.tlog_clock or ("vehicle" if opts.lockstep or opts.vehicle_lockstep
-                                                         else "wall"))
+                                                         else "wall"),
+                          planner=opts.planner)
     make_regulator = regulator_factory(vehicle, opts.control_rate_hz, controller.disturbance,
                                       controller.allocation, controller.speed_governor)
     signing = Signing(opts.signing_key, "mavreg") if opts.signing_key is not None else None

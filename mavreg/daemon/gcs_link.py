@@ -83,7 +83,7 @@ class GcsLink:
                 self.endpoints.append(_open_socket(url))
             except OSError as exc:           # unknown host, port in use: the user's mistake, one line
                 self.close()
-                raise ValueError(f"--gcs {url!r}: {exc.strerror or exc}") from None
+                raise OSError(f"--gcs {url!r}: {exc.strerror or exc}") from None
             self._loop.add_reader(self.endpoints[i].sock.fileno(), self._readable, i)
             ep = self.endpoints[i]
             where = (f"sending to {ep.peer[0]}:{ep.peer[1]}" if ep.fixed else

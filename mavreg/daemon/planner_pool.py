@@ -25,31 +25,75 @@ A worker that dies (killed, out of memory) breaks the executor: :meth:`PlannerPo
 then starts a fresh executor and raises :class:`PlannerDied`; the next upload plans on
 the new worker. :meth:`PlannerPool.shutdown` kills the worker rather than waiting for a
 plan nobody will use.
+
+Bounds (:class:`PlannerBounds`), so that a hostile upload (an alias bomb, a maneuver
+kilometres long) costs at most a rejection and never the daemon:
+
+- **memory**: after warming up, the worker limits its own address space
+  (``RLIMIT_AS``) to what it then uses plus ``memory_bytes``; an allocation beyond it
+  raises ``MemoryError`` in the worker, which rejects the upload and stays usable;
+- **CPU**: each plan may use ``cpu_s`` seconds of the worker's CPU time (a profiling
+  interval timer, ``ITIMER_PROF``, counts CPU, not the waiting a ``SCHED_IDLE`` worker
+  does on a busy machine); beyond it the plan is abandoned and the upload rejected;
+- **wall clock**: a plan not answered within ``wall_s`` (the worker hangs in C code, or is
+  stopped) gets its worker killed and replaced, and the upload rejected;
+- **result size**: a plan whose pickle exceeds ``result_bytes`` is rejected in the worker,
+  before it is sent: unpickling it would hold the daemon's interpreter lock;
+- **one plan at a time**: uploads wait their turn (at most ``queue`` of them; more are
+  rejected at once), so the wall clock of one is not spent waiting for another.
+
+Every rejection reason is one line of at most :data:`mavreg.errors.MAX_MESSAGE_CHARS`
+characters (a loader message that quotes an expanded alias cannot make it megabytes).
 """
 from __future__ import annotations
 
 import asyncio
 import multiprocessing
 import os
+import pickle
 import signal
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..errors import EXIT_FAILED, exit_status_of, one_line
 from .lifeline import die_with_parent
 
-__all__ = ["PlanResult", "PlannerPool", "PlannerDied", "plan_in_worker", "lower_priority"]
+__all__ = ["PlanResult", "PlannerPool", "PlannerDied", "PlannerBounds", "plan_in_worker", "lower_priority"]
 
 _CACHE: dict = {}
+_MIB = 1024 * 1024
+
+
+@dataclass(frozen=True)
+class PlannerBounds:
+    """What one upload may cost the planner worker (module docstring, "Bounds")."""
+
+    memory_bytes: int = 1536 * _MIB
+    """Address space the worker may add to what it uses once warm (about 570 MB; planning the
+    barrel roll adds about 270 MB)."""
+    cpu_s: float = 60.0
+    """CPU seconds per plan (the barrel roll with its margins: about 6 s)."""
+    wall_s: float = 600.0
+    """Wall seconds per plan before the worker is killed and replaced (the worker runs at the
+    lowest priority: on a busy machine it waits)."""
+    result_bytes: int = 96 * _MIB
+    """Largest pickled plan sent back: unpickling it holds the daemon's interpreter lock, about
+    20 ms for the library's maneuvers (22-35 MiB: barrel roll 22, climbing helix 35), so at
+    most about 60 ms for a plan at this cap."""
+    queue: int = 4
+    """Uploads that may wait for the worker; more are rejected at once."""
 
 
 @dataclass(frozen=True)
 class PlanResult:
-    """A plan, or the reason there is none."""
+    """A plan, or the reason there is none (one line) and the exit status it means
+    (:mod:`mavreg.errors`: 2 a bad file, 1 a maneuver that cannot be flown or planned)."""
 
     plan: object | None
     reason: str = ""
+    status: int = 0
 
     @property
     def accepted(self) -> bool:
@@ -69,15 +113,57 @@ def _params(vehicle_path: str, controller_path: str):
     return _CACHE[key]
 
 
-def plan_in_worker(yaml_text: str, source: str, vehicle_path: str, controller_path: str) -> PlanResult:
-    """Validate and plan one maneuver, with its margins (runs in the worker process)."""
+class _OverCpuBudget(BaseException):
+    """Raised in the worker by the CPU timer's signal (not an Exception: a library's ``except
+    Exception`` does not swallow it)."""
+
+
+def _over_cpu_budget(signum, frame):
+    raise _OverCpuBudget()
+
+
+def plan_in_worker(yaml_text: str, source: str, vehicle_path: str, controller_path: str,
+                   bounds: PlannerBounds = PlannerBounds()) -> PlanResult:
+    """Validate and plan one maneuver, with its margins (runs in the worker process).
+
+    An anticipated error (:func:`mavreg.errors.exit_status_of`: the loader's, the
+    planner's), the memory and CPU bounds and the result size give a rejection; any other
+    exception propagates (a bug: the daemon logs its traceback and answers an error).
+    """
+    _warm(vehicle_path, controller_path, bounds.memory_bytes)   # a replaced worker: bounded too
+    old = signal.signal(signal.SIGPROF, _over_cpu_budget)
+    signal.setitimer(signal.ITIMER_PROF, bounds.cpu_s)
+    try:
+        try:
+            return _plan_checked(yaml_text, source, vehicle_path, controller_path, bounds)
+        finally:
+            signal.setitimer(signal.ITIMER_PROF, 0)
+    except _OverCpuBudget:
+        return PlanResult(None, f"{source}: planning used more than its {bounds.cpu_s:g} s of CPU "
+                          "and was abandoned", EXIT_FAILED)
+    except MemoryError:
+        return PlanResult(None, f"{source}: planning needed more than the planner's "
+                          f"{bounds.memory_bytes / _MIB:.0f} MiB of memory and was abandoned", EXIT_FAILED)
+    except Exception as exc:
+        status = exit_status_of(exc)
+        if status is None:
+            raise
+        return PlanResult(None, one_line(exc), status)
+    finally:
+        signal.signal(signal.SIGPROF, old)
+
+
+def _plan_checked(yaml_text, source, vehicle_path, controller_path, bounds) -> PlanResult:
     from ..maneuver.plan import plan_text
     from ..maneuver.plan_margins import with_margins
-    try:
-        vehicle, controller = _params(vehicle_path, controller_path)
-        return PlanResult(with_margins(plan_text(yaml_text, source, vehicle, controller)))
-    except ValueError as exc:   # ConfigError, ManeuverError: the user's file is at fault
-        return PlanResult(None, " ".join(str(exc).split()))
+    vehicle, controller = _params(vehicle_path, controller_path)
+    plan = with_margins(plan_text(yaml_text, source, vehicle, controller))
+    size = len(pickle.dumps(plan, protocol=pickle.HIGHEST_PROTOCOL))
+    if size > bounds.result_bytes:
+        return PlanResult(None, f"{source}: the plan takes {size / _MIB:.0f} MiB, more than the "
+                          f"{bounds.result_bytes / _MIB:.0f} MiB a daemon takes (fewer laps, a shorter "
+                          "maneuver)", EXIT_FAILED)
+    return PlanResult(plan)
 
 
 def _thread_ids() -> list[int]:
@@ -130,10 +216,36 @@ def _init_worker(parent_pid: int) -> None:
     lower_priority()
 
 
-def _warm(vehicle_path: str, controller_path: str) -> int:
+_LIMITED: list[int | None] = []
+
+
+def _warm(vehicle_path: str, controller_path: str, memory_bytes: int) -> int:
+    """Load the files and the planner, then bound the address space (once per worker)."""
     _params(vehicle_path, controller_path)
     import mavreg.maneuver.plan  # noqa: F401  (import cost paid before the first upload)
+    import mavreg.maneuver.plan_margins  # noqa: F401
+    if not _LIMITED:
+        _LIMITED.append(limit_address_space(memory_bytes))
     return os.getpid()
+
+
+def limit_address_space(extra_bytes: int) -> int | None:
+    """Limit this process's address space to its current size plus ``extra_bytes``.
+
+    Returns the limit set (bytes), or None where ``RLIMIT_AS`` or ``/proc`` is missing.
+    """
+    try:
+        import resource
+        with open("/proc/self/statm") as f:
+            size = int(f.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
+    except (ImportError, OSError, ValueError):
+        return None
+    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    limit = size + int(extra_bytes)
+    if hard != resource.RLIM_INFINITY:
+        limit = min(limit, hard)
+    resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
+    return limit
 
 
 class PlannerPool:
@@ -143,14 +255,21 @@ class PlannerPool:
     ----------
     vehicle_path, controller_path : str or Path
         Parameter files the worker loads once.
+    bounds : PlannerBounds, optional
+        What one upload may cost (module docstring).
     """
 
-    def __init__(self, vehicle_path: str | Path, controller_path: str | Path):
+    def __init__(self, vehicle_path: str | Path, controller_path: str | Path,
+                 bounds: PlannerBounds = PlannerBounds()):
         self.vehicle_path = str(vehicle_path)
         self.controller_path = str(controller_path)
+        self.bounds = bounds
         self._pool = self._new_executor()
+        self._turn = asyncio.Lock()
         self.busy = 0
         self.restarts = 0
+        self.timeouts = 0
+        """Plans whose worker was killed for the wall-clock bound."""
         self._closed = False
         self.worker_pid: int | None = None
         """The worker's pid once :meth:`warm_up` has run (None before)."""
@@ -164,7 +283,7 @@ class PlannerPool:
         """Start the worker and import the planner, so the first upload plans at once."""
         loop = asyncio.get_running_loop()
         self.worker_pid = await loop.run_in_executor(self._pool, _warm, self.vehicle_path,
-                                                     self.controller_path)
+                                                     self.controller_path, self.bounds.memory_bytes)
 
     async def plan(self, yaml_text: str, source: str) -> PlanResult:
         """Plan one upload in the worker.
@@ -176,24 +295,43 @@ class PlannerPool:
         """
         if self._closed:
             raise PlannerDied("the planner has been shut down (the daemon is stopping)")
-        loop = asyncio.get_running_loop()
-        args = (plan_in_worker, yaml_text, source, self.vehicle_path, self.controller_path)
+        if self.busy > self.bounds.queue:
+            return PlanResult(None, f"{source}: the planner is busy with {self.busy} uploads; "
+                              "upload again later", EXIT_FAILED)
         self.busy += 1
+        try:
+            async with self._turn:
+                return await self._plan_now(yaml_text, source)
+        finally:
+            self.busy -= 1
+
+    async def _plan_now(self, yaml_text: str, source: str) -> PlanResult:
+        if self.worker_pid is None:     # a replaced worker starts outside the plan's wall clock
+            try:
+                await self.warm_up()
+            except BrokenProcessPool:
+                self._restart()
+        loop = asyncio.get_running_loop()
+        args = (plan_in_worker, yaml_text, source, self.vehicle_path, self.controller_path, self.bounds)
         try:
             try:
                 future = loop.run_in_executor(self._pool, *args)
             except BrokenProcessPool:   # died while idle: nothing of this upload ran yet
                 self._restart()
                 future = loop.run_in_executor(self._pool, *args)
-            return await future
+            try:
+                return await asyncio.wait_for(future, self.bounds.wall_s)
+            except asyncio.TimeoutError:
+                self.timeouts += 1
+                self._restart()
+                return PlanResult(None, f"{source}: no plan within {self.bounds.wall_s:g} s; the planner "
+                                  "worker was stopped and replaced", EXIT_FAILED)
         except BrokenProcessPool as exc:
             if self._closed:
                 raise PlannerDied("the planner was shut down while planning (the daemon is stopping)") from exc
             self._restart()
             raise PlannerDied(f"the planner worker process died while planning {source!r} "
                               f"(killed or out of memory); a new worker was started: upload again") from exc
-        finally:
-            self.busy -= 1
 
     def _restart(self) -> None:
         self._stop(self._pool)

@@ -45,6 +45,7 @@ from typing import Callable
 from pymavlink.dialects.v20 import common as mavlink2
 
 from .wire import mcrf4xx
+from ..errors import UsageError
 
 __all__ = ["load_key", "now_ticks", "Verifier", "Signer", "Signing", "REASONS", "MAX_STREAMS",
            "ALLOWED_UNSIGNED", "SETUP_SIGNING_ID", "TICKS_PER_S", "state_path"]
@@ -79,14 +80,14 @@ def load_key(path) -> bytes:
     try:
         st = p.stat()
         if not stat.S_ISREG(st.st_mode):
-            raise ValueError(f"signing key {p}: not a regular file")
+            raise UsageError(f"signing key {p}: not a regular file")
         if st.st_mode & 0o077:
-            raise ValueError(f"signing key {p}: group or others may read or write it (mode "
+            raise UsageError(f"signing key {p}: group or others may read or write it (mode "
                              f"{stat.S_IMODE(st.st_mode):04o}); chmod 600 {p}")
         with open(p, "rb") as f:
             raw = f.read(_MAX_KEY_FILE_BYTES + 1)
     except OSError as exc:
-        raise ValueError(f"signing key {p}: {exc.strerror or exc}") from None
+        raise UsageError(f"signing key {p}: {exc.strerror or exc}") from None
     text = raw.strip() if len(raw) <= _MAX_KEY_FILE_BYTES else b""
     key = None
     if len(text) == 64:
@@ -100,9 +101,9 @@ def load_key(path) -> bytes:
         except (binascii.Error, ValueError):
             key = None
     if key is None or len(key) != 32:
-        raise ValueError(f"signing key {p}: expected 32 bytes as 64 hex characters or base64")
+        raise UsageError(f"signing key {p}: expected 32 bytes as 64 hex characters or base64")
     if not any(key):
-        raise ValueError(f"signing key {p}: the all-zero key is not a key")
+        raise UsageError(f"signing key {p}: the all-zero key is not a key")
     return key
 
 
@@ -260,13 +261,13 @@ class Signing:
         except FileNotFoundError:
             return 0, {}
         except OSError as exc:
-            raise ValueError(f"signing state {self.path}: {exc.strerror or exc}") from None
+            raise UsageError(f"signing state {self.path}: {exc.strerror or exc}") from None
         try:
             d = json.loads(text)
             streams = {(int(a), int(b), int(c)): int(t) for a, b, c, t in d.get("streams", [])}
             return int(d["timestamp"]), streams
         except (ValueError, KeyError, TypeError, AttributeError):
-            raise ValueError(f"signing state {self.path}: unreadable; it guards against replays, "
+            raise UsageError(f"signing state {self.path}: unreadable; it guards against replays, "
                              "remove it only if you know why it is broken") from None
 
     def check(self, frame) -> str | None:
@@ -308,4 +309,4 @@ class Signing:
         except OSError as exc:
             self.save_errors += 1
             if not self._saved:
-                raise ValueError(f"signing state {self.path}: cannot write: {exc.strerror or exc}") from None
+                raise UsageError(f"signing state {self.path}: cannot write: {exc.strerror or exc}") from None

@@ -41,6 +41,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..errors import UsageError
 from ..cli.common import DEFAULT_VEHICLE, PAPER_CONTROLLER, PAPER_GOVERNED_CONTROLLER, PARAMS_DIR
 
 __all__ = ["RunSpec", "Experiment", "EXPERIMENTS", "build_experiment", "draw_inertia", "run_seed",
@@ -299,9 +300,9 @@ def build_experiment(name: str, seed: int = 0, via: str = "sim") -> Experiment:
         On an unknown name (the message lists the known ones), or ``lag`` via ``sitl``.
     """
     if name not in EXPERIMENTS:
-        raise ValueError(f"unknown experiment {name!r}; known: {', '.join(EXPERIMENTS)}")
+        raise UsageError(f"unknown experiment {name!r}; known: {', '.join(EXPERIMENTS)}")
     if via == "sitl" and name == "lag":
-        raise ValueError("lag flies only on the design model (--via sim): the daemon flies maneuver "
+        raise UsageError("lag flies only on the design model (--via sim): the daemon flies maneuver "
                          "regulation alone, which has no timed reference to lag behind")
     if via == "sitl" and name == "gust":
         return gust(seed, controllers=(REGULATOR,), saturations_n=(SITL_ROTOR_LIMIT_N,))

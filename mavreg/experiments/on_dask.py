@@ -19,6 +19,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from ..errors import UsageError
+
 __all__ = ["require_dask", "run_on_dask", "worker_probe", "CONNECT_TIMEOUT_S"]
 
 CONNECT_TIMEOUT_S = 30.0
@@ -29,7 +31,7 @@ def require_dask():
     try:
         import distributed
     except ImportError:
-        raise ValueError("--dask needs dask.distributed, which is not installed: "
+        raise UsageError("--dask needs dask.distributed, which is not installed: "
                          "pip install 'mavreg[dask]' (or 'dask[distributed]')") from None
     return distributed
 
@@ -51,18 +53,18 @@ def _check_workers(client, exp, out_dir: Path | None) -> None:
     want = worker_probe(files, None if out_dir is None else str(out_dir))
     got = client.run(worker_probe, files, None if out_dir is None else str(out_dir))
     if not got:
-        raise ValueError("the Dask cluster has no workers")
+        raise UsageError("the Dask cluster has no workers")
     for worker, have in sorted(got.items()):
         if have["code"] != want["code"]:
-            raise ValueError(f"Dask worker {worker} runs another mavreg (code digest {have['code'][:12]}, "
+            raise UsageError(f"Dask worker {worker} runs another mavreg (code digest {have['code'][:12]}, "
                              f"here {want['code'][:12]}): install the same version on the workers")
         for f in files:
             if have["files"][f] != want["files"][f]:
                 what = "cannot read" if have["files"][f] is None else "has another version of"
-                raise ValueError(f"Dask worker {worker} {what} {f}: the workers need the experiment's "
+                raise UsageError(f"Dask worker {worker} {what} {f}: the workers need the experiment's "
                                  "files at the same paths")
         if out_dir is not None and not have["out_dir"]:
-            raise ValueError(f"Dask worker {worker} cannot write {out_dir}: a sitl campaign needs --out "
+            raise UsageError(f"Dask worker {worker} cannot write {out_dir}: a sitl campaign needs --out "
                              "on a filesystem the workers share")
 
 
@@ -80,7 +82,7 @@ def run_on_dask(address: str, exp, todo, execute, on_outcome, needs_out_dir: Pat
     try:
         client = distributed.Client(address, timeout=f"{CONNECT_TIMEOUT_S:g}s", set_as_default=False)
     except (OSError, TimeoutError) as exc:
-        raise ValueError(f"--dask {address}: cannot reach the Dask scheduler: {exc}") from None
+        raise UsageError(f"--dask {address}: cannot reach the Dask scheduler: {exc}") from None
     with client:
         _check_workers(client, exp, needs_out_dir)
         futures = client.map(execute, todo, pure=False)

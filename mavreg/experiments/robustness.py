@@ -36,6 +36,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..errors import UsageError
 from ..cli.common import DEFAULT_VEHICLE, PARAMS_DIR, REAL_CONTROLLER
 from .definitions import BARREL_ROLL, REGULATOR, Experiment, RunSpec, gust, run_seed
 
@@ -159,12 +160,12 @@ def select_cells(only: str | None, cells: tuple[Cell, ...] | None = None) -> tup
         return cells
     names = [n.strip() for n in only.split(",") if n.strip()]
     if not names:
-        raise ValueError("--cells names no cell; give cell or group names separated by commas")
+        raise UsageError("--cells names no cell; give cell or group names separated by commas")
     groups = list(dict.fromkeys(c.group for c in cells))
     known = {c.name for c in cells} | set(groups)
     bad = [n for n in names if n not in known]
     if bad:
-        raise ValueError(f"--cells: unknown cell or group {bad[0]!r}; groups: {', '.join(groups)} "
+        raise UsageError(f"--cells: unknown cell or group {bad[0]!r}; groups: {', '.join(groups)} "
                          "(or a cell name, e.g. wind3-from-090; see docs/experiments.md)")
     return tuple(c for c in cells if c.name in names or c.group in names)
 
@@ -180,7 +181,7 @@ def robustness(seed: int = 0, flights: int = DEFAULT_FLIGHTS, only: str | None =
     """The robustness experiment: ``flights`` flights of each cell ``only`` chooses
     (:func:`select_cells`), every seed drawn from ``seed`` now (see the module docstring)."""
     if isinstance(flights, bool) or not isinstance(flights, int) or flights < 1:
-        raise ValueError(f"--flights must be a whole number of at least 1, got {flights!r}")
+        raise UsageError(f"--flights must be a whole number of at least 1, got {flights!r}")
     cells = select_cells(only)
     noise = [run_seed(seed, k) for k in range(flights)]
     gusts = {c.gust_place: _gust_fields(c.gust_place) for c in cells if c.gust_place}
@@ -206,5 +207,5 @@ def check_emulator(exp: RobustnessExperiment) -> None:
         need = [a.split("=")[0] for a in cell.emulator_args] + (["--mismatch-seed"] if cell.mismatch else [])
         missing = [a for a in need if a not in known]
         if missing:
-            raise ValueError(f"cell {cell.name} needs firmware-sim {missing[0]}, which this firmware_sim does not "
+            raise UsageError(f"cell {cell.name} needs firmware-sim {missing[0]}, which this firmware_sim does not "
                              "have; leave the cell out with --cells")

@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import UsageError
 from ..config.controller import load_controller
 from ..config.regulation import told_rotor_limit
 from ..sim.estimate_noise import EstimateNoise
@@ -109,7 +110,7 @@ def robustness_via_sim(seed: int, flights: int, only: str | None) -> RobustnessE
     named = [f"{c} ({why})" for c, why in skipped if c in names]
     if named or len(skipped) == len(chosen):
         bad = named or [f"{c} ({why})" for c, why in skipped]
-        raise ValueError("cannot fly via sim: " + "; ".join(bad) + "; use --via sitl, or leave them out of --cells")
+        raise UsageError("cannot fly via sim: " + "; ".join(bad) + "; use --via sitl, or leave them out of --cells")
     flown = ",".join(c.name for c in chosen if sim_skip_reason(c) is None)
     exp = robustness(seed, flights, flown)
     return dataclasses.replace(exp, via="sim", skipped=skipped,

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import UsageError
 from .regressors import FlightSeries
 
 __all__ = ["read_flight", "read_tlog"]
@@ -41,18 +42,18 @@ def read_flight(path: str | Path) -> FlightSeries:
 
     Raises
     ------
-    ValueError
-        One line: no such file, no ``flight.tlog`` in the directory, not a readable tlog, or
+    UsageError
+        (a ValueError) One line: no such file, no ``flight.tlog`` in the directory, not a readable tlog, or
         a tlog without the messages the fit needs.
     """
     p = Path(path)
     if p.is_dir():
         tlog = p / "flight.tlog"
         if not tlog.is_file():
-            raise ValueError(f"{p}: no flight.tlog in this directory (expected a 'mavreg fly' output)")
+            raise UsageError(f"{p}: no flight.tlog in this directory (expected a 'mavreg fly' output)")
         return read_tlog(tlog)
     if not p.exists():
-        raise ValueError(f"{p}: no such file or directory")
+        raise UsageError(f"{p}: no such file or directory")
     return read_tlog(p)
 
 
@@ -61,11 +62,11 @@ def read_tlog(path: str | Path) -> FlightSeries:
     from pymavlink import mavutil
     path = Path(path)
     if not path.is_file():
-        raise ValueError(f"{path}: no such file")
+        raise UsageError(f"{path}: no such file")
     try:
         conn = mavutil.mavlink_connection(str(path), dialect="common")
     except Exception as exc:    # pymavlink raises many kinds on a file that is not a tlog
-        raise ValueError(f"{path}: cannot open as a tlog ({type(exc).__name__}: {exc})") from None
+        raise UsageError(f"{path}: cannot open as a tlog ({type(exc).__name__}: {exc})") from None
     try:
         return _parse(conn, path)
     finally:
@@ -89,7 +90,7 @@ def _parse(conn, path: Path) -> FlightSeries:
             msg = conn.recv_match(type=["LOCAL_POSITION_NED", "ATTITUDE_QUATERNION", "HEARTBEAT",
                                         "SET_ACTUATOR_CONTROL_TARGET", "TIMESYNC"])
         except Exception as exc:
-            raise ValueError(f"{path}: unreadable tlog ({type(exc).__name__}: {exc})") from None
+            raise UsageError(f"{path}: unreadable tlog ({type(exc).__name__}: {exc})") from None
         if msg is None:
             break
         mtype = msg.get_type()
@@ -130,10 +131,10 @@ def _parse(conn, path: Path) -> FlightSeries:
                     del parts[k]
                 unanswered = t
     if vehicle is None or not rows:
-        raise ValueError(f"{path}: no vehicle telemetry (LOCAL_POSITION_NED with ATTITUDE_QUATERNION) "
+        raise UsageError(f"{path}: no vehicle telemetry (LOCAL_POSITION_NED with ATTITUDE_QUATERNION) "
                          "in this tlog")
     if not cmd_u:
-        raise ValueError(f"{path}: no rotor commands (SET_ACTUATOR_CONTROL_TARGET) in this tlog")
+        raise UsageError(f"{path}: no rotor commands (SET_ACTUATOR_CONTROL_TARGET) in this tlog")
     a = np.array(rows, dtype=float)
     return FlightSeries(
         t_s=a[:, 0], position_ned_m=a[:, 1:4], velocity_ned_m_s=a[:, 4:7],

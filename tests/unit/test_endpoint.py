@@ -4,6 +4,7 @@ import json
 import os
 import socket
 import stat
+import time
 
 import pytest
 
@@ -165,3 +166,106 @@ def test_request_in_progress_when_the_server_closes_gets_the_reason(tmp_path):
     assert resp == {"ok": False, "error": "the daemon is stopping (phase aborted; stale state); "
                                           "the request was not completed"}
     assert not path.exists()
+
+
+# ---------------------------------------------------------------- hostile clients (issue 21)
+def _serve_hostile(tmp_path, client_fn, **server_kwargs):
+    """``client_fn(path)`` in a thread against a server answering status; returns (result, server)."""
+    async def handler(req):
+        return {"ok": True, "echo": req["op"]}
+    path = tmp_path / "s" / "mavreg.sock"
+
+    async def main():
+        server = EndpointServer(path, handler, lambda text: None, **server_kwargs)
+        await server.start()
+        try:
+            return await asyncio.get_running_loop().run_in_executor(None, client_fn, path), server
+        finally:
+            await server.close()
+    return asyncio.run(main())
+
+
+def _read_line(s: socket.socket) -> dict:
+    buf = b""
+    while not buf.endswith(b"\n"):
+        chunk = s.recv(65536)
+        if not chunk:
+            break
+        buf += chunk
+    return json.loads(buf)
+
+
+def test_an_over_long_line_without_newline_is_refused_at_the_limit(tmp_path):
+    """The client keeps its connection open and never sends a newline: the refusal comes as
+    the limit is passed, not at the read timeout (60 s here)."""
+    def client(path):
+        with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+            s.settimeout(30)
+            s.connect(str(path))
+            sent = 0
+            try:
+                while sent <= MAX_REQUEST_BYTES + 65536:
+                    s.sendall(b"a" * 65536)
+                    sent += 65536
+            except (BrokenPipeError, ConnectionResetError):
+                pass
+            return _read_line(s)
+    resp, server = _serve_hostile(tmp_path, client, read_timeout_s=60.0)
+    assert resp["verdict"] == "refused" and "too large" in resp["reason"] and server.refused == 1
+
+
+def test_a_slow_client_is_cut_off_at_the_read_timeout(tmp_path):
+    """A byte every 0.1 s (slow loris) never completes a request within the 1 s allowed."""
+    def client(path):
+        with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+            s.settimeout(30)
+            s.connect(str(path))
+            sent = 0
+            try:
+                for byte in b'{"op": "status"}' * 100:
+                    s.sendall(bytes([byte]))
+                    sent += 1
+                    time.sleep(0.1)
+            except (BrokenPipeError, ConnectionResetError):
+                pass
+            return sent, _read_line(s)
+    (sent, resp), server = _serve_hostile(tmp_path, client, read_timeout_s=1.0)
+    assert resp["verdict"] == "refused" and "no complete request within 1 s" in resp["reason"]
+    assert sent < 1600 and server.refused == 1
+
+
+def test_connections_beyond_the_cap_are_refused_and_the_cap_frees_up(tmp_path):
+    def client(path):
+        idle = []
+        for _ in range(2):                       # two clients that send nothing
+            s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+            s.settimeout(30)
+            s.connect(str(path))
+            idle.append(s)
+        time.sleep(0.2)                          # both accepted
+        third = request(path, {"op": "status"}, 10)
+        replies = [_read_line(s) for s in idle]  # each cut off at the read timeout
+        for s in idle:
+            s.close()
+        return third, replies, request(path, {"op": "status"}, 10)
+    (third, replies, later), server = _serve_hostile(tmp_path, client, read_timeout_s=1.0, max_connections=2)
+    assert third["verdict"] == "refused" and "too many connections (at most 2" in third["reason"]
+    assert all("no complete request" in r["reason"] for r in replies)
+    assert later == {"ok": True, "echo": "status"} and server.refused == 3
+
+
+def test_another_user_is_refused(tmp_path, monkeypatch):
+    """The peer's uid comes from the kernel (SO_PEERCRED); another user's (here: a faked one)
+    is refused before its request is read, whatever the socket's mode lets through."""
+    from mavreg.daemon import endpoint
+    real = endpoint.peer_uid
+    a, b = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
+    try:
+        assert real(a) in (None, os.geteuid())
+    finally:
+        a.close()
+        b.close()
+    monkeypatch.setattr(endpoint, "peer_uid", lambda sock: os.geteuid() + 1)
+    resp, server = _serve_hostile(tmp_path, lambda path: request(path, {"op": "land"}, 10))
+    assert resp["verdict"] == "refused" and f"uid {os.geteuid() + 1} is not the daemon's user" in resp["reason"]
+    assert server.refused == 1

@@ -1,6 +1,8 @@
 """The ground-station forwarder (sans-I/O): what reaches a ground station, what reaches the vehicle."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
@@ -240,7 +242,8 @@ def test_fly_and_serve_take_gcs_options():
     from mavreg.cli.common import gcs_config
     from mavreg.cli.main import build_parser
     parser, _ = build_parser()
-    for argv in (["serve"], ["fly", "m.yaml"]):
+    maneuver = str(Path(__file__).resolve().parents[2] / "params" / "maneuvers" / "barrel_roll.yaml")
+    for argv in (["serve"], ["fly", maneuver]):
         args = parser.parse_args(argv + ["--gcs", "udpout:127.0.0.1", "--gcs", "udpin:0.0.0.0:14551",
                                          "--gcs-allow-commands"])
         cfg = gcs_config(args)

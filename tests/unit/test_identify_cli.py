@@ -139,10 +139,18 @@ def test_identify_help_explains_the_model(capsys):
         assert words in text
 
 
+def _status(argv) -> int:
+    """main()'s status, also when the argument parser refused the command line (SystemExit)."""
+    try:
+        return main(argv)
+    except SystemExit as exc:
+        return exc.code
+
+
 @pytest.mark.parametrize("args, words", [
     (["/no/such/flight"], "no such file"),
     (["{empty}"], "no vehicle telemetry"),
-    (["{flight}", "--write-vehicle", "/no/such/dir/v.yaml"], "no such directory"),
+    (["{flight}", "--write-vehicle", "/no/such/dir/v.yaml"], "no such directory"),   # before the fit
     (["{ground}"], "of usable flight"),
     (["{flight}", "--vehicle-params", "/no/such/vehicle.yaml"], "vehicle.yaml"),
 ])
@@ -157,7 +165,7 @@ def test_identify_bad_input_exits_2_with_one_line(tmp_path, flight_tlog, capsys,
             tl.write(_pos(2 * k))
             tl.write(_cmd(2000 * k, 0.0))
     args = [a.format(empty=empty, flight=flight_tlog, ground=ground) for a in args]
-    assert main(["identify", *args]) == 2
+    assert _status(["identify", *args]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("mavreg identify: error: ") and words in err[0]
 
