@@ -5,7 +5,7 @@ example. Angles are degrees in YAML (``*_deg`` keys) and radians inside.
 
 Every number is bounded by what a quadrotor maneuver can mean (docs/maneuvers.md, "Limits"):
 positions and lengths by :data:`MAX_EXTENT_M` (the largest geofence the controller file
-accepts), speeds by :data:`MAX_SPEED_M_S`, a segment's turn by :data:`MAX_TURN_DEG`, and the
+accepts) and :data:`MIN_LENGTH_M`, speeds by :data:`MIN_SPEED_M_S` and :data:`MAX_SPEED_M_S`, a segment's turn by :data:`MAX_TURN_DEG`, and the
 lists by their ``max_items``. What planning would cost is bounded separately, before it
 allocates (:mod:`mavreg.maneuver.budget`).
 """
@@ -19,20 +19,25 @@ from .envelope import MAX_GEOFENCE_M
 from .loader import load_file, load_text
 
 __all__ = ["ManeuverSpec", "SegmentSpec", "load_maneuver", "load_maneuver_text", "MAX_EXTENT_M",
-           "MAX_SPEED_M_S", "MAX_TURN_DEG"]
+           "MAX_SPEED_M_S", "MAX_TURN_DEG", "MIN_LENGTH_M", "MIN_SPEED_M_S"]
 
 MAX_EXTENT_M = MAX_GEOFENCE_M
 """1 km: the largest start position, waypoint offset, segment length, radius or pitch. No
 part of a maneuver can lie farther from the take-off point than the widest geofence."""
 MAX_SPEED_M_S = 50.0
 """180 km/h: above any quadrotor's top speed."""
+MIN_LENGTH_M = 1e-3
+"""1 mm: the shortest segment, radius or speed change (shorter ones ask for unbounded
+curvature or acceleration; the path is integrated on 5 mm nodes)."""
+MIN_SPEED_M_S = 0.01
+"""1 cm/s: slower is hovering, and maneuver regulation needs ds/dt bounded away from 0."""
 MAX_TURN_DEG = 3600.0
 """Ten turns in one arc or helix segment; more turns are flown with ``laps``."""
 
 _NAME = {"max_length": 64}
-_POS = {"min_exclusive": 0.0, "max": MAX_EXTENT_M}
+_POS = {"min": MIN_LENGTH_M, "max": MAX_EXTENT_M}
 _OFFSET = {"min": 0.0, "max": MAX_EXTENT_M}
-_SPEED = {"min_exclusive": 0.0, "max": MAX_SPEED_M_S}
+_SPEED = {"min": MIN_SPEED_M_S, "max": MAX_SPEED_M_S}
 _COORD = {"min": -MAX_EXTENT_M, "max": MAX_EXTENT_M}
 _TURN = {"deg": True, "min_exclusive": 0.0, "max": MAX_TURN_DEG}
 

@@ -81,7 +81,8 @@ def _duration_s(speed: Profile, length_m: float) -> float:
         t += (a - s) / v
         if b > a:
             x = np.linspace((a - s0) / ln, (b - s0) / ln, 129)
-            inv_v = 1.0 / (v + (to - v) * smooth_step(x)[0])
+            with np.errstate(all="ignore"):
+                inv_v = 1.0 / (v + (to - v) * smooth_step(x)[0])
             t += (b - a) * float(np.mean((inv_v[:-1] + inv_v[1:]) / 2))
         s, v = b, to
     return t + (length_m - s) / v
@@ -104,7 +105,7 @@ def estimate(spec: ManeuverSpec, step_s: float) -> PlanEstimate:
 
 def _figures(est: PlanEstimate) -> str:
     return (f"{est.grid_nodes:.3g} grid and {est.path_nodes:.3g} path nodes, about "
-            f"{est.bytes / 2 ** 20:.0f} MiB and {est.seconds:.0f} s to plan, over the budget of "
+            f"{est.bytes / 2 ** 20:.4g} MiB and {est.seconds:.3g} s to plan, over the budget of "
             f"{MAX_PLAN_BYTES // 2 ** 20} MiB")
 
 

@@ -1,0 +1,144 @@
+"""Write the hostile corpus of this directory from the barrel roll (run from anywhere:
+``python tests/data/hostile/generate.py``). Each file is small; the big cases (a 100 MB file,
+/dev/zero, 100 000 waypoints, 100 000-deep nesting) are made at test time
+(tests/unit/test_hostile_files.py). Every file here must give ``mavreg plan FILE`` exit 2
+and one line on stderr."""
+from __future__ import annotations
+
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+BARREL = (HERE.parents[2] / "params" / "maneuvers" / "barrel_roll.yaml").read_text()
+HEAD = "kind: maneuver\nversion: 1\n"
+
+
+def _sub(old: str, new: str) -> str:
+    assert old in BARREL, old
+    return BARREL.replace(old, new, 1)
+
+
+def _laughs(levels: int) -> str:
+    """Anchors a..: each a list of ten aliases of the one before (10**levels leaves)."""
+    out = ["l0: &l0 [lol, lol, lol, lol, lol, lol, lol, lol, lol, lol]"]
+    for i in range(1, levels):
+        out.append(f"l{i}: &l{i} [" + ", ".join([f"*l{i - 1}"] * 10) + "]")
+    return "\n".join(out) + "\n"
+
+
+def corpus() -> dict[str, str | bytes]:
+    laughs = _laughs(10)
+    nested_anchors = "".join(f"{' ' * 2 * i}a{i}: &a{i}\n" for i in range(10))
+    files: dict[str, str | bytes] = {
+        # alias bombs: ten levels of ten (10**10 leaves), in a value, as a key, in the header
+        "alias_bomb_kind.yaml": HEAD.replace("kind: maneuver", "kind: &k0 [lol, lol]") + laughs
+        + "x: *l9\n",
+        "alias_bomb_value.yaml": laughs.replace("l", "q") + _sub("name: barrel_roll", "name: *q9"),
+        "alias_bomb_key.yaml": laughs + "? *l9\n: 1\n" + BARREL,
+        "alias_bomb_segments.yaml": laughs + _sub("segments:\n", "segments: *l9\nold_segments:\n"),
+        "alias_cycle.yaml": _sub("name: barrel_roll", "name: &c [*c]"),
+        "alias_undefined.yaml": _sub("name: barrel_roll", "name: *nowhere"),
+        "anchors_nested_mapping.yaml": HEAD + nested_anchors,
+        # nesting
+        "deep_list.yaml": HEAD + "name: " + "[" * 2000 + "]" * 2000 + "\n",
+        "deep_mapping.yaml": HEAD + "name: " + "{a: " * 500 + "1" + "}" * 500 + "\n",
+        "deep_block.yaml": HEAD + "".join(f"{' ' * i}k{i}:\n" for i in range(60)) + " " * 60 + "v\n",
+        # YAML features the loader does not take
+        "merge_key.yaml": _sub("limits:\n", "base: &b {min_speed_m_s: 0.2}\nlimits:\n  <<: *b\n"),
+        "merge_key_top.yaml": "<<: {name: x}\n" + BARREL,
+        "python_tag.yaml": _sub("initial_m_s: 0.5", "initial_m_s: !!python/object/apply:os.system [true]"),
+        "binary_tag.yaml": _sub("name: barrel_roll", "name: !!binary aGVsbG8="),
+        "set_tag.yaml": _sub("name: barrel_roll", "name: !!set {a, b}"),
+        "two_documents.yaml": BARREL + "---\n" + BARREL,
+        "empty.yaml": "",
+        "only_comment.yaml": "# nothing here\n",
+        "duplicate_key.yaml": _sub("name: barrel_roll", "name: barrel_roll\nname: again"),
+        "duplicate_kind.yaml": "kind: maneuver\n" + BARREL,
+        "complex_key.yaml": "? [a, b]\n: 1\n" + BARREL,
+        "tab_indent.yaml": _sub("  position_m:", "\tposition_m:"),
+        "not_yaml.yaml": "{{{{ ]]]] : : :\n",
+        "unknown_key.yaml": _sub("limits:", "limitz:"),
+        "newline_in_key.yaml": _sub("limits:", '"lim\\nits":'),
+        "long_key.yaml": BARREL + "k" * 5000 + ": 1\n",
+        "long_name.yaml": _sub("name: barrel_roll", "name: " + "x" * 5000),
+        "long_description.yaml": _sub("description: Paper", "description: " + "y" * 5000),
+        "top_is_list.yaml": "- 1\n- 2\n",
+        "top_is_scalar.yaml": "just a string\n",
+        "wrong_kind.yaml": BARREL.replace("kind: maneuver", "kind: vehicle"),
+        "wrong_version.yaml": BARREL.replace("version: 1", "version: 2"),
+        # bytes
+        "non_utf8_latin1.yaml": _sub("Paper barrel", "Pap\xe9r barrel").encode("latin-1"),
+        "non_utf8_invalid.yaml": BARREL.encode() + b"\xff\xfe\xfd\n",
+        "utf16.yaml": BARREL.encode("utf-16"),
+        "nul_byte.yaml": BARREL + "\x00\n",
+        "control_char.yaml": _sub("name: barrel_roll", "name: bar\x07rel"),
+        # wrong types
+        "type_name_list.yaml": _sub("name: barrel_roll", "name: [1, 2]"),
+        "type_start_string.yaml": BARREL.replace("start:\n  position_m: [0.0, 16.0, -3.0]", "start: here\nx:\n  position_m: [0.0, 16.0, -3.0]"),
+        "type_segments_mapping.yaml": _sub("segments:\n", "segments: {a: 1}\nold:\n"),
+        "type_position_string.yaml": _sub("position_m: [0.0, 16.0, -3.0]", "position_m: abc"),
+        "type_position_two.yaml": _sub("position_m: [0.0, 16.0, -3.0]", "position_m: [0.0, 16.0]"),
+        "type_heading_bool.yaml": _sub("heading_deg: 270", "heading_deg: true"),
+        "type_heading_quoted.yaml": _sub("heading_deg: 270", 'heading_deg: "270"'),
+        "type_laps_float.yaml": _sub("count: 1", "count: 1.5"),
+        "type_changes_int.yaml": _sub("  changes:\n    - {segment: run_up", "  changes: 3\n  old:\n    - {segment: run_up"),
+        "type_line_list.yaml": _sub("line: {length_m: 18.0}", "line: [18.0]"),
+        "type_length_null.yaml": _sub("line: {length_m: 18.0}", "line: {length_m: null}"),
+        "type_length_date.yaml": _sub("line: {length_m: 18.0}", "line: {length_m: 2024-01-01}"),
+        "type_two_shapes.yaml": _sub("line: {length_m: 18.0}", "line: {length_m: 18.0}\n    arc: {radius_m: 1, angle_deg: 90}"),
+        "type_union_unknown.yaml": _sub("line: {length_m: 18.0}", "spiral: {length_m: 18.0}"),
+        # NaN and infinities
+        "nan_speed.yaml": _sub("initial_m_s: 0.5", "initial_m_s: .nan"),
+        "inf_length.yaml": _sub("length_m: 18.0", "length_m: .inf"),
+        "neg_inf_position.yaml": _sub("position_m: [0.0, 16.0, -3.0]", "position_m: [-.inf, 16.0, -3.0]"),
+        "nan_yaw.yaml": _sub("initial_deg: 0", "initial_deg: .NaN"),
+        "inf_radius.yaml": _sub("radius_m: 1.5", "radius_m: .Inf"),
+        "overflow_float.yaml": _sub("length_m: 18.0", "length_m: 1e400"),
+        # huge numbers
+        "huge_position.yaml": _sub("position_m: [0.0, 16.0, -3.0]", "position_m: [1e300, 0, -3]"),
+        "huge_length_1e4.yaml": _sub("length_m: 18.0", "length_m: 1e4"),
+        "huge_length_1e9.yaml": _sub("length_m: 18.0", "length_m: 1e9"),
+        "huge_radius.yaml": _sub("radius_m: 1.5", "radius_m: 1e6"),
+        "huge_angle.yaml": _sub("angle_deg: 400", "angle_deg: 1e9"),
+        "huge_speed.yaml": _sub("to_m_s: 8.0", "to_m_s: 1e6"),
+        "huge_laps.yaml": _sub("count: 1", "count: 1000000"),
+        "huge_int_digits.yaml": _sub("count: 1", "count: " + "9" * 5000),
+        "huge_int_as_float.yaml": _sub("initial_m_s: 0.5", "initial_m_s: " + "9" * 400),
+        "huge_blend.yaml": _sub("blend_m: 3.0", "blend_m: 1e12"),
+        "huge_offset.yaml": _sub("offset_m: 0.0, length_m: 10.0", "offset_m: 500, length_m: 10.0"),
+        "offset_end_beyond.yaml": _sub("anchor: end, offset_m: 1.5", "anchor: end, offset_m: 50"),
+        "long_line_over_budget.yaml": _sub("length_m: 18.0", "length_m: 1000"),
+        "many_laps_over_budget.yaml": _sub("count: 1", "count: 100"),
+        "crawl_over_budget.yaml": _sub("to_m_s: 8.0", "to_m_s: 0.02"),
+        # tiny numbers
+        "tiny_speed.yaml": _sub("initial_m_s: 0.5", "initial_m_s: 1e-300"),
+        "zero_radius.yaml": _sub("radius_m: 1.5", "radius_m: 0"),
+        "negative_length.yaml": _sub("length_m: 18.0", "length_m: -18"),
+        "tiny_change_length.yaml": _sub("length_m: 10.0, to_m_s: 8.0", "length_m: 1e-300, to_m_s: 8.0"),
+        "denormal_speed.yaml": _sub("to_m_s: 8.0", "to_m_s: 5e-324"),
+        # enormous arrays (within the size limit)
+        "waypoints_1001.yaml": _sub("line: {length_m: 18.0}", "waypoints: {points_m: ["
+                                    + ", ".join(f"[{i * 0.1:.1f}, 0, 0]" for i in range(1, 1002)) + "]}"),
+        "waypoints_far.yaml": _sub("line: {length_m: 18.0}", "waypoints: {points_m: ["
+                                   + ", ".join(f"[{(-1) ** i * 900}, {i}, 0]" for i in range(1, 40)) + "]}"),
+        "segments_101.yaml": _sub("segments:\n", "segments:\n" + "".join(
+            f"  - {{name: s{i}, line: {{length_m: 0.1}}}}\n" for i in range(101))),
+        "changes_flood.yaml": _sub("  changes:\n", "  changes:\n" + "".join(
+            f"    - {{segment: run_up, offset_m: {i * 0.01:.2f}, length_m: 0.01, to_m_s: 1}}\n"
+            for i in range(150))),
+        "list_of_20k_numbers.yaml": _sub("position_m: [0.0, 16.0, -3.0]",
+                                         "position_m: [" + ",".join("1" for _ in range(20001)) + "]"),
+    }
+    return files
+
+
+def main() -> None:
+    for old in HERE.glob("*.yaml"):
+        old.unlink()
+    for name, content in corpus().items():
+        data = content if isinstance(content, bytes) else content.encode()
+        assert len(data) < 64 * 1024, name
+        (HERE / name).write_bytes(data)
+
+
+if __name__ == "__main__":
+    main()
