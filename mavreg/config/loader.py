@@ -34,6 +34,7 @@ import math
 import os
 import re
 import stat
+import threading
 import types
 import typing
 from pathlib import Path
@@ -122,19 +123,27 @@ class _BadScalar(Exception):
 
 def _scalar(node: yaml.Node) -> Any:
     """Resolve a scalar node with PyYAML's safe constructor (which then forgets it)."""
+    constructor = _constructor()
     try:
-        return _CONSTRUCTOR.construct_object(node, deep=True)
+        return constructor.construct_object(node, deep=True)
     except (yaml.YAMLError, ValueError, OverflowError, TypeError) as exc:
         why = str(getattr(exc, "problem", None) or exc)
         if "digits" in why:          # Python's bound on int(str): say it without the advice
             why = "a number with too many digits"
         raise _BadScalar(_line(node), why) from None
     finally:
-        _CONSTRUCTOR.constructed_objects.clear()
-        _CONSTRUCTOR.recursive_objects.clear()
+        constructor.constructed_objects.clear()
+        constructor.recursive_objects.clear()
 
 
-_CONSTRUCTOR = yaml.SafeLoader("")
+_LOCAL = threading.local()
+
+
+def _constructor() -> yaml.SafeLoader:
+    """This thread's scalar constructor (its memo is cleared after each use)."""
+    if not hasattr(_LOCAL, "constructor"):
+        _LOCAL.constructor = yaml.SafeLoader("")
+    return _LOCAL.constructor
 
 
 def _describe(node: yaml.Node) -> str:
