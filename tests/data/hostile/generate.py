@@ -1,11 +1,20 @@
-"""Write the hostile corpus of this directory from the barrel roll (run from anywhere:
-``python tests/data/hostile/generate.py``). Each file is small; the big cases (a 100 MB file,
-/dev/zero, 100 000 waypoints, 100 000-deep nesting) are made at test time
-(tests/unit/test_hostile_files.py). Every file here must give ``mavreg plan FILE`` exit 2
-and one line on stderr."""
+"""The hostile corpus: ``python tests/data/hostile/generate.py`` writes this directory's files
+from the barrel roll. Each is small; the big cases (a 100 MB file, /dev/zero, 100 000
+waypoints, 100 000-deep nesting, --laps 100, riccati_step_s 1e-9) and the barrel roll with
+each required key missing are made at test time by :func:`big_cases` and
+:func:`missing_key_cases` (tests/unit/test_hostile_files.py, benchmarks/hostile_files.py).
+Every case must give ``mavreg plan`` exit 2 and one line on stderr."""
 from __future__ import annotations
 
+import dataclasses
+import os
+import subprocess
+import sys
+import time
+import typing
 from pathlib import Path
+
+import yaml
 
 HERE = Path(__file__).resolve().parent
 BARREL = (HERE.parents[2] / "params" / "maneuvers" / "barrel_roll.yaml").read_text()
@@ -129,6 +138,109 @@ def corpus() -> dict[str, str | bytes]:
                                          "position_m: [" + ",".join("1" for _ in range(20001)) + "]"),
     }
     return files
+
+
+def _required_paths(obj, schema, path=()) -> list[tuple]:
+    """Key paths in ``obj`` (the YAML as loaded) whose removal the schema refuses: fields
+    without a default, and a segment's shape (it needs exactly one)."""
+    hints = typing.get_type_hints(schema)
+    out = []
+    for f in dataclasses.fields(schema):
+        key = f.name[:-4] + "_deg" if f.metadata.get("deg") else f.name
+        if key not in obj:
+            continue
+        shape = schema.__name__ == "SegmentSpec" and key in ("line", "arc", "helix", "waypoints")
+        if (f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING) or shape:
+            out.append(path + (key,))
+        tp = hints[f.name]
+        args = [a for a in typing.get_args(tp) if a is not type(None) and a is not Ellipsis]
+        inner = tp if dataclasses.is_dataclass(tp) else (args[0] if args else None)
+        if not dataclasses.is_dataclass(inner):
+            continue
+        if isinstance(obj[key], list):
+            for i, item in enumerate(obj[key]):
+                out += _required_paths(item, inner, path + (key, i))
+        elif isinstance(obj[key], dict):
+            out += _required_paths(obj[key], inner, path + (key,))
+    return out
+
+
+def required_key_paths() -> list[tuple]:
+    """Every key of the barrel roll the loader requires, as a path (``("segments", 1, "arc",
+    "radius_m")``), the header's ``kind`` and ``version`` first."""
+    from mavreg.config.maneuver import ManeuverSpec
+    data = yaml.safe_load(BARREL)
+    body = {k: v for k, v in data.items() if k not in ("kind", "version")}
+    return [("kind",), ("version",)] + _required_paths(body, ManeuverSpec)
+
+
+def missing_key_cases() -> dict[str, str]:
+    """The barrel roll without each required key in turn: name -> YAML text."""
+    out = {}
+    for key_path in required_key_paths():
+        data = yaml.safe_load(BARREL)
+        parent = data
+        for k in key_path[:-1]:
+            parent = parent[k]
+        del parent[key_path[-1]]
+        out["missing " + ".".join(map(str, key_path))] = yaml.safe_dump(data, sort_keys=False)
+    return out
+
+
+def _waypoints(n: int, compact: bool) -> str:
+    """The barrel roll with its run-up replaced by ``n`` distinct waypoints."""
+    if compact:
+        pts = ",".join(f"[{i % 1000},{i // 1000},0]" for i in range(1, n + 1))
+    else:
+        pts = ",\n        ".join(f"[{(i % 100) * 0.5 + 0.5}, {i // 100 * 0.5}, 0]" for i in range(n))
+    return _sub("line: {length_m: 18.0}", f"waypoints: {{points_m: [{pts}]}}")
+
+
+def big_cases(tmp: Path) -> dict[str, list[str]]:
+    """The big cases, written into ``tmp``: name -> arguments of ``mavreg plan``."""
+    params = HERE.parents[2] / "params"
+    barrel = str(params / "maneuvers" / "barrel_roll.yaml")
+    big = tmp / "100MB.yaml"
+    with open(big, "wb") as f:
+        f.write(BARREL.encode())
+        f.truncate(100 * 2 ** 20)                 # sparse: 100 MB without writing them
+    files = {
+        "deep100k.yaml": "kind: maneuver\nversion: 1\nname: " + "[" * 100_000 + "]" * 100_000 + "\n",
+        "waypoints100k.yaml": _waypoints(100_000, compact=False),
+        "waypoints60k_compact.yaml": _waypoints(60_000, compact=True),
+        "step1e-9.yaml": (params / "controller" / "design.yaml").read_text().replace(
+            "riccati_step_s: 0.002", "riccati_step_s: 1e-9"),
+        "step1e-4.yaml": (params / "controller" / "design.yaml").read_text().replace(
+            "riccati_step_s: 0.002", "riccati_step_s: 1e-4"),
+    }
+    for name, text in files.items():
+        (tmp / name).write_text(text)
+    return {
+        "startup (a missing file)": [str(tmp / "no_such_file.yaml")],
+        "alias bomb (kind:)": [str(HERE / "alias_bomb_kind.yaml")],
+        "/dev/zero": ["/dev/zero"],
+        "100 MB file": [str(big)],
+        "100 000-deep nesting": [str(tmp / "deep100k.yaml")],
+        "100 000 waypoints (2 MB)": [str(tmp / "waypoints100k.yaml")],
+        "60 000 waypoints (compact, under 1 MiB)": [str(tmp / "waypoints60k_compact.yaml")],
+        "--laps 100": [barrel, "--laps", "100"],
+        "riccati_step_s 1e-9": [barrel, "--controller", str(tmp / "step1e-9.yaml")],
+        "riccati_step_s 1e-4 (budget)": [barrel, "--controller", str(tmp / "step1e-4.yaml")],
+    }
+
+
+def run_measured(args: list[str], tmp: Path) -> tuple[int, str, float, float]:
+    """``mavreg plan ARGS`` in a subprocess without the plan cache: (status, stderr, seconds,
+    peak RSS in MB of that process, from ``os.wait4``)."""
+    err_file = tmp / "stderr.txt"
+    with open(err_file, "wb") as err, open(os.devnull, "wb") as out:
+        t0 = time.perf_counter()
+        proc = subprocess.Popen([sys.executable, "-m", "mavreg.cli.main", "plan", *args],
+                                stdout=out, stderr=err, env={**os.environ, "MAVREG_PLAN_CACHE": "off"})
+        _, status, usage = os.wait4(proc.pid, 0)
+        seconds = time.perf_counter() - t0
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    return proc.returncode, err_file.read_text(errors="replace"), seconds, usage.ru_maxrss / 1024
 
 
 def main() -> None:
