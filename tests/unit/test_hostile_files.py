@@ -4,8 +4,9 @@ quickly and in bounded memory (issue 21; docs/reliability.md, "Hostile files").
 The corpus is tests/data/hostile/ (written by its generate.py); the big cases are made here
 in tmp_path: a 100 MB file, /dev/zero, 100 000 waypoints, 100 000-deep nesting. Most files
 run through the CLI's ``main`` in this process (fast); the worst few run as subprocesses,
-whose peak memory (``os.wait4``'s rusage of that child) must stay under 300 MB. Their times
-are printed, not asserted (the machine is shared).
+whose peak memory (``RUSAGE_CHILDREN`` of a small wrapper process, so that this process's
+own size does not count: generate.run_measured) must stay under 300 MB. Their times are
+printed, not asserted (the machine is shared).
 """
 from __future__ import annotations
 

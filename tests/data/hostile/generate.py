@@ -229,18 +229,27 @@ def big_cases(tmp: Path) -> dict[str, list[str]]:
     }
 
 
+_WRAPPER = ("import resource, subprocess, sys; rc = subprocess.call(sys.argv[2:]); "
+            "open(sys.argv[1], 'w').write(str(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)); "
+            "sys.exit(rc if rc >= 0 else 128 - rc)")
+"""Runs a command and writes its peak RSS (kB). A process's ``ru_maxrss`` starts from the
+high-water mark of whatever it was forked from (Linux keeps it across exec, and a vfork
+borrows the parent's memory), so a child of a large test process would report the test's
+size; the grandchild of this small wrapper reports its own."""
+
+
 def run_measured(args: list[str], tmp: Path) -> tuple[int, str, float, float]:
     """``mavreg plan ARGS`` in a subprocess without the plan cache: (status, stderr, seconds,
-    peak RSS in MB of that process, from ``os.wait4``)."""
-    err_file = tmp / "stderr.txt"
-    with open(err_file, "wb") as err, open(os.devnull, "wb") as out:
+    peak RSS in MB of that process)."""
+    err_file, rss_file = tmp / "stderr.txt", tmp / "maxrss.txt"
+    cmd = [sys.executable, "-c", _WRAPPER, str(rss_file),
+           sys.executable, "-m", "mavreg.cli.main", "plan", *args]
+    with open(err_file, "wb") as err:
         t0 = time.perf_counter()
-        proc = subprocess.Popen([sys.executable, "-m", "mavreg.cli.main", "plan", *args],
-                                stdout=out, stderr=err, env={**os.environ, "MAVREG_PLAN_CACHE": "off"})
-        _, status, usage = os.wait4(proc.pid, 0)
+        rc = subprocess.call(cmd, stdout=subprocess.DEVNULL, stderr=err,
+                             env={**os.environ, "MAVREG_PLAN_CACHE": "off"})
         seconds = time.perf_counter() - t0
-    proc.returncode = os.waitstatus_to_exitcode(status)
-    return proc.returncode, err_file.read_text(errors="replace"), seconds, usage.ru_maxrss / 1024
+    return rc, err_file.read_text(errors="replace"), seconds, int(rss_file.read_text()) / 1024
 
 
 def main() -> None:
