@@ -35,9 +35,9 @@ MAX_TURN_DEG = 3600.0
 """Ten turns in one arc or helix segment; more turns are flown with ``laps``."""
 
 _NAME = {"max_length": 64}
-_POS = {"min": MIN_LENGTH_M, "max": MAX_EXTENT_M}
+_POS = {"min_exclusive": 0.0, "min": MIN_LENGTH_M, "max": MAX_EXTENT_M}
 _OFFSET = {"min": 0.0, "max": MAX_EXTENT_M}
-_SPEED = {"min": MIN_SPEED_M_S, "max": MAX_SPEED_M_S}
+_SPEED = {"min_exclusive": 0.0, "min": MIN_SPEED_M_S, "max": MAX_SPEED_M_S}
 _COORD = {"min": -MAX_EXTENT_M, "max": MAX_EXTENT_M}
 _TURN = {"deg": True, "min_exclusive": 0.0, "max": MAX_TURN_DEG}
 

@@ -134,8 +134,8 @@ def corpus() -> dict[str, str | bytes]:
         "changes_flood.yaml": _sub("  changes:\n", "  changes:\n" + "".join(
             f"    - {{segment: run_up, offset_m: {i * 0.01:.2f}, length_m: 0.01, to_m_s: 1}}\n"
             for i in range(150))),
-        "list_of_20k_numbers.yaml": _sub("position_m: [0.0, 16.0, -3.0]",
-                                         "position_m: [" + ",".join("1" for _ in range(20001)) + "]"),
+        "list_of_10k_numbers.yaml": _sub("position_m: [0.0, 16.0, -3.0]",
+                                         "position_m: [" + ",".join("1" for _ in range(10001)) + "]"),
     }
     return files
 
