@@ -361,11 +361,15 @@ def load_file(path: str | Path, schema: type, kind: str | None = None) -> Any:
     """Read and load a YAML parameter file. Errors name ``path`` as given.
 
     At most :data:`MAX_FILE_BYTES` + 1 bytes are read, so a huge file or a device
-    (``/dev/zero``) is refused at once; the bytes must be UTF-8.
+    (``/dev/zero``) is refused at once, and a named pipe nobody writes to is an empty file;
+    the bytes must be UTF-8.
     """
     source = str(path)
     try:
-        with open(path, "rb") as f:
+        # Non-blocking open: a FIFO without a writer reads as empty instead of hanging here.
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+        os.set_blocking(fd, True)
+        with os.fdopen(fd, "rb") as f:
             if _regular_size(f) > MAX_FILE_BYTES:
                 data = b"x" * (MAX_FILE_BYTES + 1)
             else:

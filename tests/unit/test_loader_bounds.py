@@ -78,6 +78,14 @@ def test_a_file_is_read_only_up_to_the_limit(tmp_path, monkeypatch):
         load_maneuver_text("x" * 65)
 
 
+def test_a_named_pipe_without_a_writer_does_not_hang(tmp_path):
+    import os
+    fifo = tmp_path / "fifo.yaml"
+    os.mkfifo(fifo)
+    with pytest.raises(ConfigError, match="fifo.yaml: empty file"):
+        load_file(fifo, ManeuverSpec, kind="maneuver")
+
+
 def test_the_scalar_constructor_forgets_what_it_built():
     """PyYAML's constructor memoizes every node it builds; the loader's shared one must not
     keep the nodes of every file a long-running daemon loads."""
