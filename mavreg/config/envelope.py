@@ -16,9 +16,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-__all__ = ["PhaseBounds", "GateParams", "RecoveryParams", "EnvelopeParams"]
+__all__ = ["PhaseBounds", "GateParams", "RecoveryParams", "EnvelopeParams", "MAX_GEOFENCE_M"]
+
+MAX_GEOFENCE_M = 1000.0
+"""The widest geofence (half width and ceiling) a controller file may set: beyond a
+kilometre the local NED frame of a maneuver and an offboard link's range both stop
+making sense. Maneuver files are bounded by it too (:mod:`mavreg.config.maneuver`)."""
 
 _POS = {"min_exclusive": 0.0}
+_FENCE = {"min_exclusive": 0.0, "max": MAX_GEOFENCE_M}
 _SHARE = {"min": 0.0, "max": 1.0}
 _DEG = {"deg": True, "min_exclusive": 0.0, "max": 180.0}
 
@@ -148,9 +154,9 @@ class EnvelopeParams:
     min_altitude_m: float = field(default=1.0, metadata=_POS)
     """Altitude floor in hold, run-in and maneuver: 1 m leaves room to brake from a
     2 m/s descent at 2 m/s^2. A plan that goes lower is refused at the gate."""
-    geofence_half_width_m: tuple[float, ...] = field(default=(50.0, 50.0), metadata={"length": 2, **_POS})
+    geofence_half_width_m: tuple[float, ...] = field(default=(50.0, 50.0), metadata={"length": 2, **_FENCE})
     """North and east half-widths of the box around the take-off point."""
-    geofence_ceiling_m: float = field(default=30.0, metadata=_POS)
+    geofence_ceiling_m: float = field(default=30.0, metadata=_FENCE)
     max_body_rate_rad_s: float = field(default=20.0, metadata=_POS)
     """Absolute, every phase but the recovery (``recovery.max_body_rate_rad_s``): 1150 deg/s
     is a tumble (the barrel roll peaks at about 6 rad/s)."""

@@ -10,20 +10,31 @@ and the field's ``metadata`` may add a range and a unit conversion:
 - ``Optional[T]`` (``T | None``): the key may be left out or be ``null``;
 - a field with a default may be left out; one without is required;
 - ``metadata["min"]``, ``["max"]``, ``["min_exclusive"]`` bound numbers (each element of a vector);
-- ``metadata["choices"]`` restricts strings;
+- ``metadata["choices"]`` restricts strings, ``metadata["max_length"]`` bounds their length
+  (default :data:`MAX_STRING_CHARS`), and ``metadata["max_items"]`` the length of a list;
 - ``metadata["deg"] = True`` on a field named ``X_rad`` reads the YAML key ``X_deg``
   and converts degrees to radians (the SI-inside, degrees-in-YAML rule of the conventions);
 - ``metadata["union"] = {"line": LineSpec, ...}`` on a field annotated ``object``: the
   value is a mapping with exactly one of those keys, whose value is loaded as that schema.
 
 Every error is a :class:`ConfigError` whose message names the file, the line, the key
-path and what was expected, in one line.
+path and what was expected, in one line, quoting at most :data:`EXCERPT_CHARS` characters of
+the file.
+
+Hostile files are refused with bounded work (docs/reliability.md, "Hostile files"): a file
+larger than :data:`MAX_FILE_BYTES` is not read past its limit; a file that is not UTF-8 is
+refused with the line of its first bad byte; the YAML is composed by
+:mod:`mavreg.config.bounded_yaml`, which refuses alias expansion, nesting, merge keys and
+duplicate keys beyond its bounds before anything walks the document.
 """
 from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import re
+import stat
+import threading
 import types
 import typing
 from pathlib import Path
@@ -31,7 +42,38 @@ from typing import Any
 
 import yaml
 
-__all__ = ["ConfigError", "load_file", "load_text"]
+from .bounded_yaml import Refusal, compose_bounded
+
+__all__ = ["ConfigError", "load_file", "load_text", "MAX_FILE_BYTES", "MAX_STRING_CHARS",
+           "EXCERPT_CHARS"]
+
+MAX_FILE_BYTES = 1 << 20
+"""1 MiB: the largest parameter file read. The bundled ones are under 4 kB; a maneuver of
+1000 waypoints is about 40 kB."""
+
+MAX_STRING_CHARS = 1000
+"""Longest string value, unless the schema says otherwise (``metadata["max_length"]``)."""
+
+EXCERPT_CHARS = 60
+"""Longest quotation of the file's content in an error message."""
+
+_MESSAGE_CHARS = 400
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029]")
+
+
+def _one_line(text: str, limit: int) -> str:
+    """``text`` with control characters escaped, cut to ``limit`` characters."""
+    text = _CONTROL.sub(lambda m: repr(m.group())[1:-1], text)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _excerpt(value: Any) -> str:
+    """``repr(value)`` cut to :data:`EXCERPT_CHARS` (a quotation of a hostile file is short)."""
+    if isinstance(value, str) and len(value) > EXCERPT_CHARS:
+        value = value[:EXCERPT_CHARS]
+        return repr(value)[:-1] + "...'"
+    text = repr(value)
+    return text if len(text) <= EXCERPT_CHARS else text[: EXCERPT_CHARS - 3] + "..."
 
 
 class ConfigError(ValueError):
@@ -41,6 +83,8 @@ class ConfigError(ValueError):
     """
 
     def __init__(self, source: str, line: int | None, key: str, message: str):
+        source, key = _one_line(str(source), 200), _one_line(str(key), 120)
+        message = _one_line(str(message), _MESSAGE_CHARS)
         self.source = source
         self.line = line
         self.key = key
@@ -69,12 +113,37 @@ class _Ctx:
         raise ConfigError(self.source, _line(node), key, message)
 
 
+class _BadScalar(Exception):
+    """A scalar PyYAML's safe constructor cannot build (an unknown tag, a 5000-digit int)."""
+
+    def __init__(self, line: int | None, message: str):
+        super().__init__(message)
+        self.line = line
+
+
 def _scalar(node: yaml.Node) -> Any:
-    """Resolve a scalar node with PyYAML's safe constructor."""
-    return _CONSTRUCTOR.construct_object(node, deep=True)
+    """Resolve a scalar node with PyYAML's safe constructor (which then forgets it)."""
+    constructor = _constructor()
+    try:
+        return constructor.construct_object(node, deep=True)
+    except (yaml.YAMLError, ValueError, OverflowError, TypeError) as exc:
+        why = str(getattr(exc, "problem", None) or exc)
+        if "digits" in why:          # Python's bound on int(str): say it without the advice
+            why = "a number with too many digits"
+        raise _BadScalar(_line(node), why) from None
+    finally:
+        constructor.constructed_objects.clear()
+        constructor.recursive_objects.clear()
 
 
-_CONSTRUCTOR = yaml.SafeLoader("")
+_LOCAL = threading.local()
+
+
+def _constructor() -> yaml.SafeLoader:
+    """This thread's scalar constructor (its memo is cleared after each use)."""
+    if not hasattr(_LOCAL, "constructor"):
+        _LOCAL.constructor = yaml.SafeLoader("")
+    return _LOCAL.constructor
 
 
 def _describe(node: yaml.Node) -> str:
@@ -83,18 +152,18 @@ def _describe(node: yaml.Node) -> str:
     if isinstance(node, yaml.SequenceNode):
         return "a list"
     value = _scalar(node)
-    return "null" if value is None else f"{type(value).__name__} {value!r}"
+    return "null" if value is None else f"{type(value).__name__} {_excerpt(value)}"
 
 
 def _check_range(ctx: _Ctx, node, key: str, value: float, meta: dict) -> None:
     lo, hi = meta.get("min"), meta.get("max")
     lo_x = meta.get("min_exclusive")
     if lo_x is not None and not value > lo_x:
-        ctx.fail(node, key, f"expected a value > {lo_x}, got {value!r}")
+        ctx.fail(node, key, f"expected a value > {lo_x}, got {_excerpt(value)}")
     if lo is not None and value < lo:
-        ctx.fail(node, key, f"expected a value >= {lo}, got {value!r}")
+        ctx.fail(node, key, f"expected a value >= {lo}, got {_excerpt(value)}")
     if hi is not None and value > hi:
-        ctx.fail(node, key, f"expected a value <= {hi}, got {value!r}")
+        ctx.fail(node, key, f"expected a value <= {hi}, got {_excerpt(value)}")
 
 
 _EXPONENT = re.compile(r"[-+]?[0-9]+(\.[0-9]*)?[eE][-+]?[0-9]+")
@@ -109,9 +178,13 @@ def _load_number(ctx: _Ctx, node, key: str, tp: type, meta: dict) -> float | int
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         ctx.fail(node, key, f"expected {'an integer' if tp is int else 'a number'}, got {_describe(node)}")
     if tp is int and not isinstance(value, int):
-        ctx.fail(node, key, f"expected an integer, got {value!r}")
-    if not math.isfinite(value):
-        ctx.fail(node, key, f"expected a finite number, got {value!r}")
+        ctx.fail(node, key, f"expected an integer, got {_excerpt(value)}")
+    try:
+        finite = math.isfinite(value)
+    except OverflowError:        # an integer beyond any float
+        finite = False
+    if not finite:
+        ctx.fail(node, key, f"expected a finite number, got {_excerpt(value)}")
     _check_range(ctx, node, key, value, meta)
     if meta.get("deg"):
         return math.radians(value)
@@ -148,7 +221,10 @@ def _load_value(ctx: _Ctx, node: yaml.Node, key: str, tp: Any, meta: dict) -> An
             ctx.fail(node, key, f"expected a string, got {_describe(node)}")
         choices = meta.get("choices")
         if choices is not None and value not in choices:
-            ctx.fail(node, key, f"expected one of {', '.join(map(str, choices))}, got {value!r}")
+            ctx.fail(node, key, f"expected one of {', '.join(map(str, choices))}, got {_excerpt(value)}")
+        longest = meta.get("max_length", MAX_STRING_CHARS)
+        if len(value) > longest:
+            ctx.fail(node, key, f"expected at most {longest} characters, got {len(value)}")
         return value
     if typing.get_origin(tp) is tuple:
         return _load_tuple(ctx, node, key, tp, meta)
@@ -165,7 +241,11 @@ def _load_tuple(ctx: _Ctx, node, key: str, tp: Any, meta: dict) -> tuple:
     lo = meta.get("min_items", 0)
     if len(node.value) < lo:
         ctx.fail(node, key, f"expected at least {lo} items, got {len(node.value)}")
-    elem_meta = {k: v for k, v in meta.items() if k not in ("length", "min_items", "item_length")}
+    hi = meta.get("max_items")
+    if hi is not None and len(node.value) > hi:
+        ctx.fail(node, key, f"expected at most {hi} items, got {len(node.value)}")
+    elem_meta = {k: v for k, v in meta.items()
+                 if k not in ("length", "min_items", "max_items", "item_length")}
     if "item_length" in meta:
         elem_meta["length"] = meta["item_length"]
     return tuple(
@@ -178,8 +258,9 @@ def _load_union(ctx: _Ctx, node, key: str, kinds: dict[str, type]) -> Any:
         ctx.fail(node, key, f"expected a mapping with exactly one of: {', '.join(kinds)}")
     knode, vnode = node.value[0]
     name = _scalar(knode)
-    if name not in kinds:
-        ctx.fail(knode, f"{key}.{name}", f"unknown kind; expected one of: {', '.join(kinds)}")
+    if not isinstance(name, str) or name not in kinds:
+        ctx.fail(knode, f"{key}.{_one_line(str(name), 40)}",
+                 f"unknown kind; expected one of: {', '.join(kinds)}")
     return _load_schema(ctx, vnode, kinds[name], f"{key}.{name}")
 
 
@@ -191,7 +272,8 @@ def _load_schema(ctx: _Ctx, node: yaml.Node, schema: type, prefix: str = "") -> 
     seen: dict[str, tuple[yaml.Node, yaml.Node]] = {}
     for knode, vnode in node.value:
         name = _scalar(knode)
-        path = f"{prefix}.{name}" if prefix else str(name)
+        shown = _one_line(str(name), 40)
+        path = f"{prefix}.{shown}" if prefix else shown
         if not isinstance(name, str) or name not in fields:
             ctx.fail(knode, path, f"unknown key; expected one of: {', '.join(fields)}")
         if name in seen:
@@ -217,22 +299,38 @@ def load_text(text: str, schema: type, source: str = "<string>", kind: str | Non
     """Parse YAML ``text`` and load it as ``schema``.
 
     If ``kind`` is given, the document must carry ``kind: <kind>`` and ``version: 1``;
-    both keys are checked and removed before the schema sees the mapping.
+    both keys are checked and removed before the schema sees the mapping. Text longer than
+    :data:`MAX_FILE_BYTES` (UTF-8) is refused before it is parsed.
     """
+    if len(text) > MAX_FILE_BYTES or (4 * len(text) > MAX_FILE_BYTES
+                                      and len(text.encode("utf-8", "replace")) > MAX_FILE_BYTES):
+        raise ConfigError(source, None, "", f"larger than {MAX_FILE_BYTES} bytes (the limit of "
+                                            "a parameter file)")
     try:
-        node = yaml.compose(text, Loader=yaml.SafeLoader)
+        node = compose_bounded(text)
+        if node is None:
+            raise ConfigError(source, None, "", "empty file")
+        ctx = _Ctx(source)
+        if kind is not None:
+            node = _check_header(ctx, node, kind)
+        return _load_schema(ctx, node, schema)
+    except Refusal as exc:
+        raise ConfigError(source, exc.line, "", exc.message) from None
+    except _BadScalar as exc:
+        raise ConfigError(source, exc.line, "", f"cannot read this value: {exc}") from None
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         line = mark.line + 1 if mark is not None else None
         raise ConfigError(source, line, "", f"not valid YAML: {exc.problem or exc}") from None
+    except yaml.reader.ReaderError as exc:
+        line = text.count("\n", 0, exc.position) + 1
+        ch = exc.character
+        shown = f"#x{ch:04x}" if isinstance(ch, int) else _excerpt(ch)
+        raise ConfigError(source, line, "", f"not valid YAML: character {shown} is not allowed") from None
     except yaml.YAMLError as exc:
         raise ConfigError(source, None, "", f"not valid YAML: {exc}") from None
-    if node is None:
-        raise ConfigError(source, None, "", "empty file")
-    ctx = _Ctx(source)
-    if kind is not None:
-        node = _check_header(ctx, node, kind)
-    return _load_schema(ctx, node, schema)
+    except RecursionError:       # the composer's depth bound should make this unreachable
+        raise ConfigError(source, None, "", "nested too deeply") from None
 
 
 def _check_header(ctx: _Ctx, node: yaml.Node, kind: str) -> yaml.MappingNode:
@@ -248,24 +346,49 @@ def _check_header(ctx: _Ctx, node: yaml.Node, kind: str) -> yaml.MappingNode:
             rest.append((knode, vnode))
     if "kind" not in header:
         ctx.fail(node, "kind", f"missing required key (expected 'kind: {kind}')")
-    got = _scalar(header["kind"][1])
+    got = _scalar(header["kind"][1]) if isinstance(header["kind"][1], yaml.ScalarNode) else None
     if got != kind:
-        ctx.fail(header["kind"][1], "kind", f"expected {kind!r}, got {got!r}")
+        ctx.fail(header["kind"][1], "kind", f"expected {kind!r}, got {_describe(header['kind'][1])}")
     if "version" not in header:
         ctx.fail(node, "version", "missing required key (expected 'version: 1')")
-    ver = _scalar(header["version"][1])
+    ver = _scalar(header["version"][1]) if isinstance(header["version"][1], yaml.ScalarNode) else None
     if ver != 1 or isinstance(ver, bool):
-        ctx.fail(header["version"][1], "version", f"expected 1, got {ver!r}")
+        ctx.fail(header["version"][1], "version", f"expected 1, got {_describe(header['version'][1])}")
     return yaml.MappingNode(node.tag, rest, node.start_mark, node.end_mark, node.flow_style)
 
 
 def load_file(path: str | Path, schema: type, kind: str | None = None) -> Any:
-    """Read and load a YAML parameter file. Errors name ``path`` as given."""
+    """Read and load a YAML parameter file. Errors name ``path`` as given.
+
+    At most :data:`MAX_FILE_BYTES` + 1 bytes are read, so a huge file or a device
+    (``/dev/zero``) is refused at once, and a named pipe nobody writes to is an empty file;
+    the bytes must be UTF-8.
+    """
     source = str(path)
     try:
-        text = Path(path).read_text(encoding="utf-8")
+        # Non-blocking open: a FIFO without a writer reads as empty instead of hanging here.
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+        os.set_blocking(fd, True)
+        with os.fdopen(fd, "rb") as f:
+            if _regular_size(f) > MAX_FILE_BYTES:
+                data = b"x" * (MAX_FILE_BYTES + 1)
+            else:
+                data = f.read(MAX_FILE_BYTES + 1)
     except OSError as exc:
         raise ConfigError(source, None, "", f"cannot read file: {exc.strerror or exc}") from None
-    except UnicodeDecodeError:
-        raise ConfigError(source, None, "", "not a UTF-8 text file") from None
+    if len(data) > MAX_FILE_BYTES:
+        raise ConfigError(source, None, "", f"larger than {MAX_FILE_BYTES} bytes (the limit of "
+                                            "a parameter file)")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise ConfigError(source, line, "", f"not UTF-8 text (byte 0x{data[exc.start]:02x} at "
+                                            f"offset {exc.start})") from None
     return load_text(text, schema, source, kind)
+
+
+def _regular_size(f) -> int:
+    """The size of a regular file (0 for a device or a pipe, which are read up to the limit)."""
+    st = os.fstat(f.fileno())
+    return st.st_size if stat.S_ISREG(st.st_mode) else 0

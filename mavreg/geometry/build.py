@@ -17,7 +17,10 @@ from .path import Path
 from .segments import (CurvaturePiece, arc_piece, blend_piece, helix_piece, line_piece,
                        waypoint_piece)
 
-__all__ = ["build_path", "start_frame", "JUMP_TOL"]
+__all__ = ["build_path", "start_frame", "JUMP_TOL", "SPACING_M"]
+
+SPACING_M = 0.005
+"""Arc length between the path's integration nodes (the default of :func:`build_path`)."""
 
 JUMP_TOL = 1e-6
 """Largest curvature (1/m) or curvature-slope (1/m^2) step accepted at a junction."""
@@ -71,7 +74,7 @@ def _end_state(piece: CurvaturePiece, position: np.ndarray, frame: np.ndarray):
     return p.c_nodes[-1], p.frame_nodes[-1]
 
 
-def build_path(spec: ManeuverSpec, spacing_m: float = 0.005) -> Path:
+def build_path(spec: ManeuverSpec, spacing_m: float = SPACING_M) -> Path:
     """The path of ``spec``, with its laps segment flown ``spec.laps.count`` times.
 
     Raises

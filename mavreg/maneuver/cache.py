@@ -9,7 +9,9 @@ own source files, so that a changed planner never serves an old plan.
 Where: ``$MAVREG_PLAN_CACHE`` if set (a directory, or ``off`` to disable), else
 ``$XDG_CACHE_HOME/mavreg/plans``, else ``~/.cache/mavreg/plans``. An entry is a pickle of
 the :class:`~mavreg.maneuver.plan.Plan` (about 20 MB for the barrel roll), written
-atomically; the newest ``MAX_ENTRIES`` are kept. The directory is the user's own: a pickle
+atomically; the newest entries are kept, at most ``MAX_ENTRIES`` of them and at most
+``MAX_BYTES`` in all (``$MAVREG_PLAN_CACHE_MAX_MB`` changes it); a plan larger than half of
+that is not stored. The directory is the user's own: a pickle
 is code, so never point the cache at a directory others can write. An entry that cannot be
 read is planned again and replaced. Failed plans (infeasible under ``strict``, bad files)
 are never cached.
@@ -24,10 +26,14 @@ from functools import lru_cache
 from pathlib import Path as FilePath
 from typing import Callable
 
-__all__ = ["PlanCache", "default_cache", "code_digest", "MAX_ENTRIES", "ENV_VAR"]
+__all__ = ["PlanCache", "default_cache", "code_digest", "MAX_ENTRIES", "MAX_BYTES", "ENV_VAR",
+           "SIZE_ENV_VAR"]
 
 ENV_VAR = "MAVREG_PLAN_CACHE"
+SIZE_ENV_VAR = "MAVREG_PLAN_CACHE_MAX_MB"
 MAX_ENTRIES = 16
+MAX_BYTES = 256 * 2 ** 20
+"""256 MiB: a dozen plans the size of the barrel roll's."""
 _SUFFIX = ".plan.pickle"
 
 
@@ -45,10 +51,13 @@ def code_digest() -> str:
 class PlanCache:
     """Plans on disk under ``directory``, keyed by what they are planned from."""
 
-    def __init__(self, directory: str | os.PathLike):
+    def __init__(self, directory: str | os.PathLike, max_bytes: int = MAX_BYTES):
         self.directory = FilePath(directory)
+        self.max_bytes = int(max_bytes)
         self.hits = 0
         self.misses = 0
+        self.last_hit = False
+        """Whether the last :meth:`get_or_plan` served a stored plan."""
 
     @staticmethod
     def key(*inputs) -> str:
@@ -66,11 +75,13 @@ class PlanCache:
             with open(entry, "rb") as f:
                 found = pickle.load(f)
             self.hits += 1
+            self.last_hit = True
             os.utime(entry)
             return found
         except Exception:     # missing, unreadable or stale: plan again
             pass
         self.misses += 1
+        self.last_hit = False
         result = plan()
         self._store(entry, result)
         return result
@@ -84,6 +95,10 @@ class PlanCache:
         try:
             with os.fdopen(fd, "wb") as f:
                 pickle.dump(value, f, protocol=pickle.HIGHEST_PROTOCOL)
+                size = f.tell()
+            if size > self.max_bytes // 2:      # would push out the rest: not kept
+                os.unlink(tmp)
+                return
             os.replace(tmp, entry)
             self._prune()
         except OSError:
@@ -93,12 +108,26 @@ class PlanCache:
                 pass
 
     def _prune(self) -> None:
-        entries = sorted(self.directory.glob("*" + _SUFFIX), key=lambda p: p.stat().st_mtime)
-        for old in entries[:-MAX_ENTRIES]:
+        """Keep the newest entries within ``MAX_ENTRIES`` and ``max_bytes``."""
+        entries = []
+        for p in self.directory.glob("*" + _SUFFIX):
             try:
-                old.unlink()
+                st = p.stat()
             except OSError:
-                pass
+                continue
+            entries.append((st.st_mtime, st.st_size, p))
+        total = 0
+        for i, (_, size, p) in enumerate(sorted(entries, key=lambda e: e[0], reverse=True)):
+            total += size
+            if i >= MAX_ENTRIES or total > self.max_bytes:
+                try:
+                    p.unlink()
+                except OSError:
+                    pass
+
+    def size_bytes(self) -> int:
+        """The bytes its entries take on disk."""
+        return sum(p.stat().st_size for p in self.directory.glob("*" + _SUFFIX))
 
 
 def default_cache() -> PlanCache | None:
@@ -106,7 +135,22 @@ def default_cache() -> PlanCache | None:
     setting = os.environ.get(ENV_VAR, "")
     if setting.lower() == "off":
         return None
+    max_bytes = _max_bytes_setting()
     if setting:
-        return PlanCache(setting)
+        return PlanCache(setting, max_bytes)
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return PlanCache(os.path.join(base, "mavreg", "plans"))
+    return PlanCache(os.path.join(base, "mavreg", "plans"), max_bytes)
+
+
+def _max_bytes_setting() -> int:
+    """``$MAVREG_PLAN_CACHE_MAX_MB`` in bytes (MiB), else :data:`MAX_BYTES`."""
+    text = os.environ.get(SIZE_ENV_VAR, "")
+    try:
+        mib = float(text)
+    except ValueError:
+        if text:
+            raise ValueError(f"{SIZE_ENV_VAR}={text[:40]!r}: expected a size in MiB") from None
+        return MAX_BYTES
+    if not 0 <= mib <= 2 ** 20:
+        raise ValueError(f"{SIZE_ENV_VAR}={text[:40]!r}: expected 0..1048576 MiB")
+    return int(mib * 2 ** 20)

@@ -34,13 +34,17 @@ def _ranges(s: np.ndarray, bad: np.ndarray) -> str:
 
 
 def check_feasibility(s, u, rotor_forces_n, speed_m_s, max_rotor_thrust_n: float,
-                      min_speed_m_s: float, segment_of) -> Feasibility:
+                      min_speed_m_s: float, segment_of, attitude=None,
+                      max_tilt_rad: float = np.pi) -> Feasibility:
     """Check a nominal sampled at arc lengths ``s``.
 
     Parameters
     ----------
     s : (N,) arc lengths; u : (N,4) nominal inputs; rotor_forces_n : (N,4) their rotor
-    forces by the inverse of eq 34; speed_m_s : (N,); segment_of : callable s -> name.
+    forces by the inverse of eq 34; speed_m_s : (N,); segment_of : callable s -> name;
+    attitude : (N,3,3) nominal attitude, body to NED (None: the tilt is not checked);
+    max_tilt_rad : the largest angle of the thrust axis from the vertical (the maneuver
+    file's ``limits.max_tilt_deg``).
     """
     s = np.asarray(s)
     out: list[str] = []
@@ -62,6 +66,8 @@ def check_feasibility(s, u, rotor_forces_n, speed_m_s, max_rotor_thrust_n: float
         i = int(np.argmin(v))
         out.append(f"speed {v[i]:.3f} m/s < min_speed_m_s {min_speed_m_s:.3f} at s = {s[i]:.2f} m "
                    f"in {segment_of(s[i])!r}: maneuver regulation needs ds/dt bounded away from 0")
+    if attitude is not None and max_tilt_rad < np.pi:
+        out += _tilt_violation(s, np.asarray(attitude), max_tilt_rad, segment_of)
     torque = np.abs(u[:, 1:]).max(axis=0)
     return Feasibility(
         feasible=not out, violations=tuple(out),
@@ -70,3 +76,14 @@ def check_feasibility(s, u, rotor_forces_n, speed_m_s, max_rotor_thrust_n: float
         torque_max_abs_nm=tuple(float(t) for t in torque),
         speed_m_s=(float(v.min()), float(v.max())),
     )
+
+
+def _tilt_violation(s, R, max_tilt_rad: float, segment_of) -> list[str]:
+    """The tilt of the body z axis from the NED down axis, against ``max_tilt_rad``."""
+    tilt = np.arccos(np.clip(R[:, 2, 2], -1.0, 1.0))
+    over = tilt > max_tilt_rad
+    if not np.any(over):
+        return []
+    i = int(np.argmax(tilt))
+    return [f"tilt {np.degrees(tilt[i]):.1f} deg > limits.max_tilt_deg {np.degrees(max_tilt_rad):.1f} "
+            f"at s = {s[i]:.2f} m in {segment_of(s[i])!r}; over at {_ranges(s, over)}"]

@@ -11,7 +11,7 @@ interpolant of its two nodes with the exact slopes ``P' = -F(P)`` (error O(h^4),
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path as FilePath
 from typing import NamedTuple
 
@@ -33,7 +33,9 @@ from ..model.rotation import rpy_to_matrix
 from .cache import PlanCache, default_cache
 from .diagnose import euler_singularity, explain_divergence
 from .feasibility import Feasibility, check_feasibility
+from .budget import check_budget
 from .flatness import FlatnessError, flat_nominal
+from .layout import build_profiles, segment_ends, segment_starts
 from .profiles import Profile
 
 __all__ = ["Plan", "plan_spec", "plan_cached", "plan_file", "plan_text", "segment_starts", "segment_ends",
@@ -74,6 +76,8 @@ class Plan:
     margins: object | None = None
     """Delay and gain margins (:class:`~mavreg.maneuver.plan_margins.PlanMargins`), when computed
     (:func:`~mavreg.maneuver.plan_margins.with_margins`): not by planning itself."""
+    from_cache: bool = False
+    """Served by the plan cache (:mod:`mavreg.maneuver.cache`) rather than planned now."""
 
     def nominal_attitude(self, s: float) -> np.ndarray:
         """Rbar(s) (3, 3) between the grid rows around s (clamped), by the cubic in the
@@ -143,45 +147,9 @@ class Plan:
                               "attitude_error": self.attitude_error,
                               "max_abs_gain": float(np.abs(self.K).max())},
             "segments": [{"name": n, "s_start_m": a, "s_end_m": b} for n, a, b in self.segments],
+            "from_cache": self.from_cache,
             **({} if self.margins is None else {"margins": self.margins.as_dict()}),
         }
-
-
-def segment_starts(path: Path) -> dict[str, float]:
-    """Arc length where each named segment begins (the middle of its blend, if any)."""
-    starts = {}
-    for i, sp in enumerate(path.spans):
-        if sp.kind == "blend":
-            continue
-        prev = path.spans[i - 1] if i > 0 else None
-        starts[sp.name] = ((prev.s_start_m + prev.s_end_m) / 2
-                           if prev is not None and prev.kind == "blend" else sp.s_start_m)
-    return starts
-
-
-def segment_ends(path: Path) -> dict[str, float]:
-    """Arc length where each named segment ends (the start of the next, or the path's end)."""
-    starts = segment_starts(path)
-    names = list(starts)
-    return {n: (starts[names[i + 1]] if i + 1 < len(names) else path.length_m)
-            for i, n in enumerate(names)}
-
-
-def _profile(initial, changes, path, what) -> Profile:
-    starts, ends = segment_starts(path), segment_ends(path)
-    steps = tuple((starts[c.segment] + c.offset_m if c.anchor == "start"
-                   else ends[c.segment] - c.offset_m, c.length_m,
-                   c.to_m_s if what == "speed" else c.to_rad) for c in changes)
-    try:
-        return Profile(initial, tuple(sorted(steps)))
-    except ValueError as exc:
-        raise ManeuverError(f"{what}: {exc}") from None
-
-
-def build_profiles(spec: ManeuverSpec, path: Path) -> tuple[Profile, Profile]:
-    """The speed (m/s) and yaw (rad) profiles of ``spec`` along ``path``."""
-    return (_profile(spec.speed.initial_m_s, spec.speed.changes, path, "speed"),
-            _profile(spec.yaw.initial_rad, spec.yaw.changes, path, "yaw"))
 
 
 def _time_grid(path: Path, speed: Profile, step_s: float) -> np.ndarray:
@@ -289,6 +257,7 @@ def plan_spec(spec: ManeuverSpec, vehicle: VehicleParams, controller: Controller
     the ``total``.
     """
     clock = _Stopwatch(timings)
+    check_budget(spec, controller.riccati_step_s)      # before anything is allocated
     model = QuadrotorModel.from_vehicle(vehicle)
     mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
     path = build_path(spec)
@@ -299,7 +268,8 @@ def plan_spec(spec: ManeuverSpec, vehicle: VehicleParams, controller: Controller
     x, u, dx, v = nominal.x, nominal.u, nominal.dx, nominal.v
     rotors = u @ mixer.inverse.T
     feas = check_feasibility(s, u, rotors, v, vehicle.max_rotor_thrust_n,
-                             spec.limits.min_speed_m_s, lambda q: path.segment_at(q).name)
+                             spec.limits.min_speed_m_s, lambda q: path.segment_at(q).name,
+                             nominal.R, spec.limits.max_tilt_rad)
     laps = spec.laps.count if spec.laps is not None else 1
     laps_seg = spec.laps.segment if spec.laps is not None else None
     clock.lap("nominal")
@@ -452,8 +422,9 @@ def plan_cached(spec: ManeuverSpec, vehicle: VehicleParams, controller: Controll
     """:func:`plan_spec` through ``cache`` (None: plan without one)."""
     if cache is None:
         return plan_spec(spec, vehicle, controller, strict)
-    return cache.get_or_plan((spec, vehicle, controller, strict),
+    plan = cache.get_or_plan((spec, vehicle, controller, strict),
                              lambda: plan_spec(spec, vehicle, controller, strict))
+    return replace(plan, from_cache=cache.last_hit)
 
 
 def plan_file(path: str | FilePath, vehicle: VehicleParams, controller: ControllerParams,

@@ -103,6 +103,8 @@ def test_cache_returns_the_same_plan_and_keys_on_contents(tmp_path):
     first = pm.plan_cached(SPEC, VEHICLE, controller, cache=cache)
     again = pm.plan_cached(SPEC, VEHICLE, controller, cache=cache)
     assert (cache.hits, cache.misses) == (1, 1)
+    assert not first.from_cache and again.from_cache          # what `mavreg plan` reports
+    assert (first.summary()["from_cache"], again.summary()["from_cache"]) == (False, True)
     assert np.array_equal(first.K, again.K) and np.array_equal(first.x, again.x)
     # another controller, another entry
     other = dataclasses.replace(controller, q_position=(500.0, 500.0))
