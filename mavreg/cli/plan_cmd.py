@@ -77,6 +77,8 @@ def format_summary(d: dict) -> str:
         "  segments (arc length s, m): " + ", ".join(f"{s['name']} [{s['s_start_m']:.2f}, {s['s_end_m']:.2f})"
                                    for s in d["segments"]),
     ]
+    if d.get("from_cache"):
+        lines.insert(1, "  served from the plan cache (same files, same code; MAVREG_PLAN_CACHE=off to plan anew)")
     if "margins" in d:
         lines += ["  " + line for line in format_margins(d["margins"])]
     lines += [f"  violation: {v}" for v in d["violations"]]

@@ -31,7 +31,8 @@ kilometres long) costs at most a rejection and never the daemon:
 
 - **memory**: after warming up, the worker limits its own address space
   (``RLIMIT_AS``) to what it then uses plus ``memory_bytes``; an allocation beyond it
-  raises ``MemoryError`` in the worker, which rejects the upload and stays usable;
+  raises ``MemoryError`` in the worker, which rejects the upload; the worker is then
+  replaced (the heap it grew stays mapped, and the next plan would fail there too);
 - **CPU**: each plan may use ``cpu_s`` seconds of the worker's CPU time (a profiling
   interval timer, ``ITIMER_PROF``, counts CPU, not the waiting a ``SCHED_IDLE`` worker
   does on a busy machine); beyond it the plan is abandoned and the upload rejected;
@@ -94,6 +95,8 @@ class PlanResult:
     plan: object | None
     reason: str = ""
     status: int = 0
+    retire_worker: bool = False
+    """The worker hit its memory bound: replace it before the next plan."""
 
     @property
     def accepted(self) -> bool:
@@ -143,7 +146,8 @@ def plan_in_worker(yaml_text: str, source: str, vehicle_path: str, controller_pa
                           "and was abandoned", EXIT_FAILED)
     except MemoryError:
         return PlanResult(None, f"{source}: planning needed more than the planner's "
-                          f"{bounds.memory_bytes / _MIB:.0f} MiB of memory and was abandoned", EXIT_FAILED)
+                          f"{bounds.memory_bytes / _MIB:.0f} MiB of memory and was abandoned", EXIT_FAILED,
+                          retire_worker=True)
     except Exception as exc:
         status = exit_status_of(exc)
         if status is None:
@@ -320,7 +324,10 @@ class PlannerPool:
                 self._restart()
                 future = loop.run_in_executor(self._pool, *args)
             try:
-                return await asyncio.wait_for(future, self.bounds.wall_s)
+                result = await asyncio.wait_for(future, self.bounds.wall_s)
+                if result.retire_worker:
+                    self._restart()
+                return result
             except asyncio.TimeoutError:
                 self.timeouts += 1
                 self._restart()

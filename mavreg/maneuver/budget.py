@@ -18,7 +18,7 @@ import numpy as np
 
 from ..config.controller import ControllerParams
 from ..config.maneuver import ManeuverSpec
-from ..errors import ManeuverError
+from ..errors import UsageError
 from ..geometry.build import SPACING_M
 from .layout import profiles_at, raw_segment_bounds
 from .profiles import Profile, smooth_step
@@ -45,8 +45,11 @@ _DEFAULT_STEP_S = next(f.default for f in dataclasses.fields(ControllerParams)
                        if f.name == "riccati_step_s")
 
 
-class PlanBudgetError(ManeuverError):
-    """A maneuver whose plan would exceed :data:`MAX_PLAN_BYTES`; the message names the cause."""
+class PlanBudgetError(UsageError):
+    """A maneuver whose plan would exceed :data:`MAX_PLAN_BYTES`; the message names the cause.
+
+    Bad input (exit 2), like a file over the size limit: the file asks for more than planning
+    may take, whatever the vehicle could fly."""
 
 
 @dataclass(frozen=True)
@@ -93,7 +96,7 @@ def estimate(spec: ManeuverSpec, step_s: float) -> PlanEstimate:
 
     Raises
     ------
-    ManeuverError
+    UsageError
         A speed or yaw change beyond its segment, or overlapping changes.
     """
     starts, ends = raw_segment_bounds(spec)
@@ -136,7 +139,7 @@ def check_budget(spec: ManeuverSpec, step_s: float) -> PlanEstimate:
     ------
     PlanBudgetError
         Over the budget; the message says why (laps, step or length) and by how much.
-    ManeuverError
+    PlanBudgetError
         A speed or yaw change beyond its segment, or overlapping changes.
     """
     est = estimate(spec, step_s)

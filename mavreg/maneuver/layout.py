@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 
 from ..config.maneuver import ManeuverSpec, SegmentSpec
-from ..errors import ManeuverError
+from ..errors import UsageError
 from ..geometry.path import Path
 from .profiles import Profile
 
@@ -71,15 +71,15 @@ def _profile(initial, changes, starts, ends, what) -> Profile:
     for c in changes:
         seg_m = ends[c.segment] - starts[c.segment]
         if c.offset_m > seg_m + 1e-9:
-            raise ManeuverError(f"{what}: a change on {c.segment!r} at offset_m {c.offset_m:g} lies "
-                                f"beyond the segment's {seg_m:.2f} m (anchor {c.anchor})")
+            raise UsageError(f"{what}: a change on {c.segment!r} at offset_m {c.offset_m:g} lies "
+                             f"beyond the segment's {seg_m:.2f} m (anchor {c.anchor})")
         steps.append((starts[c.segment] + c.offset_m if c.anchor == "start"
                       else ends[c.segment] - c.offset_m, c.length_m,
                       c.to_m_s if what == "speed" else c.to_rad))
     try:
         return Profile(initial, tuple(sorted(steps)))
     except ValueError as exc:
-        raise ManeuverError(f"{what}: {exc}") from None
+        raise UsageError(f"{what}: {exc}") from None
 
 
 def profiles_at(spec: ManeuverSpec, starts: dict[str, float],
@@ -89,7 +89,7 @@ def profiles_at(spec: ManeuverSpec, starts: dict[str, float],
 
     Raises
     ------
-    ManeuverError
+    UsageError
         A change whose offset lies beyond its segment, or changes that overlap.
     """
     return (_profile(spec.speed.initial_m_s, spec.speed.changes, starts, ends, "speed"),

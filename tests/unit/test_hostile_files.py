@@ -46,7 +46,10 @@ def _plan_here(*args: str) -> tuple[int, str]:
     with warnings.catch_warnings(record=True) as caught, \
             contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         warnings.simplefilter("always")
-        rc = main(["plan", *args])
+        try:
+            rc = main(["plan", *args])
+        except SystemExit as exc:           # refused while parsing the options
+            rc = exc.code
     assert not caught, [str(w.message) for w in caught]
     return rc, err.getvalue()
 

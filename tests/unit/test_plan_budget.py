@@ -13,7 +13,7 @@ from mavreg.cli.common import DEFAULT_VEHICLE, DESIGN_CONTROLLER, PARAMS_DIR
 from mavreg.config.controller import load_controller
 from mavreg.config.maneuver import load_maneuver, load_maneuver_text
 from mavreg.config.vehicle import load_vehicle
-from mavreg.errors import ManeuverError
+from mavreg.errors import ManeuverError, UsageError
 from mavreg.geometry.build import build_path
 from mavreg.maneuver import plan as pm
 from mavreg.maneuver.budget import MAX_PLAN_BYTES, PlanBudgetError, check_budget, estimate
@@ -72,7 +72,7 @@ def test_too_fine_a_step_and_too_long_are_named():
 def test_a_change_beyond_its_segment_is_refused_not_dropped(change, match):
     spec = load_maneuver_text(BARREL_TEXT.replace(change, change.replace(
         "offset_m: 0.0" if "0.0" in change else "offset_m: 1.5", "offset_m: 500")))
-    with pytest.raises(ManeuverError, match=match):
+    with pytest.raises(UsageError, match=match):
         pm.plan_spec(spec, VEHICLE, CONTROLLER)
 
 
