@@ -125,6 +125,13 @@ def _over_cpu_budget(signum, frame):
     raise _OverCpuBudget()
 
 
+def _over_memory(source: str, bounds: PlannerBounds) -> PlanResult:
+    """The rejection of a plan that hit the worker's memory bound (the worker is replaced)."""
+    return PlanResult(None, f"{source}: planning needed more than the planner's "
+                      f"{bounds.memory_bytes / _MIB:.0f} MiB of memory and was abandoned", EXIT_FAILED,
+                      retire_worker=True)
+
+
 def plan_in_worker(yaml_text: str, source: str, vehicle_path: str, controller_path: str,
                    bounds: PlannerBounds = PlannerBounds()) -> PlanResult:
     """Validate and plan one maneuver, with its margins (runs in the worker process).
@@ -145,9 +152,7 @@ def plan_in_worker(yaml_text: str, source: str, vehicle_path: str, controller_pa
         return PlanResult(None, f"{source}: planning used more than its {bounds.cpu_s:g} s of CPU "
                           "and was abandoned", EXIT_FAILED)
     except MemoryError:
-        return PlanResult(None, f"{source}: planning needed more than the planner's "
-                          f"{bounds.memory_bytes / _MIB:.0f} MiB of memory and was abandoned", EXIT_FAILED,
-                          retire_worker=True)
+        return _over_memory(source, bounds)
     except Exception as exc:
         status = exit_status_of(exc)
         if status is None:
@@ -325,14 +330,16 @@ class PlannerPool:
                 future = loop.run_in_executor(self._pool, *args)
             try:
                 result = await asyncio.wait_for(future, self.bounds.wall_s)
-                if result.retire_worker:
-                    self._restart()
-                return result
+            except MemoryError:         # the bound hit outside the plan: sending its result back
+                result = _over_memory(source, self.bounds)
             except asyncio.TimeoutError:
                 self.timeouts += 1
                 self._restart()
                 return PlanResult(None, f"{source}: no plan within {self.bounds.wall_s:g} s; the planner "
                                   "worker was stopped and replaced", EXIT_FAILED)
+            if result.retire_worker:
+                self._restart()
+            return result
         except BrokenProcessPool as exc:
             if self._closed:
                 raise PlannerDied("the planner was shut down while planning (the daemon is stopping)") from exc

@@ -139,7 +139,7 @@ def test_an_endpoint_that_cannot_open_is_one_line():
         for url in ("udpout:no-such-host.invalid:14550", f"udpin:127.0.0.1:{busy.getsockname()[1]}"):
             try:
                 asyncio.run(go(url))
-            except ValueError as exc:
+            except OSError as exc:
                 assert str(exc).startswith(f"--gcs {url!r}: ") and "\n" not in str(exc)
             else:
                 raise AssertionError(f"{url} opened")

@@ -54,25 +54,26 @@ def _vm_limit(pid: int) -> int | None:
 
 def test_an_alias_bomb_and_a_plan_over_its_cpu_budget_are_rejected_and_the_worker_plans_on():
     """Ten levels (10^10 'lol's, 530 bytes) grew a process to 3 GB in a minute: the loader now
-    refuses it, and the worker's address space is capped for what passes the loader (30 laps);
+    refuses it, and the worker's address space is capped for what passes the loader and the
+    planning budget (40 laps: 645 MiB estimated, under the budget's 768 MiB, over the 384 MiB here);
     each upload is rejected in one line. Then the barrel roll over
     a CPU budget of 0.3 s. The pool answers throughout, with one new worker after the memory bound."""
     async def body(pool):
         pid, limit = pool.worker_pid, _vm_limit(pool.worker_pid)
         bomb = await pool.plan(alias_bomb(10), "bomb.yaml")
-        big = await pool.plan(re.sub(r"count: \d+", "count: 30", BARREL), "big.yaml")
+        big = await pool.plan(re.sub(r"count: \d+", "count: 40", BARREL), "big.yaml")
         pool.bounds = dataclasses.replace(pool.bounds, cpu_s=0.3)
         over = await pool.plan(BARREL, "barrel.yaml")
         after = await pool.plan(BAD, "bad.yaml")
         return pid, limit, bomb, big, over, after, pool.worker_pid, pool.restarts
     pid, limit, bomb, big, over, after, pid_after, restarts = _with_pool(
-        PlannerBounds(memory_bytes=128 << 20, cpu_s=20), body)
+        PlannerBounds(memory_bytes=384 << 20, cpu_s=20), body)
     assert limit is not None and limit < 2 << 30
     print(f"\nalias bomb: {bomb.reason}")
     # the loader refuses the bomb before it expands (its alias budget); a plan within the
     # planning budget but over the worker's memory is abandoned at the memory bound
     assert not bomb.accepted and bomb.status == EXIT_USAGE and "bomb.yaml" in bomb.reason and "alias" in bomb.reason
-    print(f"30 laps: {big.reason}")
+    print(f"40 laps: {big.reason}")
     assert not big.accepted and big.status == EXIT_FAILED and "memory" in big.reason
     for r in (bomb, big):
         assert "\n" not in r.reason and len(r.reason) <= MAX_MESSAGE_CHARS
