@@ -33,7 +33,9 @@ the prediction (docs/robustness.md). A vehicle calibrated by 'mavreg identify'
 --controller params/controller/paper_lqr.yaml.
 
 Outputs go to --out DIR (default: flights/<YYYYmmdd-HHMMSS>/): summary.json, flight.png
-(path in the maneuver's plane, errors against arc length), flight.tlog (every MAVLink
+(the path in 3-D, top and side views, the TRUE errors against arc length on a log scale with
+the controller's own beside them, speed, thrust, rotor commands, the whole flight by phase;
+a failed flight says why in the title and is marked where it failed), flight.tlog (every MAVLink
 message in and out; mavlogdump.py and MAVProxy read it), control.npz (s, w, u, rotor
 commands and phase per control step), groundtruth.npz (bundled emulator only). A
 per-segment summary is printed: max and RMS transverse error, max attitude error, peak
