@@ -15,15 +15,17 @@ from ..maneuver.nominal_table import nominal_table, nominal_time_s
 from .panels import (ERROR_FLOOR_CM, ERROR_FLOOR_DEG, error_panel, mark_failure_s, mark_segments, new_figure,
                      no_data, save, title_lines)
 from .sources import FlightData
-from .views import ViewLine, draw_views
+from .views import ViewLine, draw_views, views_height_in
 
-__all__ = ["plan_figure", "flight_figure"]
+__all__ = ["plan_figure", "flight_figure", "build_plan_figure", "build_flight_figure", "panel"]
 
 _NOMINAL = dict(color="0.35", ls="--", lw=1.0)
 _ROTOR_COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red")
 _ROTOR_NAMES = ("1 front", "2 right", "3 back", "4 left")
 _FAIL_MARK = dict(marker="X", color="tab:red", ms=11, mec="white", mew=0.8)
 _MAX_POINTS = 3000
+_PANEL_IN = 3.4
+"""Height of a row of panels against s (inches)."""
 
 
 def _thin(a, n: int = _MAX_POINTS):
@@ -59,19 +61,40 @@ def _legend(ax, **kw) -> None:
         ax.legend(fontsize=7, **kw)
 
 
+def panel(fig, name: str):
+    """The axes of a figure labelled ``name`` ('top', 'side', '3d', 'key', 'transverse',
+    'attitude', 'speed', 'thrust', 'rotors', 'rates', 'timeline', 'progress')."""
+    for ax in fig.axes:
+        if ax.get_label() == name:
+            return ax
+    raise KeyError(name)
+
+
+def _name(**axes) -> None:
+    for name, ax in axes.items():
+        ax.set_label(name)
+
+
 def plan_figure(png_path, plan, note: str = "", violations=None) -> None:
-    """Save the plan's figure: its path in the three views, speed, thrust, rotor forces and
+    """Save :func:`build_plan_figure`."""
+    save(build_plan_figure(plan, note, violations), png_path)
+
+
+def build_plan_figure(plan, note: str = "", violations=None):
+    """The plan's figure: its path in the three views, speed, thrust, rotor forces and
     body rates against s (:func:`~mavreg.maneuver.nominal_table.nominal_table`'s columns).
     ``violations`` (default: the plan's feasibility's) are listed in red in the title."""
     table = nominal_table(plan)
-    fig, gs = new_figure(12.5, [1.45, 1, 1])
     ref, starts = _reference(plan)
+    top_in = views_height_in(ref)
+    fig, gs = new_figure(top_in + 2 * _PANEL_IN, [top_in, _PANEL_IN, _PANEL_IN])
     draw_views(fig, _view_cells(fig, gs), ref, starts, [n for n, _, _ in plan.segments], [])
     s = _thin(table["s_m"])
     speed = fig.add_subplot(gs[1, 0:3])
     thrust = fig.add_subplot(gs[1, 3:6], sharex=speed)
     rotors = fig.add_subplot(gs[2, 0:3], sharex=speed)
     rates = fig.add_subplot(gs[2, 3:6], sharex=speed)
+    _name(speed=speed, thrust=thrust, rotors=rotors, rates=rates)
     speed.plot(s, _thin(table["speed_m_s"]), color="tab:blue", lw=1.0)
     speed.set_ylabel("speed (m/s)")
     thrust.plot(s, _thin(table["thrust_n"]), color="tab:blue", lw=1.0, label="collective thrust")
@@ -95,7 +118,7 @@ def plan_figure(png_path, plan, note: str = "", violations=None) -> None:
                              *(f"violation: {v}" for v in bad)),
                  color="k" if not bad else "tab:red",
                  fontsize=10)
-    save(fig, png_path)
+    return fig
 
 
 def _error_axes(ax, series, floor, scale, ylabel, fd, plan) -> None:
@@ -127,6 +150,7 @@ def _state_panels(fig, gs, plan, fd: FlightData):
     speed = fig.add_subplot(gs[2, 0:3])
     thrust = fig.add_subplot(gs[2, 3:6], sharex=speed)
     rotors = fig.add_subplot(gs[3, 0:3], sharex=speed)
+    _name(speed=speed, thrust=thrust, rotors=rotors)
     if fd.speed_m_s is None and fd.thrust_n is None:
         for ax in (speed, thrust, rotors):
             no_data(ax, fd.no_maneuver)
@@ -178,9 +202,15 @@ def _timeline_panel(ax, fd: FlightData) -> None:
 
 
 def flight_figure(png_path, plan, fd: FlightData) -> None:
-    """Save a flight's figure (see the module's docstring)."""
-    fig, gs = new_figure(16, [1.45, 1, 1, 1])
+    """Save :func:`build_flight_figure`."""
+    save(build_flight_figure(plan, fd), png_path)
+
+
+def build_flight_figure(plan, fd: FlightData):
+    """A flight's figure (see the module's docstring)."""
     ref, starts = _reference(plan)
+    top_in = views_height_in(ref, [a for a in (fd.maneuver_ned, fd.other_ned) if a is not None])
+    fig, gs = new_figure(top_in + 3 * _PANEL_IN, [top_in, _PANEL_IN, _PANEL_IN, _PANEL_IN])
     lines = []
     if fd.other_ned is not None and len(fd.other_ned):
         lines.append(ViewLine(fd.other_ned, "outside the maneuver", color="0.7", lw=0.7))
@@ -191,14 +221,19 @@ def flight_figure(png_path, plan, fd: FlightData) -> None:
     draw_views(fig, _view_cells(fig, gs), ref, starts, [n for n, _, _ in plan.segments], lines, marks)
     trans = fig.add_subplot(gs[1, 0:3])
     att = fig.add_subplot(gs[1, 3:6], sharex=trans)
+    _name(transverse=trans, attitude=att)
     _error_axes(trans, fd.transverse_m, ERROR_FLOOR_CM, 100.0, "transverse error (cm, log)", fd, plan)
     _error_axes(att, fd.attitude_deg, ERROR_FLOOR_DEG, 1.0, "attitude error (deg, log)", fd, plan)
     speed, thrust, rotors = _state_panels(fig, gs, plan, fd)
     last = fig.add_subplot(gs[3, 3:6])
     if fd.timeline is not None:
         _timeline_panel(last, fd)
+        last.set_label("timeline")
     elif fd.progress is not None:
         _progress_panel(last, plan, fd)
+        last.set_label("progress")
+    else:
+        no_data(last, "no schedule or timeline recorded")
     if fail:
         s_f = fail.get("s_m")
         label = f"failed here (s = {s_f:.2f} m)" if s_f is not None and np.isfinite(s_f) else None
@@ -206,4 +241,4 @@ def flight_figure(png_path, plan, fd: FlightData) -> None:
             mark_failure_s(ax, s_f, label if ax is trans else None)
         _legend(trans, loc="upper right")
     fig.suptitle(title_lines(fd.heading, fd.outcome), fontsize=10, color="k" if fd.ok else "tab:red")
-    save(fig, png_path)
+    return fig

@@ -36,7 +36,9 @@ def save(fig, path) -> None:
         fig.savefig(buf, dpi=DPI, format="png")
         buf.seek(0)
         with Image.open(buf) as im:
-            im.convert("RGB").quantize(colors=256, method=Image.Quantize.FASTOCTREE).save(path, optimize=True)
+            small = im.convert("RGB").quantize(colors=256, method=Image.Quantize.MAXCOVERAGE,
+                                               dither=Image.Dither.NONE)
+            small.save(path, optimize=True)
     else:
         fig.savefig(path, dpi=DPI)
     plt.close(fig)

@@ -12,7 +12,7 @@ import textwrap
 
 import numpy as np
 
-__all__ = ["ViewLine", "draw_views", "to_map", "SIDE_AXES"]
+__all__ = ["ViewLine", "draw_views", "to_map", "SIDE_AXES", "views_height_in"]
 
 MIN_ASPECT = 0.3
 """A view's shorter side is at least this fraction of its longer (a flat path's side view
@@ -55,6 +55,19 @@ def _set_equal_2d(ax, lo, hi) -> None:
     ax.grid(alpha=0.3)
 
 
+def views_height_in(reference_ned, others=(), cell_width_in: float = 3.2) -> float:
+    """Height (inches) of the views' row: enough for the taller of the top and side views at
+    equal scale in a cell ``cell_width_in`` wide, between 3.8 (the key fits) and 5.4 inches."""
+    pts = np.vstack([to_map(reference_ned)] + [to_map(o) for o in others if len(o)])
+    span = np.maximum(np.ptp(pts, axis=0), 1e-9)
+    h = 0 if side_axis(reference_ned) == "east" else 1
+    aspects = []
+    for x, y in ((span[0], span[1]), (span[h], span[2])):
+        longest = max(x, y)
+        aspects.append(max(y, MIN_ASPECT * longest) / max(x, MIN_ASPECT * longest))
+    return float(np.clip(cell_width_in * max(aspects) + 1.0, 3.8, 5.4))
+
+
 def side_axis(reference_ned) -> str:
     """'east' or 'north': the horizontal axis of the side view (the longer horizontal span)."""
     m = to_map(reference_ned)
@@ -84,6 +97,8 @@ def draw_views(fig, cells, reference_ned, segment_starts_ned, segment_names, lin
     top = fig.add_subplot(cells[1])
     side = fig.add_subplot(cells[2])
     key = fig.add_subplot(cells[3])
+    for ax, name in ((ax3, "3d"), (top, "top"), (side, "side"), (key, "key")):
+        ax.set_label(name)                 # how tests and tools find a panel
     h_name = side_axis(reference_ned)
     h_label, side_title, h_col = SIDE_AXES[h_name]
     cols = {top: (0, 1), side: (h_col, 2)}
@@ -140,6 +155,7 @@ def _draw_3d(ax, ref, lines, lo, hi, marks) -> None:
     from matplotlib.ticker import MaxNLocator
     for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
         axis.set_major_locator(MaxNLocator(4))
+        axis.set_pane_color((1.0, 1.0, 1.0, 0.0))     # white panes: the grid alone gives depth
     ax.set_title("3-D view (altitude up)", fontsize=9)
 
 
