@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..maneuver.nominal_table import nominal_table, nominal_time_s
-from .panels import (ERROR_FLOOR_CM, ERROR_FLOOR_DEG, error_panel, mark_failure_s, mark_segments, new_figure,
+from ..maneuver.nominal_table import nominal_table, nominal_time_s, rotor_forces_n
+from .panels import (ERROR_FLOOR_CM, clip_spike, ERROR_FLOOR_DEG, error_panel, mark_failure_s, mark_segments, new_figure,
                      no_data, save, title_lines)
 from .sources import FlightData
 from .views import ViewLine, draw_views, views_height_in
@@ -161,6 +161,10 @@ def _state_panels(fig, gs, plan, fd: FlightData):
     _nominal_vs(speed, plan, plan.s, plan.speed_m_s, fd.speed_m_s, "speed (m/s)")
     _nominal_vs(thrust, plan, plan.s, plan.u[:, 0], fd.thrust_n, "thrust (N)")
     _rotor_panel(rotors, fd.rotors_n.s_m, fd.rotors_n.values, plan, f"{fd.rotors_n.label} ")
+    nominal_rotors = rotor_forces_n(plan)
+    clip_spike(rotors, fd.rotors_n.s_m, fd.rotors_n.values,
+               1.3 * max(plan.vehicle.max_rotor_thrust_n, float(nominal_rotors.max())), "N")
+    clip_spike(thrust, fd.thrust_n.s_m, fd.thrust_n.values, 1.5 * float(plan.u[:, 0].max()), "N")
     for ax in (speed, thrust, rotors):
         mark_segments(ax, plan.segments)
         _legend(ax, loc="best", ncol=2 if ax is rotors else 1)
@@ -175,7 +179,7 @@ def _progress_panel(ax, plan, fd: FlightData) -> None:
     ax.plot(t, s, color="tab:blue", lw=0.9, label="flown")
     ax.set_xlabel("time (s)")
     ax.set_ylabel("arc length s (m)")
-    ax.grid(alpha=0.3)
+    ax.grid(color="0.9", lw=0.6)
     _legend(ax, loc="upper left")
 
 
@@ -197,7 +201,7 @@ def _timeline_panel(ax, fd: FlightData) -> None:
     ax.set_xlabel("vehicle time (s)")
     ax.set_ylabel("altitude (m)")
     ax.set_title("the whole flight, by phase", fontsize=9)
-    ax.grid(alpha=0.3)
+    ax.grid(color="0.9", lw=0.6)
     _legend(ax, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=4)
 
 

@@ -5,7 +5,7 @@ import textwrap
 
 import numpy as np
 
-__all__ = ["new_figure", "save", "mark_segments", "error_panel", "no_data", "mark_failure_s",
+__all__ = ["clip_spike", "new_figure", "save", "mark_segments", "error_panel", "no_data", "mark_failure_s",
            "segment_key", "title_lines", "ERROR_FLOOR_CM", "ERROR_FLOOR_DEG", "DPI"]
 
 DPI = 100
@@ -58,7 +58,7 @@ def mark_segments(ax, segments, numbers_on_top: bool = False) -> None:
     """Boundaries as thin lines; with ``numbers_on_top`` the segment numbers above the panel."""
     for _, a, _ in segments[1:]:
         ax.axvline(a, color="0.75", lw=0.6, zorder=1)
-    ax.grid(alpha=0.3)
+    ax.grid(color="0.9", lw=0.6)
     if numbers_on_top:
         top = ax.secondary_xaxis("top")
         top.set_xticks([0.5 * (a + b) for _, a, b in segments],
@@ -85,3 +85,17 @@ def mark_failure_s(ax, s_m: float | None, label: str | None = None) -> None:
     """A red line where the flight failed (nothing when it failed off the path: s unknown)."""
     if s_m is not None and np.isfinite(s_m) and ax.has_data():
         ax.axvline(s_m, color="tab:red", lw=1.3, ls="-", zorder=5, label=label)
+
+
+def clip_spike(ax, s, values, top: float, unit: str) -> None:
+    """Keep the y axis to ``top`` when a short transient (a start far off the path) goes
+    beyond it: its peak is marked at the top edge and named in the legend, not drawn to scale."""
+    v = np.asarray(values, dtype=float).reshape(len(s), -1)
+    peak = float(np.nanmax(v)) if v.size else -np.inf
+    if not np.isfinite(peak) or peak <= top:
+        return
+    i = int(np.nanargmax(np.nanmax(v, axis=1)))
+    lo = ax.get_ylim()[0]
+    ax.set_ylim(lo, top)
+    ax.plot([s[i]], [top], marker="^", color="tab:red", ms=7, ls="none", clip_on=False, zorder=6,
+            label=f"off scale: peak {peak:.1f} {unit} at s = {s[i]:.2f} m")

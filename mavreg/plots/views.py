@@ -52,7 +52,7 @@ def _set_equal_2d(ax, lo, hi) -> None:
     ax.set_xlim(a[0], b[0])
     ax.set_ylim(a[1], b[1])
     ax.set_box_aspect((b[1] - a[1]) / (b[0] - a[0]))   # equal scale: the box has the data's shape
-    ax.grid(alpha=0.3)
+    ax.grid(color="0.9", lw=0.6)
 
 
 def views_height_in(reference_ned, others=(), cell_width_in: float = 3.2) -> float:
@@ -220,6 +220,6 @@ def _key(ax, source, segment_names) -> None:
                     frameon=False, borderaxespad=0.0)
     ax.add_artist(leg)
     text = "segments (numbered\nalong the path):\n" + "\n".join(
-        f"{k}  {name}" for k, name in enumerate(segment_names, start=1))
+        f"{k:<3}" + name.replace(">", ">\n   ") for k, name in enumerate(segment_names, start=1))
     ax.text(0.0, 0.0, text, transform=ax.transAxes, fontsize=7, va="bottom", ha="left",
             color="tab:purple", family="monospace")
