@@ -2,8 +2,62 @@
 (scripts/gallery.py writes the page from it)."""
 from __future__ import annotations
 
+_SIM = ("the transverse error falls from the 85 cm start to about a micrometre within the run-up "
+        "(segment 1) and stays there{extra}; a red triangle on the top edge of the thrust or rotor "
+        "panel marks the first instants' peak, beyond the scale (its value is in the legend; the design "
+        "model's rotors do not saturate); the schedule panel compares the arc length flown with the "
+        "nominal's, against time.")
+_FLY = ("the red TRUE transverse error (ground truth) against the controller's own (blue){extra}; the "
+        "true attitude error is 10 to 15 deg wherever the speed is high: the angle to the plan's nominal, "
+        "which the drag compensation tilts on purpose, while the controller's own error stays near 1 deg.")
+
 CAPTIONS = {
-    # name: (plan, simulate, fly)
+    "barrel_roll": (
+        "the side view from the south shows the 3 m circle in the east-down plane, flown westwards "
+        "(the arrows point left); the top view is a line, as it should be. The thrust peaks near 37 "
+        "and 39 N entering and leaving the circle (25 N over its top) and falls under the weight only "
+        "on the climbing run-out; all four "
+        "rotor forces peak near 10 N, under the 12 N limit; the roll rate p carries the 360 deg roll "
+        "(up to 400 deg/s at the top).",
+        _SIM.format(extra=" (the small rises in segments 2-4 are the loop)"),
+        _FLY.format(extra=": a few centimetres along the run-up and the circle")),
+    "forward_loop": (
+        "the side view from the east shows the vertical 4 m circle at the 18 m mark, the top view only "
+        "a line north; the pitch rate q carries the loop (above 300 deg/s); thrust peaks twice near "
+        "25 N (entry and exit of the loop, 6 N per rotor) with the 11 N minimum at the inverted top.",
+        _SIM.format(extra=""),
+        _FLY.format(extra=" through the pitch through +-90 deg")),
+    "split_s": (
+        "the side view: level at 8 m going north, a half loop down, level at 3 m coming back south "
+        "under the start (in the top view both legs lie on one line, arrows both ways). The thrust "
+        "dips to 3.5 N as it pushes over at 0.65 g, then peaks near 12 N pulling out; the rotor forces "
+        "stay between 0.5 and 3 N.",
+        _SIM.format(extra=""),
+        _FLY.format(extra="")),
+    "immelmann": (
+        "the side view: a half loop up from 2 m to 8 m ending north-to-south; the speed slows from 7 to "
+        "4.5 m/s in the climb so that the thrust at the top is under the weight (about 3.5 N) and never "
+        "zero; the yaw rate r turns the nose round on the slow run-out.",
+        _SIM.format(extra=""),
+        _FLY.format(extra="")),
+    "figure_eight": (
+        "the top view: the right circle east of the line, then the left one west of it, as a map "
+        "shows them; the side view is flat at 3 m; the thrust steps to 8.9 N in both turns (35 deg of "
+        "bank) and the yaw rate r changes sign between them.",
+        _SIM.format(extra=""),
+        _FLY.format(extra=": a few centimetres through both circles")),
+    "climbing_helix": (
+        "the top view: one circle (the three turns lie on it) east of the run-up line; the side view: "
+        "the climb of 1.5 m a turn as a zigzag; thrust near 9.3-10 N in the helix, the yaw and pitch "
+        "rates steady at about 70 and 60 deg/s.",
+        _SIM.format(extra=" (the rise at s = 66-75 m is the exit blend)"),
+        _FLY.format(extra="")),
+    "slalom": (
+        "the top view: the first swerve after the run-up goes right (east, positive x), to the gate "
+        "2 m east, then left, right, left; the run-out ends about 3 m east of the line. The thrust "
+        "peaks at each gate (up to 9.9 N), the rotor forces swing between 1 and 3 N.",
+        _SIM.format(extra=""),
+        _FLY.format(extra="")),
 }
 """What to look at in each maneuver's figures (plan, simulate from 0.6 m off, fly realistic)."""
 

@@ -92,7 +92,7 @@ def clip_spike(ax, s, values, top: float, unit: str) -> None:
     beyond it: its peak is marked at the top edge and named in the legend, not drawn to scale."""
     v = np.asarray(values, dtype=float).reshape(len(s), -1)
     peak = float(np.nanmax(v)) if v.size else -np.inf
-    if not np.isfinite(peak) or peak <= top:
+    if not np.isfinite(peak) or peak <= 1.25 * top:    # not far beyond: drawn to scale
         return
     i = int(np.nanargmax(np.nanmax(v, axis=1)))
     lo = ax.get_ylim()[0]

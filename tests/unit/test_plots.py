@@ -126,6 +126,21 @@ def test_simulation_errors_are_on_a_log_scale(plan, run):
     _close(fig)
 
 
+def test_a_diverged_simulation_says_why_and_where(plan):
+    """60 N sideways for the first seconds, rotors capped at 4 N: the design model diverges."""
+    bad = fly_on_design_model(plan, control_rate_hz=RATE_HZ, true_metrics=False, saturation_n=4.0,
+                              gust_force_n=(0.0, 60.0, 0.0), gust_window_s=(1.0, 4.0))
+    assert bad.metrics["status"] == "diverged"
+    fig = build_flight_figure(plan, from_simulation(plan, bad, RATE_HZ, "t"))
+    title = fig._suptitle.get_text()
+    assert "FAILED" in title and bad.metrics["reason"][:20] in title.replace("\n", " ")
+    cross = next(ln for ln in panel(fig, "top").get_lines() if ln.get_label().startswith("failed"))
+    e, n = cross.get_data()
+    assert (e[0], n[0]) == pytest.approx((bad.result.x[-1, 1], bad.result.x[-1, 0]))
+    assert any(ln.get_label().startswith("failed here") for ln in panel(fig, "transverse").get_lines())
+    _close(fig)
+
+
 def _fly_logs(plan, run, phases_after: str):
     """A daemon's control log and an emulator's recording made of the design-model run:
     one second of hold, the maneuver, then ``phases_after``."""
