@@ -169,8 +169,9 @@ def from_fly(plan, ctrl: dict, record: dict | None, summary: dict | None, headin
     s_c = ctrl["s_m"][rows].astype(float)
     trans_c, att_c = error_series(ctrl["w"][rows])
     ctrl_label = "controller's own (to the nominal it flies)"
-    outside = (all_t < t0) | (all_t > t1)
-    other = all_pos[outside][::max(1, int(outside.sum()) // 4000)]
+    before, after = all_pos[all_t < t0], all_pos[all_t > t1]
+    step = max(1, (len(before) + len(after)) // 4000)
+    other = np.vstack([before[::step], np.full((1, 3), np.nan), after[::step]])   # two pieces, not joined
     if record is not None:
         tr = _truth_in(plan, record, t0, t1)
         s_t = tr["s_m"]

@@ -59,7 +59,7 @@ def views_height_in(reference_ned, others=(), cell_width_in: float = 3.2) -> flo
     """Height (inches) of the views' row: enough for the taller of the top and side views at
     equal scale in a cell ``cell_width_in`` wide, between 3.8 (the key fits) and 5.4 inches."""
     pts = np.vstack([to_map(reference_ned)] + [to_map(o) for o in others if len(o)])
-    span = np.maximum(np.ptp(pts, axis=0), 1e-9)
+    span = np.maximum(np.nanmax(pts, axis=0) - np.nanmin(pts, axis=0), 1e-9)
     h = 0 if side_axis(reference_ned) == "east" else 1
     aspects = []
     for x, y in ((span[0], span[1]), (span[h], span[2])):
@@ -91,8 +91,8 @@ def draw_views(fig, cells, reference_ned, segment_starts_ned, segment_names, lin
     """
     ref = to_map(reference_ned)
     every = [to_map(ln.ned) for ln in lines if ln.ned.size] + [ref]
-    lo = np.min([m.min(axis=0) for m in every], axis=0)
-    hi = np.max([m.max(axis=0) for m in every], axis=0)
+    lo = np.min([np.nanmin(m, axis=0) for m in every], axis=0)
+    hi = np.max([np.nanmax(m, axis=0) for m in every], axis=0)
     ax3 = fig.add_subplot(cells[0], projection="3d")
     top = fig.add_subplot(cells[1])
     side = fig.add_subplot(cells[2])

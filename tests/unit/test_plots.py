@@ -191,6 +191,9 @@ def test_fly_figure_draws_the_true_error_and_marks_the_failure(plan, run):
     assert (e[0], n[0]) == pytest.approx((run.result.x[i * 4, 1], run.result.x[i * 4, 0]), abs=0.05)
     timeline = panel(fig, "timeline")
     assert any(ln.get_label().startswith("failed") for ln in timeline.get_lines())
+    # before and after the maneuver are two pieces: no straight line from its start to its end
+    outside = _line(top, "outside the maneuver").get_xdata()
+    assert np.isnan(outside).sum() == 1 and 0 < int(np.flatnonzero(np.isnan(outside))[0]) < len(outside) - 1
     _close(fig)
 
 
