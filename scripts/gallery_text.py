@@ -8,8 +8,11 @@ _SIM = ("the transverse error falls from the 85 cm start to about a micrometre w
         "model's rotors do not saturate); the schedule panel compares the arc length flown with the "
         "nominal's, against time.")
 _FLY = ("the red TRUE transverse error (ground truth) against the controller's own (blue){extra}; the "
-        "true attitude error is 10 to 15 deg wherever the speed is high: the angle to the plan's nominal, "
-        "which the drag compensation tilts on purpose, while the controller's own error stays near 1 deg.")
+        "true attitude error is 5 to 30 deg wherever the speed is high: the angle to the plan's nominal, "
+        "which the drag compensation tilts on purpose, while the controller's own error stays near 1 deg; "
+        "the true speed runs a few percent under the nominal at top speed; the commanded thrust follows "
+        "the nominal with the realistic world's noise on it; the phase panel shows the take-off, hold, "
+        "run-in, maneuver, hold and landing.")
 
 CAPTIONS = {
     "barrel_roll": (

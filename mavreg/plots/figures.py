@@ -139,7 +139,7 @@ def _error_axes(ax, series, floor, scale, ylabel, fd, plan) -> None:
     _legend(ax, loc="upper right")
 
 
-def _nominal_vs(ax, plan, s_grid, values, flown, ylabel) -> None:
+def _nominal_vs(ax, s_grid, values, flown, ylabel) -> None:
     ax.plot(_thin(s_grid), _thin(values), label="nominal", **_NOMINAL)
     if flown is not None and flown.s_m.size:
         ax.plot(flown.s_m, flown.values, color="tab:blue", lw=0.9, label=flown.label)
@@ -158,8 +158,8 @@ def _state_panels(fig, gs, plan, fd: FlightData):
         thrust.set_ylabel("thrust (N)")
         rotors.set_ylabel("rotor force (N)")
         return speed, thrust, rotors
-    _nominal_vs(speed, plan, plan.s, plan.speed_m_s, fd.speed_m_s, "speed (m/s)")
-    _nominal_vs(thrust, plan, plan.s, plan.u[:, 0], fd.thrust_n, "thrust (N)")
+    _nominal_vs(speed, plan.s, plan.speed_m_s, fd.speed_m_s, "speed (m/s)")
+    _nominal_vs(thrust, plan.s, plan.u[:, 0], fd.thrust_n, "thrust (N)")
     _rotor_panel(rotors, fd.rotors_n.s_m, fd.rotors_n.values, plan, f"{fd.rotors_n.label} ")
     nominal_rotors = rotor_forces_n(plan)
     clip_spike(rotors, fd.rotors_n.s_m, fd.rotors_n.values,

@@ -6,7 +6,7 @@ import textwrap
 import numpy as np
 
 __all__ = ["clip_spike", "new_figure", "save", "mark_segments", "error_panel", "no_data", "mark_failure_s",
-           "segment_key", "title_lines", "ERROR_FLOOR_CM", "ERROR_FLOOR_DEG", "DPI"]
+           "title_lines", "ERROR_FLOOR_CM", "ERROR_FLOOR_DEG", "DPI"]
 
 DPI = 100
 ERROR_FLOOR_CM = 1e-6
@@ -42,11 +42,6 @@ def save(fig, path) -> None:
     else:
         fig.savefig(path, dpi=DPI)
     plt.close(fig)
-
-
-def segment_key(segments) -> str:
-    """'segments: 1 run_up, 2 run_up>loop, ...' (the numbers of the views and the s axes)."""
-    return "segments: " + ", ".join(f"{k} {name}" for k, (name, _, _) in enumerate(segments, start=1))
 
 
 def title_lines(*lines: str, width: int = 150) -> str:

@@ -8,7 +8,7 @@ and :func:`mavreg.sim.truth.true_error_series`; nothing here integrates or linea
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -55,7 +55,7 @@ class FlightData:
     failure: dict | None = None
     """{text, t_s, s_m, ned}: where and why it failed."""
     no_maneuver: str = "no maneuver samples"
-    notes: list[str] = field(default_factory=list)
+    """What the panels against s say when there is nothing to draw."""
 
 
 def from_simulation(plan, run, control_rate_hz: float, heading: str) -> FlightData:
