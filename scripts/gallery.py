@@ -11,7 +11,7 @@ times the design inertia: failed_barrel_roll_fly.png). The table's design-model 
 flight from the nominal entry. Writes docs/gallery/*.png, results.json and docs/gallery.md
 (the captions are in scripts/gallery_text.py).
 
-    python scripts/gallery.py [--sitl] [--only NAME ...]
+    python scripts/gallery.py [--sitl] [--only NAME ...] [--markdown-only]
 
 The SITL flights take about half a minute each (15 with --sitl); run them on a quiet
 machine (lockstep keeps the results independent of the load, not the time).
@@ -95,7 +95,14 @@ def main() -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--sitl", action="store_true", help="also fly each through the daemon in lockstep SITL")
     p.add_argument("--only", nargs="+", metavar="NAME", help="these maneuvers only")
+    p.add_argument("--markdown-only", action="store_true",
+                   help="rewrite docs/gallery.md from docs/gallery/results.json (new captions), fly nothing")
     args = p.parse_args()
+    if args.markdown_only:
+        res = json.loads((OUT / "results.json").read_text())
+        sitl = any("sitl_realistic" in r for r in res["maneuvers"])
+        (ROOT / "docs" / "gallery.md").write_text(markdown(res["maneuvers"], sitl, res["failed"]))
+        return 0
     OUT.mkdir(parents=True, exist_ok=True)
     vehicle = load_vehicle(DEFAULT_VEHICLE)
     controller = load_controller(DESIGN_CONTROLLER)

@@ -10,7 +10,8 @@ _SIM = ("the transverse error falls from the 85 cm start to about a micrometre w
 _FLY = ("the red TRUE transverse error (ground truth) against the controller's own (blue){extra}; the "
         "true attitude error is 5 to 30 deg wherever the speed is high: the angle to the plan's nominal, "
         "which the drag compensation tilts on purpose, while the controller's own error stays near 1 deg; "
-        "the true speed runs a few percent under the nominal at top speed; the commanded thrust follows "
+        "the true speed against the nominal (at 7 and 8 m/s it runs about 5 % under it); the commanded "
+        "thrust follows "
         "the nominal with the realistic world's noise on it; the phase panel shows the take-off, hold, "
         "run-in, maneuver, hold and landing.")
 
@@ -36,31 +37,37 @@ CAPTIONS = {
         "dips to 3.5 N as it pushes over at 0.65 g, then peaks near 12 N pulling out; the rotor forces "
         "stay between 0.5 and 3 N.",
         _SIM.format(extra=""),
-        _FLY.format(extra="")),
+        _FLY.format(extra=": 1 to 3 cm; in the push-over (s = 17 m) the commanded rotor "
+                          "forces fall nearly to zero and come back")),
     "immelmann": (
         "the side view: a half loop up from 2 m to 8 m ending north-to-south; the speed slows from 7 to "
         "4.5 m/s in the climb so that the thrust at the top is under the weight (about 3.5 N) and never "
         "zero; the yaw rate r turns the nose round on the slow run-out.",
         _SIM.format(extra=""),
-        _FLY.format(extra="")),
+        _FLY.format(extra=": 1 to 3 cm, the commanded thrust 5 N over the top")),
     "figure_eight": (
         "the top view: the right circle east of the line, then the left one west of it, as a map "
         "shows them; the side view is flat at 3 m; the thrust steps to 8.9 N in both turns (35 deg of "
         "bank) and the yaw rate r changes sign between them.",
         _SIM.format(extra=""),
-        _FLY.format(extra=": a few centimetres through both circles")),
+        _FLY.format(extra=": 1 to 3 cm through both circles; at s = 31 m, where the "
+                          "bank reverses between them, the commanded rotor forces swap sides")),
     "climbing_helix": (
         "the top view: one circle (the three turns lie on it) east of the run-up line; the side view: "
         "the climb of 1.5 m a turn as a zigzag; thrust near 9.3-10 N in the helix, the yaw and pitch "
-        "rates steady at about 70 and 60 deg/s.",
+        "rates steady at about 70 and 60 deg/s. The climb is not uniform along a turn (it rises mostly "
+        "on the eastern half): entered from the level run-up, the helix's axis leans about 4 deg from "
+        "the vertical.",
         _SIM.format(extra=" (the rise at s = 66-75 m is the exit blend)"),
-        _FLY.format(extra="")),
+        _FLY.format(extra=": 1 to 3 cm over the three turns; the whole-flight panel shows "
+                          "the uneven climb as steps")),
     "slalom": (
         "the top view: the first swerve after the run-up goes right (east, positive x), to the gate "
         "2 m east, then left, right, left; the run-out ends about 3 m east of the line. The thrust "
         "peaks at each gate (up to 9.9 N), the rotor forces swing between 1 and 3 N.",
         _SIM.format(extra=""),
-        _FLY.format(extra="")),
+        _FLY.format(extra=": 1 to 3 cm through the gates; the take-off lasts 33 s because the "
+                          "hold point is 30 m south of the take-off point")),
 }
 """What to look at in each maneuver's figures (plan, simulate from 0.6 m off, fly realistic)."""
 
@@ -145,4 +152,9 @@ def markdown(rows, sitl: bool, failed: dict | None) -> str:
 FAILED_CAPTION = """\
 `mavreg fly params/maneuvers/barrel_roll.yaml --lockstep --world ideal --controller
 params/controller/paper_lqr.yaml --emulator-arg=--inertia-scale=3`: the emulator's airframe
-has three times the inertia the plan was designed for. The cause, in the title: {reason}"""
+has three times the inertia the plan was designed for. What to look at: the title, in red,
+gives the cause; the red cross in the views is where the vehicle was when the bound fired, past
+the circle on the run-out; the red line in the panels is its arc length. The true errors grow
+from the end of the circle (segment 4), where the rotor commands oscillate and the commanded
+collective thrust falls below zero (rotors cannot pull); the whole-flight panel shows the
+recovery (orange) climbing away from the path before the landing. The cause: {reason}"""
