@@ -126,9 +126,14 @@ def main() -> int:
         name, world, ctl, extra = FAILED
         failed = sitl_flight(LIBRARY / f"{name}.yaml", world, ctl, OUT / f"failed_{name}_fly.png", extra)
         print(json.dumps({"failed": failed}), flush=True)
-    if not args.only:
-        (OUT / "results.json").write_text(json.dumps({"maneuvers": rows, "failed": failed}, indent=2))
-        (ROOT / "docs" / "gallery.md").write_text(markdown(rows, args.sitl, failed))
+    if args.only and (OUT / "results.json").exists():     # a re-run replaces its rows, keeps the rest
+        old = json.loads((OUT / "results.json").read_text())
+        new = {r["name"]: r for r in rows}
+        rows = [new.pop(r["name"], r) for r in old["maneuvers"]] + list(new.values())
+        failed = old["failed"]
+    (OUT / "results.json").write_text(json.dumps({"maneuvers": rows, "failed": failed}, indent=2))
+    sitl = any("sitl_realistic" in r for r in rows)
+    (ROOT / "docs" / "gallery.md").write_text(markdown(rows, sitl, failed))
     return 0
 
 

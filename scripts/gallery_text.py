@@ -41,7 +41,7 @@ CAPTIONS = {
                           "forces fall nearly to zero and come back")),
     "immelmann": (
         "the side view: a half loop up from 2 m to 8 m ending north-to-south; the speed slows from 7 to "
-        "4.5 m/s in the climb so that the thrust at the top is under the weight (about 3.5 N) and never "
+        "4.5 m/s in the climb so that the thrust at the top is under the weight (about 3 N) and never "
         "zero; the yaw rate r turns the nose round on the slow run-out.",
         _SIM.format(extra=""),
         _FLY.format(extra=": 1 to 3 cm, the commanded thrust 5 N over the top")),
@@ -90,7 +90,7 @@ boundaries).
   against time, flown and nominal).
 - **fly** (`mavreg fly FILE --lockstep`, the realistic world): the TRUE errors from the
   emulator's ground truth in red (the attitude error is the angle to the plan's nominal
-  attitude, which the drag compensation tilts on purpose by up to 15 deg), the controller's
+  attitude, which the drag compensation tilts on purpose: 5 to 30 deg here), the controller's
   own errors in blue; the commanded thrust and rotor forces; and the whole flight by phase.
   A failed flight says why in its red title and carries a red cross where it failed (and a
   red line at that s)."""
