@@ -206,6 +206,17 @@ def test_a_flight_that_succeeded_has_no_failure_mark(plan, run):
     _close(fig)
 
 
+def test_without_a_recording_the_figure_says_it_shows_the_controllers_view(plan, run):
+    """A real vehicle (--vehicle) has no ground truth: nothing may be labelled TRUE."""
+    ctrl, _ = _fly_logs(plan, run, "land")
+    fig = build_flight_figure(plan, from_fly(plan, ctrl, None, {"result": "ok", "failure": None}, "t"))
+    labels = [ln.get_label() for ax in fig.axes for ln in ax.get_lines()]
+    assert not any(lab.startswith("TRUE") for lab in labels)
+    assert "controller's state (maneuver)" in labels
+    assert panel(fig, "timeline").get_lines()[0].get_label() == "altitude (controller's state)"
+    _close(fig)
+
+
 def test_a_refused_flight_says_so_in_every_panel_it_cannot_fill(plan, run):
     ctrl, record = _fly_logs(plan, run, "land")
     hold = ctrl["phase"] == PHASE_CODES["hold"]
