@@ -37,10 +37,13 @@ the prediction (docs/robustness.md). A vehicle calibrated by 'mavreg identify'
 
 Outputs go to --out DIR (default: flights/<YYYYmmdd-HHMMSS>/): summary.json (results,
 events, and the provenance: command line, input files and their SHA-256, versions, git
-commit), flight.png (path in the maneuver's plane, errors against arc length), flight.tlog
-(every MAVLink message in and out; mavlogdump.py, mavflightmodes.py, MAVExplorer and MAVProxy
-read it; stamped with the vehicle's clock in lockstep, see --tlog-clock), control.npz (s, w,
-u, rotor commands and phase per control step), groundtruth.npz (bundled emulator only).
+commit), flight.png (the path in 3-D, top and side views, the TRUE errors against arc length
+on a log scale with the controller's own beside them, speed, thrust, rotor commands, the
+whole flight by phase; a failed flight says why in the title and is marked where it failed),
+flight.tlog (every MAVLink message in and out; mavlogdump.py, mavflightmodes.py, MAVExplorer
+and MAVProxy read it; stamped with the vehicle's clock in lockstep, see --tlog-clock),
+control.npz (s, w, u, rotor commands and phase per control step), groundtruth.npz (bundled
+emulator only).
 
 A per-segment table is printed (a line under it says the same): e_t is the transverse
 error, the distance from the path, in mm (max and RMS as the controller estimated it; "true"

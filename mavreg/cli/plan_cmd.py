@@ -1,9 +1,11 @@
 """``mavreg plan``: validate a maneuver, build its nominal and gains, report feasibility."""
 from __future__ import annotations
 
+import argparse
 import json
 
-from .common import add_laps_argument, add_model_arguments, input_file, load_model_params
+from .common import (add_laps_argument, add_model_arguments, input_file, load_model_params, output_file,
+                     plot_file)
 
 HELP = "validate a maneuver YAML, check feasibility, build the gain schedule (nothing flies)"
 DESCRIPTION = """\
@@ -21,6 +23,16 @@ model with the vehicle's rotor lag, the loop broken at the rotor commands. JSON:
 {rotor_time_constant_s, hover {delay_margin_ms, gain_margin [low, high], ...}, maneuver
 {delay_margin_ms, worst_s_m, gain_margin, gain_margin_s_m, nodes, frozen_unstable_s_m}}.
 
+--plot FILE.png draws the nominal: its path in a 3-D, a top (north up, east right) and a side
+view at equal scale, with the start, the direction of travel and the numbered segments, and
+its speed, collective thrust, rotor forces (against their limit) and body rates against s.
+--export FILE.csv|json writes the nominal on the plan's grid: t_s, s_m, NED position (m) and
+velocity (m/s), speed, the attitude as a quaternion (w, x, y, z; body FRD to NED) and as roll,
+pitch, yaw (deg), body rates (rad/s), collective thrust (N), body torques (N m) and the rotor
+forces 1-4 (front, right, back, left; N). CSV: one header line of unit-named columns; JSON:
+one object, one array per quantity, units in the keys. Both are written for an infeasible
+plan too (its violations are in the summary and the figure's title).
+
 Exit status: 0 feasible, 1 infeasible (the reasons say where in s and by how much) or a
 geometry that cannot be flown, 2 invalid file or arguments.
 """
@@ -30,7 +42,18 @@ def add_arguments(p):
     p.add_argument("maneuver", metavar="FILE", type=input_file, help="maneuver YAML (kind: maneuver)")
     add_laps_argument(p)
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.add_argument("--plot", metavar="PNG", type=plot_file, default=None,
+                   help="save a figure of the nominal (views of the path, speed, thrust, rotor forces)")
+    p.add_argument("--export", metavar="FILE", type=_export_file, default=None,
+                   help="write the nominal trajectory as FILE.csv or FILE.json (see above)")
     add_model_arguments(p)
+
+
+def _export_file(text: str) -> str:
+    """--export: a .csv or .json file that can be written (checked before planning)."""
+    if not text.lower().endswith((".csv", ".json")):
+        raise argparse.ArgumentTypeError(f"{text}: the file name must end in .csv or .json")
+    return output_file(text)
 
 
 def run(args) -> int:
@@ -40,11 +63,22 @@ def run(args) -> int:
     plan = with_margins(plan_file(args.maneuver, vehicle, controller, laps=args.laps, strict=False))
     summary = plan.summary()
     _check_envelope(plan, controller.envelope, summary)
+    _write_outputs(args, plan, summary)
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
         print(format_summary(summary))
     return 0 if summary["feasible"] else 1
+
+
+def _write_outputs(args, plan, summary: dict) -> None:
+    """--export and --plot (the figure's title carries the verdict)."""
+    if args.export is not None:
+        from ..maneuver.nominal_table import write_nominal
+        write_nominal(plan, args.export)
+    if args.plot is not None:
+        from ..plots import plot_plan
+        plot_plan(args.plot, plan, violations=summary["violations"])
 
 
 def _check_envelope(plan, envelope, summary: dict) -> None:

@@ -60,7 +60,8 @@ def add_arguments(p):
                    help="when the gust acts, seconds from the start (default 0 1)")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON")
     p.add_argument("--plot", metavar="PNG", type=plot_file, default=None,
-                   help="save a plot of the path and the errors against s")
+                   help="save a figure: the path flown (3-D, top and side views, north up), the "
+                   "errors against s (log scale), speed, thrust, rotor forces and schedule")
     add_model_arguments(p)
 
 
@@ -82,9 +83,8 @@ def run(args) -> int:
                                speed_governor=controller.speed_governor)
     m = run_.metrics
     if args.plot:
-        from ..plots import plot_flight
-        plot_flight(args.plot, plan, run_.s, run_.w, run_.result.x[:, :3],
-                    title=f"{plan.name} on the design model")
+        from ..plots import plot_simulation
+        plot_simulation(args.plot, plan, run_, args.rate_hz, _heading(plan, args))
     if args.json:
         print(json.dumps(m, indent=2))
     else:
@@ -98,3 +98,13 @@ def run(args) -> int:
                       f"rms {seg['transverse_error_m']['rms'] * 1e3:9.3g} mm; attitude max "
                       f"{seg['attitude_error_deg']['max']:9.3g} deg")
     return 0 if m["stable"] and m["completed"] else 1
+
+
+def _heading(plan, args) -> str:
+    """The figure's first title line: the maneuver and what was changed from the nominal."""
+    extras = [f"offset {' '.join(f'{v:g}' for v in args.offset)} m NED" if any(args.offset) else "",
+              f"rotor noise {args.noise_n:g} N" if args.noise_n else "",
+              f"rotors saturate at {args.saturation_n:g} N" if args.saturation_n else "",
+              f"gust {' '.join(f'{v:g}' for v in args.gust_n)} N NED" if args.gust_n else "",
+              f"control {args.rate_hz:g} Hz"]
+    return f"{plan.name} on the design model ({', '.join(e for e in extras if e)})"

@@ -7,7 +7,9 @@ output directory:
 - ``summary.json``: result, the failure (first bound violated, where, by how much, what was
   done), per-segment controller metrics, ground-truth errors, events, and the provenance
   (command line, input files and their SHA-256, software versions: :mod:`mavreg.provenance`);
-- ``flight.png``: the path in the maneuver's plane and the errors against arc length;
+- ``flight.png``: the path (3-D, top and side views), the true errors against arc length,
+  speed, thrust, rotor commands and the whole flight by phase; a failure marked
+  (:func:`mavreg.plots.plot_fly`);
 - ``flight.tlog``: every MAVLink message in and out (pymavlink format; stamped with the
   vehicle's clock in lockstep, the wall clock in real time);
 - ``control.npz``: the controller's internals (see :mod:`mavreg.daemon.ctrllog`);
@@ -215,14 +217,18 @@ def _finish(opts, daemon, ctrl, record_path, emulator_code, wall_s) -> int:
         "provenance": _provenance(opts),
     }
     record = None
-    if record_path is not None and record_path.exists() and man and plan is not None:
-        with np.load(record_path) as z:
+    if record_path is not None and record_path.exists() and plan is not None:
+        with np.load(record_path) as z:     # the figure draws the truth of a refused flight too
             record = {k: z[k] for k in ("t_s", "position_ned_m", "quaternion_wxyz", "velocity_ned_m_s")}
+    if record is not None and man:
         t_end = after[0]["time_s"] if after else float(record["t_s"][-1])
         summary["ground_truth"] = ground_truth_errors(record, plan, man[0]["time_s"], t_end)
     (opts.out_dir / "summary.json").write_text(json.dumps(summary, indent=1, default=_plain))
     if plan is not None and ctrl["t_s"].size:
-        plot_flight(opts.out_dir / "flight.png", ctrl, plan, record)
+        where = f"the bundled emulator's {opts.world} world" if opts.vehicle_url is None else opts.vehicle_url
+        plot_flight(opts.out_dir / "flight.png", ctrl, plan, record, summary,
+                    f"{plan.name} flown by mavreg fly on {where}{', lockstep' if opts.lockstep else ''}, "
+                    f"controller {opts.controller_path.name}")
     print(format_summary(summary))
     print(f"outputs: {opts.out_dir}/ (summary.json, flight.png, flight.tlog, control.npz"
           f"{', groundtruth.npz' if record_path is not None else ''})")

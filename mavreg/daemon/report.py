@@ -126,9 +126,9 @@ def _link_line(status: dict) -> list:
     return [f"{head}; dropped: {dropped or 'none'}"]
 
 
-def plot_flight(path, ctrl: dict, plan, record: dict | None) -> None:
-    """The flight plot (:func:`mavreg.plots.plot_flight`) from a control log and a recording."""
-    from ..plots import plot_flight as plot
-    m = _maneuver_rows(ctrl)
-    truth = record["position_ned_m"][::5] if record is not None else None
-    plot(path, plan, ctrl["s_m"][m], ctrl["w"][m], ctrl["x"][:, :3], truth)
+def plot_flight(path, ctrl: dict, plan, record: dict | None, summary: dict | None = None,
+                heading: str = "") -> None:
+    """The flight figure (:func:`mavreg.plots.plot_fly`): true errors from the recording, the
+    outcome and any failure from the summary, ``heading`` its first title line."""
+    from ..plots import plot_fly
+    plot_fly(path, plan, ctrl, record, summary, heading)

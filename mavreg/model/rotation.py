@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["rpy_to_matrix", "matrix_to_rpy", "rpy_to_quat", "quat_to_matrix", "quat_to_rpy",
-           "wrap_angle", "euler_rates_matrix"]
+           "matrices_to_quats", "wrap_angle", "euler_rates_matrix"]
 
 
 def rpy_to_matrix(phi, theta, psi) -> np.ndarray:
@@ -57,6 +57,40 @@ def quat_to_matrix(q) -> np.ndarray:
         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
         [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
     ])
+
+
+def matrices_to_quats(R) -> np.ndarray:
+    """Unit quaternions (N, 4), (w, x, y, z) with w >= 0, of rotation matrices (N, 3, 3).
+
+    Shepperd's method: each row is computed from the largest of the four squared components,
+    so it stays accurate at any angle (a loop's inverted top included).
+    """
+    R = np.asarray(R, dtype=float).reshape(-1, 3, 3)
+    tr = np.trace(R, axis1=1, axis2=2)
+    diag = np.stack([tr, R[:, 0, 0], R[:, 1, 1], R[:, 2, 2]], axis=1)
+    pick = np.argmax(diag, axis=1)
+    q = np.empty((R.shape[0], 4))
+    for k in range(4):
+        m = pick == k
+        if not np.any(m):
+            continue
+        r = R[m]
+        if k == 0:
+            d = 2.0 * np.sqrt(1.0 + tr[m])
+            rows = [d / 4, (r[:, 2, 1] - r[:, 1, 2]) / d, (r[:, 0, 2] - r[:, 2, 0]) / d,
+                    (r[:, 1, 0] - r[:, 0, 1]) / d]
+        else:
+            i, j, l = (k - 1, k % 3, (k + 1) % 3)
+            d = 2.0 * np.sqrt(1.0 + r[:, i, i] - r[:, j, j] - r[:, l, l])
+            comp = [None] * 4
+            comp[0] = (r[:, l, j] - r[:, j, l]) / d
+            comp[1 + i] = d / 4
+            comp[1 + j] = (r[:, j, i] + r[:, i, j]) / d
+            comp[1 + l] = (r[:, l, i] + r[:, i, l]) / d
+            rows = comp
+        q[m] = np.stack(rows, axis=1)
+    q *= np.where(q[:, :1] < 0, -1.0, 1.0)
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
 
 
 def quat_to_rpy(q) -> np.ndarray:

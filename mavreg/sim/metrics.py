@@ -23,7 +23,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-__all__ = ["tracking_metrics", "SATURATION_RTOL", "rotor_jitter_n", "JITTER_CUTOFF_HZ"]
+__all__ = ["tracking_metrics", "error_series", "SATURATION_RTOL", "rotor_jitter_n", "JITTER_CUTOFF_HZ"]
 
 SATURATION_RTOL = 1e-9
 """A rotor counts as saturated when its force is at least ``(1 - 1e-9) * max thrust``."""
@@ -31,6 +31,13 @@ SATURATION_RTOL = 1e-9
 
 def _wrap(a: np.ndarray) -> np.ndarray:
     return np.arctan2(np.sin(a), np.cos(a))
+
+
+def error_series(w) -> tuple[np.ndarray, np.ndarray]:
+    """Transverse error (m) and attitude error (deg) of each sample of ``w`` (N, >=5), as
+    defined above (what :func:`tracking_metrics` sums up; the figures draw it)."""
+    w = np.asarray(w, dtype=float)
+    return np.hypot(w[:, 0], w[:, 1]), np.degrees(np.linalg.norm(_wrap(w[:, 2:5]), axis=1))
 
 
 def _stats(values: np.ndarray) -> Optional[dict]:
@@ -114,8 +121,7 @@ def tracking_metrics(s, w, segments: Sequence[tuple[str, float, float]],
         limit = float(max_rotor_thrust_n) * (1.0 - SATURATION_RTOL)
         saturated = np.any(forces >= limit, axis=1)
 
-    trans = np.hypot(w[:, 0], w[:, 1])
-    att = np.degrees(np.linalg.norm(_wrap(w[:, 2:5]), axis=1))
+    trans, att = error_series(w)
 
     out = {"samples": n}
     out.update(_block(np.ones(n, dtype=bool), trans, att, forces, saturated, dt_s))

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..geometry.projection import Projector
 
-__all__ = ["true_errors", "quats_to_matrices"]
+__all__ = ["true_errors", "true_error_series", "quats_to_matrices"]
 
 
 def quats_to_matrices(q) -> np.ndarray:
@@ -35,6 +35,48 @@ def _stats(e: np.ndarray, key: str) -> dict:
     return {f"max_{key}": float(e.max()), f"rms_{key}": float(np.sqrt(np.mean(e * e)))}
 
 
+def true_error_series(plan, positions_m, rotations=None, velocities_m_s=None) -> dict:
+    """The true errors sample by sample (what :func:`true_errors` sums up; the figures draw it).
+
+    Parameters
+    ----------
+    plan : Plan
+    positions_m : (K, 3) true NED positions, in time order.
+    rotations : (K, 3, 3) true body-to-NED rotations, optional.
+    velocities_m_s : (K, 3) true NED velocities, optional.
+
+    Returns
+    -------
+    dict
+        ``index`` (the samples kept: projection inside (0, length)), ``s_m``,
+        ``transverse_m``, and with their inputs ``attitude_deg`` (the rotation angle to the
+        nominal at s) and ``speed_excess_m_s`` (``|v| - v(s)``); arrays of the kept samples.
+    """
+    proj = Projector(plan.path)
+    pts = np.asarray(positions_m, dtype=float)
+    keep, s_all, e_all = [], [], []
+    for i, p in enumerate(pts):
+        pr = proj.reset(p, 0.0) if i == 0 else proj.update(p)
+        if 0.0 < pr.s < plan.length_m:
+            keep.append(i)
+            s_all.append(pr.s)
+            e_all.append(pr.distance_m)
+    out = {"index": np.array(keep, dtype=int), "s_m": np.array(s_all), "transverse_m": np.array(e_all)}
+    if rotations is not None:
+        Rt = np.asarray(rotations, dtype=float)[keep]
+        a_arr = np.empty(len(keep))
+        for j, (s, R) in enumerate(zip(out["s_m"], Rt)):
+            Rn = plan.nominal_attitude(s)
+            c = (float(np.sum(Rn * R)) - 1.0) / 2.0
+            a_arr[j] = np.degrees(np.arccos(min(max(c, -1.0), 1.0)))
+        out["attitude_deg"] = a_arr
+    if velocities_m_s is not None:
+        speed = np.linalg.norm(np.asarray(velocities_m_s, dtype=float)[keep], axis=1)
+        out["speed_excess_m_s"] = (speed - np.interp(out["s_m"], plan.s, plan.speed_m_s) if keep
+                                   else np.zeros(0))
+    return out
+
+
 def true_errors(plan, positions_m, rotations=None, velocities_m_s=None) -> dict:
     """True transverse (m), attitude (deg) and speed (m/s) errors, overall and per segment.
 
@@ -52,28 +94,10 @@ def true_errors(plan, positions_m, rotations=None, velocities_m_s=None) -> dict:
         "rms_speed_error_m_s", "max_overspeed_m_s"], "segments": {name: {...}}}``; the speed
         error is ``| |v| - v(s) |``, the overspeed ``max(|v| - v(s))``.
     """
-    proj = Projector(plan.path)
-    pts = np.asarray(positions_m, dtype=float)
-    keep, s_all, e_all = [], [], []
-    for i, p in enumerate(pts):
-        pr = proj.reset(p, 0.0) if i == 0 else proj.update(p)
-        if 0.0 < pr.s < plan.length_m:
-            keep.append(i)
-            s_all.append(pr.s)
-            e_all.append(pr.distance_m)
-    s_arr, e_arr = np.array(s_all), np.array(e_all)
-    a_arr = None
-    if rotations is not None:
-        Rt = np.asarray(rotations, dtype=float)[keep]
-        a_arr = np.empty(len(keep))
-        for j, (s, R) in enumerate(zip(s_arr, Rt)):
-            Rn = plan.nominal_attitude(s)
-            c = (float(np.sum(Rn * R)) - 1.0) / 2.0
-            a_arr[j] = np.degrees(np.arccos(min(max(c, -1.0), 1.0)))
-    dv_arr = None
-    if velocities_m_s is not None:
-        speed = np.linalg.norm(np.asarray(velocities_m_s, dtype=float)[keep], axis=1)
-        dv_arr = speed - np.interp(s_arr, plan.s, plan.speed_m_s) if keep else np.zeros(0)
+    series = true_error_series(plan, positions_m, rotations, velocities_m_s)
+    s_arr, e_arr = series["s_m"], series["transverse_m"]
+    a_arr = series.get("attitude_deg")
+    dv_arr = series.get("speed_excess_m_s")
 
     def stats(mask):
         d = _stats(e_arr[mask], "m")
