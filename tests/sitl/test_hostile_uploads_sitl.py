@@ -1,5 +1,6 @@
 """End-to-end: a daemon flying the barrel roll on firmware_sim --lockstep receives hostile
-uploads (malformed JSON, 5 MB, a YAML alias bomb) and flies on: each gets a one-line refusal
+uploads (malformed JSON, 5 MB, a YAML alias bomb, then every file of the hostile corpus in
+tests/data/hostile) and flies on: each gets a one-line refusal
 or rejection and the flight lands ok. The longest gaps between the daemon's control ticks
 before, across and after the uploads are printed (issue 21: inputs that cannot hurt)."""
 from __future__ import annotations
@@ -8,6 +9,7 @@ import json
 import signal
 import socket
 import threading
+from pathlib import Path
 
 import pytest
 
@@ -16,6 +18,22 @@ from sitl_helpers import VEHICLE_IDEAL
 from mavreg.daemon.endpoint import request
 
 pytestmark = pytest.mark.sitl
+
+CORPUS = sorted((Path(__file__).resolve().parents[1] / "data" / "hostile").glob("*.yaml"))
+
+
+def _upload_corpus(sock) -> dict:
+    """Each corpus file as an upload: its text if it is UTF-8, else its bytes as they are
+    inside the request line (the endpoint must refuse that line)."""
+    answers = {}
+    for path in CORPUS:
+        data = path.read_bytes()
+        try:
+            resp = request(sock, {"op": "upload", "name": path.name, "yaml": data.decode("utf-8")}, 60)
+            answers[path.name] = (json.dumps(resp) + "\n").encode()
+        except UnicodeDecodeError:
+            answers[path.name] = _raw(sock, b'{"op": "upload", "name": "x.yaml", "yaml": "' + data + b'"}\n')
+    return answers
 
 
 def alias_bomb(levels: int) -> str:
@@ -71,6 +89,7 @@ def test_hostile_uploads_while_flying_are_refused_in_one_line_and_the_flight_lan
         try:
             answers["alias bomb"] = (json.dumps(request(sock, {"op": "upload", "name": "bomb.yaml",
                                                                "yaml": bomb}, 120)) + "\n").encode()
+            answers.update(_upload_corpus(sock))
         finally:
             emu.p.send_signal(signal.SIGCONT)
         return answers, before, loop_ms()
@@ -85,15 +104,21 @@ def test_hostile_uploads_while_flying_are_refused_in_one_line_and_the_flight_lan
     for what, raw in answers.items():
         assert raw.count(b"\n") == 1 and len(raw) < 1000, (what, raw[:200])
         resp = json.loads(raw)
-        print(f"{what}: {resp}")
-        assert resp["ok"] is False, resp
+        if what in ("malformed JSON", "5 MB", "alias bomb"):
+            print(f"{what}: {resp}")
+        assert resp["ok"] is False, (what, resp)
     assert "malformed request" in json.loads(answers["malformed JSON"])["reason"]
     assert "too large" in json.loads(answers["5 MB"])["reason"]
     bomb_resp = json.loads(answers["alias bomb"])
     assert bomb_resp["verdict"] == "rejected" and "bomb.yaml" in bomb_resp["reason"]
     st = f["summary"]["status"]
-    assert st["uploads"] == {"accepted": 1, "rejected": 1}       # accepted: the flight itself
-    assert st["loop"]["endpoint_refused"] == 2
+    refused = sum(json.loads(a).get("verdict") == "refused" for a in answers.values())
+    rejected = sum(json.loads(a).get("verdict") == "rejected" for a in answers.values())
+    assert refused + rejected == len(answers) and len(answers) == len(CORPUS) + 3
+    print(f"{len(CORPUS)} corpus files and 3 hostile requests: {rejected} rejected by the loader or planner, "
+          f"{refused} refused by the endpoint, all one line; the flight flew on")
+    assert st["uploads"] == {"accepted": 1, "rejected": rejected}       # accepted: the flight itself
+    assert st["loop"]["endpoint_refused"] == refused
     loop = st["loop"]
     print(f"control loop, longest gap between {loop['tick_ms']:.0f} ms ticks (most CPU of its thread): "
           f"{before[0]:.0f} ms ({before[1]:.0f}) before the hostile uploads, {after[0]:.0f} ms ({after[1]:.0f}) "
