@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-__all__ = ["PARAMS_DIR", "add_model_arguments", "add_laps_argument", "load_model_params"]
+__all__ = ["PARAMS_DIR", "add_model_arguments", "add_laps_argument", "load_model_params", "load_maneuver_arg"]
 
 PARAMS_DIR = Path(__file__).resolve().parents[2] / "params"
 DEFAULT_VEHICLE = PARAMS_DIR / "vehicles" / "mk_quadro.yaml"
@@ -48,3 +48,14 @@ def load_model_params(args):
     from ..config.controller import load_controller
     from ..config.vehicle import load_vehicle
     return load_vehicle(args.vehicle_params), load_controller(args.controller)
+
+
+def load_maneuver_arg(args):
+    """The maneuver file ``args.maneuver``, with ``--laps`` applied.
+
+    Commands load it before they import the planner (numba, scipy: most of a second), so
+    that a rejected file answers at once.
+    """
+    from ..config.maneuver import load_maneuver
+    spec = load_maneuver(args.maneuver)
+    return spec if args.laps is None else spec.with_laps(args.laps)

@@ -4,7 +4,7 @@ from __future__ import annotations
 import json
 import sys
 
-from .common import add_laps_argument, add_model_arguments, load_model_params
+from .common import add_laps_argument, add_model_arguments, load_maneuver_arg, load_model_params
 
 HELP = "fly a maneuver with the regulator on the design model; tracking errors against s"
 DESCRIPTION = """\
@@ -48,9 +48,6 @@ def add_arguments(p):
 
 
 def run(args) -> int:
-    from ..maneuver.plan import plan_file
-    from ..config.regulation import told_rotor_limit
-    from ..sim.maneuver_run import fly_on_design_model
     if args.noise_n < 0:
         raise ValueError(f"--noise-n must be >= 0, got {args.noise_n}")
     if args.saturation_n is not None and args.saturation_n <= 0:
@@ -58,7 +55,12 @@ def run(args) -> int:
     if not args.gust_window[0] <= args.gust_window[1]:
         raise ValueError(f"--gust-window must be T0 <= T1, got {args.gust_window}")
     vehicle, controller = load_model_params(args)
-    plan = plan_file(args.maneuver, vehicle, controller, laps=args.laps)
+    spec = load_maneuver_arg(args)            # the files first: the planner's imports are heavy
+    from ..config.regulation import told_rotor_limit
+    from ..maneuver.cache import default_cache
+    from ..maneuver.plan import plan_cached
+    from ..sim.maneuver_run import fly_on_design_model
+    plan = plan_cached(spec, vehicle, controller, cache=default_cache())
     print(f"{plan.name}: planned, {plan.length_m:.1f} m in {plan.duration_s:.1f} s; simulating",
           file=sys.stderr, flush=True)
     run_ = fly_on_design_model(plan, offset_m=args.offset, inertia_kg_m2=args.inertia_kg_m2,

@@ -1,0 +1,59 @@
+"""The CLI answers ``--help`` and a rejected file without importing the heavy libraries.
+
+numba, scipy and matplotlib take most of a second and 100 MB or more to import; the command
+line imports them only where a command needs them (to plan, fly, draw). Structural checks
+(what a fresh interpreter has imported), not timings.
+"""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from mavreg.cli.common import PARAMS_DIR
+
+HEAVY = ("numba", "scipy", "matplotlib")
+
+_PROBE = """
+import contextlib, io, json, sys
+from mavreg.cli import main as m
+m.build_parser()
+code = None
+argv = json.loads(sys.argv[1])
+if argv:
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        try:
+            code = m.main(argv)
+        except SystemExit as exc:      # --help
+            code = exc.code
+print(json.dumps({"code": code, "heavy": sorted({k.split('.')[0] for k in sys.modules} & set(%r))}))
+""" % (HEAVY,)
+
+
+def _imported(argv: list[str]) -> dict:
+    out = subprocess.run([sys.executable, "-c", _PROBE, json.dumps(argv)], capture_output=True,
+                         text=True, timeout=120, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.parametrize("argv, code", [
+    ([], None),                                   # import and build the parser
+    (["--help"], 0),
+    (["upload", "--help"], 0),
+    (["plan", "/dev/null"], 2),                   # an empty file, rejected
+    (["simulate", "/dev/null"], 2),
+    (["plan", "no/such/file.yaml"], 2),
+])
+def test_light_paths_import_no_heavy_library(argv, code):
+    got = _imported(argv)
+    assert got["code"] == code
+    assert got["heavy"] == [], f"mavreg {' '.join(argv)} imported {got['heavy']}"
+
+
+def test_the_probe_sees_a_heavy_import():
+    """Negative control: a command that plans does import them, and the probe says so."""
+    got = _imported(["plan", str(PARAMS_DIR / "maneuvers" / "barrel_roll.yaml"), "--json"])
+    assert got["code"] == 0
+    assert "numba" in got["heavy"] or "scipy" in got["heavy"]
