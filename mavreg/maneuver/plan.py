@@ -34,6 +34,7 @@ from .cache import PlanCache, default_cache
 from .diagnose import euler_singularity, explain_divergence
 from .feasibility import Feasibility, check_feasibility
 from .flatness import FlatnessError, flat_nominal
+from .plan_entry import PlanEntry
 from .profiles import Profile
 
 __all__ = ["Plan", "plan_spec", "plan_cached", "plan_file", "plan_text", "segment_starts", "segment_ends",
@@ -277,6 +278,46 @@ class _Stopwatch:
             self._last = now
 
 
+class _Stage(NamedTuple):
+    """Everything of a plan but its gains: what a cache entry (:mod:`.plan_entry`) leaves out."""
+
+    spec: ManeuverSpec
+    vehicle: VehicleParams
+    model: QuadrotorModel
+    path: Path
+    speed: Profile
+    yaw: Profile
+    s: np.ndarray
+    nominal: _Nominal
+    rotors: np.ndarray
+    feasibility: Feasibility
+
+    def plan(self, K: np.ndarray, terminal: str, tau: float, attitude_error: str) -> Plan:
+        spec, n = self.spec, self.nominal
+        laps = spec.laps.count if spec.laps is not None else 1
+        laps_seg = spec.laps.segment if spec.laps is not None else None
+        return Plan(spec.name, self.path, self.vehicle, self.s, n.x, n.dx, n.u, K, n.v,
+                    self.feasibility, terminal, laps, laps_seg, tau, R=n.R,
+                    attitude_error=attitude_error)
+
+
+def _stage(spec: ManeuverSpec, vehicle: VehicleParams, controller: ControllerParams,
+           clock: _Stopwatch) -> _Stage:
+    """The path, the grid, the nominal and its feasibility."""
+    model = QuadrotorModel.from_vehicle(vehicle)
+    mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
+    path = build_path(spec)
+    speed, yaw = build_profiles(spec, path)
+    s = _with_midpoints(_time_grid(path, speed, controller.riccati_step_s))
+    clock.lap("path")
+    nominal = _nominal(model, path, speed, yaw, s, spec.yaw.mode)
+    rotors = nominal.u @ mixer.inverse.T
+    feas = check_feasibility(s, nominal.u, rotors, nominal.v, vehicle.max_rotor_thrust_n,
+                             spec.limits.min_speed_m_s, lambda q: path.segment_at(q).name)
+    clock.lap("nominal")
+    return _Stage(spec, vehicle, model, path, speed, yaw, s, nominal, rotors, feas)
+
+
 def plan_spec(spec: ManeuverSpec, vehicle: VehicleParams, controller: ControllerParams,
               strict: bool = True, *, timings: dict | None = None) -> Plan:
     """Plan a loaded maneuver.
@@ -289,26 +330,13 @@ def plan_spec(spec: ManeuverSpec, vehicle: VehicleParams, controller: Controller
     the ``total``.
     """
     clock = _Stopwatch(timings)
-    model = QuadrotorModel.from_vehicle(vehicle)
-    mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
-    path = build_path(spec)
-    speed, yaw = build_profiles(spec, path)
-    s = _with_midpoints(_time_grid(path, speed, controller.riccati_step_s))
-    clock.lap("path")
-    nominal = _nominal(model, path, speed, yaw, s, spec.yaw.mode)
-    x, u, dx, v = nominal.x, nominal.u, nominal.dx, nominal.v
-    rotors = u @ mixer.inverse.T
-    feas = check_feasibility(s, u, rotors, v, vehicle.max_rotor_thrust_n,
-                             spec.limits.min_speed_m_s, lambda q: path.segment_at(q).name)
-    laps = spec.laps.count if spec.laps is not None else 1
-    laps_seg = spec.laps.segment if spec.laps is not None else None
-    clock.lap("nominal")
-    if not feas.feasible:
+    st = _stage(spec, vehicle, controller, clock)
+    s, x, v, path, nominal = st.s, st.nominal.x, st.nominal.v, st.path, st.nominal
+    if not st.feasibility.feasible:
         if strict:
-            raise ManeuverError(f"maneuver {spec.name!r} is infeasible: " + "; ".join(feas.violations))
-        return Plan(spec.name, path, vehicle, s, x, dx, u, np.zeros((len(s), 4, 11)), v, feas,
-                    "none (infeasible)", laps, laps_seg, R=nominal.R,
-                    attitude_error=controller.attitude_error)
+            raise ManeuverError(f"maneuver {spec.name!r} is infeasible: "
+                                + "; ".join(st.feasibility.violations))
+        return st.plan(np.zeros((len(s), 4, 11)), "none (infeasible)", 0.0, controller.attitude_error)
     so3 = controller.attitude_error == "so3"
     singular = None if so3 else euler_singularity(s, x[:, 4], lambda q: path.segment_at(q).name)
     if singular:
@@ -319,15 +347,14 @@ def plan_spec(spec: ManeuverSpec, vehicle: VehicleParams, controller: Controller
                             "(rotor_lag_in_design: true) but the vehicle file's "
                             "rotor_time_constant_s is 0")
     try:
-        K, terminal = _gains(model, path, speed, yaw, s, controller, spec, tau, nominal, clock)
+        K, terminal = _gains(st.model, path, st.speed, st.yaw, s, controller, spec, tau, nominal, clock)
     except SweepDivergence as exc:
         k = nominal.k
         pitch = np.zeros(len(s)) if so3 else x[:, 4]     # no singularity in the SO(3) form
         raise ManeuverError(f"maneuver {spec.name!r}: " + explain_divergence(
-            exc.s_m, s, pitch, v, rotors, vehicle.max_rotor_thrust_n, np.hypot(k[:, 0], k[:, 1]),
+            exc.s_m, s, pitch, v, st.rotors, vehicle.max_rotor_thrust_n, np.hypot(k[:, 0], k[:, 1]),
             lambda q: path.segment_at(q).name) + f" ({exc})") from None
-    return Plan(spec.name, path, vehicle, s, x, dx, u, K, v, feas, terminal, laps, laps_seg, tau,
-                R=nominal.R, attitude_error=controller.attitude_error)
+    return st.plan(K, terminal, tau, controller.attitude_error)
 
 
 def _du_ds(u: np.ndarray, s: np.ndarray, periodic: bool) -> np.ndarray:
@@ -449,11 +476,28 @@ def _periodic_terminal(model, path, speed, yaw, yaw_mode, lap_m, controller, Q, 
 
 def plan_cached(spec: ManeuverSpec, vehicle: VehicleParams, controller: ControllerParams,
                 strict: bool = True, cache: PlanCache | None = None) -> Plan:
-    """:func:`plan_spec` through ``cache`` (None: plan without one)."""
+    """:func:`plan_spec` through ``cache`` (None: plan without one).
+
+    The cache keeps a :class:`~mavreg.maneuver.plan_entry.PlanEntry` (the gains, a tenth
+    of the plan's size); a hit computes the path and the nominal again, bit for bit as
+    planning does, and puts the stored gains on them.
+    """
     if cache is None:
         return plan_spec(spec, vehicle, controller, strict)
-    return cache.get_or_plan((spec, vehicle, controller, strict),
-                             lambda: plan_spec(spec, vehicle, controller, strict))
+    fresh = []
+
+    def build() -> PlanEntry:
+        fresh.append(plan_spec(spec, vehicle, controller, strict))
+        return PlanEntry.of(fresh[0])
+
+    entry = cache.get_or_plan((spec, vehicle, controller, strict), build)
+    if fresh:
+        return fresh[0]
+    st = _stage(spec, vehicle, controller, _Stopwatch(None)) if isinstance(entry, PlanEntry) else None
+    if st is None or entry.gains_shape[0] != len(st.s):     # not an entry of this code
+        return plan_spec(spec, vehicle, controller, strict)
+    return st.plan(entry.gain_table(), entry.terminal, entry.rotor_time_constant_s,
+                   controller.attitude_error)
 
 
 def plan_file(path: str | FilePath, vehicle: VehicleParams, controller: ControllerParams,
