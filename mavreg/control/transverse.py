@@ -28,7 +28,7 @@ import numpy as np
 
 from ..model.linearize import complex_step_jacobian
 from ..model.quadrotor import QuadrotorModel
-from ..model.rotation import rpy_to_matrix, wrap_angle
+from ..model.rotation import euler_rates_matrix, rpy_to_matrix, wrap_angle
 from ..model.so3 import attitude_error, exp_so3, right_jacobian_inv
 
 __all__ = ["NW", "transverse_rhs", "transverse_rhs_so3", "transverse_jacobians", "transverse_coordinates"]
@@ -53,12 +53,16 @@ def transverse_rhs(model: QuadrotorModel, F, k, xbar, ubar, dxbar, w, uw, with_s
     Rv = np.einsum("ijn,nj->ni", R, x_r[:, 3:6])
     t, m1, m2 = F[:, :, 0], F[:, :, 1], F[:, :, 2]
     sdot = np.sum(t * Rv, axis=1) / (1 - k[:, 0] * w[:, 0] - k[:, 1] * w[:, 1])
-    x = np.concatenate([np.zeros((len(w), 3), dtype=x_r.dtype), x_r], axis=1)
-    fr = model.f(x.T, u.T).T[:, 3:]
+    # model.f's rows 3..11 (its position rows and its second R left out: the same numbers)
+    wb = x_r[:, 6:9].T
+    eul = np.einsum("ij...,j...->i...", euler_rates_matrix(x_r[:, 0], x_r[:, 1]), wb)
+    vdot, wdot = model.body_derivatives(R[2], x_r[:, 3:6].T, wb, u.T)
     out = np.empty((len(w), NW), dtype=np.result_type(w, uw, float))
     out[:, 0] = np.sum(m1 * Rv, axis=1) / sdot
     out[:, 1] = np.sum(m2 * Rv, axis=1) / sdot
-    out[:, 2:] = fr / sdot[:, None] - dxbar[:, 3:]
+    out[:, 2:5] = eul.T / sdot[:, None] - dxbar[:, 3:6]
+    out[:, 5:8] = vdot.T / sdot[:, None] - dxbar[:, 6:9]
+    out[:, 8:11] = wdot.T / sdot[:, None] - dxbar[:, 9:12]
     return (out, sdot) if with_sdot else out
 
 
