@@ -413,11 +413,22 @@ def _gains_on_grid(A, B, s, Q, R, P_T=None, periodic: bool = False):
         exc.s_m = float(s[0::2][exc.node])      # where, for the diagnosis
         raise
     Rinv_Bt = np.linalg.solve(R, np.swapaxes(B, 1, 2))
-    dP = -riccati_rhs(An, Bn @ Rinv_Bt[0::2], Q, Pn)
     P = np.empty((len(s),) + Pn.shape[1:])
     P[0::2] = Pn
-    P[1::2] = (Pn[:-1] + Pn[1:]) / 2 + h[:, None, None] / 8 * (dP[:-1] - dP[1:])
-    return P, Rinv_Bt @ P
+    K = np.empty(Rinv_Bt.shape[:2] + Pn.shape[2:])
+    # In blocks of nodes, so that the products' temporaries stay small (each row's numbers
+    # are those of the whole-array expressions).
+    for a in range(0, len(Pn) - 1, _BLOCK_NODES):
+        b = min(a + _BLOCK_NODES, len(Pn) - 1)
+        dP = -riccati_rhs(An[a:b + 1], Bn[a:b + 1] @ Rinv_Bt[2 * a:2 * b + 1:2], Q, Pn[a:b + 1])
+        P[2 * a + 1:2 * b:2] = ((Pn[a:b] + Pn[a + 1:b + 1]) / 2
+                                + h[a:b, None, None] / 8 * (dP[:-1] - dP[1:]))
+    for a in range(0, len(s), 2 * _BLOCK_NODES):
+        np.matmul(Rinv_Bt[a:a + 2 * _BLOCK_NODES], P[a:a + 2 * _BLOCK_NODES], out=K[a:a + 2 * _BLOCK_NODES])
+    return P, K
+
+
+_BLOCK_NODES = 512
 
 
 def _weights(controller: ControllerParams, tau: float) -> tuple[np.ndarray, np.ndarray]:
