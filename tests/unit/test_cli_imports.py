@@ -57,3 +57,17 @@ def test_the_probe_sees_a_heavy_import():
     got = _imported(["plan", str(PARAMS_DIR / "maneuvers" / "barrel_roll.yaml"), "--json"])
     assert got["code"] == 0
     assert "numba" in got["heavy"] or "scipy" in got["heavy"]
+
+
+def test_a_plan_from_the_cache_imports_no_numba(tmp_path, monkeypatch):
+    """numba is imported at the first kernel call (:mod:`mavreg.accel`): planning imports it
+    (the Riccati sweep), the same plan served from the plan cache does not."""
+    from mavreg import accel
+    if not accel.ACCELERATED:
+        pytest.skip(f"the pure path imports no numba ({accel.reason})")
+    monkeypatch.setenv("MAVREG_PLAN_CACHE", str(tmp_path))
+    argv = ["plan", str(PARAMS_DIR / "maneuvers" / "slalom.yaml"), "--json"]
+    first, second = _imported(argv), _imported(argv)
+    assert first["code"] == second["code"] == 0
+    assert "numba" in first["heavy"]
+    assert "numba" not in second["heavy"]
