@@ -505,10 +505,13 @@ def plan_cached(spec: ManeuverSpec, vehicle: VehicleParams, controller: Controll
     if fresh:
         return fresh[0]
     st = _stage(spec, vehicle, controller, _Stopwatch(None)) if isinstance(entry, PlanEntry) else None
-    if st is None or entry.gains_shape[0] != len(st.s):     # not an entry of this code
+    try:
+        K = entry.gain_table() if st is not None and entry.gains_shape[0] == len(st.s) else None
+    except Exception:          # a damaged entry (zlib, shape): planned again, as an unreadable one
+        K = None
+    if K is None:
         return plan_spec(spec, vehicle, controller, strict)
-    return st.plan(entry.gain_table(), entry.terminal, entry.rotor_time_constant_s,
-                   controller.attitude_error)
+    return st.plan(K, entry.terminal, entry.rotor_time_constant_s, controller.attitude_error)
 
 
 def plan_file(path: str | FilePath, vehicle: VehicleParams, controller: ControllerParams,

@@ -88,3 +88,22 @@ def test_flight_on_the_cached_plan_is_the_same_flight(fresh_and_cached):
     a, b = (fly_batch(p, [run])[0] for p in (fresh, cached))
     assert a.status == b.status and len(a.x) > 10_000
     assert _same_bits(a.x, b.x) and _same_bits(a.rotor_applied_n, b.rotor_applied_n)
+
+
+def test_a_damaged_entry_is_planned_again(fresh_and_cached, tmp_path):
+    """An entry that unpickles but whose packed gains are damaged: planned again, the same plan."""
+    fresh, _, cache = fresh_and_cached
+    (entry_file,) = list(cache.directory.glob("*.plan.pickle"))
+    with open(entry_file, "rb") as f:
+        entry = pickle.load(f)
+    damaged = dataclasses.replace(entry, gains=entry.gains[: len(entry.gains) // 2])
+    other = PlanCache(tmp_path)
+    other.directory.mkdir(parents=True, exist_ok=True)
+    with open(other.directory / entry_file.name, "wb") as f:
+        pickle.dump(damaged, f)
+    vehicle = load_vehicle(DEFAULT_VEHICLE)
+    controller = load_controller(PAPER_CONTROLLER)
+    spec = load_maneuver(PARAMS_DIR / "maneuvers" / "barrel_roll.yaml")
+    again = plan_cached(spec, vehicle, controller, cache=other)
+    assert other.hits == 1                       # the damaged entry was read ...
+    assert _same_bits(again.K, fresh.K)          # ... and the plan made again
