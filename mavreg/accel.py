@@ -80,7 +80,7 @@ class _Kernel:
 
     @property
     def signatures(self) -> list:
-        return [] if self.dispatcher is None else self.dispatcher.signatures
+        return getattr(self.dispatcher, "signatures", [])
 
     def __call__(self, *args):
         if self.dispatcher is None:
@@ -101,9 +101,12 @@ def materialize() -> None:
     with _lock:
         if _numba is not None:
             return
-        import numba
+        try:
+            import numba
+        except ImportError:       # installed but broken: the kernels run as Python, correct and slow
+            numba = None
         for kernel in _pending:
-            kernel.dispatcher = _dispatcher(numba, kernel.py_func)
+            kernel.dispatcher = kernel.py_func if numba is None else _dispatcher(numba, kernel.py_func)
         for module in list(sys.modules.values()):
             names = getattr(module, "__dict__", None)
             if not isinstance(names, dict):
@@ -111,7 +114,15 @@ def materialize() -> None:
             for name, value in list(names.items()):
                 if type(value) is _Kernel:
                     names[name] = value.dispatcher
-        _numba = numba
+        _numba = numba if numba is not None else _Unavailable()
+
+
+class _Unavailable:
+    """Stands for numba when its import failed: every later kernel stays Python."""
+
+    @staticmethod
+    def njit(cache=True):
+        return lambda func: func
 
 
 def njit(func):
