@@ -31,7 +31,8 @@ from ..model.quadrotor import QuadrotorModel
 from ..model.rotation import euler_rates_matrix, rpy_to_matrix, wrap_angle
 from ..model.so3 import attitude_error, exp_so3, right_jacobian_inv
 
-__all__ = ["NW", "transverse_rhs", "transverse_rhs_so3", "transverse_jacobians", "transverse_coordinates"]
+__all__ = ["NW", "FrozenAttitude", "transverse_rhs", "transverse_rhs_so3", "transverse_jacobians",
+           "transverse_coordinates"]
 
 NW = 11
 
