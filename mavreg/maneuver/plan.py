@@ -24,6 +24,7 @@ from ..control.actuator import augmented_jacobians
 from ..control.attitude_table import NominalAttitudes
 from ..control.riccati import SweepDivergence, care, periodic_riccati, riccati_rhs, sweep_backward
 from ..control.transverse import transverse_jacobians
+from ..blas import one_blas_thread
 from ..errors import ManeuverError
 from ..geometry.build import build_path
 from ..geometry.path import Path
@@ -329,7 +330,13 @@ def plan_spec(spec: ManeuverSpec, vehicle: VehicleParams, controller: Controller
     ``nominal`` (with its feasibility), the ``linearization``, the ``riccati`` sweep, and
     the ``total``.
     """
-    clock = _Stopwatch(timings)
+    clock = _Stopwatch(timings)            # from here: the thread limit's set-up is counted
+    with one_blas_thread():
+        return _plan_spec(spec, vehicle, controller, strict, clock)
+
+
+def _plan_spec(spec: ManeuverSpec, vehicle: VehicleParams, controller: ControllerParams,
+               strict: bool, clock: _Stopwatch) -> Plan:
     st = _stage(spec, vehicle, controller, clock)
     s, x, v, path, nominal = st.s, st.nominal.x, st.nominal.v, st.path, st.nominal
     if not st.feasibility.feasible:
