@@ -7,8 +7,11 @@ the Riccati stage 0.19 -> 0.13 s, the margins 0.37 -> 0.31 s at a load average o
 results are the same to the last bit: the threads split the outputs of a product, not the
 sums that make each one.
 
-:func:`one_blas_thread` limits the BLAS of this process for the duration of a ``with`` block
-through ``threadpoolctl``; without it installed, it does nothing.
+:func:`one_blas_thread` limits the BLAS of this process through ``threadpoolctl`` from the
+call on, and leaving its ``with`` block (or calling its ``__exit__``) restores the previous
+count; without threadpoolctl installed, it does nothing. The daemon holds the limit while it
+runs: its per-sample path wakes BLAS threads otherwise (about 1.3 points of a core's CPU at
+500 Hz, 17.6 % against 19.0 % at a load average of 2-3, the latency unchanged).
 """
 from __future__ import annotations
 

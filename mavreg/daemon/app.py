@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+from ..blas import one_blas_thread
 from ..config.controller import ControllerParams
 from ..config.disturbance import DisturbanceParams
 from ..config.envelope import EnvelopeParams
@@ -242,6 +243,7 @@ class Daemon:
             for sig in (signal.SIGINT, signal.SIGTERM):
                 loop.add_signal_handler(sig, self.request_stop)
         self.pool = PlannerPool(self.config.vehicle_path, self.config.controller_path)
+        blas = one_blas_thread()        # at once, for the loop's small products (mavreg/blas.py)
         try:
             await self.pool.warm_up()
             ctl = self.config.controller        # compiled now, not in the take-off's first period
@@ -269,6 +271,7 @@ class Daemon:
                 self.log(f"timeout after {timeout_s:g} s in phase {self.supervisor.phase}")
         finally:
             await self._shutdown(loop, install_signals)
+            blas.__exit__(None, None, None)
 
     async def _shutdown(self, loop, signals_installed: bool) -> None:
         if self._gap_timer is not None:
