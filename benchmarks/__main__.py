@@ -37,7 +37,7 @@ import sys
 import time
 from pathlib import Path
 
-from benchmarks.report import format_notes, format_table
+from benchmarks.report import format_notes, format_table, format_targets
 
 SECTIONS = ("codec", "plan", "step", "controller", "monte_carlo", "sitl", "daemon_rt")
 
@@ -107,6 +107,7 @@ def main(argv=None) -> int:
     print(format_table(figs))
     print()
     print(format_notes(figs))
+    print("\ntargets:\n" + format_targets(figs))
     print("\nsections: " + ", ".join(f"{k} {v:.0f} s" for k, v in took.items())
           + f"; total {time.perf_counter() - t_all:.0f} s" + (" (--quick)" if args.quick else ""))
     if args.json:

@@ -11,7 +11,17 @@
   rest in numpy), in a child process of the same run, one plan after an untimed one;
 - ``plan_s.cache_hit``: replanning the unchanged maneuver through a plan cache
   (:func:`mavreg.maneuver.plan.plan_cached` on a fresh directory: one miss, then the timed
-  hit), against planning it.
+  hit), against planning it;
+- ``plan_rss_mb.peak``: the peak resident memory of ``mavreg plan barrel_roll.yaml`` (the
+  design controller, no plan cache, margins included), a child process's own high-water mark
+  (``VmHWM``); ``plan_rss_mb.floor`` the same child's right after it imported the planner
+  and loaded numba's compiled kernels, before any table of the plan existed (what a plan can
+  not go below in a process that uses the kernels);
+- ``plan_cache_entry_mb``: the size of the barrel roll's plan-cache entry (design
+  controller), against the pickle of the whole plan (what an entry held before);
+- ``rejected_file_s``: ``mavreg plan /dev/null`` (an empty file, refused), a child process
+  from start to exit, against importing the planner alone (what the command cost when it
+  imported the planner first).
 
 Run alone: ``python -m benchmarks.plan_bench [--quick]``.
 """
@@ -26,7 +36,9 @@ import sys
 import tempfile
 import time
 
-from benchmarks.io_helpers import BARREL, PAPER_CONTROLLER, VEHICLE, figure
+from pathlib import Path
+
+from benchmarks.io_helpers import BARREL, PAPER_CONTROLLER, REPO, VEHICLE, figure
 from mavreg.config.controller import load_controller
 from mavreg.config.maneuver import load_maneuver
 from mavreg.config.vehicle import load_vehicle
@@ -36,6 +48,24 @@ __all__ = ["run_plan", "plan_stages"]
 
 STAGES = ("path", "nominal", "linearization", "riccati")
 TARGET_TOTAL_S = 0.15
+TARGET_RSS_MB = 150.0
+TARGET_ENTRY_MB = 2.0
+TARGET_REJECTED_S = 1.0
+
+_RSS_PROBE = """
+import sys
+def hwm():
+    status = dict(line.split(':', 1) for line in open('/proc/self/status'))
+    return int(status['VmHWM'].split()[0]) / 1024
+from mavreg.cli.main import main
+import mavreg.maneuver.plan, mavreg.maneuver.plan_margins, mavreg.control.riccati as r
+import numpy as np
+r.sweep_backward(np.zeros((2, 11, 11)), np.ones((2, 11, 4)), np.zeros((1, 11, 11)),
+                 np.ones((1, 11, 4)), 0.01, np.eye(11), np.eye(4), np.eye(11), step_check='off')
+floor = hwm()
+code = main(['plan', sys.argv[1]])
+print('RSS', floor, hwm(), code)
+"""
 
 
 def plan_stages(spec, vehicle, controller) -> dict:
@@ -92,6 +122,51 @@ def _stages_of_default_plan(repeats: int) -> dict:
                           repeats)
 
 
+def _child_s(args: list[str], env: dict) -> float:
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, *args], env=env, capture_output=True, timeout=300, cwd=REPO)
+    return time.perf_counter() - t0
+
+
+def weight_figures(quick: bool) -> dict:
+    """``plan_rss_mb.*``, ``plan_cache_entry_mb`` and ``rejected_file_s`` (module docstring)."""
+    import pickle
+
+    from mavreg.cli.common import DESIGN_CONTROLLER
+    from mavreg.maneuver.cache import PlanCache
+    env = dict(os.environ, MAVREG_PLAN_CACHE="off")
+    out = subprocess.run([sys.executable, "-c", _RSS_PROBE, str(BARREL)], env=env, capture_output=True,
+                         text=True, timeout=600, cwd=REPO)
+    line = next((ln for ln in out.stdout.splitlines() if ln.startswith("RSS ")), None)
+    if line is None:
+        raise RuntimeError(f"the memory probe failed: {out.stderr.strip()[-500:]}")
+    floor, peak, _ = (float(v) for v in line.split()[1:])
+    fig = {"plan_rss_mb.peak": figure(peak, None, target=TARGET_RSS_MB, unit="MB", higher_is_better=False,
+                                      note="peak resident memory of `mavreg plan barrel_roll.yaml` (design "
+                                           "controller, no cache, with margins), a child's VmHWM"),
+           "plan_rss_mb.floor": figure(floor, None, unit="MB", higher_is_better=False,
+                                       note="the same child after importing the planner and loading the "
+                                            "compiled kernels (numpy, scipy.linalg, numba and LLVM)")}
+    vehicle, controller = load_vehicle(VEHICLE), load_controller(DESIGN_CONTROLLER)
+    spec = load_maneuver(BARREL)
+    with tempfile.TemporaryDirectory(prefix="bench_plan_entry_") as tmp:
+        plan = planmod.plan_cached(spec, vehicle, controller, cache=PlanCache(tmp))
+        entry = sum(f.stat().st_size for f in Path(tmp).iterdir()) / 1e6
+    whole = len(pickle.dumps(plan, protocol=pickle.HIGHEST_PROTOCOL)) / 1e6
+    fig["plan_cache_entry_mb"] = figure(entry, whole, target=TARGET_ENTRY_MB, unit="MB", higher_is_better=False,
+                                        note="the barrel roll's plan-cache entry (design controller); "
+                                             "baseline: the pickle of the whole plan")
+    runs = 1 if quick else 3
+    rejected = statistics.median(_child_s(["-m", "mavreg.cli.main", "plan", "/dev/null"], env)
+                                 for _ in range(runs))
+    importing = statistics.median(_child_s(["-c", "import mavreg.maneuver.plan"], env) for _ in range(runs))
+    fig["rejected_file_s"] = figure(rejected, importing, target=TARGET_REJECTED_S, unit="s",
+                                    higher_is_better=False,
+                                    note=f"`mavreg plan /dev/null`, a whole process, median of {runs}; "
+                                         "baseline: a process that imports the planner")
+    return fig
+
+
 def run_plan(quick: bool) -> dict:
     """All the figures of the module docstring."""
     vehicle = load_vehicle(VEHICLE)
@@ -113,6 +188,7 @@ def run_plan(quick: bool) -> dict:
         fig["plan_s.cache_hit"] = figure(hit, now["total"], unit="s", higher_is_better=False,
                                          note="plan_cached of the unchanged maneuver from a warm cache; "
                                               "baseline: planning it (plan_s.total)")
+    fig.update(weight_figures(quick))
     return fig
 
 

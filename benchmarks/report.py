@@ -11,7 +11,7 @@ import json
 from pathlib import Path
 from typing import Callable
 
-__all__ = ["format_table", "format_notes", "standalone", "fmt"]
+__all__ = ["format_table", "format_notes", "format_targets", "standalone", "fmt"]
 
 _HEAD = ("figure", "value", "baseline", "ratio", "target", "met?", "unit")
 
@@ -56,6 +56,21 @@ def format_notes(figs: dict) -> str:
     return "\n".join(f"- {k}: {f['note']}" for k, f in figs.items() if f.get("note"))
 
 
+def format_targets(figs: dict) -> str:
+    """One line per figure with a target: met, or by how much not (value over target, or
+    target over value where higher is better), with the same run's baseline."""
+    lines = []
+    for k, f in figs.items():
+        if f.get("met") is None:
+            continue
+        v, t, b = f["value"], f["target"], f["baseline"]
+        over = max(v / t, t / v) if v and t else None
+        verdict = "met" if f["met"] else ("NOT met" + (f", {over:.2f}x off" if over else ""))
+        base = f" (baseline in this run {fmt(b)} {f['unit']})" if b is not None else ""
+        lines.append(f"- {k}: {fmt(v)} {f['unit']} against {fmt(t)}: {verdict}{base}")
+    return "\n".join(lines)
+
+
 def standalone(run: Callable[[bool], dict], doc: str, quick_help: str = "shorter version") -> None:
     """Parse ``--quick`` and ``--json FILE``, run the section, print its table and notes."""
     ap = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -66,5 +81,8 @@ def standalone(run: Callable[[bool], dict], doc: str, quick_help: str = "shorter
     print(format_table(figs))
     print()
     print(format_notes(figs))
+    targets = format_targets(figs)
+    if targets:
+        print("\ntargets:\n" + targets)
     if args.json:
         Path(args.json).write_text(json.dumps(figs, indent=1))

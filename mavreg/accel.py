@@ -13,28 +13,40 @@ compile time. numba judges a cached kernel fresh by its own file's stamp alone, 
 compiles in the kernels it calls from other files (the batch simulator the regulator's step,
 the step the projection): every kernel's cache is therefore stamped with all the package's
 kernel files (:func:`_kernel_stamp`), and an edit of any of them recompiles them all.
+
+numba itself is imported at the first call of a kernel, not when a module declares one
+(:func:`materialize`): numba and LLVM hold 65 MB or more and take a few tenths of a second
+to import, which a command that calls no kernel (a plan served from the plan cache, a
+rejected file, ``--help``) does not pay.
 """
 from __future__ import annotations
 
+import importlib.util
 import os
-from functools import lru_cache
+import sys
+import threading
+from functools import lru_cache, update_wrapper
 from pathlib import Path
 
-__all__ = ["ACCELERATED", "njit", "reason"]
+__all__ = ["ACCELERATED", "njit", "reason", "materialize"]
 
 
-def _load():
+def _find():
+    """Whether numba is to be used, and why (without importing it: 65 MB and a few tenths of
+    a second that a command which calls no kernel, such as planning from the plan cache or
+    answering a bad file, need not pay)."""
     if os.environ.get("MAVREG_PURE", "") not in ("", "0"):
-        return None, "MAVREG_PURE is set"
+        return False, "MAVREG_PURE is set"
+    if importlib.util.find_spec("numba") is None:
+        return False, "numba is not installed"
     try:
-        import numba
-    except ImportError:
-        return None, "numba is not installed"
-    return numba, f"numba {numba.__version__}"
+        from importlib.metadata import version
+        return True, f"numba {version('numba')}"
+    except Exception:     # metadata missing: numba importable all the same
+        return True, "numba"
 
 
-_numba, reason = _load()
-ACCELERATED = _numba is not None
+ACCELERATED, reason = _find()
 """True when the kernels are compiled by numba."""
 
 
@@ -47,12 +59,80 @@ def _kernel_stamp() -> tuple:
     return tuple((str(f.relative_to(root)), f.stat().st_mtime, f.stat().st_size) for f in files)
 
 
-def njit(func):
-    """``numba.njit(cache=True)`` when accelerated, else ``func`` unchanged."""
-    if _numba is None:
-        return func
-    dispatcher = _numba.njit(cache=True)(func)
+def _dispatcher(numba, func):
+    """``numba.njit(cache=True)(func)``, its cache stamped with every kernel file."""
+    dispatcher = numba.njit(cache=True)(func)
     cache_file = getattr(getattr(dispatcher, "_cache", None), "_cache_file", None)
     if hasattr(cache_file, "_source_stamp"):      # numba's layout; else its own stamp alone
         cache_file._source_stamp = (cache_file._source_stamp, _kernel_stamp())
     return dispatcher
+
+
+class _Kernel:
+    """A kernel before numba is imported: the first call of any kernel imports numba and
+    makes them all dispatchers (:func:`materialize`); calls through this object are then
+    handed on."""
+
+    def __init__(self, func):
+        update_wrapper(self, func)
+        self.py_func = func
+        self.dispatcher = None
+
+    @property
+    def signatures(self) -> list:
+        return getattr(self.dispatcher, "signatures", [])
+
+    def __call__(self, *args):
+        if self.dispatcher is None:
+            materialize()
+        return self.dispatcher(*args)
+
+
+_pending: list[_Kernel] = []
+_numba = None
+_lock = threading.Lock()
+
+
+def materialize() -> None:
+    """Import numba, make every kernel declared so far a dispatcher, and put the dispatchers
+    wherever a module holds a kernel by name (so that kernels calling kernels compile, numba
+    reading their globals). Idempotent; later :func:`njit` calls return dispatchers."""
+    global _numba
+    with _lock:
+        if _numba is not None:
+            return
+        try:
+            import numba
+        except ImportError:       # installed but broken: the kernels run as Python, correct and slow
+            numba = None
+        for kernel in _pending:
+            kernel.dispatcher = kernel.py_func if numba is None else _dispatcher(numba, kernel.py_func)
+        for module in list(sys.modules.values()):
+            names = getattr(module, "__dict__", None)
+            if not isinstance(names, dict):
+                continue
+            for name, value in list(names.items()):
+                if type(value) is _Kernel:
+                    names[name] = value.dispatcher
+        _numba = numba if numba is not None else _Unavailable()
+
+
+class _Unavailable:
+    """Stands for numba when its import failed: every later kernel stays Python."""
+
+    @staticmethod
+    def njit(cache=True):
+        return lambda func: func
+
+
+def njit(func):
+    """``numba.njit(cache=True)`` when accelerated (numba imported at the first kernel
+    call), else ``func`` unchanged."""
+    if not ACCELERATED:
+        return func
+    with _lock:
+        if _numba is not None:
+            return _dispatcher(_numba, func)
+        kernel = _Kernel(func)
+        _pending.append(kernel)
+        return kernel

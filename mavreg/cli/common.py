@@ -15,7 +15,7 @@ import math
 import os
 from pathlib import Path
 
-__all__ = ["PARAMS_DIR", "add_model_arguments", "add_laps_argument", "load_model_params",
+__all__ = ["PARAMS_DIR", "add_model_arguments", "add_laps_argument", "load_model_params", "load_maneuver_arg",
            "add_gcs_arguments", "gcs_config",
            "add_planner_arguments", "planner_bounds", "Parser", "positive_float", "nonneg_float",
            "finite_float", "positive_int", "nonneg_int", "vehicle_url", "plot_file", "input_file",
@@ -261,3 +261,14 @@ def output_dir(text: str) -> str:
     if why is not None:
         raise argparse.ArgumentTypeError(why)
     return text
+
+
+def load_maneuver_arg(args):
+    """The maneuver file ``args.maneuver``, with ``--laps`` applied.
+
+    Commands load it before they import the planner (numba, scipy: most of a second), so
+    that a rejected file answers at once.
+    """
+    from ..config.maneuver import load_maneuver
+    spec = load_maneuver(args.maneuver)
+    return spec if args.laps is None else spec.with_laps(args.laps)

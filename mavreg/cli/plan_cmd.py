@@ -4,8 +4,8 @@ from __future__ import annotations
 import argparse
 import json
 
-from .common import (add_laps_argument, add_model_arguments, input_file, load_model_params, output_file,
-                     plot_file)
+from .common import (add_laps_argument, add_model_arguments, input_file, load_maneuver_arg, load_model_params,
+                     output_file, plot_file)
 
 HELP = "validate a maneuver YAML, check feasibility, build the gain schedule (nothing flies)"
 DESCRIPTION = """\
@@ -57,10 +57,12 @@ def _export_file(text: str) -> str:
 
 
 def run(args) -> int:
-    from ..maneuver.plan import plan_file
-    from ..maneuver.plan_margins import with_margins
     vehicle, controller = load_model_params(args)
-    plan = with_margins(plan_file(args.maneuver, vehicle, controller, laps=args.laps, strict=False))
+    spec = load_maneuver_arg(args)            # the files first: the planner's imports are heavy
+    from ..maneuver.cache import default_cache
+    from ..maneuver.plan import plan_cached
+    from ..maneuver.plan_margins import with_margins
+    plan = with_margins(plan_cached(spec, vehicle, controller, strict=False, cache=default_cache()))
     summary = plan.summary()
     _check_envelope(plan, controller.envelope, summary)
     _write_outputs(args, plan, summary)

@@ -5,7 +5,8 @@ import json
 import sys
 
 from ..errors import UsageError
-from .common import (add_laps_argument, add_model_arguments, finite_float, input_file, load_model_params,
+from .common import (add_laps_argument, add_model_arguments, finite_float, input_file, load_maneuver_arg,
+                     load_model_params,
                      nonneg_float, nonneg_int, plot_file, positive_float)
 
 PHYSICS_STEP_S = 1e-3
@@ -66,13 +67,15 @@ def add_arguments(p):
 
 
 def run(args) -> int:
-    from ..maneuver.plan import plan_file
-    from ..config.regulation import told_rotor_limit
-    from ..sim.maneuver_run import fly_on_design_model
     if not args.gust_window[0] <= args.gust_window[1]:
         raise UsageError(f"--gust-window must be T0 <= T1, got {' '.join(f'{t:g}' for t in args.gust_window)}")
     vehicle, controller = load_model_params(args)
-    plan = plan_file(args.maneuver, vehicle, controller, laps=args.laps)
+    spec = load_maneuver_arg(args)            # the files first: the planner's imports are heavy
+    from ..config.regulation import told_rotor_limit
+    from ..maneuver.cache import default_cache
+    from ..maneuver.plan import plan_cached
+    from ..sim.maneuver_run import fly_on_design_model
+    plan = plan_cached(spec, vehicle, controller, cache=default_cache())
     print(f"{plan.name}: planned, {plan.length_m:.1f} m in {plan.duration_s:.1f} s; simulating",
           file=sys.stderr, flush=True)
     run_ = fly_on_design_model(plan, offset_m=args.offset, inertia_kg_m2=args.inertia_kg_m2,

@@ -33,7 +33,7 @@ import numpy as np
 
 from ..model.linearize import complex_step_jacobian
 from ..model.quadrotor import QuadrotorModel
-from .transverse import NW, transverse_rhs
+from .transverse import NW, FrozenAttitude, transverse_rhs
 
 __all__ = ["NZ", "augmented_rhs", "augmented_jacobians", "lag_augment"]
 
@@ -41,12 +41,13 @@ NZ = NW + 4
 
 
 def augmented_rhs(model: QuadrotorModel, tau_s: float, F, k, xbar, ubar, dxbar, dubar, speed,
-                  z, nu, Rbar=None):
+                  z, nu, Rbar=None, frozen=None):
     """z' for a batch: z (N,15) = (w, a), nu (N,4) commanded wrench deviation, dubar (N,4)
     = u-bar'(s), speed (N,) nominal v(s). Returns (N,15). Complex-safe. ``Rbar``: the SO(3)
     attitude error (:func:`~mavreg.control.transverse.transverse_rhs`)."""
     w, a = z[:, :NW], z[:, NW:]
-    wdot, sdot = transverse_rhs(model, F, k, xbar, ubar, dxbar, w, a, with_sdot=True, Rbar=Rbar)
+    wdot, sdot = transverse_rhs(model, F, k, xbar, ubar, dxbar, w, a, with_sdot=True, Rbar=Rbar,
+                                frozen=frozen)
     lead = tau_s * speed[:, None] * dubar
     adot = (lead + nu - a) / (tau_s * sdot[:, None]) - dubar
     return np.concatenate([wdot, adot], axis=1)
@@ -60,8 +61,9 @@ def augmented_jacobians(model: QuadrotorModel, tau_s: float, F, k, xbar, ubar, d
     z0 = np.zeros((len(xbar), NZ))
     n0 = np.zeros((len(xbar), 4))
     args = (model, tau_s, F, k, xbar, ubar, dxbar, dubar, speed)
-    A = complex_step_jacobian(lambda z: augmented_rhs(*args, z, n0, Rbar), z0)
-    B = complex_step_jacobian(lambda nu: augmented_rhs(*args, z0, nu, Rbar), n0)
+    fz = FrozenAttitude(xbar, Rbar)        # the attitude terms of the 16 of 19 columns that keep it
+    A = complex_step_jacobian(lambda z: augmented_rhs(*args, z, n0, Rbar, fz), z0)
+    B = complex_step_jacobian(lambda nu: augmented_rhs(*args, z0, nu, Rbar, fz), n0)
     return A, B
 
 

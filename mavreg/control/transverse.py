@@ -28,42 +28,81 @@ import numpy as np
 
 from ..model.linearize import complex_step_jacobian
 from ..model.quadrotor import QuadrotorModel
-from ..model.rotation import rpy_to_matrix, wrap_angle
+from ..model.rotation import euler_rates_matrix, rpy_to_matrix, wrap_angle
 from ..model.so3 import attitude_error, exp_so3, right_jacobian_inv
 
-__all__ = ["NW", "transverse_rhs", "transverse_rhs_so3", "transverse_jacobians", "transverse_coordinates"]
+__all__ = ["NW", "FrozenAttitude", "transverse_rhs", "transverse_rhs_so3", "transverse_jacobians",
+           "transverse_coordinates"]
 
 NW = 11
 
 
+class FrozenAttitude:
+    """The attitude terms of :func:`transverse_rhs` at a zero attitude error, computed once
+    per dtype of w and reused by every call whose w has zero attitude columns (the
+    linearization's columns that perturb the position, velocity, rates or input: 12 of 15
+    calls). They are the very numbers such a call would compute: the same expressions on
+    arrays of the same layout."""
+
+    def __init__(self, xbar, Rbar=None):
+        self.xbar, self.Rbar = xbar, Rbar
+        self._terms: dict = {}
+
+    def terms(self, w):
+        """The terms for ``w`` (None where its attitude columns are not all zero)."""
+        if np.any(w[:, 2:5]):
+            return None
+        key = np.dtype(w.dtype).str
+        if key not in self._terms:
+            self._terms[key] = _attitude_terms(self.xbar, np.zeros(w.shape, dtype=w.dtype), self.Rbar)
+        return self._terms[key]
+
+
+def _attitude_terms(xbar, w, Rbar):
+    """(R, W) of the roll-pitch-yaw form, (E, R, J_r^-1) of the SO(3) form, at ``w``."""
+    if Rbar is not None:
+        E = exp_so3(w[:, 2:5])
+        return E, Rbar @ E, right_jacobian_inv(w[:, 2:5])
+    x_r = xbar[:, 3:] + w[:, 2:]
+    return (rpy_to_matrix(x_r[:, 0], x_r[:, 1], x_r[:, 2]),      # (3,3,N)
+            euler_rates_matrix(x_r[:, 0], x_r[:, 1]))
+
+
 def transverse_rhs(model: QuadrotorModel, F, k, xbar, ubar, dxbar, w, uw, with_sdot: bool = False,
-                   Rbar=None):
+                   Rbar=None, frozen: FrozenAttitude | None = None):
     """F(s, w, u_w) for a batch: F (N,3,3), k (N,2), xbar (N,12), ubar (N,4),
     dxbar (N,12) = x-bar'(s), w (N,11), uw (N,4). Returns (N,11), and ds/dt (N,) too with
     ``with_sdot``. Complex-safe.
 
     ``Rbar`` (N,3,3), the nominal attitude, selects the SO(3) attitude error
     (:func:`transverse_rhs_so3`); None, the paper's roll-pitch-yaw differences.
+    ``frozen``: the attitude terms at zero attitude error of this xbar and Rbar, used when w's
+    attitude columns are zero (the same numbers, computed once).
     """
+    terms = None if frozen is None else frozen.terms(w)
     if Rbar is not None:
-        return transverse_rhs_so3(model, F, k, Rbar, xbar, ubar, dxbar, w, uw, with_sdot)
+        return transverse_rhs_so3(model, F, k, Rbar, xbar, ubar, dxbar, w, uw, with_sdot, terms)
     x_r = xbar[:, 3:] + w[:, 2:]           # angles, body velocity, body rates
     u = ubar + uw
-    R = rpy_to_matrix(x_r[:, 0], x_r[:, 1], x_r[:, 2])   # (3,3,N)
+    R, W = terms if terms is not None else _attitude_terms(xbar, w, None)
     Rv = np.einsum("ijn,nj->ni", R, x_r[:, 3:6])
     t, m1, m2 = F[:, :, 0], F[:, :, 1], F[:, :, 2]
     sdot = np.sum(t * Rv, axis=1) / (1 - k[:, 0] * w[:, 0] - k[:, 1] * w[:, 1])
-    x = np.concatenate([np.zeros((len(w), 3), dtype=x_r.dtype), x_r], axis=1)
-    fr = model.f(x.T, u.T).T[:, 3:]
+    # model.f's rows 3..11 (its position rows and its second R left out: the same numbers)
+    wb = x_r[:, 6:9].T
+    eul = np.einsum("ij...,j...->i...", W, wb)
+    vdot, wdot = model.body_derivatives(R[2], x_r[:, 3:6].T, wb, u.T)
     out = np.empty((len(w), NW), dtype=np.result_type(w, uw, float))
     out[:, 0] = np.sum(m1 * Rv, axis=1) / sdot
     out[:, 1] = np.sum(m2 * Rv, axis=1) / sdot
-    out[:, 2:] = fr / sdot[:, None] - dxbar[:, 3:]
+    out[:, 2:5] = eul.T / sdot[:, None] - dxbar[:, 3:6]
+    out[:, 5:8] = vdot.T / sdot[:, None] - dxbar[:, 6:9]
+    out[:, 8:11] = wdot.T / sdot[:, None] - dxbar[:, 9:12]
     return (out, sdot) if with_sdot else out
 
 
 def transverse_rhs_so3(model: QuadrotorModel, F, k, Rbar, xbar, ubar, dxbar, w, uw,
-                       with_sdot: bool = False):
+                       with_sdot: bool = False, terms=None):
     r"""The transverse dynamics with the attitude error on SO(3): ``w[2:5] = e`` with
     :math:`R = \bar R(s)\,\mathrm{Exp}(e)`.
 
@@ -78,8 +117,7 @@ def transverse_rhs_so3(model: QuadrotorModel, F, k, Rbar, xbar, ubar, dxbar, w, 
     dynamics through :math:`R^T e_3` alone. Defined for every attitude: no roll-pitch-yaw
     kinematics. Complex-safe.
     """
-    E = exp_so3(w[:, 2:5])
-    R = Rbar @ E
+    E, R, Jinv = terms if terms is not None else _attitude_terms(xbar, w, Rbar)
     vb = xbar[:, 6:9] + w[:, 5:8]
     wb = xbar[:, 9:12] + w[:, 8:11]
     Rv = np.einsum("nij,nj->ni", R, vb)
@@ -87,7 +125,7 @@ def transverse_rhs_so3(model: QuadrotorModel, F, k, Rbar, xbar, ubar, dxbar, w, 
     sdot = np.sum(t * Rv, axis=1) / (1 - k[:, 0] * w[:, 0] - k[:, 1] * w[:, 1])
     vbar = np.sqrt(np.sum(xbar[:, 6:9] ** 2, axis=1))
     wnom = np.einsum("nji,nj->ni", E, xbar[:, 9:12]) * (sdot / vbar)[:, None]
-    edot = np.einsum("nij,nj->ni", right_jacobian_inv(w[:, 2:5]), wb - wnom)
+    edot = np.einsum("nij,nj->ni", Jinv, wb - wnom)
     vdot, wdot = model.body_derivatives(R[:, 2, :].T, vb.T, wb.T, (ubar + uw).T)
     out = np.empty((len(w), NW), dtype=np.result_type(w, uw, Rbar, float))
     out[:, 0] = np.sum(m1 * Rv, axis=1) / sdot
@@ -103,8 +141,11 @@ def transverse_jacobians(model: QuadrotorModel, F, k, xbar, ubar, dxbar, Rbar=No
     machine precision). Returns A (N,11,11), B (N,11,4). ``Rbar``: the SO(3) form."""
     w0 = np.zeros((len(xbar), NW))
     u0 = np.zeros((len(xbar), 4))
-    A = complex_step_jacobian(lambda w: transverse_rhs(model, F, k, xbar, ubar, dxbar, w, u0, Rbar=Rbar), w0)
-    B = complex_step_jacobian(lambda uw: transverse_rhs(model, F, k, xbar, ubar, dxbar, w0, uw, Rbar=Rbar), u0)
+    fz = FrozenAttitude(xbar, Rbar)
+    A = complex_step_jacobian(lambda w: transverse_rhs(model, F, k, xbar, ubar, dxbar, w, u0, Rbar=Rbar,
+                                                       frozen=fz), w0)
+    B = complex_step_jacobian(lambda uw: transverse_rhs(model, F, k, xbar, ubar, dxbar, w0, uw, Rbar=Rbar,
+                                                        frozen=fz), u0)
     return A, B
 
 

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+from ..blas import one_blas_thread
 from ..config.controller import ControllerParams
 from ..config.disturbance import DisturbanceParams
 from ..config.envelope import EnvelopeParams
@@ -312,6 +313,7 @@ class Daemon:
             for sig in (signal.SIGINT, signal.SIGTERM):
                 loop.add_signal_handler(sig, self.request_stop)
         self.pool = PlannerPool(self.config.vehicle_path, self.config.controller_path, self.config.planner)
+        blas = one_blas_thread()        # at once, for the loop's small products (mavreg/blas.py)
         try:
             await self.pool.warm_up()
             ctl = self.config.controller        # compiled now, not in the take-off's first period
@@ -342,6 +344,7 @@ class Daemon:
                 self.log(f"timeout after {timeout_s:g} s in phase {self.supervisor.phase}")
         finally:
             await self._shutdown(loop, install_signals)
+            blas.__exit__(None, None, None)
 
     async def _open_gcs(self) -> None:
         """The ground-station endpoints: the vehicle's telemetry and the daemon's messages out,

@@ -25,7 +25,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import CubicSpline, make_interp_spline
 
 __all__ = ["CurvaturePiece", "line_piece", "arc_piece", "helix_piece", "blend_piece",
            "waypoint_piece"]
@@ -160,6 +159,7 @@ def waypoint_piece(name: str, points: np.ndarray, t0: np.ndarray, m1: np.ndarray
     u = np.concatenate([[0.0], np.cumsum(chords)])
     if len(pts) < 3:
         raise ValueError("a waypoint curve needs at least two waypoints (use a line)")
+    from scipy.interpolate import make_interp_spline   # waypoint curves only: 23 MB, 0.25 s
     zero = np.zeros(3)
     # End tangent: along the last chord; degree 7 takes three conditions at each end.
     t_end = (pts[-1] - pts[-2]) / chords[-1]
@@ -196,6 +196,7 @@ def waypoint_piece(name: str, points: np.ndarray, t0: np.ndarray, m1: np.ndarray
     k = np.stack([np.sum(kvec * M1, axis=1), np.sum(kvec * M2, axis=1)], axis=1)
     k[0] = 0.0
     k[-1] = 0.0
+    from scipy.interpolate import CubicSpline
     kspl = CubicSpline(sig, k, bc_type=((1, np.zeros(2)), (1, np.zeros(2))))
 
     def ev(sigma):

@@ -24,6 +24,7 @@ from ..control.actuator import augmented_jacobians
 from ..control.attitude_table import NominalAttitudes
 from ..control.riccati import SweepDivergence, care, periodic_riccati, riccati_rhs, sweep_backward
 from ..control.transverse import transverse_jacobians
+from ..blas import one_blas_thread
 from ..errors import ManeuverError
 from ..geometry.build import build_path
 from ..geometry.path import Path
@@ -36,6 +37,7 @@ from .feasibility import Feasibility, check_feasibility
 from .budget import check_budget
 from .flatness import FlatnessError, flat_nominal
 from .layout import build_profiles, segment_ends, segment_starts
+from .plan_entry import PlanEntry
 from .profiles import Profile
 
 __all__ = ["Plan", "plan_spec", "plan_cached", "plan_file", "plan_text", "segment_starts", "segment_ends",
@@ -245,6 +247,47 @@ class _Stopwatch:
             self._last = now
 
 
+class _Stage(NamedTuple):
+    """Everything of a plan but its gains: what a cache entry (:mod:`.plan_entry`) leaves out."""
+
+    spec: ManeuverSpec
+    vehicle: VehicleParams
+    model: QuadrotorModel
+    path: Path
+    speed: Profile
+    yaw: Profile
+    s: np.ndarray
+    nominal: _Nominal
+    rotors: np.ndarray
+    feasibility: Feasibility
+
+    def plan(self, K: np.ndarray, terminal: str, tau: float, attitude_error: str) -> Plan:
+        spec, n = self.spec, self.nominal
+        laps = spec.laps.count if spec.laps is not None else 1
+        laps_seg = spec.laps.segment if spec.laps is not None else None
+        return Plan(spec.name, self.path, self.vehicle, self.s, n.x, n.dx, n.u, K, n.v,
+                    self.feasibility, terminal, laps, laps_seg, tau, R=n.R,
+                    attitude_error=attitude_error)
+
+
+def _stage(spec: ManeuverSpec, vehicle: VehicleParams, controller: ControllerParams,
+           clock: _Stopwatch) -> _Stage:
+    """The path, the grid, the nominal and its feasibility."""
+    model = QuadrotorModel.from_vehicle(vehicle)
+    mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
+    path = build_path(spec)
+    speed, yaw = build_profiles(spec, path)
+    s = _with_midpoints(_time_grid(path, speed, controller.riccati_step_s))
+    clock.lap("path")
+    nominal = _nominal(model, path, speed, yaw, s, spec.yaw.mode)
+    rotors = nominal.u @ mixer.inverse.T
+    feas = check_feasibility(s, nominal.u, rotors, nominal.v, vehicle.max_rotor_thrust_n,
+                             spec.limits.min_speed_m_s, lambda q: path.segment_at(q).name,
+                             nominal.R, spec.limits.max_tilt_rad)
+    clock.lap("nominal")
+    return _Stage(spec, vehicle, model, path, speed, yaw, s, nominal, rotors, feas)
+
+
 def plan_spec(spec: ManeuverSpec, vehicle: VehicleParams, controller: ControllerParams,
               strict: bool = True, *, timings: dict | None = None) -> Plan:
     """Plan a loaded maneuver.
@@ -256,29 +299,21 @@ def plan_spec(spec: ManeuverSpec, vehicle: VehicleParams, controller: Controller
     ``nominal`` (with its feasibility), the ``linearization``, the ``riccati`` sweep, and
     the ``total``.
     """
-    clock = _Stopwatch(timings)
+    clock = _Stopwatch(timings)            # from here: the thread limit's set-up is counted
     check_budget(spec, controller.riccati_step_s)      # before anything is allocated
-    model = QuadrotorModel.from_vehicle(vehicle)
-    mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
-    path = build_path(spec)
-    speed, yaw = build_profiles(spec, path)
-    s = _with_midpoints(_time_grid(path, speed, controller.riccati_step_s))
-    clock.lap("path")
-    nominal = _nominal(model, path, speed, yaw, s, spec.yaw.mode)
-    x, u, dx, v = nominal.x, nominal.u, nominal.dx, nominal.v
-    rotors = u @ mixer.inverse.T
-    feas = check_feasibility(s, u, rotors, v, vehicle.max_rotor_thrust_n,
-                             spec.limits.min_speed_m_s, lambda q: path.segment_at(q).name,
-                             nominal.R, spec.limits.max_tilt_rad)
-    laps = spec.laps.count if spec.laps is not None else 1
-    laps_seg = spec.laps.segment if spec.laps is not None else None
-    clock.lap("nominal")
-    if not feas.feasible:
+    with one_blas_thread():
+        return _plan_spec(spec, vehicle, controller, strict, clock)
+
+
+def _plan_spec(spec: ManeuverSpec, vehicle: VehicleParams, controller: ControllerParams,
+               strict: bool, clock: _Stopwatch) -> Plan:
+    st = _stage(spec, vehicle, controller, clock)
+    s, x, v, path, nominal = st.s, st.nominal.x, st.nominal.v, st.path, st.nominal
+    if not st.feasibility.feasible:
         if strict:
-            raise ManeuverError(f"maneuver {spec.name!r} is infeasible: " + "; ".join(feas.violations))
-        return Plan(spec.name, path, vehicle, s, x, dx, u, np.zeros((len(s), 4, 11)), v, feas,
-                    "none (infeasible)", laps, laps_seg, R=nominal.R,
-                    attitude_error=controller.attitude_error)
+            raise ManeuverError(f"maneuver {spec.name!r} is infeasible: "
+                                + "; ".join(st.feasibility.violations))
+        return st.plan(np.zeros((len(s), 4, 11)), "none (infeasible)", 0.0, controller.attitude_error)
     so3 = controller.attitude_error == "so3"
     singular = None if so3 else euler_singularity(s, x[:, 4], lambda q: path.segment_at(q).name)
     if singular:
@@ -289,15 +324,14 @@ def plan_spec(spec: ManeuverSpec, vehicle: VehicleParams, controller: Controller
                             "(rotor_lag_in_design: true) but the vehicle file's "
                             "rotor_time_constant_s is 0")
     try:
-        K, terminal = _gains(model, path, speed, yaw, s, controller, spec, tau, nominal, clock)
+        K, terminal = _gains(st.model, path, st.speed, st.yaw, s, controller, spec, tau, nominal, clock)
     except SweepDivergence as exc:
         k = nominal.k
         pitch = np.zeros(len(s)) if so3 else x[:, 4]     # no singularity in the SO(3) form
         raise ManeuverError(f"maneuver {spec.name!r}: " + explain_divergence(
-            exc.s_m, s, pitch, v, rotors, vehicle.max_rotor_thrust_n, np.hypot(k[:, 0], k[:, 1]),
+            exc.s_m, s, pitch, v, st.rotors, vehicle.max_rotor_thrust_n, np.hypot(k[:, 0], k[:, 1]),
             lambda q: path.segment_at(q).name) + f" ({exc})") from None
-    return Plan(spec.name, path, vehicle, s, x, dx, u, K, v, feas, terminal, laps, laps_seg, tau,
-                R=nominal.R, attitude_error=controller.attitude_error)
+    return st.plan(K, terminal, tau, controller.attitude_error)
 
 
 def _du_ds(u: np.ndarray, s: np.ndarray, periodic: bool) -> np.ndarray:
@@ -356,11 +390,22 @@ def _gains_on_grid(A, B, s, Q, R, P_T=None, periodic: bool = False):
         exc.s_m = float(s[0::2][exc.node])      # where, for the diagnosis
         raise
     Rinv_Bt = np.linalg.solve(R, np.swapaxes(B, 1, 2))
-    dP = -riccati_rhs(An, Bn @ Rinv_Bt[0::2], Q, Pn)
     P = np.empty((len(s),) + Pn.shape[1:])
     P[0::2] = Pn
-    P[1::2] = (Pn[:-1] + Pn[1:]) / 2 + h[:, None, None] / 8 * (dP[:-1] - dP[1:])
-    return P, Rinv_Bt @ P
+    K = np.empty(Rinv_Bt.shape[:2] + Pn.shape[2:])
+    # In blocks of nodes, so that the products' temporaries stay small (each row's numbers
+    # are those of the whole-array expressions).
+    for a in range(0, len(Pn) - 1, _BLOCK_NODES):
+        b = min(a + _BLOCK_NODES, len(Pn) - 1)
+        dP = -riccati_rhs(An[a:b + 1], Bn[a:b + 1] @ Rinv_Bt[2 * a:2 * b + 1:2], Q, Pn[a:b + 1])
+        P[2 * a + 1:2 * b:2] = ((Pn[a:b] + Pn[a + 1:b + 1]) / 2
+                                + h[a:b, None, None] / 8 * (dP[:-1] - dP[1:]))
+    for a in range(0, len(s), 2 * _BLOCK_NODES):
+        np.matmul(Rinv_Bt[a:a + 2 * _BLOCK_NODES], P[a:a + 2 * _BLOCK_NODES], out=K[a:a + 2 * _BLOCK_NODES])
+    return P, K
+
+
+_BLOCK_NODES = 512
 
 
 def _weights(controller: ControllerParams, tau: float) -> tuple[np.ndarray, np.ndarray]:
@@ -419,12 +464,32 @@ def _periodic_terminal(model, path, speed, yaw, yaw_mode, lap_m, controller, Q, 
 
 def plan_cached(spec: ManeuverSpec, vehicle: VehicleParams, controller: ControllerParams,
                 strict: bool = True, cache: PlanCache | None = None) -> Plan:
-    """:func:`plan_spec` through ``cache`` (None: plan without one)."""
+    """:func:`plan_spec` through ``cache`` (None: plan without one).
+
+    The cache keeps a :class:`~mavreg.maneuver.plan_entry.PlanEntry` (the gains, a tenth
+    of the plan's size); a hit computes the path and the nominal again, bit for bit as
+    planning does, and puts the stored gains on them.
+    """
     if cache is None:
         return plan_spec(spec, vehicle, controller, strict)
-    plan = cache.get_or_plan((spec, vehicle, controller, strict),
-                             lambda: plan_spec(spec, vehicle, controller, strict))
-    return replace(plan, from_cache=cache.last_hit)
+    fresh = []
+
+    def build() -> PlanEntry:
+        fresh.append(plan_spec(spec, vehicle, controller, strict))
+        return PlanEntry.of(fresh[0])
+
+    entry = cache.get_or_plan((spec, vehicle, controller, strict), build)
+    if fresh:
+        return fresh[0]
+    st = _stage(spec, vehicle, controller, _Stopwatch(None)) if isinstance(entry, PlanEntry) else None
+    try:
+        K = entry.gain_table() if st is not None and entry.gains_shape[0] == len(st.s) else None
+    except Exception:          # a damaged entry (zlib, shape): planned again, as an unreadable one
+        K = None
+    if K is None:
+        return plan_spec(spec, vehicle, controller, strict)
+    return replace(st.plan(K, entry.terminal, entry.rotor_time_constant_s, controller.attitude_error),
+                   from_cache=True)
 
 
 def plan_file(path: str | FilePath, vehicle: VehicleParams, controller: ControllerParams,

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..blas import one_blas_thread
 from ..config.vehicle import VehicleParams
 from ..control.actuator import augmented_jacobians, lag_augment
 from ..control.hover import HoverController, HoverParams
@@ -146,10 +147,11 @@ def hover_margins(vehicle: VehicleParams, params: HoverParams = HoverParams(),
 def plan_margins(plan: Plan, hover: HoverParams = HoverParams()) -> PlanMargins:
     """The margins of ``plan``'s regulator and of the hover LQR (``hover``'s weights) at the
     plan's entry yaw."""
-    h, h_rotor = hover_margins(plan.vehicle, hover, float(plan.x[0, 5]))
-    feasible = plan.feasibility.feasible
-    tau = plan.rotor_time_constant_s if plan.rotor_time_constant_s > 0 else plan.vehicle.rotor_time_constant_s
-    return PlanMargins(maneuver_margins(plan) if feasible else None, h, h_rotor, float(tau))
+    with one_blas_thread():
+        h, h_rotor = hover_margins(plan.vehicle, hover, float(plan.x[0, 5]))
+        feasible = plan.feasibility.feasible
+        tau = plan.rotor_time_constant_s if plan.rotor_time_constant_s > 0 else plan.vehicle.rotor_time_constant_s
+        return PlanMargins(maneuver_margins(plan) if feasible else None, h, h_rotor, float(tau))
 
 
 def with_margins(plan: Plan, hover: HoverParams = HoverParams()) -> Plan:

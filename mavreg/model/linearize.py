@@ -22,12 +22,15 @@ def complex_step_jacobian(fun: Callable[[np.ndarray], np.ndarray], z: np.ndarray
     at a time.
     """
     z = np.asarray(z, dtype=float)
-    cols = []
+    out = None
     for j in range(z.shape[-1]):
         dz = z.astype(complex)
         dz[..., j] += 1j * _H
-        cols.append(np.asarray(fun(dz)).imag / _H)
-    return np.stack(cols, axis=-1)
+        col = np.asarray(fun(dz)).imag / _H
+        if out is None:
+            out = np.empty(col.shape + (z.shape[-1],))
+        out[..., j] = col
+    return out
 
 
 def model_jacobians(f: Callable, x: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
