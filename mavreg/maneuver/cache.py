@@ -8,10 +8,11 @@ own source files, so that a changed planner never serves an old plan.
 
 Where: ``$MAVREG_PLAN_CACHE`` if set (a directory, or ``off`` to disable), else
 ``$XDG_CACHE_HOME/mavreg/plans``, else ``~/.cache/mavreg/plans``. An entry is a pickle of
-the :class:`~mavreg.maneuver.plan.Plan` (about 20 MB for the barrel roll), written
+a :class:`~mavreg.maneuver.plan_entry.PlanEntry`, the gains packed without loss (2.6-3.6 MB
+for the barrel roll; the path and nominal are rebuilt bit for bit on a hit), written
 atomically; the newest entries are kept, at most ``MAX_ENTRIES`` of them and at most
-``MAX_BYTES`` in all (``$MAVREG_PLAN_CACHE_MAX_MB`` changes it); a plan larger than half of
-that is not stored. The directory is the user's own: a pickle
+``MAX_BYTES`` in all (``$MAVREG_PLAN_CACHE_MAX_MB`` changes it); an entry larger than half
+of that is not stored. The directory is the user's own: a pickle
 is code, so never point the cache at a directory others can write. An entry that cannot be
 read is planned again and replaced. Failed plans (infeasible under ``strict``, bad files)
 are never cached.
