@@ -31,6 +31,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from mavreg.config.paths import PARAMS_DIR
 from mavreg.cli.common import (DEFAULT_VEHICLE, DESIGN_CONTROLLER, PAPER_CONTROLLER,  # noqa: E402
                                REAL_CONTROLLER)
 from mavreg.config.controller import load_controller  # noqa: E402
@@ -43,7 +44,7 @@ from mavreg.sim.maneuver_run import fly_on_design_model  # noqa: E402
 
 from gallery_text import markdown  # noqa: E402
 
-LIBRARY = ROOT / "params" / "maneuvers"
+LIBRARY = PARAMS_DIR / "maneuvers"
 OUT = ROOT / "docs" / "gallery"
 ORDER = ("barrel_roll", "forward_loop", "split_s", "immelmann", "figure_eight",
          "climbing_helix", "slalom")
