@@ -31,9 +31,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from mavreg.config.paths import PARAMS_DIR
-from mavreg.cli.common import (DEFAULT_VEHICLE, DESIGN_CONTROLLER, PAPER_CONTROLLER,  # noqa: E402
-                               REAL_CONTROLLER)
+from mavreg.config.paths import (DEFAULT_VEHICLE, DESIGN_CONTROLLER, PAPER_CONTROLLER,  # noqa: E402
+                                 PARAMS_DIR, REAL_CONTROLLER)
 from mavreg.config.controller import load_controller  # noqa: E402
 from mavreg.config.maneuver import load_maneuver  # noqa: E402
 from mavreg.config.vehicle import load_vehicle  # noqa: E402
