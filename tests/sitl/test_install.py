@@ -6,7 +6,8 @@ directory to ``sys.path`` without running the editable-install hooks found there
 virtual environment, and from a directory outside the checkout runs ``mavreg plan`` on every
 maneuver of the bundled library and one lockstep ``mavreg fly --world ideal`` of a short hop.
 
-About 55 s on two cores (the wheel 2 s, seven plans 27 s, the flight 26 s), so it is
+40-60 s on two cores (the wheel and the environment 2 s, seven plans 19-27 s, the flight
+18-30 s), so it is
 ``slow``; ``.ci/run`` runs it after the default suite.
 """
 from __future__ import annotations
