@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mavreg.config.paths import PARAMS_DIR
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
 from mavreg.control import fastpath
@@ -30,8 +31,8 @@ from mavreg.maneuver.plan import plan_file
 from mavreg.sim.maneuver_run import fly_on_design_model
 
 ROOT = Path(__file__).resolve().parents[1]
-MANEUVER = ROOT / "params/maneuvers/barrel_roll.yaml"
-VEHICLE = ROOT / "params/vehicles/mk_quadro.yaml"
+MANEUVER = PARAMS_DIR / "maneuvers/barrel_roll.yaml"
+VEHICLE = PARAMS_DIR / "vehicles/mk_quadro.yaml"
 CONTROL_RATE_HZ = 1000.0
 OFFSETS_M = ((0.05, -0.05, 0.05), (-0.1, 0.1, 0.0), (0.0, 0.15, -0.1))
 """Start offsets of the flights whose states are collected, one flight after the other."""
@@ -71,7 +72,7 @@ def closed_loop_states(controller_name: str, n_states: int = 30_000) -> StepCase
     the lagged rotor forces) and its steps the disturbance estimate :data:`ESTIMATE`.
     """
     vehicle = load_vehicle(VEHICLE)
-    controller = load_controller(ROOT / f"params/controller/{controller_name}.yaml")
+    controller = load_controller(PARAMS_DIR / f"controller/{controller_name}.yaml")
     plan = plan_file(MANEUVER, vehicle, controller)
     lagged = plan.rotor_time_constant_s > 0
     xs, fs, starts = [], [], []

@@ -25,10 +25,11 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+from mavreg.config.paths import PARAMS_DIR  # noqa: E402
 
-MANEUVER = ROOT / "params" / "maneuvers" / "barrel_roll.yaml"
-VEHICLE = ROOT / "params" / "vehicles" / "mk_quadro.yaml"
-CONTROLLER = ROOT / "params" / "controller" / "realistic.yaml"
+MANEUVER = PARAMS_DIR / "maneuvers" / "barrel_roll.yaml"
+VEHICLE = PARAMS_DIR / "vehicles" / "mk_quadro.yaml"
+CONTROLLER = PARAMS_DIR / "controller" / "realistic.yaml"
 
 
 def _split(delay_ms: float) -> tuple[float, float]:

@@ -21,9 +21,11 @@ import sys
 import tempfile
 from pathlib import Path
 
+from mavreg.config.paths import PARAMS_DIR
+
 ROOT = Path(__file__).resolve().parents[1]
-BARREL = ROOT / "params/maneuvers/barrel_roll.yaml"
-CONTROLLER = ROOT / "params/controller/realistic.yaml"
+BARREL = PARAMS_DIR / "maneuvers/barrel_roll.yaml"
+CONTROLLER = PARAMS_DIR / "controller/realistic.yaml"
 DEFAULT_CASES = ("realistic", "realistic-off", "realistic-cal", "thrust90", "thrust90-off",
                  *(f"wind3@{d}" for d in range(0, 360, 45)), "wind3@90-off", "wind6@0")
 

@@ -22,7 +22,7 @@ import threading
 import time
 from pathlib import Path
 
-from mavreg.cli.common import DEFAULT_VEHICLE, PAPER_CONTROLLER, PARAMS_DIR
+from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER, PARAMS_DIR
 from mavreg.daemon import endpoint
 from mavreg.daemon.endpoint import EndpointServer, request
 from mavreg.daemon.planner_pool import PlannerPool

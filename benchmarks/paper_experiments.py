@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mavreg.config.paths import PARAMS_DIR
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
 from mavreg.maneuver.plan import plan_file
@@ -34,9 +35,9 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--laps", type=int, default=3)
     args = ap.parse_args()
-    vehicle = load_vehicle(ROOT / "params/vehicles/mk_quadro.yaml")
-    controller = load_controller(ROOT / "params/controller/paper_lqr.yaml")
-    maneuver = ROOT / "params/maneuvers/barrel_roll.yaml"
+    vehicle = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
+    controller = load_controller(PARAMS_DIR / "controller/paper_lqr.yaml")
+    maneuver = PARAMS_DIR / "maneuvers/barrel_roll.yaml"
     plan = plan_file(maneuver, vehicle, controller)
     rng = np.random.default_rng(args.seed)
     print(f"{'run':>34}  {'status':>9}  {'max mm':>9}  {'loop mm':>9}  {'loop deg':>8}")

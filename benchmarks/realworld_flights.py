@@ -21,12 +21,13 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+from mavreg.config.paths import PARAMS_DIR  # noqa: E402
 
 
 def one_flight(out: Path, world: str, seed: int) -> dict:
     from mavreg.daemon.ctrllog import load_control_log
     from mavreg.sim.metrics import rotor_jitter_n
-    cmd = [sys.executable, "-m", "mavreg.cli.main", "fly", str(ROOT / "params/maneuvers/barrel_roll.yaml"),
+    cmd = [sys.executable, "-m", "mavreg.cli.main", "fly", str(PARAMS_DIR / "maneuvers/barrel_roll.yaml"),
            "--out", str(out), "--world", world, f"--emulator-arg=--seed={seed}"]
     code = subprocess.run(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                           timeout=600).returncode

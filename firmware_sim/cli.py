@@ -85,7 +85,7 @@ def build_parser() -> argparse.ArgumentParser:
       help="UDP address to listen on, udpin:HOST:PORT; port 0 picks a free port "
            "(default %(default)s)")
     a("--vehicle", default=None, metavar="YAML", type=input_file,
-      help="vehicle parameter file (default params/vehicles/mk_quadro.yaml of this repository)")
+      help="vehicle parameter file (default params/vehicles/mk_quadro.yaml, bundled with mavreg)")
     a("--rate-hz", type=positive_int, default=500,
       help="control and telemetry rate (default %(default)s)")
     a("--physics-hz", type=positive_int, default=1000,

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mavreg.config.paths import vehicle_file
 from mavreg.config.vehicle import VehicleParams, load_vehicle
 
 from .physics import inertia_matrix, quat_from_euler
@@ -21,8 +22,8 @@ __all__ = ["SimParams", "default_vehicle_path", "load_sim_params", "apply_overri
 
 
 def default_vehicle_path() -> Path:
-    """``params/vehicles/mk_quadro.yaml`` of the repository this package lives in."""
-    return Path(__file__).resolve().parent.parent / "params" / "vehicles" / "mk_quadro.yaml"
+    """``params/vehicles/mk_quadro.yaml``, bundled with mavreg (:mod:`mavreg.config.paths`)."""
+    return vehicle_file("mk_quadro")
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,6 @@ is an order of magnitude faster than numpy on 13-element arrays.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 __all__ = [
     "G", "RigidBody", "quat_from_euler", "euler_from_quat", "quat_mul", "rotate",

@@ -1,6 +1,6 @@
 """Per-rotor thrust: first-order lag, Gaussian noise, saturation, and the plus mixer.
 
-Rotor layout (conventions.md): 1 front (+l, 0), 2 right (0, +l), 3 back (-l, 0),
+Rotor layout (docs/conventions.md): 1 front (+l, 0), 2 right (0, +l), 3 back (-l, 0),
 4 left (0, -l); thrust along body -z. Body torques::
 
     roll  = l (f4 - f2)

@@ -21,6 +21,7 @@ import traceback
 from pathlib import Path
 
 from pymavlink.dialects.v20 import common as mavlink2
+from mavreg.config.paths import PARAMS_DIR
 from .frames import pack
 
 __all__ = ["DaemonTarget", "VehicleTarget", "STALL_S"]
@@ -46,7 +47,7 @@ class DaemonTarget:
         from mavreg.config.vehicle import load_vehicle
         from mavreg.daemon.link import FastLink, MavlinkLink
         from mavreg.daemon.supervisor import Supervisor, SupervisorParams
-        self.sup = Supervisor(load_vehicle(_REPO / "params/vehicles/mk_quadro.yaml"), SupervisorParams(),
+        self.sup = Supervisor(load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml"), SupervisorParams(),
                               lambda plan: None)
         self.passed: list = []
         if impl == "fast":

@@ -31,8 +31,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from mavreg.cli.common import (DEFAULT_VEHICLE, DESIGN_CONTROLLER, PAPER_CONTROLLER,  # noqa: E402
-                               REAL_CONTROLLER)
+from mavreg.config.paths import (DEFAULT_VEHICLE, DESIGN_CONTROLLER, PAPER_CONTROLLER,  # noqa: E402
+                                 PARAMS_DIR, REAL_CONTROLLER)
 from mavreg.config.controller import load_controller  # noqa: E402
 from mavreg.config.maneuver import load_maneuver  # noqa: E402
 from mavreg.config.vehicle import load_vehicle  # noqa: E402
@@ -43,7 +43,7 @@ from mavreg.sim.maneuver_run import fly_on_design_model  # noqa: E402
 
 from gallery_text import markdown  # noqa: E402
 
-LIBRARY = ROOT / "params" / "maneuvers"
+LIBRARY = PARAMS_DIR / "maneuvers"
 OUT = ROOT / "docs" / "gallery"
 ORDER = ("barrel_roll", "forward_loop", "split_s", "immelmann", "figure_eight",
          "climbing_helix", "slalom")

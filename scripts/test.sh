@@ -7,6 +7,7 @@
 # on two workers (pytest-xdist). The emulator and end-to-end tests start processes that talk
 # over UDP; they run one at a time, so that no two flights share the machine's cores.
 # With arguments, they are handed to one plain pytest run instead (e.g. `-k governor`).
+# Without, ruff and the import contracts (lint-imports) run first; a finding fails the run.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/venv.sh
@@ -16,6 +17,10 @@ PYTEST=(.venv/bin/python -m pytest -q -p no:cacheprovider)
 if [ "$#" -gt 0 ]; then
     exec "${PYTEST[@]}" "$@"
 fi
+# Lint and import contracts first (rules: pyproject.toml, docs/architecture.md "Layering and
+# lint"); a finding fails the run.
+.venv/bin/ruff check --quiet .
+.venv/bin/lint-imports --no-cache > /dev/null || { .venv/bin/lint-imports --no-cache; exit 1; }
 status=0
 "${PYTEST[@]}" -n 2 tests/unit || status=$?
 "${PYTEST[@]}" tests/firmware_sim tests/sitl || status=$?

@@ -15,25 +15,16 @@ import math
 import os
 from pathlib import Path
 
-__all__ = ["PARAMS_DIR", "add_model_arguments", "add_laps_argument", "load_model_params", "load_maneuver_arg",
+# The bundled parameter files have one home, mavreg.config.paths; re-exported for the commands.
+from ..config.paths import (DEFAULT_VEHICLE, DESIGN_CONTROLLER, PAPER_CONTROLLER,
+                            PAPER_GOVERNED_CONTROLLER, PARAMS_DIR, REAL_CONTROLLER)
+
+__all__ = ["PARAMS_DIR", "DEFAULT_VEHICLE", "PAPER_CONTROLLER", "PAPER_GOVERNED_CONTROLLER",
+           "DESIGN_CONTROLLER", "REAL_CONTROLLER", "add_model_arguments", "add_laps_argument", "load_model_params", "load_maneuver_arg",
            "add_gcs_arguments", "gcs_config",
            "add_planner_arguments", "planner_bounds", "Parser", "positive_float", "nonneg_float",
            "finite_float", "positive_int", "nonneg_int", "vehicle_url", "plot_file", "input_file",
            "output_file", "output_dir", "socket_path", "check_output_file", "check_output_dir"]
-PARAMS_DIR = Path(__file__).resolve().parents[2] / "params"
-DEFAULT_VEHICLE = PARAMS_DIR / "vehicles" / "mk_quadro.yaml"
-PAPER_CONTROLLER = PARAMS_DIR / "controller" / "paper_lqr.yaml"
-"""Exactly the paper's design (roll-pitch-yaw attitude error, per-rotor clipping, no speed
-governor): for reproductions."""
-PAPER_GOVERNED_CONTROLLER = PARAMS_DIR / "controller" / "paper_governed.yaml"
-"""The paper's design with mavreg's speed governor and torques-first allocation: the
-experiments where a gust holds the vehicle back or the rotors saturate."""
-DESIGN_CONTROLLER = PARAMS_DIR / "controller" / "design.yaml"
-"""The paper's weights on the SO(3) attitude error: the default of the design-model commands
-(plan, simulate)."""
-REAL_CONTROLLER = PARAMS_DIR / "controller" / "realistic.yaml"
-"""Lag-aware gains, delay prediction, weights for estimator noise: the default of the commands
-that fly a vehicle (fly, serve)."""
 
 
 def add_model_arguments(p: argparse.ArgumentParser, controller: Path = DESIGN_CONTROLLER) -> None:

@@ -17,13 +17,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..config.regulation import AllocationParams, SpeedGovernorParams
 from ..config.vehicle import VehicleParams
 from ..geometry.projection import Projector
-from ..maneuver.plan import Plan
 from ..model.mixer import Mixer, torques_first, yaw_then_lift
 from ..model.rotation import rpy_to_matrix
 from ..model.so3 import attitude_error
@@ -32,6 +32,9 @@ from .attitude_table import NominalAttitudes
 from .disturbance import DisturbanceEstimate, compensate
 from .governor import GovernedSpeed, SpeedGovernor, along_track_speed, retiming_force, thrust_speed_cap
 from .transverse import transverse_coordinates
+
+if TYPE_CHECKING:     # an annotation only: control never imports maneuver at run time
+    from ..maneuver.plan import Plan
 
 __all__ = ["ManeuverRegulator", "RegulatorOutput"]
 

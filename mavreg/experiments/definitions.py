@@ -42,7 +42,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import UsageError
-from ..cli.common import DEFAULT_VEHICLE, PAPER_CONTROLLER, PAPER_GOVERNED_CONTROLLER, PARAMS_DIR
+from ..config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER, PAPER_GOVERNED_CONTROLLER, PARAMS_DIR
 
 __all__ = ["RunSpec", "Experiment", "EXPERIMENTS", "build_experiment", "draw_inertia", "run_seed",
            "paper_group1", "paper_group2", "gust", "lag", "PAPER_INERTIA_SD_KG_M2", "PAPER_OFFSET_M",

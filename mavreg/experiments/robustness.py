@@ -37,7 +37,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import UsageError
-from ..cli.common import DEFAULT_VEHICLE, PARAMS_DIR, REAL_CONTROLLER
+from ..config.paths import DEFAULT_VEHICLE, PARAMS_DIR, REAL_CONTROLLER
 from .definitions import BARREL_ROLL, REGULATOR, Experiment, RunSpec, gust, run_seed
 
 __all__ = ["ROBUSTNESS", "Cell", "RobustSpec", "RobustnessExperiment", "all_cells", "select_cells",

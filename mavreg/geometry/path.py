@@ -17,7 +17,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .segments import CurvaturePiece
 
 __all__ = ["Path", "PathPoint", "SegmentSpan"]
 

@@ -1,4 +1,4 @@
-r"""Rotor mixing, paper eq 34, plus configuration (rotor order of conventions.md).
+r"""Rotor mixing, paper eq 34, plus configuration (rotor order of docs/conventions.md).
 
 .. math::
     \begin{bmatrix}f\\\gamma_1\\\gamma_2\\\gamma_3\end{bmatrix} =

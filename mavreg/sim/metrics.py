@@ -1,7 +1,7 @@
 r"""Tracking metrics against arc length, for ``mavreg simulate`` and ``mavreg fly``.
 
 Given samples ``(s_k, w_k)`` of the longitudinal and transverse coordinates
-(conventions.md: ``w[0:2]`` normal/binormal position offset in m, ``w[2:5]`` roll, pitch,
+(docs/conventions.md: ``w[0:2]`` normal/binormal position offset in m, ``w[2:5]`` roll, pitch,
 yaw errors in rad):
 
 * transverse error ``e_k = sqrt(w_1^2 + w_2^2)`` (m), the distance to the path point at s;

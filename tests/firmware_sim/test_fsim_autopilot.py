@@ -90,7 +90,6 @@ def test_failsafe_recovers_from_inverted_at_speed():
     sim, ap = make("z_m=-8,vy_m_s=8,roll_deg=120")
     assert ap.armed and ap.mode == modes.OFFBOARD
     log = []
-    min_z = 0.0
     level_by = None
     for k in range(30 * 500):
         run(sim, ap, 1 / 500, None, log)

@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from mavreg.config.vehicle import load_vehicle
-from firmware_sim.ground import Ground
 from firmware_sim.params import build_sim_params, default_vehicle_path, parse_start
 from firmware_sim.physics import G, RigidBody, inertia_matrix, quat_from_euler, euler_from_quat, rotate
 from firmware_sim.recorder import Recorder

@@ -32,7 +32,7 @@ def test_arm_disarm_acks_and_offboard_refused_without_stream():
         assert c.ack(ARM) == mavlink2.MAV_RESULT_ACCEPTED
         c.command(31000)
         assert c.ack(31000) == mavlink2.MAV_RESULT_UNSUPPORTED
-        a = c.wait_for("ATTITUDE")
+        c.wait_for("ATTITUDE")
         q = c.wait_for("ATTITUDE_QUATERNION")
         p = c.wait_for("LOCAL_POSITION_NED")
         assert q.q1 == pytest.approx(1.0) and p.z == 0.0 and p.time_boot_ms == q.time_boot_ms

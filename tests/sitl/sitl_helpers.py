@@ -14,12 +14,14 @@ from pathlib import Path
 
 import numpy as np
 
+from mavreg.config.paths import PARAMS_DIR
+
 REPO = Path(__file__).resolve().parents[2]
-BARREL = REPO / "params/maneuvers/barrel_roll.yaml"
-VEHICLE = REPO / "params/vehicles/mk_quadro.yaml"
-VEHICLE_IDEAL = REPO / "params/vehicles/mk_quadro_ideal.yaml"
+BARREL = PARAMS_DIR / "maneuvers/barrel_roll.yaml"
+VEHICLE = PARAMS_DIR / "vehicles/mk_quadro.yaml"
+VEHICLE_IDEAL = PARAMS_DIR / "vehicles/mk_quadro_ideal.yaml"
 """Ideal actuators in the emulator, and a controller that knows it (no lag to lead)."""
-CONTROLLER = REPO / "params/controller/paper_lqr.yaml"
+CONTROLLER = PARAMS_DIR / "controller/paper_lqr.yaml"
 
 
 class Proc:

@@ -12,7 +12,7 @@ import pytest
 from conftest import fly_lockstep
 from mavreg.daemon.ctrllog import load_control_log
 from mavreg.daemon.report import ground_truth_errors
-from sitl_helpers import BARREL, REPO, VEHICLE_IDEAL, flight_modes, tilt_deg, vehicle_samples
+from sitl_helpers import BARREL, VEHICLE_IDEAL, flight_modes, tilt_deg, vehicle_samples
 
 pytestmark = pytest.mark.sitl
 

@@ -13,6 +13,8 @@ import json
 
 import pytest
 
+from mavreg.config.paths import PARAMS_DIR
+
 from sitl_helpers import BARREL, mavreg
 
 pytestmark = pytest.mark.sitl
@@ -57,14 +59,14 @@ def test_the_calibrated_vehicle_flies_the_drag_forward(calibration):
     from mavreg.config.vehicle import load_vehicle
     from mavreg.daemon.report import ground_truth_errors
     from mavreg.maneuver.plan import plan_file
-    from sitl_helpers import REPO, load_record
+    from sitl_helpers import load_record
     _, vehicle, tmp = calibration
     out = tmp / "calibrated_flight"
     fly = mavreg("fly", str(BARREL), "--lockstep", "--out", str(out), "--timeout-s", "300",
                  "--vehicle-params", str(vehicle), *EMULATOR)
     assert fly.wait(400) == 0, "\n".join(fly.lines[-20:])
     summary = json.loads((out / "summary.json").read_text())
-    plan = plan_file(BARREL, load_vehicle(vehicle), load_controller(REPO / "params/controller/realistic.yaml"))
+    plan = plan_file(BARREL, load_vehicle(vehicle), load_controller(PARAMS_DIR / "controller/realistic.yaml"))
     events = [e for e in summary["events"] if e["kind"] == "phase"]
     i = next(k for k, e in enumerate(events) if e["phase"] == "maneuver")
     truth = ground_truth_errors(load_record(out / "groundtruth.npz"), plan, events[i]["time_s"],

@@ -15,6 +15,7 @@ import json
 import numpy as np
 import pytest
 
+from mavreg.config.paths import PARAMS_DIR
 from mavreg.daemon.ctrllog import load_control_log
 from mavreg.daemon.report import ground_truth_errors
 from mavreg.sim.metrics import rotor_jitter_n
@@ -61,9 +62,8 @@ def realistic_plan():
     from mavreg.config.controller import load_controller
     from mavreg.config.vehicle import load_vehicle
     from mavreg.maneuver.plan import plan_file
-    from sitl_helpers import REPO
-    return plan_file(BARREL, load_vehicle(REPO / "params/vehicles/mk_quadro.yaml"),
-                     load_controller(REPO / "params/controller/realistic.yaml"))
+    return plan_file(BARREL, load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml"),
+                     load_controller(PARAMS_DIR / "controller/realistic.yaml"))
 
 
 def test_barrel_roll_on_a_realistic_vehicle(tmp_path, realistic_plan):
@@ -136,9 +136,8 @@ def test_thrust_loss_and_wind_are_estimated_and_compensated(tmp_path, realistic_
 def test_without_the_observer_the_drag_throws_the_loop_off(tmp_path, realistic_plan):
     """The same flight as the first test with the observer off: the drag it no longer knows
     costs the loop several centimetres (the comparison in docs/robustness.md)."""
-    from sitl_helpers import REPO
     ctl = tmp_path / "no_observer.yaml"
-    ctl.write_text((REPO / "params/controller/realistic.yaml").read_text()
+    ctl.write_text((PARAMS_DIR / "controller/realistic.yaml").read_text()
                    .replace("disturbance:\n  enabled: true", "disturbance:\n  enabled: false"))
     f = _fly(tmp_path, "--controller", str(ctl))
     truth, _, _ = _maneuver(f, realistic_plan)

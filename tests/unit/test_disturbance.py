@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from mavreg.config.paths import PARAMS_DIR
 from mavreg.config.disturbance import DisturbanceParams
 from mavreg.config.loader import ConfigError
 from mavreg.config.controller import load_controller
@@ -20,7 +21,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
 
-VEHICLE = load_vehicle(REPO / "params/vehicles/mk_quadro.yaml")
+VEHICLE = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
 M = VEHICLE.mass_kg
 
 
@@ -172,11 +173,11 @@ def test_estimate_is_bounded():
 
 
 def test_disturbance_section_of_the_controller_file(tmp_path):
-    ctl = load_controller(REPO / "params/controller/realistic.yaml")
+    ctl = load_controller(PARAMS_DIR / "controller/realistic.yaml")
     assert ctl.disturbance.enabled
-    assert not load_controller(REPO / "params/controller/paper_lqr.yaml").disturbance.enabled
+    assert not load_controller(PARAMS_DIR / "controller/paper_lqr.yaml").disturbance.enabled
     bad = tmp_path / "c.yaml"
-    text = (REPO / "params/controller/realistic.yaml").read_text()
+    text = (PARAMS_DIR / "controller/realistic.yaml").read_text()
     bad.write_text(text.replace("  enabled: true", "  enabled: true\n  force_sd: 1.0"))
     with pytest.raises(ConfigError, match="force_sd"):
         load_controller(bad)

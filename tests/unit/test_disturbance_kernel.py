@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mavreg.config.paths import PARAMS_DIR
 from mavreg.accel import ACCELERATED
 from mavreg.config.disturbance import DisturbanceParams
 from mavreg.config.vehicle import load_vehicle
@@ -21,7 +22,7 @@ from mavreg.control.disturbance import DisturbanceObserver
 from mavreg.model.rotation import rpy_to_matrix
 
 REPO = Path(__file__).resolve().parents[2]
-VEHICLE = load_vehicle(REPO / "params/vehicles/mk_quadro.yaml")
+VEHICLE = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
 PARAMS = DisturbanceParams(enabled=True, vertical_force_sd_n=0.5)
 
 

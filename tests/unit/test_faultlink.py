@@ -78,7 +78,6 @@ def test_jitter_delays_within_bounds_and_never_reorders():
     released = []
     for k in range(2000):
         line.push(k * PERIOD, (k, k * PERIOD))
-    t = 0.0
     while line.in_flight:
         due = line.next_due()
         released += [(item, due) for item in line.pop_due(due)]

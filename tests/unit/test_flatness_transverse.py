@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from mavreg.config.paths import PARAMS_DIR
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import G, load_vehicle
 from mavreg.control.transverse import transverse_jacobians, transverse_rhs
@@ -22,9 +23,9 @@ ROOT = FilePath(__file__).resolve().parents[2]
 
 @pytest.fixture(scope="module")
 def plan():
-    v = load_vehicle(ROOT / "params/vehicles/mk_quadro.yaml")
-    c = load_controller(ROOT / "params/controller/paper_lqr.yaml")
-    return plan_file(ROOT / "params/maneuvers/barrel_roll.yaml", v, c)
+    v = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
+    c = load_controller(PARAMS_DIR / "controller/paper_lqr.yaml")
+    return plan_file(PARAMS_DIR / "maneuvers/barrel_roll.yaml", v, c)
 
 
 @pytest.fixture(scope="module")
@@ -40,7 +41,7 @@ def _away_from_blend_ends(plan, s, margin=0.05):
 @pytest.fixture(scope="module")
 def exact(plan, model):
     """x-bar(s), u-bar(s) straight from the flatness map at any s (not the table)."""
-    spec = load_maneuver(ROOT / "params/maneuvers/barrel_roll.yaml")
+    spec = load_maneuver(PARAMS_DIR / "maneuvers/barrel_roll.yaml")
     speed, yaw = plan_mod.build_profiles(spec, plan.path)
 
     def at(s):

@@ -1,7 +1,6 @@
 """Flying through telemetry gaps on the prediction (real time), on the harness vehicle."""
 from __future__ import annotations
 
-import numpy as np
 
 from mavreg.control.forecast import Forecaster
 from mavreg.daemon.supervisor import Phase, Supervisor, SupervisorParams

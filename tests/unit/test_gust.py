@@ -5,6 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mavreg.config.paths import PARAMS_DIR
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
 from mavreg.maneuver.plan import plan_file
@@ -14,9 +15,9 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_pushed_back_on_the_run_up_it_resumes_without_catching_up():
-    vehicle = load_vehicle(ROOT / "params/vehicles/mk_quadro.yaml")
-    plan = plan_file(ROOT / "params/maneuvers/barrel_roll.yaml", vehicle,
-                     load_controller(ROOT / "params/controller/paper_lqr.yaml"))
+    vehicle = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
+    plan = plan_file(PARAMS_DIR / "maneuvers/barrel_roll.yaml", vehicle,
+                     load_controller(PARAMS_DIR / "controller/paper_lqr.yaml"))
     # The run-up flies west: a 2 N force towards east for 1 s pushes the vehicle back.
     run = fly_on_design_model(plan, gust_force_n=(0.0, 2.0, 0.0), gust_window_s=(3.0, 4.0))
     assert run.metrics["completed"]

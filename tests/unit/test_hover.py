@@ -1,14 +1,14 @@
 """Hover LQR and C^2 ramps on the design model (RK4, no sockets, no wall clock)."""
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from mavreg.config.paths import PARAMS_DIR
 from mavreg.config.vehicle import load_vehicle
 from mavreg.control.hover import HoverController, HoverParams, hold_ramp, plan_ramp
 from mavreg.model.quadrotor import QuadrotorModel
 
-VEHICLE = load_vehicle(Path(__file__).resolve().parents[2] / "params/vehicles/mk_quadro.yaml")
+VEHICLE = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
 
 
 def _simulate(ctrl, ramp, x0, duration_s, dt_s=0.002):

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mavreg.config.paths import PARAMS_DIR
 from mavreg.config.vehicle import load_vehicle
 from mavreg.control.hover import HoverController, HoverParams, plan_ramp
 from mavreg.model.mixer import Mixer
@@ -19,7 +20,7 @@ from mavreg.model.quadrotor import QuadrotorModel
 from mavreg.model.rotation import rpy_to_matrix
 
 REPO = Path(__file__).resolve().parents[2]
-VEHICLE = load_vehicle(REPO / "params/vehicles/mk_quadro.yaml")
+VEHICLE = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
 
 
 def test_moving_exactly_with_the_reference_is_no_velocity_error_whatever_the_attitude():

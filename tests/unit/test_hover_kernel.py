@@ -14,13 +14,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mavreg.config.paths import PARAMS_DIR
 from mavreg.accel import ACCELERATED
 from mavreg.config.vehicle import load_vehicle
 from mavreg.control.disturbance import DisturbanceEstimate
 from mavreg.control.hover import HoverController, HoverParams, hold_ramp, plan_ramp
 
 REPO = Path(__file__).resolve().parents[2]
-VEHICLE = load_vehicle(REPO / "params/vehicles/mk_quadro.yaml")
+VEHICLE = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
 
 
 def _pair():

@@ -11,14 +11,15 @@ from pathlib import Path
 
 import pytest
 
+from mavreg.config.paths import PARAMS_DIR
 from mavreg.config.controller import load_controller
 from mavreg.config.loader import ConfigError
 from mavreg.config.maneuver import load_maneuver, load_maneuver_text
 from mavreg.config.vehicle import load_vehicle
 
 ROOT = Path(__file__).resolve().parents[2]
-VEHICLE = (ROOT / "params/vehicles/mk_quadro.yaml").read_text()
-MANEUVER = (ROOT / "params/maneuvers/barrel_roll.yaml").read_text()
+VEHICLE = (PARAMS_DIR / "vehicles/mk_quadro.yaml").read_text()
+MANEUVER = (PARAMS_DIR / "maneuvers/barrel_roll.yaml").read_text()
 
 
 def _write(tmp_path, text, name="bad.yaml"):
@@ -143,7 +144,7 @@ def test_unknown_shape_kind():
 
 
 def test_deg_keys_are_converted_to_radians():
-    spec = load_maneuver(ROOT / "params/maneuvers/barrel_roll.yaml")
+    spec = load_maneuver(PARAMS_DIR / "maneuvers/barrel_roll.yaml")
     assert spec.start.heading_rad == pytest.approx(math.radians(270))
     loop = spec.segments[1].arc
     assert loop.angle_rad == pytest.approx(math.radians(400))
@@ -154,9 +155,9 @@ def test_deg_keys_are_converted_to_radians():
 
 
 def test_good_files_load():
-    v = load_vehicle(ROOT / "params/vehicles/mk_quadro.yaml")
+    v = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
     assert v.mass_kg == 0.749 and v.inertia_kg_m2 == (0.0176, 0.0177, 0.034)
-    c = load_controller(ROOT / "params/controller/paper_lqr.yaml")
+    c = load_controller(PARAMS_DIR / "controller/paper_lqr.yaml")
     assert len(c.q) == 11 and len(c.r) == 4
 
 

@@ -2,7 +2,6 @@
 keys that must act on a plan: a change's offset within its segment, limits.max_tilt_deg."""
 from __future__ import annotations
 
-import dataclasses
 import math
 import tracemalloc
 
@@ -13,7 +12,7 @@ from mavreg.cli.common import DEFAULT_VEHICLE, DESIGN_CONTROLLER, PARAMS_DIR
 from mavreg.config.controller import load_controller
 from mavreg.config.maneuver import load_maneuver, load_maneuver_text
 from mavreg.config.vehicle import load_vehicle
-from mavreg.errors import ManeuverError, UsageError
+from mavreg.errors import UsageError
 from mavreg.geometry.build import build_path
 from mavreg.maneuver import plan as pm
 from mavreg.maneuver.budget import MAX_PLAN_BYTES, PlanBudgetError, check_budget, estimate

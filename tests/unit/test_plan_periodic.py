@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mavreg.config.paths import PARAMS_DIR
 from mavreg.config.controller import load_controller
 from mavreg.config.maneuver import load_maneuver_text
 from mavreg.config.vehicle import load_vehicle
@@ -35,8 +36,8 @@ laps: {{segment: circle, count: 3}}
 
 @pytest.fixture(scope="module")
 def params():
-    return (load_vehicle(ROOT / "params/vehicles/mk_quadro.yaml"),
-            load_controller(ROOT / "params/controller/paper_lqr.yaml"))
+    return (load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml"),
+            load_controller(PARAMS_DIR / "controller/paper_lqr.yaml"))
 
 
 def _gain_at(plan, s):

@@ -9,15 +9,16 @@ from pathlib import Path
 
 import pytest
 
+from mavreg.config.paths import PARAMS_DIR
 from mavreg.daemon.planner_pool import PlannerDied, PlannerPool
 from proc_helpers import start_time, survivors
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 
 REPO = Path(__file__).resolve().parents[2]
-VEHICLE = REPO / "params/vehicles/mk_quadro.yaml"
-CONTROLLER = REPO / "params/controller/paper_lqr.yaml"
-BARREL = (REPO / "params/maneuvers/barrel_roll.yaml").read_text()
+VEHICLE = PARAMS_DIR / "vehicles/mk_quadro.yaml"
+CONTROLLER = PARAMS_DIR / "controller/paper_lqr.yaml"
+BARREL = (PARAMS_DIR / "maneuvers/barrel_roll.yaml").read_text()
 SCHED_IDLE = 5   # <linux/sched.h>
 
 
@@ -108,7 +109,7 @@ _OWNER = textwrap.dedent("""
 def test_worker_dies_with_a_sigkilled_owner(tmp_path):
     script = tmp_path / "owner.py"
     script.write_text(_OWNER.format(vehicle=str(VEHICLE), controller=str(CONTROLLER),
-                                    barrel=str(REPO / "params/maneuvers/barrel_roll.yaml")))
+                                    barrel=str(PARAMS_DIR / "maneuvers/barrel_roll.yaml")))
     owner = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
     try:
         worker = int(owner.stdout.readline())

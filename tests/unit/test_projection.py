@@ -6,6 +6,7 @@ from pathlib import Path as FilePath
 import numpy as np
 import pytest
 
+from mavreg.config.paths import PARAMS_DIR
 from mavreg.config.maneuver import load_maneuver, load_maneuver_text
 from mavreg.geometry.build import build_path
 from mavreg.geometry.projection import Projector
@@ -64,7 +65,7 @@ def test_s_increases_continuously_through_all_laps(circle):
 
 @pytest.fixture(scope="module")
 def barrel_path():
-    return build_path(load_maneuver(ROOT / "params/maneuvers/barrel_roll.yaml"))
+    return build_path(load_maneuver(PARAMS_DIR / "maneuvers/barrel_roll.yaml"))
 
 
 def test_s_stays_on_its_branch_at_the_barrel_roll_self_approach(barrel_path):

@@ -3,11 +3,11 @@ vehicle on the design model (RK4), all driven by an injected clock (no sockets).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from pathlib import Path
 
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
 
+from mavreg.config.paths import PARAMS_DIR
 from mavreg.config.vehicle import load_vehicle
 from mavreg.control.hover import HoverController, Ramp
 from mavreg.control.regulator import RegulatorOutput
@@ -17,7 +17,7 @@ from mavreg.model.mixer import Mixer
 from mavreg.model.quadrotor import QuadrotorModel
 from mavreg.model.rotation import rpy_to_quat, rpy_to_matrix
 
-VEHICLE = load_vehicle(Path(__file__).resolve().parents[2] / "params/vehicles/mk_quadro.yaml")
+VEHICLE = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
 _PARSER = mavlink2.MAVLink(None)
 _PARSER.robust_parsing = True
 

@@ -16,8 +16,10 @@ from pathlib import Path
 
 import yaml
 
+from mavreg.config.paths import PARAMS_DIR
+
 HERE = Path(__file__).resolve().parent
-BARREL = (HERE.parents[2] / "params" / "maneuvers" / "barrel_roll.yaml").read_text()
+BARREL = (PARAMS_DIR / "maneuvers" / "barrel_roll.yaml").read_text()
 HEAD = "kind: maneuver\nversion: 1\n"
 
 
@@ -198,7 +200,7 @@ def _waypoints(n: int, compact: bool) -> str:
 
 def big_cases(tmp: Path) -> dict[str, list[str]]:
     """The big cases, written into ``tmp``: name -> arguments of ``mavreg plan``."""
-    params = HERE.parents[2] / "params"
+    params = PARAMS_DIR
     barrel = str(params / "maneuvers" / "barrel_roll.yaml")
     big = tmp / "100MB.yaml"
     with open(big, "wb") as f:
