@@ -117,8 +117,10 @@ def test_a_50_ms_link_is_flown_on_prediction(tmp_path, realistic_plan):
 @pytest.mark.parametrize("preset, flag, check", [
     ("thrust90", None, lambda est: abs(est["thrust_scale"] - 0.9) <= 0.02),
     # from the east: the air moves west at 3 m/s, a drag of about 1 N west
-    ("wind3", "--wind-from-deg=90", lambda est: abs(est["force_ned_n"][1] + 1.05) <= 0.3
-     and abs(est["force_ned_n"][0]) <= 0.3),
+    # 18 s more for the suite: the wind's estimate is also flown by the robustness campaign's
+    # wind cell; run before releases (README)
+    pytest.param("wind3", "--wind-from-deg=90", lambda est: abs(est["force_ned_n"][1] + 1.05) <= 0.3
+                 and abs(est["force_ned_n"][0]) <= 0.3, marks=pytest.mark.slow),
 ])
 def test_thrust_loss_and_wind_are_estimated_and_compensated(tmp_path, realistic_plan, preset, flag, check):
     args = [f"--emulator-arg=--preset={preset}"] + ([f"--emulator-arg={flag}"] if flag else [])

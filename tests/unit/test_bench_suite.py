@@ -12,11 +12,14 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
 from benchmarks.report import fmt, format_table  # noqa: E402
 
 
+@pytest.mark.slow     # 11 s: every benchmark section once; run before releases (README)
 def test_quick_suite_prints_one_table_and_writes_the_figures(tmp_path):
     out = tmp_path / "bench.json"
     p = subprocess.run([sys.executable, "-m", "benchmarks", "--quick", "--only", "plan", "step", "monte_carlo",

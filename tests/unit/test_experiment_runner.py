@@ -47,6 +47,7 @@ def test_group1_campaign_converges_and_writes_its_tables_and_figures(group1):
     assert all(len(f["sha256"]) == 64 for f in prov["files"].values())
 
 
+@pytest.mark.slow     # 13 s: the campaign twice; run before releases (README)
 def test_results_do_not_depend_on_jobs(group1):
     camp, _, _ = group1
     inline = run_experiment(paper_group1(0, samples=1), "sim", 1, progress=None)
