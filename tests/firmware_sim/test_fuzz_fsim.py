@@ -12,7 +12,8 @@ import random
 from hypothesis import HealthCheck, given, settings, strategies as st
 from pymavlink.dialects.v20 import common as mavlink2
 
-from fuzz.frames import ALL_CLASSES, EXTREME_FLOATS, KINDS, VEHICLE_ACTS_ON, aim, draw, layout, pack, random_message
+from fuzz.frames import ALL_CLASSES, KINDS, VEHICLE_ACTS_ON, aim, draw, pack, random_message
+from fuzz.strategies import message
 from fuzz.targets import VehicleTarget
 
 FUZZ = settings(max_examples=200, derandomize=True, deadline=None, database=None,
@@ -32,23 +33,12 @@ def test_damaged_random_and_extreme_frames(seed, kind):
     assert VEHICLE.feed(draw(random.Random(seed), kind, VEHICLE_ACTS_ON, 1, 191)) == []
 
 
-def _field(ftype: str, n: int):
-    if ftype == "char":
-        return st.binary(max_size=max(n, 1))
-    if ftype in ("float", "double"):
-        one = st.one_of(st.sampled_from(EXTREME_FLOATS), st.floats(width=32 if ftype == "float" else 64))
-    else:
-        bits = int("".join(c for c in ftype if c.isdigit()))
-        lo, hi = (0, 2 ** bits - 1) if ftype.startswith("u") else (-2 ** (bits - 1), 2 ** (bits - 1) - 1)
-        one = st.integers(lo, hi)
-    return st.lists(one, min_size=n, max_size=n) if n else one
-
 
 @FUZZ
 @given(st.data())
 def test_extreme_values_of_the_messages_the_vehicle_acts_on(data):
     cls = data.draw(st.sampled_from(VEHICLE_ACTS_ON))
-    msg = cls(*[data.draw(_field(t, n)) for _, t, n in layout(cls)])
+    msg = message(data, cls)
     if data.draw(st.booleans()):
         aim(random.Random(data.draw(st.integers(0, 2 ** 32))), msg)
     sysid = data.draw(st.sampled_from((1, 1, 255, 7)))

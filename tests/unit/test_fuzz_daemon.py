@@ -12,7 +12,8 @@ import random
 from hypothesis import HealthCheck, given, settings, strategies as st
 from pymavlink.dialects.v20 import common as mavlink2
 
-from fuzz.frames import ALL_CLASSES, DAEMON_ACTS_ON, EXTREME_FLOATS, KINDS, draw, layout, pack, random_message
+from fuzz.frames import ALL_CLASSES, DAEMON_ACTS_ON, EXTREME_FLOATS, KINDS, draw, pack, random_message
+from fuzz.strategies import message
 from fuzz.targets import DaemonTarget
 
 FUZZ = settings(max_examples=200, derandomize=True, deadline=None, database=None,
@@ -35,23 +36,12 @@ def test_damaged_random_and_extreme_frames(seed, kind):
     assert REFERENCE.feed(data) == []
 
 
-def _field(ftype: str, n: int):
-    if ftype == "char":
-        return st.binary(max_size=max(n, 1))
-    if ftype in ("float", "double"):
-        one = st.one_of(st.sampled_from(EXTREME_FLOATS), st.floats(width=32 if ftype == "float" else 64))
-    else:
-        bits = int("".join(c for c in ftype if c.isdigit()))
-        lo, hi = (0, 2 ** bits - 1) if ftype.startswith("u") else (-2 ** (bits - 1), 2 ** (bits - 1) - 1)
-        one = st.integers(lo, hi)
-    return st.lists(one, min_size=n, max_size=n) if n else one
-
 
 @FUZZ
 @given(st.data())
 def test_extreme_values_of_the_messages_the_daemon_acts_on(data):
     cls = data.draw(st.sampled_from(DAEMON_ACTS_ON))
-    msg = cls(*[data.draw(_field(t, n)) for _, t, n in layout(cls)])
+    msg = message(data, cls)
     frame = pack(msg, 1, 1)
     assert FAST.feed(frame) == []
     assert REFERENCE.feed(frame) == []
