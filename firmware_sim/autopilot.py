@@ -22,6 +22,7 @@ Acceptance rules (documented in docs/firmware_sim.md):
   ``tc1`` = our clock (sim time) in ns when it is handled and ``ts1`` echoed, as PX4
   does; a reply (``tc1`` != 0) sent to us is ``unsupported``, and so is every request with
   ``answer_timesync`` off (``--no-timesync``).
+- SET_POSITION_TARGET_LOCAL_NED: :mod:`firmware_sim.setpoints` (MAVSDK's offboard set-points).
 - HEARTBEAT from anyone is fine. Any other message is ``unsupported``.
 """
 from __future__ import annotations
@@ -34,6 +35,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from . import modes
 from .messages import state_messages
 from .px4 import Px4Services
+from .setpoints import take_setpoint
 from .px4_commands import HANDLED, CommandInt, handle_command, handle_param
 from .stabilizer import Stabilizer
 
@@ -118,6 +120,8 @@ class Autopilot:
         self._hover_n = (float(hover_thrust_n),) * 4
         self._out: list = []
         self._last_state = None
+        self.setpoint = None
+        """The last offboard position/velocity set-point; an actuator target clears it."""
 
     # ---------------------------------------------------------------- state
     def start_in_flight(self, t_s: float) -> list:
@@ -175,8 +179,11 @@ class Autopilot:
         self._out.append(self.heartbeat())
 
     def stream_alive(self, t_s: float) -> bool:
-        """Targets streaming at >= stream_min_hz for >= stream_min_duration_s."""
+        """Targets streaming at >= stream_min_hz for >= stream_min_duration_s (position
+        set-points: one within 1 / stream_min_hz, as PX4 asks, so MAVSDK's offboard start works)."""
         gap = 1.0 / self.cfg.stream_min_hz
+        if self.setpoint is not None:      # PX4's rule for set-points: a fresh one is enough
+            return t_s - self.last_target_t <= gap
         return (t_s - self.last_target_t <= gap
                 and t_s - self.stream_start_t >= self.cfg.stream_min_duration_s - 1e-9)
 
@@ -189,6 +196,8 @@ class Autopilot:
             self._on_target(msg, t_s)
         elif mtype == "COMMAND_LONG":
             self._on_command(msg, t_s, state, on_ground)
+        elif mtype == "SET_POSITION_TARGET_LOCAL_NED":
+            take_setpoint(self, msg, t_s)
         elif mtype == "COMMAND_INT":
             self._on_command(CommandInt(msg), t_s, state, on_ground)
         elif mtype in ("PARAM_REQUEST_LIST", "PARAM_REQUEST_READ", "PARAM_SET"):
@@ -240,6 +249,7 @@ class Autopilot:
             self.stream_start_t = t_s
         self.last_target_t = t_s
         self.target_count += 1
+        self.setpoint = None
         if self.armed and self.mode == modes.OFFBOARD:
             self.applied_count += 1
         else:
@@ -373,7 +383,8 @@ class Autopilot:
         if not self.armed:
             return (0.0, 0.0, 0.0, 0.0)
         if self.mode == modes.OFFBOARD:
-            return self.target_n
+            sp = self.setpoint
+            return self.target_n if sp is None else self.stab.track(state, sp.position_ned, sp.velocity_ned, sp.yaw_rad)
         if self.mode == modes.TAKEOFF:
             return self.stab.hold(state)    # climbs to the take-off height, from the ground too
         if on_ground:
@@ -381,7 +392,3 @@ class Autopilot:
         if self.mode == modes.LAND:
             return self.stab.land(state, self.cfg.land_descent_m_s)
         return self.stab.hold(state)
-
-    def telemetry(self, t_s: float, state) -> tuple:
-        """ATTITUDE, ATTITUDE_QUATERNION and LOCAL_POSITION_NED of the true ``state`` at ``t_s``."""
-        return state_messages(t_s, state[0:3], state[7:10], state[3:7], state[10:13])

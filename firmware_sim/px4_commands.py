@@ -6,8 +6,9 @@ ours or 0). Every command gets one COMMAND_ACK:
 
 - ``MAV_CMD_NAV_TAKEOFF`` (22): ACCEPTED when armed on the ground: the take-off mode
   (AUTO.TAKEOFF) climbs straight up to ``param7`` (AMSL, m) or, when that is NaN as MAVSDK
-  sends it, to ``MIS_TAKEOFF_ALT`` above home, then holds (AUTO.LOITER). DENIED disarmed, in
-  the air, or with a target less than 0.5 m above home.
+  sends it to PX4, to ``MIS_TAKEOFF_ALT`` above home, then holds (AUTO.LOITER). A target
+  lower than ``MIS_TAKEOFF_ALT`` above home climbs to that, as PX4's navigator does. DENIED
+  disarmed, in the air, or with an infinite ``param7``.
 - ``MAV_CMD_NAV_LAND`` (21): ACCEPTED when armed: LAND descends at ``MPC_LAND_SPEED`` and
   disarms ``COM_DISARM_LAND`` after touchdown. DENIED disarmed.
 - ``MAV_CMD_REQUEST_MESSAGE`` (512, ``param1`` the id) and the older
@@ -37,7 +38,6 @@ __all__ = ["HANDLED", "CommandInt", "handle_command", "handle_param"]
 M = mavlink2
 HANDLED = frozenset((M.MAV_CMD_NAV_TAKEOFF, M.MAV_CMD_NAV_LAND, M.MAV_CMD_REQUEST_MESSAGE,
                      M.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, M.MAV_CMD_SET_MESSAGE_INTERVAL))
-MIN_TAKEOFF_HEIGHT_M = 0.5
 
 
 class CommandInt:
@@ -96,9 +96,10 @@ def _takeoff(ap, msg, t_s, state, on_ground) -> None:
         height = msg.param7 - home_alt
     else:
         return ap.deny(msg, "takeoff denied: altitude not finite")
-    if height < MIN_TAKEOFF_HEIGHT_M:
-        return ap.deny(msg, f"takeoff denied: {height:.1f} m above home")
     ap._ack(msg, M.MAV_RESULT_ACCEPTED)
+    if height < px4.takeoff_height_m:        # as PX4's navigator: never below MIS_TAKEOFF_ALT
+        ap._out.append(ap._statustext(M.MAV_SEVERITY_INFO, "takeoff: using minimum takeoff altitude"))
+        height = px4.takeoff_height_m
     ap._set_mode(modes.TAKEOFF, t_s, f"climb to {height:.1f} m", state)
     ap.stab.reset(state)
     ap.stab.z_ref_m = px4.home_ned[2] - height

@@ -32,6 +32,14 @@ def _until(pred, timeout_s: float, what: str):
     raise AssertionError(f"MAVSDK did not see {what} within {timeout_s} s")
 
 
+def _call(fn, tel):
+    """``fn()``; on a refusal, the vehicle's last STATUSTEXT says why."""
+    try:
+        return fn()
+    except mavsdk.MavsdkError as exc:
+        raise AssertionError(f"{exc}; vehicle says: {tel.status_text().text!r}") from None
+
+
 def test_mavsdk_connects_reads_telemetry_takes_off_lands_and_disarms():
     with Emulator("--peer-system-id", "245", "--rate-hz", "250") as em:
         sdk = Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION))
@@ -62,7 +70,7 @@ def test_mavsdk_connects_reads_telemetry_takes_off_lands_and_disarms():
 
             action.arm()
             _until(tel.armed, 5.0, "armed")
-            action.takeoff()
+            _call(action.takeoff, tel)
             _until(lambda: note() or (tel.flight_mode() == FlightMode.HOLD
                                       and tel.position().relative_altitude_m > 2.7), 20.0, "HOLD at 3 m")
             _until(lambda: note() or tel.landed_state() == LandedState.IN_AIR, 5.0, "in air")
@@ -74,6 +82,45 @@ def test_mavsdk_connects_reads_telemetry_takes_off_lands_and_disarms():
                 LandedState.ON_GROUND, LandedState.TAKING_OFF, LandedState.IN_AIR,
                 LandedState.LANDING, LandedState.ON_GROUND]
             assert abs(tel.position().relative_altitude_m) < 0.2
+        finally:
+            sdk.destroy()
+        assert em.stop() == 0
+
+
+def test_mavsdk_offboard_position_example():
+    """MAVSDK's offboard_position_ned example, its set-points and calls unchanged, each leg
+    waited for until reached (the example sleeps 10-15 s a leg), then landed at 2 m/s
+    (``MPC_LAND_SPEED`` set through MAVSDK's Param plugin). About 20 s."""
+    from mavsdk.plugins.offboard import Offboard, PositionNedYaw
+
+    with Emulator("--peer-system-id", "245", "--rate-hz", "250") as em:
+        sdk = Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION))
+        try:
+            sdk.add_any_connection(f"udpout://127.0.0.1:{em.port}")
+            system = sdk.first_autopilot(10.0)
+            tel, action, offboard = Telemetry(system), Action(system), Offboard(system)
+            _until(lambda: tel.health().is_global_position_ok and tel.health().is_home_position_ok,
+                   10.0, "global position and home ok")
+            action.arm()
+            offboard.set_position_ned(PositionNedYaw(0.0, 0.0, 0.0, 0.0))
+            offboard.start()
+            assert tel.flight_mode() in (FlightMode.OFFBOARD, FlightMode.HOLD)   # the heartbeat may lag
+            for n, e, d, yaw in ((0.0, 0.0, -5.0, 0.0), (5.0, 0.0, -5.0, 90.0), (5.0, 10.0, -5.0, 90.0),
+                                 (0.0, 10.0, -5.0, 0.0)):
+                offboard.set_position_ned(PositionNedYaw(n, e, d, yaw))
+
+                def there(n=n, e=e, d=d, yaw=yaw):
+                    p = tel.position_velocity_ned().position
+                    heading = (tel.attitude_euler().yaw_deg - yaw + 180.0) % 360.0 - 180.0
+                    return (abs(p.north_m - n) < 0.3 and abs(p.east_m - e) < 0.3 and abs(p.down_m - d) < 0.3
+                            and abs(heading) < 5.0)
+                _until(there, 15.0, f"set-point {(n, e, d, yaw)}")
+                assert tel.flight_mode() == FlightMode.OFFBOARD
+            offboard.stop()
+            _until(lambda: tel.flight_mode() == FlightMode.HOLD, 5.0, "HOLD after offboard stop")
+            Param(system).set_param_float("MPC_LAND_SPEED", 2.0)      # descend faster (PX4's parameter)
+            action.land()
+            _until(lambda: not tel.armed(), 10.0, "disarmed after landing")
         finally:
             sdk.destroy()
         assert em.stop() == 0

@@ -174,7 +174,7 @@ def test_takeoff_hold_land_disarm_and_the_landed_states():
     assert v.ack(M.MAV_CMD_NAV_TAKEOFF, *[math.nan] * 7) == M.MAV_RESULT_DENIED           # disarmed
     assert v.ack(M.MAV_CMD_NAV_LAND, 0, 0, 0, math.nan) == M.MAV_RESULT_DENIED
     assert v.ack(M.MAV_CMD_COMPONENT_ARM_DISARM, 1, math.nan) == M.MAV_RESULT_ACCEPTED   # MAVSDK's NaN
-    assert v.ack(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 488.2) == M.MAV_RESULT_DENIED  # 0.2 m
+    assert v.ack(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, math.inf) == M.MAV_RESULT_DENIED
     states, each = _flight_log(v)
     assert v.ack(M.MAV_CMD_NAV_TAKEOFF, *[math.nan] * 7) == M.MAV_RESULT_ACCEPTED
     assert v.ap.mode == modes.TAKEOFF
@@ -187,8 +187,21 @@ def test_takeoff_hold_land_disarm_and_the_landed_states():
     assert v.ack(M.MAV_CMD_NAV_LAND, 0, 0, 0, math.nan) == M.MAV_RESULT_ACCEPTED
     v.run(8.0, each)
     assert not v.ap.armed and v.engine.sim.on_ground
+    assert v.ack(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED    # param7 AMSL
+    assert v.ack(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 492.0) == M.MAV_RESULT_ACCEPTED
+    v.run(5.0)
+    assert v.ap.mode == modes.HOLD and v.engine.sim.state[2] == pytest.approx(-4.0, abs=0.15)
     assert states == [M.MAV_LANDED_STATE_ON_GROUND, M.MAV_LANDED_STATE_TAKEOFF, M.MAV_LANDED_STATE_IN_AIR,
                       M.MAV_LANDED_STATE_LANDING, M.MAV_LANDED_STATE_ON_GROUND]
+
+
+def test_a_takeoff_target_below_the_minimum_climbs_to_mis_takeoff_alt():
+    """As PX4's navigator, and what MAVSDK's generic path (a relative height in param7) gets."""
+    v = Vehicle()
+    assert v.ack(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
+    out = v.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 3.0)
+    assert out[0].result == M.MAV_RESULT_ACCEPTED and b"minimum" in out[1].text.encode()
+    assert v.ap.mode == modes.TAKEOFF and v.ap.stab.z_ref_m == -2.5
 
 
 def test_home_is_set_at_arming_and_global_position_is_converted_around_it():
@@ -233,3 +246,34 @@ def test_over_udp_commands_need_the_peer_flag():
                     assert c.wait_for("AUTOPILOT_VERSION").capabilities == CAPABILITIES
             finally:
                 c.close()
+
+
+def _position_target(n, e, d, mask=0b100111111000, frame=1):
+    """MAVSDK's set_position_ned: velocities, accelerations and yaw rate masked."""
+    return M.MAVLink_set_position_target_local_ned_message(0, 1, 1, frame, mask, n, e, d, 0, 0, 0, 0, 0, 0,
+                                                           math.radians(90.0), 0)
+
+
+def test_offboard_position_set_points_from_a_ground_station():
+    v = Vehicle()
+    drops0 = dict(v.ap.drops)
+    v.send(_position_target(0, 0, -3, mask=0b100000111000))                    # with accelerations
+    v.send(_position_target(0, 0, -3, frame=8))                                 # body frame
+    v.send(_position_target(math.nan, 0, -3))
+    v.send(_position_target(0, 0, -3), system_id=9)                             # not a peer
+    assert {k: v.ap.drops[k] - drops0[k] for k in ("unsupported", "non_finite", "foreign_system")} == \
+        {"unsupported": 2, "non_finite": 1, "foreign_system": 1} and v.ap.setpoint is None
+    assert v.ack(M.MAV_CMD_COMPONENT_ARM_DISARM, 1, math.nan) == M.MAV_RESULT_ACCEPTED
+    assert v.ack(M.MAV_CMD_DO_SET_MODE, 1, modes.MAIN_OFFBOARD, 0) == M.MAV_RESULT_DENIED   # no set-point yet
+    v.send(_position_target(2, 1, -3))
+    assert v.ack(M.MAV_CMD_DO_SET_MODE, 1, modes.MAIN_OFFBOARD, 0) == M.MAV_RESULT_ACCEPTED  # as MAVSDK's start
+
+    def stream(vehicle):                      # 20 Hz, as MAVSDK's offboard plugin
+        if vehicle.engine.sim.step_count % 50 == 0:
+            vehicle.send(_position_target(2, 1, -3))
+    v.run(8.0, stream)
+    s = v.engine.sim.state
+    assert v.ap.mode == modes.OFFBOARD and (s[0], s[1], s[2]) == pytest.approx((2, 1, -3), abs=0.1)
+    assert v.ap.stab.yaw_ref_rad == pytest.approx(math.radians(90.0))
+    v.run(0.4)                                                    # the stream stops: COM_OF_LOSS_T 0.25 s
+    assert v.ap.mode == modes.HOLD and v.ap.failsafe
