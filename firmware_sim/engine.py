@@ -182,7 +182,7 @@ class Engine:
         if rec is not None:
             rec.record_estimate(t, pos, vel, q, rates)
         px4 = self.ap.px4
-        self._status = px4.periodic(period, t, pos, vel, q, self.ap, sim.on_ground, sim.applied_n)
+        self._status = px4.periodic(period, t, pos, vel, q, rates, self.ap, sim.on_ground, sim.applied_n)
         return tuple(m if px4.due(i, period) else None
                      for i, m in zip(STATE_IDS, state_messages(t, pos, vel, q, rates)))
 

@@ -134,7 +134,7 @@ class Px4Services:
             self.set_rate(msg_id, hz)
         self._next: dict = dict.fromkeys(self.interval_periods, 0)
         self.last = None
-        """``(t, position, velocity, quat)`` published last (what a request answers from)."""
+        """``(t, position, velocity, quat, rates)`` published last (what a request answers from)."""
 
     # ---------------------------------------------------------------- streams
     def set_rate(self, msg_id: int, hz: float | None) -> None:
@@ -169,11 +169,11 @@ class Px4Services:
         self._next[msg_id] = period + n
         return True
 
-    def periodic(self, period: int, t_s: float, pos, vel, quat, ap, on_ground: bool,
+    def periodic(self, period: int, t_s: float, pos, vel, quat, rates, ap, on_ground: bool,
                  applied_n) -> list:
         """The status messages due in ``period`` (not the state messages: :meth:`due`)."""
         self._battery(t_s, applied_n, ap.armed)
-        self.last = (t_s, tuple(pos), tuple(vel), tuple(quat))
+        self.last = (t_s, tuple(pos), tuple(vel), tuple(quat), tuple(rates))
         out = []
         for msg_id in (M.MAVLINK_MSG_ID_SYS_STATUS, M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
                        M.MAVLINK_MSG_ID_HOME_POSITION, M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT):
@@ -198,8 +198,7 @@ class Px4Services:
         if msg_id == M.MAVLINK_MSG_ID_HEARTBEAT:
             return ap.heartbeat()
         if msg_id in STATE_IDS and self.last is not None:
-            t, pos, vel, q = self.last
-            return state_messages(t, pos, vel, q, (0.0, 0.0, 0.0))[STATE_IDS.index(msg_id)]
+            return state_messages(*self.last)[STATE_IDS.index(msg_id)]
         return None
 
     # ---------------------------------------------------------------- messages
@@ -245,7 +244,7 @@ class Px4Services:
             (1.0, 0.0, 0.0, 0.0), 0.0, 0.0, 0.0, 0)
 
     def global_position(self):
-        t, pos, vel, q = self.last if self.last is not None else (0.0, (0.0,) * 3, (0.0,) * 3, (1.0, 0, 0, 0))
+        t, pos, vel, q, _ = self.last if self.last is not None else (0.0, (0.0,) * 3, (0.0,) * 3, (1.0, 0, 0, 0), None)
         lat, lon, alt = self.to_global(pos)
         hdg = math.degrees(euler_from_quat(q)[2]) % 360.0
         return M.MAVLink_global_position_int_message(

@@ -13,7 +13,8 @@ ours or 0). Every command gets one COMMAND_ACK:
   disarms ``COM_DISARM_LAND`` after touchdown. DENIED disarmed.
 - ``MAV_CMD_REQUEST_MESSAGE`` (512, ``param1`` the id) and the older
   ``MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES`` (520): ACCEPTED and the message follows the ack;
-  UNSUPPORTED for a message the emulator does not make.
+  FAILED for a state message before the first control period has published one; UNSUPPORTED
+  for a message the emulator does not make.
 - ``MAV_CMD_SET_MESSAGE_INTERVAL`` (511, ``param1`` id, ``param2`` interval in us, -1 off,
   0 default): ACCEPTED for a stream of :data:`firmware_sim.px4.DEFAULT_RATES_HZ`; UNSUPPORTED
   for another message; DENIED for an interval below -1 or a non-finite value.
@@ -31,7 +32,7 @@ import math
 from pymavlink.dialects.v20 import common as mavlink2
 
 from . import modes
-from .px4 import DEFAULT_RATES_HZ, PARAMS
+from .px4 import DEFAULT_RATES_HZ, PARAMS, STATE_IDS
 
 __all__ = ["HANDLED", "CommandInt", "handle_command", "handle_param"]
 
@@ -73,7 +74,9 @@ def handle_command(ap, msg, t_s: float, state, on_ground: bool) -> None:
         msg_id = M.MAVLINK_MSG_ID_AUTOPILOT_VERSION if c == M.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES \
             else (int(msg.param1) if math.isfinite(msg.param1) and 0 <= msg.param1 < 2 ** 24 else -1)
         reply = ap.px4.message(msg_id, ap, on_ground) if msg_id >= 0 else None
-        if reply is None:
+        if reply is None and msg_id in STATE_IDS:        # made, but nothing published yet
+            ap._ack(msg, M.MAV_RESULT_FAILED)
+        elif reply is None:
             ap.drops["unsupported"] += 1
             ap._ack(msg, M.MAV_RESULT_UNSUPPORTED)
         else:

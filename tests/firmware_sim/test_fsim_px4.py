@@ -113,6 +113,10 @@ def test_set_message_interval_changes_the_rate():
 
 def test_request_message_is_answered():
     v = Vehicle()
+    assert v.ack(M.MAV_CMD_REQUEST_MESSAGE, 32) == M.MAV_RESULT_FAILED     # no state published yet
+    v.run(0.002)
+    out = v.command(M.MAV_CMD_REQUEST_MESSAGE, 32)
+    assert [m.get_type() for m in out] == ["COMMAND_ACK", "LOCAL_POSITION_NED"]
     out = v.command(M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
     assert [m.get_type() for m in out] == ["COMMAND_ACK", "AUTOPILOT_VERSION"]
     assert out[0].result == M.MAV_RESULT_ACCEPTED and out[0].target_system == GCS
@@ -182,6 +186,10 @@ def test_takeoff_hold_land_disarm_and_the_landed_states():
     assert v.ap.mode == modes.HOLD and v.ap.armed
     assert v.engine.sim.state[2] == pytest.approx(-2.5, abs=0.15)                        # MIS_TAKEOFF_ALT
     assert v.ack(M.MAV_CMD_NAV_TAKEOFF, *[math.nan] * 7) == M.MAV_RESULT_DENIED           # in the air
+    status = [m for m in v.engine.link.sent if m.get_type() == "SYS_STATUS"]
+    hover_a = 0.5 + 1.2 * v.engine.sim.params.vehicle.mass_kg * 9.80665                  # the battery model
+    assert status[0].current_battery == 50 and status[-1].current_battery == pytest.approx(100 * hover_a, rel=0.05)
+    assert status[-1].voltage_battery < status[0].voltage_battery - 150                 # 0.02 ohm sag
     gpi = [m for m in v.engine.link.sent if m.get_type() == "GLOBAL_POSITION_INT"][-1]
     assert gpi.relative_alt == pytest.approx(2500, abs=150) and gpi.alt == pytest.approx(490500, abs=150)
     assert v.ack(M.MAV_CMD_NAV_LAND, 0, 0, 0, math.nan) == M.MAV_RESULT_ACCEPTED
