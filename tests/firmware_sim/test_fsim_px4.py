@@ -285,3 +285,16 @@ def test_offboard_position_set_points_from_a_ground_station():
     assert v.ap.stab.yaw_ref_rad == pytest.approx(math.radians(90.0))
     v.run(0.4)                                                    # the stream stops: COM_OF_LOSS_T 0.25 s
     assert v.ap.mode == modes.HOLD and v.ap.failsafe
+
+
+def test_offboard_velocity_set_points():
+    """MAVSDK's set_velocity_ned: positions, accelerations and yaw rate masked."""
+    v = Vehicle()
+    up = M.MAVLink_set_position_target_local_ned_message(0, 1, 1, 1, 0b100111000111, 0, 0, 0, 0.5, 0, -1.0,
+                                                         0, 0, 0, 0, 0)
+    assert v.ack(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
+    v.send(up)
+    assert v.ack(M.MAV_CMD_DO_SET_MODE, 1, modes.MAIN_OFFBOARD, 0) == M.MAV_RESULT_ACCEPTED
+    v.run(3.0, lambda w: w.engine.sim.step_count % 50 == 0 and w.send(up))
+    s = v.engine.sim.state
+    assert (s[7], s[8], s[9]) == pytest.approx((0.5, 0.0, -1.0), abs=0.05) and v.ap.mode == modes.OFFBOARD
