@@ -12,13 +12,17 @@ Acceptance rules (documented in docs/firmware_sim.md):
   finite (else ``non_finite``, whole message); controls 0..3 within [0, 1] +- 1e-6
   (else ``out_of_range``). A valid target keeps the stream alive; it is applied only
   while armed and in OFFBOARD (else counted ``not_armed_or_not_offboard``).
-- COMMAND_LONG: source system == ours or one of ``peer_system_ids`` (ground stations;
-  none by default), any component; ``target_system`` ours (or 0 broadcast), ``target_component`` ours or 0;
-  a parameter the command reads that is not finite: ``non_finite``, denied.
+- COMMAND_LONG and COMMAND_INT: source system == ours or one of ``peer_system_ids`` (ground
+  stations; none by default), any component; ``target_system`` ours (or 0 broadcast),
+  ``target_component`` ours or 0; a parameter the command reads that is not finite:
+  ``non_finite``, denied (ARM_DISARM's ``param2`` is read only to force a disarm: NaN there,
+  as MAVSDK sends an unused parameter, is "not forced", as on PX4). The PX4 commands and
+  the PARAM_* messages (same source and target rules) are :mod:`firmware_sim.px4_commands`.
 - TIMESYNC: same source rule as COMMAND_LONG. A request (``tc1`` 0) is answered with
   ``tc1`` = our clock (sim time) in ns when it is handled and ``ts1`` echoed, as PX4
   does; a reply (``tc1`` != 0) sent to us is ``unsupported``, and so is every request with
   ``answer_timesync`` off (``--no-timesync``).
+- SET_POSITION_TARGET_LOCAL_NED: :mod:`firmware_sim.setpoints` (MAVSDK's offboard set-points).
 - HEARTBEAT from anyone is fine. Any other message is ``unsupported``.
 """
 from __future__ import annotations
@@ -29,12 +33,17 @@ from dataclasses import dataclass
 from pymavlink.dialects.v20 import common as mavlink2
 
 from . import modes
-from .physics import euler_from_quat
+from .messages import state_messages
+from .px4 import Px4Services
+from .setpoints import take_setpoint
+from .px4_commands import HANDLED, CommandInt, handle_command, handle_param
 from .stabilizer import Stabilizer
 
 __all__ = ["AutopilotConfig", "Autopilot", "FORCE_DISARM_MAGIC", "DROP_REASONS", "state_messages"]
 
 FORCE_DISARM_MAGIC = 21196.0
+TAKEOFF_REACHED_M = 0.1
+"""AUTO.TAKEOFF hands over to HOLD within this of the take-off height."""
 DROP_REASONS = ("malformed", "foreign_system", "foreign_component", "wrong_target", "non_finite",
                 "out_of_range", "not_armed_or_not_offboard", "unsupported")
 
@@ -45,7 +54,7 @@ _ACCEPTED = mavlink2.MAV_RESULT_ACCEPTED
 _DENIED = mavlink2.MAV_RESULT_DENIED
 _TEMP_REJECTED = mavlink2.MAV_RESULT_TEMPORARILY_REJECTED
 _UNSUPPORTED = mavlink2.MAV_RESULT_UNSUPPORTED
-_COMMAND_PARAMS = {mavlink2.MAV_CMD_COMPONENT_ARM_DISARM: ("param1", "param2"),
+_COMMAND_PARAMS = {mavlink2.MAV_CMD_COMPONENT_ARM_DISARM: ("param1",),
                    mavlink2.MAV_CMD_DO_SET_MODE: ("param1", "param2", "param3")}
 """The parameters each handled command reads: a non-finite one is ``non_finite``, denied."""
 
@@ -86,10 +95,14 @@ class Autopilot:
     hover_thrust_n : float
         Per-rotor hover thrust: the held offboard command of an in-flight start until
         the first target arrives.
+    px4 : Px4Services, optional
+        Status streams, home, battery and parameters (default: a 500 Hz one).
     """
 
-    def __init__(self, config: AutopilotConfig, stabilizer: Stabilizer, hover_thrust_n: float):
+    def __init__(self, config: AutopilotConfig, stabilizer: Stabilizer, hover_thrust_n: float,
+                 px4: Px4Services | None = None):
         self.cfg = config
+        self.px4 = px4 if px4 is not None else Px4Services()
         self.stab = stabilizer
         self.armed = False
         self.mode = modes.HOLD
@@ -106,6 +119,9 @@ class Autopilot:
         self.next_heartbeat_t = 0.0
         self._hover_n = (float(hover_thrust_n),) * 4
         self._out: list = []
+        self._last_state = None
+        self.setpoint = None
+        """The last offboard position/velocity set-point; an actuator target clears it."""
 
     # ---------------------------------------------------------------- state
     def start_in_flight(self, t_s: float) -> list:
@@ -142,6 +158,19 @@ class Autopilot:
         self._out.append(self._statustext(sev, f"mode {modes.MODE_NAMES[mode]}: {why}"))
         self._out.append(self.heartbeat())
 
+    def deny(self, msg, why: str) -> None:
+        """A STATUSTEXT saying ``why`` and a DENIED ack."""
+        self._out.append(self._statustext(_SEV_WARN, why))
+        self._ack(msg, _DENIED)
+
+    def arming_ok(self, on_ground: bool, state=None) -> bool:
+        """Whether an arm request would be accepted now (landed and level)."""
+        s = state if state is not None else self._last_state
+        if s is None:
+            return on_ground
+        tilt = math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (s[4] ** 2 + s[5] ** 2))))
+        return on_ground and tilt <= self.cfg.max_arm_tilt_rad
+
     def _set_armed(self, armed: bool, why: str):
         self.armed = armed
         if not armed:
@@ -150,8 +179,11 @@ class Autopilot:
         self._out.append(self.heartbeat())
 
     def stream_alive(self, t_s: float) -> bool:
-        """Targets streaming at >= stream_min_hz for >= stream_min_duration_s."""
+        """Targets streaming at >= stream_min_hz for >= stream_min_duration_s (position
+        set-points: one within 1 / stream_min_hz, as PX4 asks, so MAVSDK's offboard start works)."""
         gap = 1.0 / self.cfg.stream_min_hz
+        if self.setpoint is not None:      # PX4's rule for set-points: a fresh one is enough
+            return t_s - self.last_target_t <= gap
         return (t_s - self.last_target_t <= gap
                 and t_s - self.stream_start_t >= self.cfg.stream_min_duration_s - 1e-9)
 
@@ -164,6 +196,13 @@ class Autopilot:
             self._on_target(msg, t_s)
         elif mtype == "COMMAND_LONG":
             self._on_command(msg, t_s, state, on_ground)
+        elif mtype == "SET_POSITION_TARGET_LOCAL_NED":
+            take_setpoint(self, msg, t_s)
+        elif mtype == "COMMAND_INT":
+            self._on_command(CommandInt(msg), t_s, state, on_ground)
+        elif mtype in ("PARAM_REQUEST_LIST", "PARAM_REQUEST_READ", "PARAM_SET"):
+            if self._admit(msg):
+                handle_param(self, msg)
         elif mtype == "TIMESYNC":
             self._on_timesync(msg, t_s)
         elif mtype == "BAD_DATA":
@@ -210,6 +249,7 @@ class Autopilot:
             self.stream_start_t = t_s
         self.last_target_t = t_s
         self.target_count += 1
+        self.setpoint = None
         if self.armed and self.mode == modes.OFFBOARD:
             self.applied_count += 1
         else:
@@ -219,13 +259,19 @@ class Autopilot:
         self._out.append(mavlink2.MAVLink_command_ack_message(
             msg.command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()))
 
-    def _on_command(self, msg, t_s: float, state, on_ground: bool) -> None:
+    def _admit(self, msg) -> bool:
+        """The source and target checks of commands and parameters (drops counted)."""
         cfg = self.cfg
         if msg.get_srcSystem() != cfg.system_id and msg.get_srcSystem() not in cfg.peer_system_ids:
             self.drops["foreign_system"] += 1
-            return
+            return False
         if msg.target_system not in (0, cfg.system_id) or msg.target_component not in (0, cfg.component_id):
             self.drops["wrong_target"] += 1
+            return False
+        return True
+
+    def _on_command(self, msg, t_s: float, state, on_ground: bool) -> None:
+        if not self._admit(msg):
             return
         used = _COMMAND_PARAMS.get(msg.command, ())
         if not all(math.isfinite(getattr(msg, p)) for p in used):
@@ -236,6 +282,8 @@ class Autopilot:
             self._arm_disarm(msg, t_s, state, on_ground)
         elif msg.command == mavlink2.MAV_CMD_DO_SET_MODE:
             self._do_set_mode(msg, t_s, state, on_ground)
+        elif msg.command in HANDLED:
+            handle_command(self, msg, t_s, state, on_ground)
         else:
             self.drops["unsupported"] += 1
             self._ack(msg, _UNSUPPORTED)
@@ -255,12 +303,12 @@ class Autopilot:
             if self.armed:
                 self._ack(msg, _ACCEPTED)
                 return
-            tilt = math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (state[4] ** 2 + state[5] ** 2))))
-            if not on_ground or tilt > self.cfg.max_arm_tilt_rad:
+            if not self.arming_ok(on_ground, state):
                 self._out.append(self._statustext(_SEV_WARN, "arming denied: not landed and level"))
                 self._ack(msg, _DENIED)
                 return
             self._ack(msg, _ACCEPTED)
+            self.px4.set_home(state[0:3])       # PX4 sets home where it arms
             self._set_armed(True, "by command")
         elif msg.param1 == 0.0:
             if not self.armed:
@@ -304,7 +352,11 @@ class Autopilot:
     def update(self, t_s: float, state, on_ground: bool) -> list:
         """Timeouts, failsafe phases, landing detection and heartbeat at ``t_s``."""
         self._out = []
+        self._last_state = state
         cfg = self.cfg
+        if (self.mode == modes.TAKEOFF and not on_ground
+                and abs(state[2] - self.stab.z_ref_m) < TAKEOFF_REACHED_M):
+            self._set_mode(modes.HOLD, t_s, "takeoff done", state)
         if self.mode == modes.OFFBOARD and t_s - self.last_target_t > cfg.offboard_loss_timeout_s + 1e-9:
             if self.armed and not on_ground:
                 self._set_mode(modes.HOLD, t_s, "offboard lost, failsafe hold", state, failsafe=True)
@@ -331,32 +383,12 @@ class Autopilot:
         if not self.armed:
             return (0.0, 0.0, 0.0, 0.0)
         if self.mode == modes.OFFBOARD:
-            return self.target_n
+            sp = self.setpoint
+            return self.target_n if sp is None else self.stab.track(state, sp.position_ned, sp.velocity_ned, sp.yaw_rad)
+        if self.mode == modes.TAKEOFF:
+            return self.stab.hold(state)    # climbs to the take-off height, from the ground too
         if on_ground:
             return (0.0, 0.0, 0.0, 0.0)     # idle on the ground in HOLD and LAND
         if self.mode == modes.LAND:
             return self.stab.land(state, self.cfg.land_descent_m_s)
         return self.stab.hold(state)
-
-    def telemetry(self, t_s: float, state) -> tuple:
-        """ATTITUDE, ATTITUDE_QUATERNION and LOCAL_POSITION_NED of the true ``state`` at ``t_s``."""
-        return state_messages(t_s, state[0:3], state[7:10], state[3:7], state[10:13])
-
-
-def state_messages(t_s: float, position, velocity, quat, rates) -> tuple:
-    """``(ATTITUDE, ATTITUDE_QUATERNION, LOCAL_POSITION_NED)`` with one ``time_boot_ms``.
-
-    The Euler angles of ATTITUDE are those of ``quat`` (ZYX); both attitude messages
-    carry ``rates`` (body p, q, r).
-    """
-    ms = int(round(t_s * 1000.0))
-    x, y, z = position
-    vx, vy, vz = velocity
-    qw, qx, qy, qz = quat
-    p, q, r = rates
-    roll, pitch, yaw = euler_from_quat((qw, qx, qy, qz))
-    return (
-        mavlink2.MAVLink_attitude_message(ms, roll, pitch, yaw, p, q, r),
-        mavlink2.MAVLink_attitude_quaternion_message(ms, qw, qx, qy, qz, p, q, r, (0.0, 0.0, 0.0, 0.0)),
-        mavlink2.MAVLink_local_position_ned_message(ms, x, y, z, vx, vy, vz),
-    )

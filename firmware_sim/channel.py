@@ -126,7 +126,8 @@ class Downlink:
         events : list
             HEARTBEAT / STATUSTEXT of the period (sent first).
         state : tuple
-            ``(ATTITUDE, ATTITUDE_QUATERNION, LOCAL_POSITION_NED)``.
+            ``(ATTITUDE, ATTITUDE_QUATERNION, LOCAL_POSITION_NED)``; ``None`` for one whose
+            stream is not due in this period (MAV_CMD_SET_MESSAGE_INTERVAL).
         """
         release = period + int((self._delay(self._state_rng) if self.jitter_periods
                                 else self.delay_periods) + 0.5)
@@ -135,14 +136,16 @@ class Downlink:
             rng, p = self._state_rng, self.loss
             att_ok, quat_ok, pos_ok = rng.next() >= p, rng.next() >= p, rng.next() >= p
             for ok, m in zip((att_ok, quat_ok, pos_ok), state):
+                if m is None:
+                    continue
                 if ok:
                     msgs.append(m)
                 else:
                     self.lost += 1
-            complete = quat_ok and pos_ok
+            complete = quat_ok and pos_ok and state[1] is not None and state[2] is not None
         else:
-            msgs.extend(state)
-            complete = True
+            msgs.extend(m for m in state if m is not None)
+            complete = state[1] is not None and state[2] is not None
         self._enqueue(release, msgs, complete)
 
     def push_reply(self, step: int, msgs: list) -> None:

@@ -26,6 +26,7 @@ from .stabilizer import Stabilizer
 from .status import ExitCode, SimStop
 from .wind import Wind, WindItem, parse_wind
 from .faults import link_faults_from_args
+from .px4_args import add_px4_args, px4_services
 from .world import PRESET_NAMES, PRESETS, build_world
 
 __all__ = ["main", "build_parser", "build_engine", "BadInput"]
@@ -143,6 +144,7 @@ def build_parser() -> argparse.ArgumentParser:
     a("--quiet", action="store_true", help="no status line every second")
     _add_mismatch_args(p)
     _add_world_args(p)
+    add_px4_args(p)
     return p
 
 
@@ -257,7 +259,7 @@ def _assemble(args, world, vehicle_path, vehicle, nominal, params, start, items)
                           max_rotor_thrust_n=command_scale_n,
                           offboard_loss_timeout_s=args.offboard_loss_timeout,
                           failsafe_hold_s=args.failsafe_hold_s)
-    ap = Autopilot(cfg, stab, n.mass_kg * G / 4)
+    ap = Autopilot(cfg, stab, n.mass_kg * G / 4, px4_services(args))
     try:     # a bad --signing-key or --*-faults, a --listen that cannot be bound
         signing = Signing(args.signing_key, "firmware-sim") if args.signing_key is not None else None
         faults = link_faults_from_args(args.link_faults, args.uplink_faults, args.downlink_faults, args.seed)

@@ -21,6 +21,7 @@ from .channel import Downlink, Uplink
 from .estimator import Estimator
 from .faults import FaultyDownlink, FaultyUplink
 from .link import Link
+from .px4 import STATE_IDS, Px4Services
 from .sim import Simulation
 from .world import PRESETS, WorldPreset
 
@@ -55,6 +56,9 @@ class Engine:
                  world: WorldPreset | None = None, link_faults=None):
         self.sim = sim
         self.ap = autopilot
+        if autopilot.px4.rate_hz != sim.params.rate_hz:     # the streams count control periods
+            autopilot.px4 = Px4Services(autopilot.px4.cfg, sim.params.rate_hz)
+        self._status: list = []
         self.link = link
         self.world = world if world is not None else PRESETS["ideal"]
         p = sim.params
@@ -150,16 +154,20 @@ class Engine:
                 self._handle(due, step)
         t = sim.t_s
         out = self.ap.update(t, sim.state, sim.on_ground)
+        state = self._state_messages(t, step // self._substeps)
+        out.extend(self._status)
         if self._direct:
-            out.extend(self._state_messages(t))
+            out.extend(m for m in state if m is not None)
             self.downlink.sent += len(out)
             self.link.send(out)
-            self.complete_released = 1
+            self.complete_released = int(state[1] is not None and state[2] is not None)
             return
-        self.downlink.push_period(step // self._substeps, out, self._state_messages(t))
+        self.downlink.push_period(step // self._substeps, out, state)
         self.complete_released = self._send_due()
 
-    def _state_messages(self, t: float) -> tuple:
+    def _state_messages(self, t: float, period: int) -> tuple:
+        """The state messages of period ``period`` (``None`` for one whose stream is not due
+        then, :mod:`firmware_sim.px4`); the status messages due go to ``self._status``."""
         sim = self.sim
         if self.estimating:
             s = sim.lagged_state
@@ -173,7 +181,10 @@ class Engine:
         rec = sim.recorder
         if rec is not None:
             rec.record_estimate(t, pos, vel, q, rates)
-        return state_messages(t, pos, vel, q, rates)
+        px4 = self.ap.px4
+        self._status = px4.periodic(period, t, pos, vel, q, rates, self.ap, sim.on_ground, sim.applied_n)
+        return tuple(m if px4.due(i, period) else None
+                     for i, m in zip(STATE_IDS, state_messages(t, pos, vel, q, rates)))
 
     def step(self) -> None:
         """Advance the physics one control period with the autopilot's rotor command.

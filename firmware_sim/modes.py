@@ -10,13 +10,14 @@ numbers (``mavreg.daemon.messages``): the emulator stands for somebody else's fi
 from __future__ import annotations
 
 __all__ = [
-    "MAIN_AUTO", "MAIN_OFFBOARD", "SUB_AUTO_LOITER", "SUB_AUTO_LAND",
-    "HOLD", "LAND", "OFFBOARD", "MODE_NAMES", "custom_mode", "decode_custom_mode",
+    "MAIN_AUTO", "MAIN_OFFBOARD", "SUB_AUTO_TAKEOFF", "SUB_AUTO_LOITER", "SUB_AUTO_LAND",
+    "HOLD", "LAND", "OFFBOARD", "TAKEOFF", "MODE_NAMES", "custom_mode", "decode_custom_mode",
     "BASE_MODE_CUSTOM", "BASE_MODE_ARMED", "base_mode",
 ]
 
 MAIN_AUTO = 4
 MAIN_OFFBOARD = 6
+SUB_AUTO_TAKEOFF = 2
 SUB_AUTO_LOITER = 3
 SUB_AUTO_LAND = 6
 
@@ -46,4 +47,7 @@ LAND = custom_mode(MAIN_AUTO, SUB_AUTO_LAND)
 OFFBOARD = custom_mode(MAIN_OFFBOARD, 0)
 """OFFBOARD: rotor thrusts from SET_ACTUATOR_CONTROL_TARGET. 0x00060000."""
 
-MODE_NAMES = {HOLD: "HOLD", LAND: "LAND", OFFBOARD: "OFFBOARD"}
+TAKEOFF = custom_mode(MAIN_AUTO, SUB_AUTO_TAKEOFF)
+"""AUTO.TAKEOFF: climb straight up to the take-off height, then HOLD. 0x02040000."""
+
+MODE_NAMES = {HOLD: "HOLD", LAND: "LAND", OFFBOARD: "OFFBOARD", TAKEOFF: "TAKEOFF"}

@@ -40,6 +40,9 @@ class StabilizerGains:
     min_thrust_fraction_of_weight: float = 0.2
     min_hold_height_m: float = 0.5
     """HOLD never targets an altitude lower than this above ground."""
+    kp_xy_per_s: float = 1.0
+    """Offboard position set-points: horizontal position gain (velocity per metre)."""
+    max_speed_xy_m_s: float = 5.0
 
 
 def _quat_from_matrix(c0, c1, c2):
@@ -98,12 +101,29 @@ class Stabilizer:
         """Rotor forces (N) to level, stop horizontally and descend at ``descent_m_s``."""
         return self._control(s, descent_m_s)
 
-    def _control(self, s, vz_ref: float):
+    def track(self, s, position_ned, velocity_ned, yaw_rad):
+        """Rotor forces (N) to a position and/or velocity set-point (offboard, PX4's
+        SET_POSITION_TARGET_LOCAL_NED): a P position loop (speed limited) plus the velocity
+        feed-forward; a ``None`` position axis is not held; ``yaw_rad`` ``None`` keeps the heading."""
+        g = self.g
+        v_ref = [0.0 if v is None else v for v in velocity_ned]
+        if position_ned is not None:
+            for i, gain in ((0, g.kp_xy_per_s), (1, g.kp_xy_per_s), (2, g.kp_z_per_s)):
+                v_ref[i] += gain * (position_ned[i] - s[i])
+        h = math.hypot(v_ref[0], v_ref[1])
+        if h > g.max_speed_xy_m_s:
+            v_ref[0], v_ref[1] = v_ref[0] * g.max_speed_xy_m_s / h, v_ref[1] * g.max_speed_xy_m_s / h
+        vz_ref = max(-g.max_climb_m_s, min(g.max_climb_m_s, v_ref[2]))
+        if yaw_rad is not None:
+            self.yaw_ref_rad = yaw_rad
+        return self._control(s, vz_ref, v_ref[0], v_ref[1])
+
+    def _control(self, s, vz_ref: float, vx_ref: float = 0.0, vy_ref: float = 0.0):
         g = self.g
         (_, _, _, qw, qx, qy, qz, vx, vy, vz, p, q, r) = s
         # 1. velocity loop -> desired acceleration (NED)
-        ax = -g.kv_xy_per_s * vx
-        ay = -g.kv_xy_per_s * vy
+        ax = g.kv_xy_per_s * (vx_ref - vx)
+        ay = g.kv_xy_per_s * (vy_ref - vy)
         az = g.kv_z_per_s * (vz_ref - vz)
         az = max(-g.max_accel_up_m_s2, min(g.max_accel_down_m_s2, az))
         axy_max = min(g.max_accel_xy_m_s2, math.tan(math.radians(40.0)) * (G - az))

@@ -197,7 +197,9 @@ class VehicleTarget:
         accepted = {m.command for m in self._replies()
                     if m.get_type() == "COMMAND_ACK" and m.result == mavlink2.MAV_RESULT_ACCEPTED}
         if after[:3] != before[:3] and not accepted & {mavlink2.MAV_CMD_COMPONENT_ARM_DISARM,
-                                                       mavlink2.MAV_CMD_DO_SET_MODE}:
+                                                       mavlink2.MAV_CMD_DO_SET_MODE,
+                                                       mavlink2.MAV_CMD_NAV_TAKEOFF,
+                                                       mavlink2.MAV_CMD_NAV_LAND}:
             out.append(_finding("state_change", data, f"armed/mode without an accepted command: {before} -> {after}"))
         if after[3:] != before[3:] and not valid_targets:
             out.append(_finding("state_change", data, f"offboard peer/target without a valid target: "
