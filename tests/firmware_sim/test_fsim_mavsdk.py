@@ -87,6 +87,7 @@ def test_mavsdk_connects_reads_telemetry_takes_off_lands_and_disarms():
         assert em.stop() == 0
 
 
+@pytest.mark.slow     # 18 s in real time; run before releases (README)
 def test_mavsdk_offboard_position_example():
     """MAVSDK's offboard_position_ned example, its set-points and calls unchanged, each leg
     waited for until reached (the example sleeps 10-15 s a leg), then landed at 2 m/s
