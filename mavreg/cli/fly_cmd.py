@@ -46,12 +46,13 @@ control.npz (s, w, u, rotor commands and phase per control step), groundtruth.np
 emulator only).
 
 A per-segment table is printed (a line under it says the same): e_t is the transverse
-error, the distance from the path, in mm (max and RMS as the controller estimated it; "true"
-from the emulator's ground truth); att the attitude error angle in deg ("true att" is taken
-against the plan's drag-free nominal attitude, so it includes the tilt flown on purpose
-against drag and wind: about 24 deg at 8 m/s in the realistic world); peak rotor the largest
-rotor force command in N; sat the time a rotor spent at its limit in s. Events give the
-vehicle's time (t) and the time since the daemon started (daemon).
+error, the distance from the path, in mm (max and RMS as the controller estimated it;
+"true" from the emulator's ground truth); att the attitude error angle in deg ("true att"
+is taken against the plan's drag-free nominal attitude, so it includes the tilt flown on
+purpose against drag and wind: about 23 deg on the barrel roll's 8 m/s run-up in the
+realistic world); peak rotor the largest rotor force command in N; sat the time a rotor
+spent at its limit in s. Events give the vehicle's time (t) and the time since the daemon
+started (daemon).
 
 Rotor commands are SET_ACTUATOR_CONTROL_TARGET group 0 with a pass-through mixer
 (controls[0..3] = rotors 1..4 front, right, back, left, as a fraction of the maximum rotor
