@@ -154,6 +154,8 @@ def _same_flight(a, b):
     return float(np.max(np.linalg.norm(pa[:n] - pb[:n], axis=1))), abs(len(pa) - len(pb))
 
 
+@pytest.mark.slow     # 14 s: a second ideal flight compared bit for bit; the hostile-uploads flight
+# (test_hostile_uploads_sitl.py) keeps rejected uploads mid-flight in the suite
 def test_invalid_upload_mid_flight_is_rejected_and_changes_nothing(tmp_path, ideal_flight, barrel_plan):
     sock = tmp_path / "mavreg.sock"
     bad = tmp_path / "bad.yaml"
