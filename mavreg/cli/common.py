@@ -21,7 +21,7 @@ from ..config.paths import (DEFAULT_VEHICLE, DESIGN_CONTROLLER, PAPER_CONTROLLER
 
 __all__ = ["PARAMS_DIR", "DEFAULT_VEHICLE", "PAPER_CONTROLLER", "PAPER_GOVERNED_CONTROLLER",
            "DESIGN_CONTROLLER", "REAL_CONTROLLER", "add_model_arguments", "add_laps_argument", "load_model_params", "load_maneuver_arg",
-           "add_gcs_arguments", "gcs_config",
+           "add_gcs_arguments", "gcs_config", "add_signing_argument",
            "add_planner_arguments", "planner_bounds", "Parser", "positive_float", "nonneg_float",
            "finite_float", "positive_int", "nonneg_int", "vehicle_url", "plot_file", "input_file",
            "output_file", "output_dir", "socket_path", "check_output_file", "check_output_dir"]
@@ -120,6 +120,15 @@ def nonneg_int(text: str) -> int:
     if n < 0:
         raise argparse.ArgumentTypeError(f"must be at least 0, got {n}")
     return n
+
+
+def add_signing_argument(p: argparse.ArgumentParser, bundled_emulator: bool = False) -> None:
+    """``--signing-key FILE`` (fly, serve): MAVLink 2 signing, :mod:`mavreg.daemon.signing`."""
+    also = "; the bundled emulator gets the same key" if bundled_emulator else ""
+    p.add_argument("--signing-key", metavar="FILE", default=None,
+                   help="MAVLink 2 signing: sign every message and accept only validly signed ones "
+                   f"(FILE: 32 bytes as 64 hex characters or base64, mode 0600{also}; "
+                   "docs/reliability.md) (default: signing off)")
 
 
 def add_gcs_arguments(p: argparse.ArgumentParser) -> None:

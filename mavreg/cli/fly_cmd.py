@@ -6,9 +6,9 @@ import time
 from pathlib import Path
 
 from ..errors import UsageError
-from .common import (REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, add_planner_arguments, check_output_dir,
-                     finite_float, input_file, output_dir, planner_bounds, positive_float, socket_path,
-                     vehicle_url, gcs_config)
+from .common import (REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, add_planner_arguments,
+                     add_signing_argument, check_output_dir, finite_float, gcs_config, input_file, output_dir,
+                     planner_bounds, positive_float, socket_path, vehicle_url)
 
 MAX_ENTRY_OFFSET_M = 2.0
 """Longest --entry-offset: an experiment's start error, not a relocation of the maneuver."""
@@ -118,10 +118,7 @@ def add_arguments(p):
                    "velocity, and the regulator takes over there (the paper's Section 4: 0.6 0.6 0.6; "
                    "more than 0.5 m across the path needs a controller file whose envelope allows "
                    "it, see mavreg experiment) (default: 0 0 0)" % {"max": MAX_ENTRY_OFFSET_M})
-    p.add_argument("--signing-key", metavar="FILE", default=None,
-                   help="MAVLink 2 signing: sign every message and accept only validly signed ones "
-                   "(FILE: 32 bytes as 64 hex characters or base64, mode 0600; the bundled emulator "
-                   "gets the same key; docs/reliability.md) (default: signing off)")
+    add_signing_argument(p, bundled_emulator=True)
     add_gcs_arguments(p)
     add_planner_arguments(p)
     add_model_arguments(p, controller=REAL_CONTROLLER)

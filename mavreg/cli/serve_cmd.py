@@ -4,7 +4,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from .common import (REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, add_planner_arguments,
-                     gcs_config, output_file, planner_bounds, positive_float, socket_path, vehicle_url)
+                     add_signing_argument, gcs_config, output_file, planner_bounds, positive_float, socket_path,
+                     vehicle_url)
 
 HELP = "run the offboard daemon: fly maneuvers uploaded on the control endpoint"
 DESCRIPTION = """\
@@ -52,10 +53,7 @@ def add_arguments(p):
     p.add_argument("--vehicle-lockstep", action="store_true",
                    help="the vehicle is a lockstep simulator (it waits for each command): do not "
                    "fly telemetry gaps on the prediction (in real time the daemon does)")
-    p.add_argument("--signing-key", metavar="FILE", default=None,
-                   help="MAVLink 2 signing: sign every message and accept only validly signed ones "
-                   "(FILE: 32 bytes as 64 hex characters or base64, mode 0600; docs/reliability.md) "
-                   "(default: signing off)")
+    add_signing_argument(p)
     add_gcs_arguments(p)
     add_planner_arguments(p)
     add_model_arguments(p, controller=REAL_CONTROLLER)
