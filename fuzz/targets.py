@@ -40,6 +40,18 @@ def _finding(kind: str, data: bytes, detail: str) -> str:
     return f"{kind}: {detail} (input {len(data)} bytes: {data[:64].hex()}{'...' if len(data) > 64 else ''})"
 
 
+
+def _receive(receive, data: bytes) -> tuple[bool, list[str]]:
+    """Run one receive path on ``data``: (whether it raised, findings): an exception that
+    escaped, or a stall beyond :data:`STALL_S`."""
+    t0 = time.perf_counter()
+    try:
+        receive()
+    except Exception:
+        return True, [_finding("exception", data, traceback.format_exc(limit=3).strip().splitlines()[-1])]
+    elapsed = time.perf_counter() - t0
+    return False, ([_finding("stall", data, f"{elapsed:.2f} s")] if elapsed > STALL_S else [])
+
 class DaemonTarget:
     """The daemon's receive path (see the module docstring); ``impl``: ``fast`` or ``reference``."""
 
@@ -94,16 +106,10 @@ class DaemonTarget:
         non_finite0 = self.sup.assembler.counters.non_finite
         quat_seen = self.sup.assembler.quaternion_seen
         self.passed = []
-        t0 = time.perf_counter()
-        try:
-            self.link.datagram_received(data, _VEHICLE_ADDR)
-        except Exception:
-            return [_finding("exception", data, traceback.format_exc(limit=3).strip().splitlines()[-1])]
-        finally:
-            self.frames += 1
-        out = []
-        if time.perf_counter() - t0 > STALL_S:
-            out.append(_finding("stall", data, f"{time.perf_counter() - t0:.2f} s"))
+        raised, out = _receive(lambda: self.link.datagram_received(data, _VEHICLE_ADDR), data)
+        self.frames += 1
+        if raised:
+            return out
         after = self.snapshot()
         if after != before and not any(m.get_type() != "BAD_DATA" for m in self.passed):
             out.append(_finding("state_change", data, f"without a valid message: {before} -> {after}"))
@@ -179,20 +185,16 @@ class VehicleTarget:
         valid_targets = [m for m in self._decode(data) if m.get_type() == "SET_ACTUATOR_CONTROL_TARGET"
                          and ap.target_drop_reason(m) is None]
         self.sock.sendto(data, self.addr)
-        t0 = time.perf_counter()
-        try:
+        def receive():
             # loopback delivers at once; wait only if the datagram is not there yet
             if self.engine.process_datagram() or (self.engine.link.wait_readable(STALL_S)
                                                   and self.engine.process_datagram()):
                 while self.engine.process_datagram():
                     pass
-        except Exception:
-            return [_finding("exception", data, traceback.format_exc(limit=3).strip().splitlines()[-1])]
-        finally:
-            self.frames += 1
-        out = []
-        if time.perf_counter() - t0 > STALL_S:
-            out.append(_finding("stall", data, f"{time.perf_counter() - t0:.2f} s"))
+        raised, out = _receive(receive, data)
+        self.frames += 1
+        if raised:
+            return out
         after = self.snapshot()
         accepted = {m.command for m in self._replies()
                     if m.get_type() == "COMMAND_ACK" and m.result == mavlink2.MAV_RESULT_ACCEPTED}
