@@ -21,7 +21,7 @@ from ..config.paths import (DEFAULT_VEHICLE, DESIGN_CONTROLLER, PAPER_CONTROLLER
 
 __all__ = ["PARAMS_DIR", "DEFAULT_VEHICLE", "PAPER_CONTROLLER", "PAPER_GOVERNED_CONTROLLER",
            "DESIGN_CONTROLLER", "REAL_CONTROLLER", "add_model_arguments", "add_laps_argument", "load_model_params", "load_maneuver_arg",
-           "add_gcs_arguments", "gcs_config", "add_signing_argument",
+           "add_gcs_arguments", "gcs_config", "add_signing_argument", "add_output_argument",
            "add_planner_arguments", "planner_bounds", "Parser", "positive_float", "nonneg_float",
            "finite_float", "positive_int", "nonneg_int", "vehicle_url", "plot_file", "input_file",
            "output_file", "output_dir", "socket_path", "check_output_file", "check_output_dir"]
@@ -118,6 +118,15 @@ def positive_int(text: str) -> int:
 def nonneg_int(text: str) -> int:
     """A whole number >= 0 (a seed)."""
     return _whole_number(text, 0)
+
+
+def add_output_argument(p: argparse.ArgumentParser) -> None:
+    """``--output rotors|rates`` (fly, serve): what the daemon commands."""
+    p.add_argument("--output", choices=("rotors", "rates"), default=None,
+                   help="what the daemon commands: 'rotors', rotor forces (SET_ACTUATOR_CONTROL_TARGET), "
+                   "or 'rates', body rates and a normalized thrust (SET_ATTITUDE_TARGET), which stock "
+                   "PX4 and ArduPilot autopilots take; needs the vehicle file's rate_interface: "
+                   "section (docs/autopilots.md) (default: the vehicle file's output:, else rotors)")
 
 
 def add_signing_argument(p: argparse.ArgumentParser, bundled_emulator: bool = False) -> None:

@@ -6,7 +6,7 @@ import time
 from pathlib import Path
 
 from ..errors import UsageError
-from .common import (REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, add_planner_arguments,
+from .common import (REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, add_output_argument, add_planner_arguments,
                      add_signing_argument, check_output_dir, finite_float, gcs_config, input_file, output_dir,
                      planner_bounds, positive_float, socket_path, vehicle_url)
 
@@ -118,6 +118,7 @@ def add_arguments(p):
                    "velocity, and the regulator takes over there (the paper's Section 4: 0.6 0.6 0.6; "
                    "more than 0.5 m across the path needs a controller file whose envelope allows "
                    "it, see mavreg experiment) (default: 0 0 0)" % {"max": MAX_ENTRY_OFFSET_M})
+    add_output_argument(p)
     add_signing_argument(p, bundled_emulator=True)
     add_gcs_arguments(p)
     add_planner_arguments(p)
@@ -125,7 +126,7 @@ def add_arguments(p):
 
 
 def run(args) -> int:
-    from ..config.vehicle import load_vehicle
+    from ..config.vehicle import load_vehicle, with_output
     from ..daemon.fly import FlyOptions, fly
     from ..daemon.signing import load_key
     maneuver = Path(args.maneuver)
@@ -140,7 +141,7 @@ def run(args) -> int:
         raise UsageError(f"--entry-offset must be at most {MAX_ENTRY_OFFSET_M:g} m long, "
                          f"got {' '.join(f'{v:g}' for v in offset)}")
     gcs = gcs_config(args)
-    load_vehicle(args.vehicle_params)   # a bad vehicle file is a user error before anything starts
+    with_output(load_vehicle(args.vehicle_params), args.output)   # a bad vehicle file: before anything starts
     out = Path(args.out) if args.out else Path("flights") / time.strftime("%Y%m%d-%H%M%S")
     why = check_output_dir(str(out))    # the default --out too, before the flight
     if why is not None:
@@ -151,5 +152,5 @@ def run(args) -> int:
                       args.stale_timeout_s, offset,
                       signing_key=Path(args.signing_key) if args.signing_key is not None else None,
                       gcs_urls=gcs["gcs_urls"], gcs=gcs["gcs"], tlog_clock=args.tlog_clock,
-                      argv=tuple(getattr(args, "command_line", ())), planner=planner_bounds(args))
+                      argv=tuple(getattr(args, "command_line", ())), planner=planner_bounds(args), output=args.output)
     return fly(opts)

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .common import (REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, add_planner_arguments,
+from .common import (REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, add_output_argument, add_planner_arguments,
                      add_signing_argument, gcs_config, output_file, planner_bounds, positive_float, socket_path,
                      vehicle_url)
 
@@ -53,6 +53,7 @@ def add_arguments(p):
     p.add_argument("--vehicle-lockstep", action="store_true",
                    help="the vehicle is a lockstep simulator (it waits for each command): do not "
                    "fly telemetry gaps on the prediction (in real time the daemon does)")
+    add_output_argument(p)
     add_signing_argument(p)
     add_gcs_arguments(p)
     add_planner_arguments(p)
@@ -62,14 +63,14 @@ def add_arguments(p):
 def run(args) -> int:
     import asyncio
 
-    from ..config.vehicle import load_vehicle
+    from ..config.vehicle import load_vehicle, with_output
     from ..daemon.app import Daemon, DaemonConfig, regulator_factory
     from ..daemon.endpoint import default_socket_path
     from ..daemon.supervisor import Phase, SupervisorParams
     from ..daemon.signing import Signing
     signing = Signing(args.signing_key, "mavreg") if args.signing_key is not None else None
     gcs = gcs_config(args)
-    vehicle = load_vehicle(args.vehicle_params)
+    vehicle = with_output(load_vehicle(args.vehicle_params), args.output)
     from ..config.controller import load_controller
     controller = load_controller(args.controller)
     config = DaemonConfig(args.vehicle, Path(args.vehicle_params), Path(args.controller),

@@ -9,7 +9,7 @@ and the field's ``metadata`` may add a range and a unit conversion:
 - a nested schema (another dataclass), or ``tuple[Schema, ...]`` for a list of them;
 - ``Optional[T]`` (``T | None``): the key may be left out or be ``null``;
 - a field with a default may be left out; one without is required;
-- ``metadata["min"]``, ``["max"]``, ``["min_exclusive"]`` bound numbers (each element of a vector);
+- ``metadata["min"]``, ``["max"]``, ``["min_exclusive"]``, ``["max_exclusive"]`` bound numbers (each element of a vector);
 - ``metadata["choices"]`` restricts strings, ``metadata["max_length"]`` bounds their length
   (default :data:`MAX_STRING_CHARS`), and ``metadata["max_items"]`` the length of a list;
 - ``metadata["deg"] = True`` on a field named ``X_rad`` reads the YAML key ``X_deg``
@@ -164,6 +164,9 @@ def _check_range(ctx: _Ctx, node, key: str, value: float, meta: dict) -> None:
         ctx.fail(node, key, f"expected a value >= {lo}, got {_excerpt(value)}")
     if hi is not None and value > hi:
         ctx.fail(node, key, f"expected a value <= {hi}, got {_excerpt(value)}")
+    hi_x = meta.get("max_exclusive")
+    if hi_x is not None and not value < hi_x:
+        ctx.fail(node, key, f"expected a value < {hi_x}, got {_excerpt(value)}")
 
 
 _EXPONENT = re.compile(r"[-+]?[0-9]+(\.[0-9]*)?[eE][-+]?[0-9]+")

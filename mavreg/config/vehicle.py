@@ -1,17 +1,21 @@
 """Vehicle parameters: what the controller is designed on, and what only the emulator knows."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from .loader import load_file
+from .loader import ConfigError, load_file
 
-__all__ = ["EmulatorParams", "VehicleParams", "load_vehicle", "G"]
+__all__ = ["EmulatorParams", "RateInterfaceParams", "VehicleParams", "load_vehicle", "G", "OUTPUTS", "with_output"]
 
 G = 9.81
 """Gravity (m/s^2), along +z (down) of NED."""
 
 _POS = {"min_exclusive": 0.0}
+
+OUTPUTS = ("rotors", "rates")
+"""What the daemon commands: rotor forces (SET_ACTUATOR_CONTROL_TARGET), or body rates and
+a collective thrust (SET_ATTITUDE_TARGET), which stock autopilots take (docs/autopilots.md)."""
 
 
 @dataclass(frozen=True)
@@ -37,6 +41,33 @@ class EmulatorParams:
     """Products of inertia (Jxy, Jxz, Jyz) the design model neglects."""
     crash_speed_m_s: float = field(default=3.0, metadata=_POS)
     """Touching the ground faster than this is a crash."""
+
+
+@dataclass(frozen=True)
+class RateInterfaceParams:
+    r"""How the vehicle's own autopilot takes body rates and a collective thrust
+    (``output: rates``), as ``mavreg identify`` measures it (docs/autopilots.md).
+
+    The autopilot's rate loop is modelled as a pure delay then a first-order response,
+    :math:`\dot\omega(t) = (\omega_c(t - d) - \omega(t))/\tau_\omega`; its normalized
+    thrust t in [0, 1] gives the collective
+    :math:`F = F_{max}\,((1 - e)\,t + e\,t^2)`, with :math:`F_{max}` fixed by the hover
+    thrust: :math:`m g = F_{max}((1 - e) t_h + e t_h^2)`.
+    """
+
+    hover_thrust: float = field(metadata={"min_exclusive": 0.0, "max_exclusive": 1.0})
+    """Normalized thrust t_h that holds the file's ``mass_kg`` in a level hover."""
+    thrust_expo: float = field(default=0.0, metadata={"min": 0.0, "max": 1.0})
+    """e of the thrust map: the curvature the autopilot leaves in its thrust command (0: the
+    autopilot linearizes its motors' thrust, as ArduPilot with ``MOT_THST_EXPO`` does)."""
+    rate_time_constant_s: float = field(default=0.02, metadata={"min": 0.001, "max": 0.5})
+    """tau_omega: time constant of the body rates' response to their command."""
+    rate_delay_s: float = field(default=0.0, metadata={"min": 0.0, "max": 0.2})
+    """d: from the command's arrival to the start of the rates' response (added to the
+    link delay the state is predicted across)."""
+    max_body_rate_rad_s: tuple[float, ...] = field(
+        default=(12.0, 12.0, 6.0), metadata={"length": 3, "min_exclusive": 0.0})
+    """Largest roll, pitch and yaw rate commanded (the autopilot's own limits or lower)."""
 
 
 @dataclass(frozen=True)
@@ -66,9 +97,16 @@ class VehicleParams:
     estimate_latency_s: float = field(default=0.0, metadata={"min": 0.0, "max": 0.2})
     """How old the vehicle's state estimate already is when it is stamped and sent (its
     estimator's output lag); the link's delay is measured, this cannot be."""
+    output: str = field(default="rotors", metadata={"choices": OUTPUTS})
+    """What the daemon commands (``--output`` overrides it)."""
+    rate_interface: RateInterfaceParams | None = None
+    """The autopilot's rate loop and thrust map; required by ``output: rates``."""
     emulator: EmulatorParams = field(default_factory=EmulatorParams)
 
     def __post_init__(self):
+        if self.output == "rates" and self.rate_interface is None:
+            raise ValueError("output: rates needs a rate_interface: section (hover_thrust, "
+                             "rate_time_constant_s, ...; docs/autopilots.md, or mavreg identify)")
         jx, jy, jz = self.inertia_kg_m2
         # A rigid body's principal moments obey the triangle inequality.
         if jx + jy < jz or jx + jz < jy or jy + jz < jx:
@@ -86,3 +124,17 @@ class VehicleParams:
 def load_vehicle(path: str | Path) -> VehicleParams:
     """Load ``params/vehicles/*.yaml`` (``kind: vehicle``)."""
     return load_file(path, VehicleParams, kind="vehicle")
+
+
+def with_output(vehicle: VehicleParams, output: str | None) -> VehicleParams:
+    """``vehicle`` commanded by ``output`` (``rotors``/``rates``; None: as its file says).
+    Raises ConfigError (one line) when the file cannot fly rates."""
+    if output is None or output == vehicle.output:
+        return vehicle
+    if output not in OUTPUTS:
+        raise ConfigError(vehicle.name, None, "output", f"expected one of {', '.join(OUTPUTS)}, got {output!r}")
+    if output == "rates" and vehicle.rate_interface is None:
+        raise ConfigError(vehicle.name, None, "rate_interface",
+                          "output rates needs this section (hover_thrust, rate_time_constant_s, ...): "
+                          "add it or run mavreg identify on a flight (docs/autopilots.md)")
+    return replace(vehicle, output=output)

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..config.controller import load_controller
-from ..config.vehicle import load_vehicle
+from ..config.vehicle import load_vehicle, with_output
 from .app import Daemon, DaemonConfig, regulator_factory
 from .ctrllog import load_control_log
 from .gcs import GcsParams
@@ -85,6 +85,8 @@ class FlyOptions:
     """The command line as typed, for the provenance in ``summary.json``."""
     planner: PlannerBounds = PlannerBounds()
     """What one upload may cost the planner worker."""
+    output: str | None = None
+    """``rotors`` or ``rates`` (what the daemon commands); None: the vehicle file's."""
 
 
 def spawn_emulator(vehicle_path: Path, record: Path | None, lockstep: bool, extra: tuple[str, ...] = (),
@@ -142,7 +144,7 @@ def fly(opts: FlyOptions) -> int:
     """Run the whole job; returns the process exit code (0 success, 1 flight failed)."""
     io_impl()          # a bad MAVREG_IO is the user's mistake: one line before anything starts
     text = opts.maneuver_path.read_text()
-    vehicle = load_vehicle(opts.vehicle_path)
+    vehicle = with_output(load_vehicle(opts.vehicle_path), opts.output)
     controller = load_controller(opts.controller_path)
     opts.out_dir.mkdir(parents=True, exist_ok=True)
     record_path = opts.out_dir / "groundtruth.npz"

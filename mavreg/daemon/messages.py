@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
 
-__all__ = ["mavlink2", "PX4_MAIN_OFFBOARD", "PX4_MAIN_AUTO", "PX4_SUB_LOITER", "PX4_SUB_LAND",
+__all__ = ["mavlink2", "rate_target", "RATE_TYPE_MASK", "PX4_MAIN_OFFBOARD", "PX4_MAIN_AUTO", "PX4_SUB_LOITER", "PX4_SUB_LAND",
            "VehicleStatus", "decode_heartbeat", "actuator_target", "arm_disarm", "force_disarm",
            "set_offboard", "daemon_heartbeat", "mode_name", "statustext", "SEVERITY_CRITICAL",
            "SEVERITY_WARNING", "FORCE_DISARM_MAGIC"]
@@ -79,6 +79,23 @@ def actuator_target(time_usec: int, target_system: int, target_component: int, c
     c.extend((0.0, 0.0, 0.0, 0.0))
     return mavlink2.MAVLink_set_actuator_control_target_message(int(time_usec), 0, target_system,
                                                                 target_component, c)
+
+
+RATE_TYPE_MASK = mavlink2.ATTITUDE_TARGET_TYPEMASK_ATTITUDE_IGNORE
+"""SET_ATTITUDE_TARGET's type_mask for body rates and thrust, the attitude ignored (128)."""
+
+
+def rate_target(time_boot_ms: int, target_system: int, target_component: int, rates3, thrust: float) -> object:
+    """SET_ATTITUDE_TARGET with body rates (rad/s, FRD) and a normalized thrust in [0, 1],
+    the attitude ignored (``type_mask`` 128).
+
+    Raises ValueError on a non-finite value or a thrust outside [0, 1]."""
+    p, q, r = (float(v) for v in rates3)
+    t = float(thrust)
+    if not (0.0 <= t <= 1.0 and abs(p) < 1e3 and abs(q) < 1e3 and abs(r) < 1e3):   # NaN fails
+        raise ValueError(f"rate target must be finite rates and a thrust in [0, 1], got {(p, q, r)}, {t}")
+    return mavlink2.MAVLink_set_attitude_target_message(int(time_boot_ms), target_system, target_component,
+                                                        RATE_TYPE_MASK, [1.0, 0.0, 0.0, 0.0], p, q, r, t)
 
 
 def arm_disarm(target_system: int, target_component: int, arm: bool) -> object:

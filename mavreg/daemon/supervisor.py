@@ -43,6 +43,7 @@ from . import messages as mm
 from .flight import FlightPhases
 from .gate import HealthGate, nominal_points
 from .monitor import EnvelopeMonitor
+from .output import command_output
 from .phases import (AIRBORNE, PHASE_CODES, Counters, Event, Failure, LogRecord, Output, Phase,
                      SupervisorParams)
 from .safety import SafetyActions
@@ -95,6 +96,7 @@ class Supervisor(FlightPhases, SafetyActions):
         self.monitor = EnvelopeMonitor(self.envelope, vehicle.mass_kg, vehicle.max_rotor_thrust_n)
         self.gate = HealthGate(self.envelope, vehicle.mass_kg, vehicle.max_rotor_thrust_n, link_health)
         self.assembler = StateAssembler(params.euler_pitch_limit_rad)
+        self.output = command_output(vehicle, params.vehicle_system_id, params.vehicle_component_id)
         self.regulator_factory = regulator_factory
         self.counters = Counters()
         self.phase = Phase.PREFLIGHT
@@ -362,13 +364,15 @@ class Supervisor(FlightPhases, SafetyActions):
 
     def link_delay_s(self) -> float:
         """Sample-to-actuation delay the prediction uses: the configured one, else the TIMESYNC
-        median (0 before the first reply), plus the vehicle file's ``estimate_latency_s``."""
+        median (0 before the first reply), plus the vehicle file's ``estimate_latency_s``, plus,
+        with ``output: rates``, the autopilot rate loop's ``rate_delay_s``."""
         if self.fixed_delay_s is not None:
             d = self.fixed_delay_s
         else:
             est = self.timesync.estimate()
             d = 0.0 if est is None else est.delay_s
-        return d + self.vehicle.estimate_latency_s
+        rates = self.vehicle.rate_interface if self.output.kind == "rates" else None
+        return d + self.vehicle.estimate_latency_s + (0.0 if rates is None else rates.rate_delay_s)
 
     def _controller_state(self, sample: StateSample) -> np.ndarray:
         """The state every controller acts on: the sample predicted to the instant the answer
@@ -389,9 +393,9 @@ class Supervisor(FlightPhases, SafetyActions):
             t = self.last_sample.time_s if self.last_sample is not None else 0.0
         self.monitor.record_command(t, rotor_forces_n)
         cmd = self.forecaster.command(t, rotor_forces_n)
-        controls = cmd / self.vehicle.max_rotor_thrust_n
-        out.messages.append(mm.actuator_target(int(now_s * 1e6), self.params.vehicle_system_id,
-                                               self.params.vehicle_component_id, controls))
+        x = self._forecast.x if self._forecast is not None else (
+            None if self.last_sample is None else self.last_sample.x)
+        out.messages.append(self.output.message(now_s, cmd, x))
         self.counters.actuator_sent += 1
         if self.timesync.due(t):
             out.messages.append(mm.timesync_request(self.timesync.request(int(now_s * 1e9), t)))

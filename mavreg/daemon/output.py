@@ -1,0 +1,77 @@
+"""What leaves the daemon as a command: rotor forces, or body rates and thrust (sans-I/O).
+
+The controllers all compute rotor forces on the paper's model; the supervisor clips them and
+records them (:meth:`mavreg.daemon.supervisor.Supervisor._send_rotors`). This module turns
+that command into the one message the vehicle takes, by the vehicle file's ``output``:
+
+- ``rotors``: SET_ACTUATOR_CONTROL_TARGET, each rotor's force over its limit;
+- ``rates``: SET_ATTITUDE_TARGET with ``type_mask`` 128 (attitude ignored): the wrench of
+  those forces realized through a stock autopilot's rate loop and thrust map
+  (:mod:`mavreg.model.rate_interface`), at the state predicted to when it takes effect.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..config.vehicle import VehicleParams
+from ..model.mixer import Mixer
+from ..model.rate_interface import ThrustMap, rate_command
+from . import messages as mm
+
+__all__ = ["RotorOutput", "RateOutput", "command_output"]
+
+
+class RotorOutput:
+    """Rotor forces as actuator controls in [0, 1] (SET_ACTUATOR_CONTROL_TARGET)."""
+
+    kind = "rotors"
+
+    def __init__(self, vehicle: VehicleParams, system_id: int, component_id: int):
+        self._fmax = float(vehicle.max_rotor_thrust_n)
+        self._target = (system_id, component_id)
+
+    def message(self, now_s: float, rotor_forces_n: np.ndarray, x: np.ndarray | None):
+        """The message for clipped rotor commands (N); ``x`` is not needed."""
+        return mm.actuator_target(int(now_s * 1e6), *self._target, rotor_forces_n / self._fmax)
+
+
+class RateOutput:
+    r"""The wrench of the rotor commands as body rates and a normalized thrust.
+
+    With :math:`(F, \gamma) = M f` (eq 34), the thrust is the thrust map's inverse of F and
+    the rates :math:`\omega_c = \omega + \tau_\omega J^{-1}(\gamma - \omega\times J\omega)` at
+    the predicted state x (:func:`~mavreg.model.rate_interface.rate_command`), clipped to
+    ``max_body_rate_rad_s``."""
+
+    kind = "rates"
+
+    def __init__(self, vehicle: VehicleParams, system_id: int, component_id: int):
+        p = vehicle.rate_interface
+        if p is None:
+            raise ValueError("output: rates needs the vehicle file's rate_interface: section")
+        self._mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m).matrix
+        self._map = ThrustMap.from_params(vehicle.mass_kg, p)
+        self._inertia = np.asarray(vehicle.inertia_kg_m2, dtype=float)
+        self._tau = float(p.rate_time_constant_s)
+        self._max_rate = np.asarray(p.max_body_rate_rad_s, dtype=float)
+        self._target = (system_id, component_id)
+
+    def command(self, rotor_forces_n: np.ndarray, x: np.ndarray | None) -> tuple[np.ndarray, float]:
+        """(rates (3,) rad/s, normalized thrust) for the rotor commands at state x (None: at
+        rest)."""
+        wrench = self._mixer @ np.asarray(rotor_forces_n, dtype=float)
+        omega = np.zeros(3) if x is None else np.asarray(x[9:12], dtype=float)
+        rates = rate_command(omega, wrench[1:], self._inertia, self._tau)
+        if wrench[0] <= 0.0:
+            rates = np.zeros(3)            # motors idle: ask for no rotation
+        return np.clip(rates, -self._max_rate, self._max_rate), self._map.normalized(float(wrench[0]))
+
+    def message(self, now_s: float, rotor_forces_n: np.ndarray, x: np.ndarray | None):
+        rates, thrust = self.command(rotor_forces_n, x)
+        return mm.rate_target(int(now_s * 1e3) & 0xFFFFFFFF, *self._target, rates, thrust)
+
+
+def command_output(vehicle: VehicleParams, system_id: int, component_id: int) -> RotorOutput | RateOutput:
+    """The output the vehicle file's ``output`` names."""
+    cls = RateOutput if vehicle.output == "rates" else RotorOutput
+    return cls(vehicle, system_id, component_id)

@@ -1,0 +1,123 @@
+"""The rate-and-thrust interface of a stock autopilot: its thrust map and the rate loop's
+inverse (mavreg.model.rate_interface), and the daemon's rate output (mavreg.daemon.output)."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from mavreg.config.loader import ConfigError
+from mavreg.config.paths import DEFAULT_VEHICLE
+from mavreg.config.vehicle import G, RateInterfaceParams, load_vehicle, with_output
+from mavreg.daemon import messages as mm
+from mavreg.daemon.output import RateOutput, RotorOutput, command_output
+from mavreg.model.mixer import Mixer
+from mavreg.model.rate_interface import ThrustMap, rate_command, rate_response_rhs
+
+RATES = RateInterfaceParams(hover_thrust=0.3, thrust_expo=0.4, rate_time_constant_s=0.03,
+                            rate_delay_s=0.01, max_body_rate_rad_s=(10.0, 10.0, 5.0))
+
+
+@pytest.fixture(scope="module")
+def vehicle():
+    return dataclasses.replace(load_vehicle(DEFAULT_VEHICLE), output="rates", rate_interface=RATES)
+
+
+@pytest.mark.parametrize("expo", [0.0, 0.25, 0.7, 1.0])
+def test_thrust_map_hover_and_round_trip(expo):
+    m = ThrustMap(0.8, 0.2, expo)
+    assert m.thrust_n(0.2) == pytest.approx(0.8 * G, rel=1e-12)        # the hover thrust holds the mass
+    t = np.linspace(0.0, 1.0, 101)
+    back = np.array([m.normalized(f) for f in m.thrust_n(t)])
+    np.testing.assert_allclose(back, t, atol=1e-12)
+    assert np.all(np.diff(m.thrust_n(t)) > 0)                            # monotonic
+
+
+def test_thrust_map_clips_and_refuses_nan():
+    m = ThrustMap(1.0, 0.5, 0.3)
+    assert m.normalized(-3.0) == 0.0
+    assert m.normalized(10 * m.max_thrust_n) == 1.0
+    assert np.isnan(m.normalized(float("nan")))
+    with pytest.raises(ValueError):
+        ThrustMap(1.0, 1.0, 0.0)
+
+
+def test_rate_command_gives_the_torque_exactly():
+    """Through the first-order rate loop, the rate command makes the body's angular
+    acceleration the one the torque gives the rigid body (random states and torques)."""
+    rng = np.random.default_rng(1)
+    J = np.array([0.0176, 0.0177, 0.034])
+    tau = 0.025
+    for _ in range(50):
+        w, g = rng.normal(0, 4, 3), rng.normal(0, 0.5, 3)
+        rigid = (g - np.cross(w, J * w)) / J
+        through_loop = rate_response_rhs(w, rate_command(w, g, J, tau), tau)
+        np.testing.assert_allclose(through_loop, rigid, rtol=1e-12, atol=1e-12)
+    # negative control: without the gyroscopic term the spinning body gets another torque
+    w = np.array([6.0, -5.0, 3.0])
+    naive = w + tau * np.zeros(3) / J
+    assert np.linalg.norm(rate_response_rhs(w, naive, tau) - (-np.cross(w, J * w) / J)) > 1.0
+
+
+def test_rate_command_with_delay_predicted_matches_rigid_body():
+    """A rate loop with a pure delay d, fed commands computed at the state predicted d ahead
+    (the daemon's prediction), flies the rigid body's trajectory under the same torque law."""
+    J = np.array([0.0176, 0.0177, 0.034])
+    tau, d, dt = 0.02, 0.01, 0.0005
+    torque = lambda t: np.array([0.05 * np.sin(7 * t), -0.04 * np.cos(5 * t), 0.01])   # noqa: E731
+    rigid = solve_ivp(lambda t, w: (torque(t) - np.cross(w, J * w)) / J, (0, 0.5), np.zeros(3),
+                      max_step=dt, dense_output=True, rtol=1e-10, atol=1e-12)
+    n = int(round(0.5 / dt))
+    w = np.zeros(3)
+    for k in range(n):
+        t = k * dt
+        # the command that acts now was sent at t - d from the state then predicted to t
+        w_pred = rigid.sol(t) if t >= d else w
+        cmd = rate_command(w_pred, torque(t), J, tau) if t >= d else np.zeros(3)
+        w = w + dt * rate_response_rhs(w, cmd, tau)
+    assert np.max(np.abs(w - rigid.sol(0.5))) < 0.02 * np.max(np.abs(rigid.sol(0.5)))
+
+
+def test_rate_output_realizes_the_wrench(vehicle):
+    out = RateOutput(vehicle, 1, 1)
+    mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
+    wrench = np.array([9.0, 0.02, -0.01, 0.005])
+    x = np.zeros(12)
+    x[9:12] = (0.5, -0.3, 0.2)
+    rates, thrust = out.command(mixer.inverse @ wrench, x)
+    tmap = ThrustMap.from_params(vehicle.mass_kg, RATES)
+    assert tmap.thrust_n(thrust) == pytest.approx(9.0, rel=1e-9)
+    np.testing.assert_allclose(rates, rate_command(x[9:12], wrench[1:], vehicle.inertia_kg_m2, 0.03), atol=1e-12)
+    msg = out.message(12.345, mixer.inverse @ wrench, x)
+    assert msg.get_type() == "SET_ATTITUDE_TARGET" and msg.type_mask == 128
+    assert (msg.time_boot_ms, msg.thrust) == (12345, pytest.approx(thrust, abs=1e-6))
+    np.testing.assert_allclose([msg.body_roll_rate, msg.body_pitch_rate, msg.body_yaw_rate], rates, atol=1e-6)
+
+
+def test_rate_output_clips_rates_and_idles(vehicle):
+    out = RateOutput(vehicle, 1, 1)
+    mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
+    rates, _ = out.command(mixer.inverse @ np.array([9.0, 50.0, -50.0, 50.0]), np.zeros(12))
+    np.testing.assert_allclose(np.abs(rates), (10.0, 10.0, 5.0))
+    rates, thrust = out.command(np.zeros(4), np.r_[np.zeros(9), 1.0, 2.0, 3.0])
+    assert thrust == 0.0 and not np.any(rates)
+
+
+def test_rate_target_refuses_bad_values():
+    with pytest.raises(ValueError):
+        mm.rate_target(0, 1, 1, (0.0, float("nan"), 0.0), 0.5)
+    with pytest.raises(ValueError):
+        mm.rate_target(0, 1, 1, (0.0, 0.0, 0.0), 1.2)
+
+
+def test_output_choice_and_its_errors(vehicle):
+    base = load_vehicle(DEFAULT_VEHICLE)
+    assert isinstance(command_output(base, 1, 1), RotorOutput)
+    assert isinstance(command_output(vehicle, 1, 1), RateOutput)
+    with pytest.raises(ConfigError, match="rate_interface"):
+        with_output(dataclasses.replace(base, rate_interface=None), "rates")
+    assert with_output(vehicle, "rotors").output == "rotors"
+    with pytest.raises(ValueError, match="rate_interface"):
+        dataclasses.replace(base, output="rates", rate_interface=None)
