@@ -8,8 +8,16 @@ that command into the one message the vehicle takes, by the vehicle file's ``out
 - ``rates``: SET_ATTITUDE_TARGET with ``type_mask`` 128 (attitude ignored): the wrench of
   those forces realized through a stock autopilot's rate loop and thrust map
   (:mod:`mavreg.model.rate_interface`), at the state predicted to when it takes effect.
+
+In the rates output the torque is realized through the rate loop's inverse as the rotors
+would have given it: lagged by the vehicle file's ``rotor_time_constant_s`` (the collective
+is lagged by the autopilot's own motors). The plant the controllers see is then the one they
+were designed on and that the predictor integrates, the lag-augmented wrench model, whatever
+the autopilot in between (docs/autopilots.md).
 """
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -30,8 +38,8 @@ class RotorOutput:
         self._fmax = float(vehicle.max_rotor_thrust_n)
         self._target = (system_id, component_id)
 
-    def message(self, now_s: float, rotor_forces_n: np.ndarray, x: np.ndarray | None):
-        """The message for clipped rotor commands (N); ``x`` is not needed."""
+    def message(self, now_s: float, t_s: float, rotor_forces_n: np.ndarray, x: np.ndarray | None):
+        """The message for clipped rotor commands (N); ``t_s`` and ``x`` are not needed."""
         return mm.actuator_target(int(now_s * 1e6), *self._target, rotor_forces_n / self._fmax)
 
 
@@ -41,7 +49,9 @@ class RateOutput:
     With :math:`(F, \gamma) = M f` (eq 34), the thrust is the thrust map's inverse of F and
     the rates :math:`\omega_c = \omega + \tau_\omega J^{-1}(\gamma - \omega\times J\omega)` at
     the predicted state x (:func:`~mavreg.model.rate_interface.rate_command`), clipped to
-    ``max_body_rate_rad_s``."""
+    ``max_body_rate_rad_s``. The torque realized is the commanded one through a first-order
+    lag of the vehicle's ``rotor_time_constant_s`` (none when it is 0), stepped by the vehicle
+    time between commands."""
 
     kind = "rates"
 
@@ -55,19 +65,34 @@ class RateOutput:
         self._tau = float(p.rate_time_constant_s)
         self._max_rate = np.asarray(p.max_body_rate_rad_s, dtype=float)
         self._target = (system_id, component_id)
+        self._lag_s = float(vehicle.rotor_time_constant_s)
+        self._torque = np.zeros(3)
+        self._t_s: float | None = None
 
-    def command(self, rotor_forces_n: np.ndarray, x: np.ndarray | None) -> tuple[np.ndarray, float]:
+    def _lagged_torque(self, t_s: float | None, torque: np.ndarray) -> np.ndarray:
+        """The torque the lag has reached at ``t_s``: unchanged when no time has passed, the
+        command itself with no lag, at the first command or when time went back."""
+        if self._lag_s <= 0.0 or t_s is None or self._t_s is None or t_s < self._t_s:
+            self._torque = torque.copy()
+        elif t_s > self._t_s:
+            decay = math.exp(-(t_s - self._t_s) / self._lag_s)
+            self._torque = torque + (self._torque - torque) * decay
+        self._t_s = t_s
+        return self._torque
+
+    def command(self, rotor_forces_n: np.ndarray, x: np.ndarray | None,
+                t_s: float | None = None) -> tuple[np.ndarray, float]:
         """(rates (3,) rad/s, normalized thrust) for the rotor commands at state x (None: at
-        rest)."""
+        rest), the torque lagged up to vehicle time ``t_s`` (None: not lagged)."""
         wrench = self._mixer @ np.asarray(rotor_forces_n, dtype=float)
         omega = np.zeros(3) if x is None else np.asarray(x[9:12], dtype=float)
-        rates = rate_command(omega, wrench[1:], self._inertia, self._tau)
+        rates = rate_command(omega, self._lagged_torque(t_s, wrench[1:]), self._inertia, self._tau)
         if wrench[0] <= 0.0:
             rates = np.zeros(3)            # motors idle: ask for no rotation
         return np.clip(rates, -self._max_rate, self._max_rate), self._map.normalized(float(wrench[0]))
 
-    def message(self, now_s: float, rotor_forces_n: np.ndarray, x: np.ndarray | None):
-        rates, thrust = self.command(rotor_forces_n, x)
+    def message(self, now_s: float, t_s: float, rotor_forces_n: np.ndarray, x: np.ndarray | None):
+        rates, thrust = self.command(rotor_forces_n, x, t_s)
         return mm.rate_target(int(now_s * 1e3) & 0xFFFFFFFF, *self._target, rates, thrust)
 
 

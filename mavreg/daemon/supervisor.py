@@ -395,7 +395,7 @@ class Supervisor(FlightPhases, SafetyActions):
         cmd = self.forecaster.command(t, rotor_forces_n)
         x = self._forecast.x if self._forecast is not None else (
             None if self.last_sample is None else self.last_sample.x)
-        out.messages.append(self.output.message(now_s, cmd, x))
+        out.messages.append(self.output.message(now_s, t, cmd, x))
         self.counters.actuator_sent += 1
         if self.timesync.due(t):
             out.messages.append(mm.timesync_request(self.timesync.request(int(now_s * 1e9), t)))

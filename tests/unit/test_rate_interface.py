@@ -90,7 +90,7 @@ def test_rate_output_realizes_the_wrench(vehicle):
     tmap = ThrustMap.from_params(vehicle.mass_kg, RATES)
     assert tmap.thrust_n(thrust) == pytest.approx(9.0, rel=1e-9)
     np.testing.assert_allclose(rates, rate_command(x[9:12], wrench[1:], vehicle.inertia_kg_m2, 0.03), atol=1e-12)
-    msg = out.message(12.345, mixer.inverse @ wrench, x)
+    msg = out.message(12.345, None, mixer.inverse @ wrench, x)
     assert msg.get_type() == "SET_ATTITUDE_TARGET" and msg.type_mask == 128
     assert (msg.time_boot_ms, msg.thrust) == (12345, pytest.approx(thrust, abs=1e-6))
     np.testing.assert_allclose([msg.body_roll_rate, msg.body_pitch_rate, msg.body_yaw_rate], rates, atol=1e-6)
@@ -121,3 +121,21 @@ def test_output_choice_and_its_errors(vehicle):
     assert with_output(vehicle, "rotors").output == "rotors"
     with pytest.raises(ValueError, match="rate_interface"):
         dataclasses.replace(base, output="rates", rate_interface=None)
+
+
+def test_rate_output_lags_the_torque_as_the_rotors_would(vehicle):
+    """The torque realized follows a step of the commanded one with the vehicle's rotor lag:
+    63 % after one time constant (vehicle time), the collective at once."""
+    out = RateOutput(vehicle, 1, 1)
+    mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
+    tau, J, tau_w = vehicle.rotor_time_constant_s, np.asarray(vehicle.inertia_kg_m2), 0.03
+    out.command(mixer.inverse @ np.array([8.0, 0.0, 0.0, 0.0]), np.zeros(12), 1.0)
+    step = mixer.inverse @ np.array([8.0, 0.02, 0.0, 0.0])
+    dt = 0.002
+    for k in range(1, int(round(tau / dt)) + 1):
+        rates, thrust = out.command(step, np.zeros(12), 1.0 + k * dt)
+    assert rates[0] == pytest.approx(tau_w * 0.02 / J[0] * (1 - np.exp(-1.0)), rel=1e-6)
+    assert ThrustMap.from_params(vehicle.mass_kg, RATES).thrust_n(thrust) == pytest.approx(8.0)
+    out_nolag = RateOutput(dataclasses.replace(vehicle, rotor_time_constant_s=0.0), 1, 1)
+    out_nolag.command(mixer.inverse @ np.array([8.0, 0.0, 0.0, 0.0]), np.zeros(12), 1.0)
+    assert out_nolag.command(step, np.zeros(12), 1.002)[0][0] == pytest.approx(tau_w * 0.02 / J[0])
