@@ -59,10 +59,12 @@ def _export_file(text: str) -> str:
 def run(args) -> int:
     vehicle, controller = load_model_params(args)
     spec = load_maneuver_arg(args)            # the files first: the planner's imports are heavy
+    from ..control.hover import HoverParams
     from ..maneuver.cache import default_cache
     from ..maneuver.plan import plan_cached
     from ..maneuver.plan_margins import with_margins
-    plan = with_margins(plan_cached(spec, vehicle, controller, strict=False, cache=default_cache()))
+    plan = with_margins(plan_cached(spec, vehicle, controller, strict=False, cache=default_cache()),
+                        HoverParams.from_controller(controller))
     summary = plan.summary()
     _check_envelope(plan, controller.envelope, summary)
     _write_outputs(args, plan, summary)

@@ -64,6 +64,7 @@ def run(args) -> int:
     import asyncio
 
     from ..config.vehicle import load_vehicle, with_output
+    from ..control.hover import HoverParams
     from ..daemon.app import Daemon, DaemonConfig, regulator_factory
     from ..daemon.endpoint import default_socket_path
     from ..daemon.supervisor import Phase, SupervisorParams
@@ -77,7 +78,8 @@ def run(args) -> int:
                           Path(args.socket) if args.socket else default_socket_path(),
                           Path(args.tlog) if args.tlog else None,
                           SupervisorParams(land_when_done=False, stale_timeout_s=args.stale_timeout_s,
-                                           gap_fill=not args.vehicle_lockstep, lockstep=args.vehicle_lockstep),
+                                           gap_fill=not args.vehicle_lockstep, lockstep=args.vehicle_lockstep,
+                                           hover=HoverParams.from_controller(controller)),
                           envelope=controller.envelope, controller=controller,
                           control_rate_hz=args.control_rate_hz, **gcs, planner=planner_bounds(args),
                           tlog_clock="vehicle" if args.vehicle_lockstep else "wall")

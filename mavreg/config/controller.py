@@ -71,6 +71,16 @@ class ControllerParams:
     (:mod:`mavreg.config.regulation`); the torques first by default."""
     speed_governor: SpeedGovernorParams = field(default_factory=SpeedGovernorParams)
     """The speed the regulator regulates to (:mod:`mavreg.config.regulation`); off by default."""
+    hover_q: tuple[float, ...] = field(default=(20.0, 20.0, 30.0, 4.0, 4.0, 4.0, 6.0, 6.0, 8.0, 0.5, 0.5, 0.5),
+                                       metadata={"length": 12, "min": 0.0})
+    """The hover LQR's state weights over x = (p, roll pitch yaw, v_body, w_body): take-off,
+    holds, landing (:class:`mavreg.control.hover.HoverParams`)."""
+    hover_r_input: tuple[float, ...] = field(default=(0.1, 4.0, 4.0, 1.0),
+                                             metadata={"length": 4, "min_exclusive": 0.0})
+    """The hover LQR's input weights over (f, gamma1, gamma2, gamma3). Roll and pitch at 4:
+    through the 20 ms rotor lag the hold keeps 29 ms of delay margin on the paper's airframe
+    (17 ms at 1; docs/robustness.md, *Margins*); a lighter airframe needs larger torque weights
+    for the same margin (params/controller/freestyle.yaml)."""
 
     @property
     def q(self) -> np.ndarray:

@@ -43,15 +43,22 @@ class HoverParams:
     q: tuple[float, ...] = (20.0, 20.0, 30.0, 4.0, 4.0, 4.0, 6.0, 6.0, 8.0, 0.5, 0.5, 0.5)
     """Diagonal of Q over x = (p, roll pitch yaw, v_body, w_body)."""
     r: tuple[float, ...] = (0.1, 4.0, 4.0, 1.0)
-    """Diagonal of R over u = (f, g1, g2, g3). Roll and pitch torques at 4 (was 1): through the
-    20 ms rotor lag the hold keeps 29 ms of delay margin (17 ms at 1; docs/robustness.md,
-    *Margins*)."""
+    """Diagonal of R over u = (f, g1, g2, g3). The defaults are the controller file's
+    (:attr:`mavreg.config.controller.ControllerParams.hover_r_input`, which says why)."""
     max_speed_m_s: float = 2.5
     """Largest reference speed of a take-off, transfer or landing ramp."""
     max_accel_m_s2: float = 1.0
     """Largest reference acceleration of a ramp (keeps rotors far from saturation)."""
     max_yaw_rate_rad_s: float = 0.8
     """Largest reference yaw rate of a ramp."""
+
+    @classmethod
+    def from_controller(cls, controller) -> "HoverParams":
+        """The weights of a controller file (``hover_q``, ``hover_r_input``), the default
+        reference limits; None: the defaults."""
+        if controller is None:
+            return cls()
+        return cls(q=tuple(controller.hover_q), r=tuple(controller.hover_r_input))
 
     def __post_init__(self):
         if len(self.q) != NX or len(self.r) != 4:

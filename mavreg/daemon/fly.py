@@ -31,6 +31,7 @@ import numpy as np
 
 from ..config.controller import load_controller
 from ..config.vehicle import load_vehicle, with_output
+from ..control.hover import HoverParams
 from .app import Daemon, DaemonConfig, regulator_factory
 from .ctrllog import load_control_log
 from .gcs import GcsParams
@@ -154,7 +155,8 @@ def fly(opts: FlyOptions) -> int:
                           supervisor=SupervisorParams(land_when_done=True, stale_timeout_s=opts.stale_timeout_s,
                                                       gap_fill=not (opts.lockstep or opts.vehicle_lockstep),
                                                       lockstep=opts.lockstep or opts.vehicle_lockstep,
-                                                      entry_offset_m=tuple(opts.entry_offset_m)),
+                                                      entry_offset_m=tuple(opts.entry_offset_m),
+                                                      hover=HoverParams.from_controller(controller)),
                           envelope=controller.envelope,
                           controller=controller, control_rate_hz=opts.control_rate_hz,
                           gcs_urls=tuple(opts.gcs_urls), gcs=opts.gcs,

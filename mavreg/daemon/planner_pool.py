@@ -164,9 +164,10 @@ def plan_in_worker(yaml_text: str, source: str, vehicle_path: str, controller_pa
 
 def _plan_checked(yaml_text, source, vehicle_path, controller_path, bounds) -> PlanResult:
     from ..maneuver.plan import plan_text
+    from ..control.hover import HoverParams
     from ..maneuver.plan_margins import with_margins
     vehicle, controller = _params(vehicle_path, controller_path)
-    plan = with_margins(plan_text(yaml_text, source, vehicle, controller))
+    plan = with_margins(plan_text(yaml_text, source, vehicle, controller), HoverParams.from_controller(controller))
     size = len(pickle.dumps(plan, protocol=pickle.HIGHEST_PROTOCOL))
     if size > bounds.result_bytes:
         return PlanResult(None, f"{source}: the plan takes {size / _MIB:.0f} MiB, more than the "
