@@ -139,3 +139,40 @@ def test_rate_output_lags_the_torque_as_the_rotors_would(vehicle):
     out_nolag = RateOutput(dataclasses.replace(vehicle, rotor_time_constant_s=0.0), 1, 1)
     out_nolag.command(mixer.inverse @ np.array([8.0, 0.0, 0.0, 0.0]), np.zeros(12), 1.0)
     assert out_nolag.command(step, np.zeros(12), 1.002)[0][0] == pytest.approx(tau_w * 0.02 / J[0])
+
+
+def test_plant_through_the_rate_loop_linearizes_as_the_design_model(vehicle):
+    """The design's plant (eqs 6-17, torque input) and the plant flown in rate mode (body rates
+    from the first-order rate loop, fed by the rate command) have the same Jacobians in state
+    and wrench: central finite differences of the second against complex-step of the first,
+    at random states of an aggressive maneuver."""
+    from mavreg.model.linearize import complex_step_jacobian
+    from mavreg.model.quadrotor import QuadrotorModel
+    model = QuadrotorModel.from_vehicle(vehicle)
+    J = np.asarray(vehicle.inertia_kg_m2)
+    tau = RATES.rate_time_constant_s
+
+    def through_loop(x, u):
+        xdot = model.f(x, u).astype(float)
+        xdot[9:12] = rate_response_rhs(x[9:12], rate_command(x[9:12], u[1:], J, tau), tau)
+        return xdot
+
+    rng = np.random.default_rng(7)
+    for _ in range(5):
+        x = np.r_[rng.normal(0, 2, 3), rng.uniform(-1, 1, 3), rng.normal(0, 4, 3), rng.normal(0, 5, 3)]
+        u = np.r_[rng.uniform(2, 30), rng.normal(0, 0.2, 3)]
+        A = complex_step_jacobian(lambda z: model.f(z, u), x)
+        B = complex_step_jacobian(lambda v: model.f(x, v), u)
+        h = 1e-6
+        A_fd = np.column_stack([(through_loop(x + h * e, u) - through_loop(x - h * e, u)) / (2 * h)
+                                for e in np.eye(12)])
+        B_fd = np.column_stack([(through_loop(x, u + h * e) - through_loop(x, u - h * e)) / (2 * h)
+                                for e in np.eye(4)])
+        np.testing.assert_allclose(A_fd, A, atol=2e-5 * max(1.0, np.abs(A).max()))
+        np.testing.assert_allclose(B_fd, B, atol=2e-5 * max(1.0, np.abs(B).max()))
+    # negative control: a rate command that ignores the loop's time constant changes B
+    B_wrong = np.column_stack([
+        (rate_response_rhs(x[9:12], rate_command(x[9:12], u[1:] + h * e[1:], J, 2 * tau), tau)
+         - rate_response_rhs(x[9:12], rate_command(x[9:12], u[1:] - h * e[1:], J, 2 * tau), tau)) / (2 * h)
+        for e in np.eye(4)])
+    assert np.abs(B_wrong - B[9:12]).max() > 0.5 * np.abs(B[9:12]).max()
