@@ -74,6 +74,11 @@ class FlightPhases:
         st = self.vehicle_status
         if not st.armed:
             bad = plan_outside_envelope(self._pending[0][2], sample.x[:3], self.envelope)
+            if bad is None:                                # the autopilot's parameters, its telemetry
+                bad = self.autopilot.ready(t, out.messages)
+                if bad is None:
+                    return
+                bad = None if bad.ok else bad
             if bad is not None:                            # as the hold's gate would, before take-off
                 self._refuse(bad, out, Phase.PREFLIGHT)
                 return
@@ -90,7 +95,7 @@ class FlightPhases:
             self._command(out, mm.arm_disarm(sysid, compid, True))
         elif not st.offboard:
             if t - self._stream_start_t >= self.params.offboard_stream_min_s:
-                self._command(out, mm.set_offboard(sysid, compid))
+                self._command(out, self.autopilot.set_offboard_mode())
         else:
             verdict = self.gate.link_verdict(self._gate_margin(self._pending[0][0]))
             if verdict is not None:

@@ -88,6 +88,12 @@ class SupervisorParams:
     outage), so a gap of vehicle time alone is judged (docs/safety.md, *Gaps*)."""
     euler_pitch_limit_rad: float = math.radians(75.0)
     hover: HoverParams = field(default_factory=HoverParams)
+    telemetry_rate_hz: float = 500.0
+    """The attitude and position telemetry rate asked of the autopilot (SET_MESSAGE_INTERVAL;
+    the control rate)."""
+    parameter_timeout_s: float = 10.0
+    """Vehicle time the autopilot may take to answer the parameter reads before arming
+    (:mod:`mavreg.daemon.preflight`); then the take-off is refused."""
 
 
 @dataclass(frozen=True)
@@ -153,6 +159,8 @@ class Counters:
     """Commands sent from a prediction while a sample was late (:meth:`Supervisor.fill_gap`)."""
     timesync_dropped: int = 0
     """TIMESYNC replies that answered no request of ours, or implied an implausible delay."""
+    unsupported_heartbeats: int = 0
+    """HEARTBEATs of an autopilot mavreg does not speak to (:mod:`mavreg.daemon.preflight`)."""
 
 
 @dataclass(frozen=True)

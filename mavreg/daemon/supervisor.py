@@ -44,6 +44,7 @@ from .flight import FlightPhases
 from .gate import HealthGate, nominal_points
 from .monitor import EnvelopeMonitor
 from .output import command_output
+from .preflight import AutopilotSetup
 from .phases import (AIRBORNE, PHASE_CODES, Counters, Event, Failure, LogRecord, Output, Phase,
                      SupervisorParams)
 from .safety import SafetyActions
@@ -97,6 +98,8 @@ class Supervisor(FlightPhases, SafetyActions):
         self.gate = HealthGate(self.envelope, vehicle.mass_kg, vehicle.max_rotor_thrust_n, link_health)
         self.assembler = StateAssembler(params.euler_pitch_limit_rad)
         self.output = command_output(vehicle, params.vehicle_system_id, params.vehicle_component_id)
+        self.autopilot = AutopilotSetup(params.vehicle_system_id, params.vehicle_component_id,
+                                        params.telemetry_rate_hz, params.parameter_timeout_s)
         self.regulator_factory = regulator_factory
         self.counters = Counters()
         self.phase = Phase.PREFLIGHT
@@ -202,7 +205,13 @@ class Supervisor(FlightPhases, SafetyActions):
             return out
         mtype = msg.get_type()
         if mtype == "HEARTBEAT":
-            self._on_heartbeat(mm.decode_heartbeat(msg), out)
+            st = self.autopilot.heartbeat(msg)
+            if st is not None:
+                self._on_heartbeat(st, out)
+            else:
+                self.counters.unsupported_heartbeats += 1
+        elif mtype == "PARAM_VALUE":
+            self.autopilot.param_value(msg)
         elif mtype == "COMMAND_ACK":
             self._on_ack(msg, out)
         elif mtype == "TIMESYNC":
@@ -320,6 +329,8 @@ class Supervisor(FlightPhases, SafetyActions):
         prev, prev_now = self.last_sample, self._last_sample_now
         self.last_sample = sample
         self._last_sample_now = now_s
+        if self.vehicle_status is None and self.autopilot.unsupported is not None and self._pending:
+            self._refuse(self.autopilot.ready(sample.time_s, out.messages), out, Phase.PREFLIGHT)
         if self.finished or self.vehicle_status is None:
             return
         if self.phase == Phase.TERMINATE:

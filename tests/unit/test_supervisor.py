@@ -41,14 +41,49 @@ def test_preflight_streams_idle_then_arms_then_offboard():
     veh = SimVehicle()
     _, _, sent = run(sup, veh, 2.5)
     kinds = [(t, m.get_type(), getattr(m, "command", None)) for t, m in sent]
-    first_cmd = next(k for k in kinds if k[1] == "COMMAND_LONG")
+    first_cmd = next(k for k in kinds if k[1] == "COMMAND_LONG" and k[2] != 511)
     assert kinds[0][1] == "SET_ACTUATOR_CONTROL_TARGET"
     assert first_cmd[2] == 400
+    # before arming: the telemetry asked for (SET_MESSAGE_INTERVAL) and the parameters read
+    before = [k for k in kinds if k[0] < first_cmd[0]]
+    assert {k[2] for k in before if k[1] == "COMMAND_LONG"} == {511}
+    assert sum(k[1] == "PARAM_REQUEST_READ" for k in before) == 2
     mode_cmds = [k for k in kinds if k[2] == 176]
     assert mode_cmds and mode_cmds[0][0] >= 700  # after >= 0.7 s of streaming (vehicle time)
     idle = [m for t, m in sent if m.get_type() == "SET_ACTUATOR_CONTROL_TARGET" and t < mode_cmds[0][0]]
     assert all(max(m.controls) == 0.0 for m in idle)
     assert sup.phase == Phase.TAKEOFF
+
+
+def test_a_parameter_that_does_not_hold_refuses_take_off_in_one_line():
+    """PX4's offboard-loss action at Terminate (6) would stop the motors in the air: refused
+    on the ground, the line names the parameter and the value to set; never armed."""
+    sup = make_supervisor(FakePlan())
+    veh = SimVehicle(params={"COM_OF_LOSS_T": 0.5, "COM_OBL_RC_ACT": 6.0})
+    _, events, _ = run(sup, veh, 3.0)
+    assert not veh.armed and sup.failure is not None and sup.failure.bound == "gate_parameter"
+    assert "COM_OBL_RC_ACT is 6" in sup.failure.detail and "set 5" in sup.failure.detail
+    assert "\n" not in sup.failure.line()
+
+
+def test_unanswered_parameter_reads_refuse_after_the_timeout():
+    sup = make_supervisor(FakePlan())
+    veh = SimVehicle(params={"COM_OF_LOSS_T": 0.5})          # COM_OBL_RC_ACT never answered
+    _, _, sent = run(sup, veh, 12.0)
+    assert not veh.armed and sup.failure.bound == "gate_parameter"
+    assert "COM_OBL_RC_ACT" in sup.failure.detail and "did not answer" in sup.failure.detail
+    reads = [m for _, m in sent if m.get_type() == "PARAM_REQUEST_READ"]
+    assert 8 <= len(reads) <= 14                            # the missing one, about once a second
+
+
+def test_an_autopilot_mavreg_does_not_speak_to_is_refused():
+    from test_supervisor_harness import mavlink2 as m2, wire
+    sup = make_supervisor(FakePlan())
+    veh = SimVehicle()
+    veh.heartbeat = lambda: wire(m2.MAVLink_heartbeat_message(2, m2.MAV_AUTOPILOT_GENERIC, 0, 0, 4, 3))
+    run(sup, veh, 2.0)
+    assert not veh.armed and sup.failure.bound == "gate_autopilot"
+    assert "neither PX4" in sup.failure.detail and sup.counters.unsupported_heartbeats >= 1
 
 
 def test_without_a_plan_it_streams_idle_but_never_arms():

@@ -91,7 +91,10 @@ class SimVehicle:
     requests with its own clock, as PX4, ArduPilot and firmware_sim do, unless
     ``answer_timesync`` is False."""
 
-    def __init__(self, rate_hz=250, mass_scale=1.0, ignore_disarm=0, answer_timesync=True):
+    PARAMS = {"COM_OF_LOSS_T": 0.5, "COM_OBL_RC_ACT": 5.0}
+    """The parameters it answers PARAM_REQUEST_READ for (as REAL32); ``params`` overrides."""
+
+    def __init__(self, rate_hz=250, mass_scale=1.0, ignore_disarm=0, answer_timesync=True, params=None):
         self.dt = 1.0 / rate_hz
         self.model = QuadrotorModel.from_vehicle(replace(VEHICLE, mass_kg=VEHICLE.mass_kg * mass_scale))
         self.ignore_disarm = ignore_disarm
@@ -108,6 +111,7 @@ class SimVehicle:
         self.stream_since = None
         self.last_target_ms = None
         self.mixer = Mixer(VEHICLE.arm_length_m, VEHICLE.drag_torque_ratio_m)
+        self.params = dict(self.PARAMS if params is None else params)
 
     def heartbeat(self):
         base = mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (
@@ -137,6 +141,13 @@ class SimVehicle:
                 self.main, self.sub = PX4_MAIN_AUTO, PX4_SUB_LOITER
         elif t == "TIMESYNC" and msg.tc1 == 0 and self.answer_timesync:
             self.outbox.append(wire(mavlink2.MAVLink_timesync_message(self.t_ms * 1_000_000, msg.ts1)))
+        elif t == "PARAM_REQUEST_READ":
+            name = msg.param_id.decode() if isinstance(msg.param_id, bytes) else msg.param_id
+            name = name.split("\0", 1)[0]
+            if name in self.params:
+                self.outbox.append(wire(mavlink2.MAVLink_param_value_message(
+                    name.encode(), float(self.params[name]), mavlink2.MAV_PARAM_TYPE_REAL32,
+                    len(self.params), list(self.params).index(name))))
         elif t == "COMMAND_LONG" and msg.command == 176:
             if self.stream_since is not None and self.t_ms - self.stream_since >= 500:
                 self.main, self.sub = PX4_MAIN_OFFBOARD, 0

@@ -1,0 +1,104 @@
+"""Before arming: which autopilot this is, its telemetry, and the parameters mavreg relies on
+(sans-I/O; a part of the :class:`~mavreg.daemon.supervisor.Supervisor`).
+
+The first vehicle HEARTBEAT chooses the :class:`~mavreg.daemon.autopilots.Dialect` (PX4 or
+ArduCopter); every later one is decoded by it. Before the first arm request,
+:meth:`AutopilotSetup.ready` sends the dialect's SET_MESSAGE_INTERVAL requests (the
+telemetry mavreg flies on, at the control rate) and reads the parameters the dialect checks
+(PARAM_REQUEST_READ by name, repeated every ``retry_s`` for those not yet answered). It
+passes when every parameter has been read and holds; it refuses, with the dialect's one line
+naming the parameter and the value to set, when one does not hold, when the autopilot is
+not one mavreg speaks to, or when the parameters are not answered within ``timeout_s`` of
+vehicle time. It never sets a parameter.
+"""
+from __future__ import annotations
+
+import math
+
+from .autopilots import Dialect, HeartbeatInfo, ParamChecker, dialect_for, unsupported_reason
+from .gate import GateVerdict
+
+__all__ = ["AutopilotSetup"]
+
+
+class AutopilotSetup:
+    """Dialect, telemetry requests and parameter checks of one vehicle.
+
+    Parameters
+    ----------
+    system_id, component_id : int
+        The vehicle's.
+    telemetry_rate_hz : float
+        Rate asked for the attitude and position telemetry (the control rate).
+    timeout_s : float
+        Vehicle time the parameter reads may take before the take-off is refused.
+    retry_s : float
+        Vehicle time between repeats of unanswered reads.
+    """
+
+    def __init__(self, system_id: int, component_id: int, telemetry_rate_hz: float,
+                 timeout_s: float = 10.0, retry_s: float = 1.0):
+        self.target = (system_id, component_id)
+        self.telemetry_rate_hz = float(telemetry_rate_hz)
+        self.timeout_s = float(timeout_s)
+        self.retry_s = float(retry_s)
+        self.dialect: Dialect | None = None
+        self.unsupported: str | None = None
+        """Why the vehicle's autopilot is not one mavreg speaks to (None: it is, or unknown)."""
+        self.checker: ParamChecker | None = None
+        self._t0 = math.nan
+        self._sent_t = -math.inf
+
+    def heartbeat(self, msg) -> HeartbeatInfo | None:
+        """Decode a vehicle HEARTBEAT (the first one chooses the dialect); None when its
+        autopilot is not supported."""
+        if self.dialect is None and self.unsupported is None:
+            self.dialect = dialect_for(msg)
+            if self.dialect is None:
+                self.unsupported = unsupported_reason(msg)
+        return None if self.dialect is None else self.dialect.decode(msg)
+
+    def param_value(self, msg) -> None:
+        """Take a PARAM_VALUE (ignored unless a check is under way)."""
+        if self.checker is not None:
+            self.checker.add(msg)
+
+    def set_offboard_mode(self):
+        """The command that asks for the mode mavreg flies in."""
+        return self.dialect.set_offboard_mode(*self.target)
+
+    def ready(self, t_s: float, messages: list) -> GateVerdict | None:
+        """PASS, a refusal, or None while waiting; requests to send are appended to
+        ``messages``. ``t_s``: vehicle time."""
+        if self.unsupported is not None:
+            return GateVerdict(False, "gate_autopilot", detail=self.unsupported)
+        if self.dialect is None:
+            return None
+        if self.checker is None:
+            self.checker = self.dialect.param_checker()
+            self._t0 = t_s
+            messages.extend(self.dialect.telemetry_requests(*self.target, self.telemetry_rate_hz))
+        verdict = self.checker.verdict()
+        if verdict.state == "ok":
+            return GateVerdict(True)
+        if verdict.state == "refused":
+            return GateVerdict(False, "gate_parameter", detail="; ".join(verdict.lines))
+        waited = t_s - self._t0
+        if waited > self.timeout_s:
+            return GateVerdict(False, "gate_parameter", waited, self.timeout_s, "s",
+                               f"{self.dialect.name} did not answer the read of "
+                               f"{', '.join(verdict.missing)} within {self.timeout_s:g} s: mavreg checks "
+                               "them before arming (docs/autopilots.md)")
+        if t_s - self._sent_t >= self.retry_s or t_s < self._sent_t:
+            missing = set(verdict.missing)
+            messages.extend(m for m in self.dialect.param_requests(*self.target)
+                            if _name(m.param_id) in missing)
+            self._sent_t = t_s
+        return None
+
+
+def _name(param_id) -> str:
+    """A parameter id as text (pymavlink gives str or NUL-padded bytes)."""
+    if isinstance(param_id, (bytes, bytearray)):
+        param_id = bytes(param_id).decode("ascii", "replace")
+    return str(param_id).split("\0", 1)[0]
