@@ -26,7 +26,7 @@ from .stabilizer import Stabilizer
 from .status import ExitCode, SimStop
 from .wind import Wind, WindItem, parse_wind
 from .faults import link_faults_from_args
-from .px4_args import add_px4_args, px4_services
+from .px4_args import add_px4_args, print_rate_response, px4_services, rate_loop_config
 from .world import PRESET_NAMES, PRESETS, build_world
 
 __all__ = ["main", "build_parser", "build_engine", "BadInput"]
@@ -259,7 +259,7 @@ def _assemble(args, world, vehicle_path, vehicle, nominal, params, start, items)
                           max_rotor_thrust_n=command_scale_n,
                           offboard_loss_timeout_s=args.offboard_loss_timeout,
                           failsafe_hold_s=args.failsafe_hold_s)
-    ap = Autopilot(cfg, stab, n.mass_kg * G / 4, px4_services(args))
+    ap = Autopilot(cfg, stab, n.mass_kg * G / 4, px4_services(args), rate_loop_config(args))
     try:     # a bad --signing-key or --*-faults, a --listen that cannot be bound
         signing = Signing(args.signing_key, "firmware-sim") if args.signing_key is not None else None
         faults = link_faults_from_args(args.link_faults, args.uplink_faults, args.downlink_faults, args.seed)
@@ -307,6 +307,16 @@ def _airframe_meta(params) -> dict:
             "bounds": dataclasses.asdict(BOUNDS) if draw is not None else None}
 
 
+def _print_rate_response(args) -> int:
+    try:
+        world, _, vehicle, nominal, params, _, _ = _read_inputs(args)
+    except ValueError as exc:
+        raise BadInput(str(exc)) from None
+    scale = args.max_rotor_thrust_n if args.max_rotor_thrust_n is not None else vehicle.max_rotor_thrust_n
+    print_rate_response(args, world, nominal, params, scale)
+    return int(ExitCode.OK)
+
+
 def _raise_stop(signum, frame):
     raise StopRun(signal.Signals(signum).name)
 
@@ -332,6 +342,8 @@ def main(argv: list[str] | None = None) -> int:
 def _main(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     try:
+        if args.print_rate_response:         # the figures of the run's world and airframe, no socket
+            return _print_rate_response(args)
         engine, recorder = build_engine(args)
     except (BadInput, OSError) as exc:   # a bad value or file; OSError: a file it cannot read or write
         print(f"firmware-sim: error: {' '.join(str(exc).split())[:400]}", file=sys.stderr)

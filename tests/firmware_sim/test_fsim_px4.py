@@ -123,7 +123,8 @@ def test_request_message_is_answered():
     caps = out[1].capabilities
     assert caps == CAPABILITIES and caps & M.MAV_PROTOCOL_CAPABILITY_MAVLINK2 \
         and caps & M.MAV_PROTOCOL_CAPABILITY_COMMAND_INT and caps & M.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
-    assert not caps & (M.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT | M.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET)
+    assert caps & M.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET            # body rates and thrust
+    assert not caps & (M.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT | M.MAV_PROTOCOL_CAPABILITY_MISSION_INT)
     out = v.command(M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_HOME_POSITION)
     assert [m.get_type() for m in out] == ["COMMAND_ACK", "HOME_POSITION"]
     assert out[1].latitude == 473977420 and out[1].altitude == 488000
