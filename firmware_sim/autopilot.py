@@ -368,9 +368,11 @@ class Autopilot:
         if not self.armed:
             return (0.0, 0.0, 0.0, 0.0)
         if self.mode == modes.OFFBOARD:
-            if self.rate_mode:
-                return self.rates.command_n(t_s, state[10:13] if gyro_rad_s is None else gyro_rad_s, on_ground)
-            sp = self.setpoint
+            cmd = None if not self.rate_mode else \
+                self.rates.command_n(t_s, state[10:13] if gyro_rad_s is None else gyro_rad_s, on_ground)
+            if cmd is not None:
+                return cmd
+            sp = self.setpoint       # and within the latency of a first rate set-point
             return self.target_n if sp is None else self.stab.track(state, sp.position_ned, sp.velocity_ned, sp.yaw_rad)
         if self.mode == modes.TAKEOFF:
             return self.stab.hold(state)    # climbs to the take-off height, from the ground too

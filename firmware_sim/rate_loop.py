@@ -16,7 +16,7 @@ as PX4's multicopter rate controller does, written for the emulator alone:
 
       u = P e + I_state - D (d omega_f / dt) + FF omega_sp,      e = omega_sp - omega_f
       I_state += I (1 - (e / 400 deg/s)^2)^+ e dt, clipped to +- *_INT_LIM, not integrated
-                 further into an allocator saturation, and reset while on the ground
+                 further into an allocator saturation nor on the ground; 0 when the loop starts
 
   ``u`` is clipped to [-1, 1].
 - **Processing latency.** A set-point reaches the loop ``latency_s`` after it was received
@@ -29,9 +29,10 @@ as PX4's multicopter rate controller does, written for the emulator alone:
   as far as they need, and yaw gets what room is left; the collective is given up first,
   then yaw. The clipped axes are reported to the integrators (anti-windup).
 
-The gains are tuned for the bundled airframe (0.75 kg, 20 ms motor lag): in the realistic
-world a 1 rad/s roll step reaches 10/50/90 % of the command about 12/20/31 ms after its
-receipt, with little overshoot (:mod:`firmware_sim.rate_response` gives the exact figures).
+The gains are tuned for the bundled airframe (0.75 kg, 20 ms motor lag), stable over the
+airframes ``--mismatch-seed`` draws (10-50 ms lag, inertia +-30 %) at 250 and 500 Hz: in the
+realistic world a 1 rad/s roll step reaches 10/50/90 % of the command about 11/27/47 ms after
+its receipt, 2 % overshoot (:mod:`firmware_sim.rate_response` gives the exact figures).
 """
 from __future__ import annotations
 
@@ -221,14 +222,15 @@ class RateLoop:
 
     def command_n(self, t_s, gyro_rad_s, on_ground: bool):
         """Rotor forces (N) for the period starting at ``t_s`` (``None``: a new tick every
-        call); between ticks the last output is held."""
+        call); between ticks the last output is held. ``None`` while no set-point has reached
+        the loop yet (the first ``latency_s`` of a rate stream: the caller flies what it flew)."""
         if t_s is not None and t_s < self.next_tick_t - 1e-9:
             return self.output_n
         now = self.last_tick_t + self.dt_s if t_s is None else t_s
         while self._pending and self._pending[0][0] <= now + 1e-9:
             self.setpoint = self._pending.popleft()[1]
         if self.setpoint is None:
-            return self.output_n
+            return None
         if now - self.last_tick_t > 1.5 * self.dt_s:       # (re)starting: filters on the gyro
             self._start(gyro_rad_s)
         self.last_tick_t, self.next_tick_t = now, now + self.dt_s
@@ -252,9 +254,7 @@ class RateLoop:
         sp = self.setpoint[i]
         err = sp - w
         u = kp * err + self._integral[i] - kd * accel + kff * sp
-        if on_ground:
-            self._integral[i] = 0.0
-        elif not (self._sat[i] > 0 and err > 0 or self._sat[i] < 0 and err < 0):
+        if not (on_ground or self._sat[i] > 0 and err > 0 or self._sat[i] < 0 and err < 0):
             fade = max(0.0, 1.0 - (err / I_FACTOR_RATE_RAD_S) ** 2)
             self._integral[i] = max(-lim, min(lim, self._integral[i] + fade * ki * err * self.dt_s))
         return max(-1.0, min(1.0, u))

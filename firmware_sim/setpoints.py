@@ -138,7 +138,8 @@ def take_target(ap, msg, t_s: float) -> None:
         fmax = cfg.max_rotor_thrust_n
         ap.target_n = tuple(fmax * (0.0 if x < 0.0 else (1.0 if x > 1.0 else x)) for x in msg.controls[:4])
         ap.rates.clear()
-    ap.setpoint, ap.rate_mode = None, rates
+        ap.setpoint = None
+    ap.rate_mode = rates             # a position set-point stays, flown until the rates reach the loop
     if t_s - ap.last_target_t > 1.0 / cfg.stream_min_hz:
         ap.stream_start_t = t_s
     ap.last_target_t = t_s
