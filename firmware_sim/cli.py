@@ -42,7 +42,9 @@ A software-in-the-loop quadrotor that speaks MAVLink 2 over UDP: quaternion rigi
 with the full inertia matrix (RK4), rotor lag, noise, saturation, drag, wind, ground
 contact, and a small autopilot (arming, HOLD/LAND/OFFBOARD modes, offboard-loss
 failsafe). SET_ACTUATOR_CONTROL_TARGET group 0 is a pass-through mixer: controls[0..3]
-are rotors 1..4 (front, right, back, left) as a fraction of the maximum rotor thrust.
+are rotors 1..4 (front, right, back, left) as a fraction of the maximum rotor thrust;
+SET_ATTITUDE_TARGET with type_mask 128 gives body rates (rad/s) and a collective thrust
+(0..1), flown by its PX4-like rate loop (--print-rate-response shows its true response).
 
 By default the world is realistic: the telemetry is a state estimate, late and noisy,
 sent over a link with delay, jitter and loss, and commands arrive late (all in sim time,
@@ -92,7 +94,8 @@ def build_parser() -> argparse.ArgumentParser:
     a("--physics-hz", type=positive_int, default=1000,
       help="RK4 physics rate, an integer multiple of --rate-hz (default %(default)s)")
     a("--lockstep", action="store_true",
-      help="advance one control period per SET_ACTUATOR_CONTROL_TARGET (deterministic) "
+      help="advance one control period per offboard target, SET_ACTUATOR_CONTROL_TARGET or "
+           "SET_ATTITUDE_TARGET (deterministic) "
            "instead of the wall clock")
     a("--lockstep-timeout", type=positive_float, default=0.1, metavar="S",
       help="wall seconds to wait for a period's command before it counts as lost "
@@ -111,7 +114,8 @@ def build_parser() -> argparse.ArgumentParser:
     a("--record", default=None, metavar="FILE.npz", type=output_file,
       help="write the true state and rotor forces of every physics step to FILE.npz")
     a("--offboard-loss-timeout", type=positive_float, default=0.25, metavar="S",
-      help="sim seconds without a valid actuator target before the failsafe (default %(default)s)")
+      help="sim seconds without a valid offboard target or set-point before the failsafe "
+           "(default %(default)s)")
     a("--failsafe-hold-s", type=nonneg_float, default=1.5, metavar="S",
       help="failsafe: seconds of level/hold-altitude before landing (default %(default)s)")
     a("--system-id", type=sysid, default=1, help="our MAVLink system id (default 1)")

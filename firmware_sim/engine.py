@@ -7,7 +7,8 @@ are handled when due, at physics-step granularity, also in the middle of a contr
 period; everything the vehicle sends goes through the downlink delay line
 (:class:`firmware_sim.channel.Downlink`), released at period boundaries; the telemetry
 describes the estimate (:class:`firmware_sim.estimator.Estimator`) when the world has
-one. The autopilot's own HOLD/LAND stabilizer flies on the true state.
+one. The autopilot's own HOLD/LAND stabilizer flies on the true state; its rate loop (rate
+set-points, :mod:`firmware_sim.rate_loop`) on the body rates published last, the estimate's.
 """
 from __future__ import annotations
 

@@ -75,7 +75,7 @@ def parse_position_target(msg, system_id: int, component_id: int, peers) -> tupl
 
 def take_setpoint(ap, msg, t_s: float) -> None:
     """The autopilot ``ap`` takes a SET_POSITION_TARGET_LOCAL_NED at ``t_s`` (drops counted):
-    flown in OFFBOARD until the next actuator target; it keeps the offboard stream alive."""
+    flown in OFFBOARD until a target of another kind; it keeps the offboard stream alive."""
     cfg = ap.cfg
     reason, sp = parse_position_target(msg, cfg.system_id, cfg.component_id, cfg.peer_system_ids)
     if reason is not None:

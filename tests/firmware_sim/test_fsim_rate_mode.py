@@ -104,6 +104,22 @@ def test_thrust_map_round_trips_and_mpc_thr_hover_is_the_hover_collective():
     assert out[0].param_value == pytest.approx(_hover_thrust(0.0), abs=1e-6)     # linear: m g / (4 f_max)
 
 
+def test_the_gains_are_parameters_that_act():
+    v = Vehicle("--start", "z_m=-20")
+    fly(v, 0.1, lambda t, s: (0.0, 0.0, 0.0, T_HOVER))
+    _, s = fly(v, 0.1, lambda t, s: (1.0, 0.0, 0.0, T_HOVER))
+    assert s[-1, 10] > 0.8                                     # the default gains fly the step
+    for name in (b"MC_ROLLRATE_P", b"MC_ROLLRATE_I", b"MC_ROLLRATE_D"):
+        out = v.send(M.MAVLink_param_set_message(1, 1, name, 0.0, M.MAV_PARAM_TYPE_REAL32))
+        assert [m.param_value for m in out if m.get_type() == "PARAM_VALUE"] == [0.0]
+    out = v.send(M.MAVLink_param_set_message(1, 1, b"MC_ROLLRATE_P", 11.0, M.MAV_PARAM_TYPE_REAL32))
+    assert [m.param_value for m in out if m.get_type() == "PARAM_VALUE"] == [0.0]     # beyond 10: refused
+    _, s = fly(v, 0.1, lambda t, s: (0.0, 0.0, 0.0, T_HOVER))
+    w = s[-1, 10]
+    _, s = fly(v, 0.2, lambda t, s: (-1.0, 0.0, 0.0, T_HOVER))
+    assert abs(s[-1, 10] - w) < 0.05 and v.ap.rates.cfg.roll_p == 0.0   # no roll gain, no roll
+
+
 @pytest.mark.parametrize("preset", ["ideal", "realistic"])
 def test_hover_at_the_hover_thrust_holds_altitude_and_a_linear_model_does_not(preset):
     v = Vehicle("--start", "z_m=-20", "--preset", preset)
