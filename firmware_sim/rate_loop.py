@@ -18,7 +18,7 @@ as PX4's multicopter rate controller does, written for the emulator alone:
       I_state += I (1 - (e / 400 deg/s)^2)^+ e dt, clipped to +- *_INT_LIM, not integrated
                  further into an allocator saturation nor on the ground; 0 when the loop starts
 
-  ``u`` is clipped to [-1, 1].
+  The allocation limits ``u`` (roll and pitch to [-1, 1], yaw to the room left) and reports it.
 - **Processing latency.** A set-point reaches the loop ``latency_s`` after it was received
   (the first loop tick at or after that; ``--rate-latency-ms``).
 - **Thrust model.** The collective of ``t`` is ``F = 4 f_max ((1 - e) t + e t^2)``,
@@ -221,13 +221,18 @@ class RateLoop:
         self.setpoint = None
 
     def command_n(self, t_s, gyro_rad_s, on_ground: bool):
-        """Rotor forces (N) for the period starting at ``t_s`` (``None``: a new tick every
-        call); between ticks the last output is held. ``None`` while no set-point has reached
-        the loop yet (the first ``latency_s`` of a rate stream: the caller flies what it flew)."""
+        """Rotor forces (N) for the period starting at ``t_s``; between ticks the last output is
+        held. ``None`` while no set-point has reached the loop yet (the first ``latency_s`` of a
+        rate stream: the caller flies what it flew). ``t_s`` ``None`` (a caller without a clock):
+        a tick every call, one period after the last, every set-point received in use."""
         if t_s is not None and t_s < self.next_tick_t - 1e-9:
             return self.output_n
-        now = self.last_tick_t + self.dt_s if t_s is None else t_s
-        while self._pending and self._pending[0][0] <= now + 1e-9:
+        if t_s is None:
+            now = self.last_tick_t + self.dt_s if self.last_tick_t > -math.inf else 0.0
+            due = math.inf
+        else:
+            now = due = t_s
+        while self._pending and self._pending[0][0] <= due + 1e-9:
             self.setpoint = self._pending.popleft()[1]
         if self.setpoint is None:
             return None
@@ -257,4 +262,4 @@ class RateLoop:
         if not (on_ground or self._sat[i] > 0 and err > 0 or self._sat[i] < 0 and err < 0):
             fade = max(0.0, 1.0 - (err / I_FACTOR_RATE_RAD_S) ** 2)
             self._integral[i] = max(-lim, min(lim, self._integral[i] + fade * ki * err * self.dt_s))
-        return max(-1.0, min(1.0, u))
+        return u
