@@ -215,6 +215,11 @@ class RateLoop:
             self.setpoint = self._pending.popleft()[1]
         self._pending.append((t_s + self.cfg.latency_s, setpoint))
 
+    @property
+    def queued(self) -> tuple:
+        """The set-points received but not yet in use (within the latency)."""
+        return tuple(sp for _, sp in self._pending)
+
     def clear(self) -> None:
         """Forget set-points in flight (another set-point kind took over)."""
         self._pending.clear()

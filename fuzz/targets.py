@@ -211,4 +211,7 @@ class VehicleTarget:
         fmax = ap.cfg.max_rotor_thrust_n
         if not all(math.isfinite(f) and 0.0 <= f <= fmax for f in ap.target_n):
             out.append(_finding("bad_target", data, f"target {ap.target_n}"))
+        rates = list(ap.rates.queued) + ([ap.rates.setpoint] if ap.rates.setpoint else [])
+        if not all(math.isfinite(x) for sp in rates for x in sp) or any(not 0.0 <= sp[3] <= 1.0 for sp in rates):
+            out.append(_finding("bad_target", data, f"rate set-points {rates}"))
         return out
