@@ -22,7 +22,8 @@ Acceptance rules (documented in docs/firmware_sim.md):
   ``tc1`` = our clock (sim time) in ns when it is handled and ``ts1`` echoed, as PX4
   does; a reply (``tc1`` != 0) sent to us is ``unsupported``, and so is every request with
   ``answer_timesync`` off (``--no-timesync``).
-- SET_POSITION_TARGET_LOCAL_NED: :mod:`firmware_sim.setpoints` (MAVSDK's offboard set-points).
+- SET_POSITION_TARGET_LOCAL_NED and SET_ATTITUDE_TARGET (body rates and thrust, source and
+  target rules as SET_ACTUATOR_CONTROL_TARGET): :mod:`firmware_sim.setpoints`.
 - HEARTBEAT from anyone is fine. Any other message is ``unsupported``.
 """
 from __future__ import annotations
@@ -35,17 +36,21 @@ from pymavlink.dialects.v20 import common as mavlink2
 from . import modes
 from .messages import state_messages
 from .px4 import Px4Services
-from .setpoints import take_setpoint
+from .rate_loop import RateLoop, RateLoopConfig
+from .setpoints import take_setpoint, take_target, target_content_reason
 from .px4_commands import HANDLED, CommandInt, handle_command, handle_param
 from .stabilizer import Stabilizer
 
-__all__ = ["AutopilotConfig", "Autopilot", "FORCE_DISARM_MAGIC", "DROP_REASONS", "state_messages"]
+__all__ = ["AutopilotConfig", "Autopilot", "FORCE_DISARM_MAGIC", "DROP_REASONS", "OFFBOARD_TARGETS",
+           "state_messages"]
 
 FORCE_DISARM_MAGIC = 21196.0
 TAKEOFF_REACHED_M = 0.1
 """AUTO.TAKEOFF hands over to HOLD within this of the take-off height."""
 DROP_REASONS = ("malformed", "foreign_system", "foreign_component", "wrong_target", "non_finite",
                 "out_of_range", "not_armed_or_not_offboard", "unsupported")
+OFFBOARD_TARGETS = ("SET_ACTUATOR_CONTROL_TARGET", "SET_ATTITUDE_TARGET")
+"""The offboard peer's per-sample messages: rotor forces or body rates (the lockstep counts them)."""
 
 _SEV_INFO = mavlink2.MAV_SEVERITY_INFO
 _SEV_WARN = mavlink2.MAV_SEVERITY_WARNING
@@ -97,10 +102,12 @@ class Autopilot:
         the first target arrives.
     px4 : Px4Services, optional
         Status streams, home, battery and parameters (default: a 500 Hz one).
+    rate_loop : RateLoopConfig, optional
+        The rate loop of OFFBOARD rate set-points (default gains).
     """
 
     def __init__(self, config: AutopilotConfig, stabilizer: Stabilizer, hover_thrust_n: float,
-                 px4: Px4Services | None = None):
+                 px4: Px4Services | None = None, rate_loop: RateLoopConfig | None = None):
         self.cfg = config
         self.px4 = px4 if px4 is not None else Px4Services()
         self.stab = stabilizer
@@ -117,7 +124,13 @@ class Autopilot:
         self.mode_since_t = 0.0
         self.ground_since_t: float | None = None
         self.next_heartbeat_t = 0.0
-        self._hover_n = (float(hover_thrust_n),) * 4
+        self.hover_thrust_n = float(hover_thrust_n)
+        """Per-rotor hover thrust of the vehicle file (N)."""
+        self._hover_n = (self.hover_thrust_n,) * 4
+        self.rates = RateLoop(rate_loop or RateLoopConfig(), self.px4.rate_hz, config.max_rotor_thrust_n)
+        self.rate_mode = False
+        """Whether the last offboard set-point was a rate one (flown by :attr:`rates`)."""
+        self.mask_warning_t = -math.inf
         self._out: list = []
         self._last_state = None
         self.setpoint = None
@@ -182,7 +195,7 @@ class Autopilot:
         """Targets streaming at >= stream_min_hz for >= stream_min_duration_s (position
         set-points: one within 1 / stream_min_hz, as PX4 asks, so MAVSDK's offboard start works)."""
         gap = 1.0 / self.cfg.stream_min_hz
-        if self.setpoint is not None:      # PX4's rule for set-points: a fresh one is enough
+        if self.setpoint is not None or self.rate_mode:    # PX4's rule for set-points: a fresh one
             return t_s - self.last_target_t <= gap
         return (t_s - self.last_target_t <= gap
                 and t_s - self.stream_start_t >= self.cfg.stream_min_duration_s - 1e-9)
@@ -192,8 +205,8 @@ class Autopilot:
         """Process one decoded message at sim time ``t_s``; return the replies."""
         self._out = []
         mtype = msg.get_type()
-        if mtype == "SET_ACTUATOR_CONTROL_TARGET":
-            self._on_target(msg, t_s)
+        if mtype in OFFBOARD_TARGETS:
+            take_target(self, msg, t_s)
         elif mtype == "COMMAND_LONG":
             self._on_command(msg, t_s, state, on_ground)
         elif mtype == "SET_POSITION_TARGET_LOCAL_NED":
@@ -212,7 +225,8 @@ class Autopilot:
         return self._out
 
     def target_drop_reason(self, msg) -> str | None:
-        """Why a SET_ACTUATOR_CONTROL_TARGET would be dropped now (``None``: valid). No side effect.
+        """Why an offboard target (:data:`OFFBOARD_TARGETS`) would be dropped now (``None``: valid).
+        No side effect.
 
         Before any offboard peer is known, every component passes the component check.
         """
@@ -223,37 +237,7 @@ class Autopilot:
             return "wrong_target"
         if self.offboard_component is not None and msg.get_srcComponent() != self.offboard_component:
             return "foreign_component"
-        if msg.group_mlx != 0:
-            return "unsupported"
-        c = msg.controls
-        if not math.isfinite(sum(c)):
-            return "non_finite"
-        tol = cfg.range_tolerance
-        if min(c[0], c[1], c[2], c[3]) < -tol or max(c[0], c[1], c[2], c[3]) > 1.0 + tol:
-            return "out_of_range"
-        return None
-
-    def _on_target(self, msg, t_s: float) -> None:
-        cfg = self.cfg
-        reason = self.target_drop_reason(msg)
-        if self.offboard_component is None and reason is None:
-            self.offboard_component = msg.get_srcComponent()    # the first valid one to address us
-        if reason is not None:
-            self.drops[reason] += 1
-            return
-        c = msg.controls
-        c0, c1, c2, c3 = c[0], c[1], c[2], c[3]
-        fmax = cfg.max_rotor_thrust_n
-        self.target_n = tuple(fmax * (0.0 if x < 0.0 else (1.0 if x > 1.0 else x)) for x in (c0, c1, c2, c3))
-        if t_s - self.last_target_t > 1.0 / cfg.stream_min_hz:
-            self.stream_start_t = t_s
-        self.last_target_t = t_s
-        self.target_count += 1
-        self.setpoint = None
-        if self.armed and self.mode == modes.OFFBOARD:
-            self.applied_count += 1
-        else:
-            self.drops["not_armed_or_not_offboard"] += 1
+        return target_content_reason(msg, cfg.range_tolerance)
 
     def _ack(self, msg, result: int):
         self._out.append(mavlink2.MAVLink_command_ack_message(
@@ -378,12 +362,17 @@ class Autopilot:
             self.next_heartbeat_t = t_s + cfg.heartbeat_period_s
         return self._out
 
-    def rotor_command_n(self, state, on_ground: bool):
-        """Rotor thrusts (N) the autopilot commands for the coming control period."""
+    def rotor_command_n(self, state, on_ground: bool, t_s: float | None = None, gyro_rad_s=None):
+        """Rotor thrusts (N) the autopilot commands for the coming control period (at ``t_s``;
+        ``gyro_rad_s`` the published body rates the rate loop flies on, default the true ones)."""
         if not self.armed:
             return (0.0, 0.0, 0.0, 0.0)
         if self.mode == modes.OFFBOARD:
-            sp = self.setpoint
+            cmd = None if not self.rate_mode else \
+                self.rates.command_n(t_s, state[10:13] if gyro_rad_s is None else gyro_rad_s, on_ground)
+            if cmd is not None:
+                return cmd
+            sp = self.setpoint       # and within the latency of a first rate set-point
             return self.target_n if sp is None else self.stab.track(state, sp.position_ned, sp.velocity_ned, sp.yaw_rad)
         if self.mode == modes.TAKEOFF:
             return self.stab.hold(state)    # climbs to the take-off height, from the ground too

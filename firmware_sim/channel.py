@@ -20,8 +20,8 @@ Uplink (peers to vehicle)
 Delays are uniform in ``[delay - jitter, delay + jitter]``. Random numbers come from
 independent streams seeded with ``[seed, 2]`` (downlink state bundles: delay, then loss
 of ATTITUDE, ATTITUDE_QUATERNION, LOCAL_POSITION_NED), ``[seed, 4]`` (downlink: every
-other message's loss and the replies' delays), ``[seed, 3]`` (uplink datagrams holding a
-SET_ACTUATOR_CONTROL_TARGET) and ``[seed, 5]`` (other uplink datagrams), so that chatter
+other message's loss and the replies' delays), ``[seed, 3]`` (uplink datagrams holding an
+offboard target: SET_ACTUATOR_CONTROL_TARGET or SET_ATTITUDE_TARGET) and ``[seed, 5]`` (other uplink datagrams), so that chatter
 which does not depend on the simulation (a peer's wall-clock heartbeat) leaves the draws
 of the state and of the actuator stream alone. A draw is made only for an effect that is
 on (non-zero jitter, non-zero loss); the rotor-noise stream (``seed``) is never touched.

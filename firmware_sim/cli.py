@@ -26,7 +26,7 @@ from .stabilizer import Stabilizer
 from .status import ExitCode, SimStop
 from .wind import Wind, WindItem, parse_wind
 from .faults import link_faults_from_args
-from .px4_args import add_px4_args, px4_services
+from .px4_args import add_px4_args, print_rate_response, px4_services, rate_loop_config
 from .world import PRESET_NAMES, PRESETS, build_world
 
 __all__ = ["main", "build_parser", "build_engine", "BadInput"]
@@ -42,7 +42,9 @@ A software-in-the-loop quadrotor that speaks MAVLink 2 over UDP: quaternion rigi
 with the full inertia matrix (RK4), rotor lag, noise, saturation, drag, wind, ground
 contact, and a small autopilot (arming, HOLD/LAND/OFFBOARD modes, offboard-loss
 failsafe). SET_ACTUATOR_CONTROL_TARGET group 0 is a pass-through mixer: controls[0..3]
-are rotors 1..4 (front, right, back, left) as a fraction of the maximum rotor thrust.
+are rotors 1..4 (front, right, back, left) as a fraction of the maximum rotor thrust;
+SET_ATTITUDE_TARGET with type_mask 128 gives body rates (rad/s) and a collective thrust
+(0..1), flown by its PX4-like rate loop (--print-rate-response shows its true response).
 
 By default the world is realistic: the telemetry is a state estimate, late and noisy,
 sent over a link with delay, jitter and loss, and commands arrive late (all in sim time,
@@ -92,7 +94,8 @@ def build_parser() -> argparse.ArgumentParser:
     a("--physics-hz", type=positive_int, default=1000,
       help="RK4 physics rate, an integer multiple of --rate-hz (default %(default)s)")
     a("--lockstep", action="store_true",
-      help="advance one control period per SET_ACTUATOR_CONTROL_TARGET (deterministic) "
+      help="advance one control period per offboard target, SET_ACTUATOR_CONTROL_TARGET or "
+           "SET_ATTITUDE_TARGET (deterministic) "
            "instead of the wall clock")
     a("--lockstep-timeout", type=positive_float, default=0.1, metavar="S",
       help="wall seconds to wait for a period's command before it counts as lost "
@@ -111,7 +114,8 @@ def build_parser() -> argparse.ArgumentParser:
     a("--record", default=None, metavar="FILE.npz", type=output_file,
       help="write the true state and rotor forces of every physics step to FILE.npz")
     a("--offboard-loss-timeout", type=positive_float, default=0.25, metavar="S",
-      help="sim seconds without a valid actuator target before the failsafe (default %(default)s)")
+      help="sim seconds without a valid offboard target or set-point before the failsafe "
+           "(default %(default)s)")
     a("--failsafe-hold-s", type=nonneg_float, default=1.5, metavar="S",
       help="failsafe: seconds of level/hold-altitude before landing (default %(default)s)")
     a("--system-id", type=sysid, default=1, help="our MAVLink system id (default 1)")
@@ -259,7 +263,7 @@ def _assemble(args, world, vehicle_path, vehicle, nominal, params, start, items)
                           max_rotor_thrust_n=command_scale_n,
                           offboard_loss_timeout_s=args.offboard_loss_timeout,
                           failsafe_hold_s=args.failsafe_hold_s)
-    ap = Autopilot(cfg, stab, n.mass_kg * G / 4, px4_services(args))
+    ap = Autopilot(cfg, stab, n.mass_kg * G / 4, px4_services(args), rate_loop_config(args))
     try:     # a bad --signing-key or --*-faults, a --listen that cannot be bound
         signing = Signing(args.signing_key, "firmware-sim") if args.signing_key is not None else None
         faults = link_faults_from_args(args.link_faults, args.uplink_faults, args.downlink_faults, args.seed)
@@ -307,6 +311,16 @@ def _airframe_meta(params) -> dict:
             "bounds": dataclasses.asdict(BOUNDS) if draw is not None else None}
 
 
+def _print_rate_response(args) -> int:
+    try:
+        world, _, vehicle, nominal, params, _, _ = _read_inputs(args)
+    except ValueError as exc:
+        raise BadInput(str(exc)) from None
+    scale = args.max_rotor_thrust_n if args.max_rotor_thrust_n is not None else vehicle.max_rotor_thrust_n
+    print_rate_response(args, world, nominal, params, scale)
+    return int(ExitCode.OK)
+
+
 def _raise_stop(signum, frame):
     raise StopRun(signal.Signals(signum).name)
 
@@ -332,6 +346,8 @@ def main(argv: list[str] | None = None) -> int:
 def _main(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     try:
+        if args.print_rate_response:         # the figures of the run's world and airframe, no socket
+            return _print_rate_response(args)
         engine, recorder = build_engine(args)
     except (BadInput, OSError) as exc:   # a bad value or file; OSError: a file it cannot read or write
         print(f"firmware-sim: error: {' '.join(str(exc).split())[:400]}", file=sys.stderr)

@@ -14,7 +14,8 @@ Lockstep
     HEARTBEAT when due and the telemetry of t_k). If that includes n >= 1 *complete*
     state bundles (ATTITUDE_QUATERNION and LOCAL_POSITION_NED of one time, neither
     lost), datagrams are received one at a time until n valid
-    SET_ACTUATOR_CONTROL_TARGETs have been *received* (counted on arrival, before the
+    offboard targets (SET_ACTUATOR_CONTROL_TARGET or SET_ATTITUDE_TARGET) have been
+    *received* (counted on arrival, before the
     uplink's delay and loss, so a lost or late command does not stall the loop;
     COMMAND_LONG etc. received meanwhile enter the uplink at t_k). If n == 0 (nothing
     released yet, or a sample lost on the way) nothing is read: the peer has no sample

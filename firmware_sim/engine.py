@@ -7,7 +7,8 @@ are handled when due, at physics-step granularity, also in the middle of a contr
 period; everything the vehicle sends goes through the downlink delay line
 (:class:`firmware_sim.channel.Downlink`), released at period boundaries; the telemetry
 describes the estimate (:class:`firmware_sim.estimator.Estimator`) when the world has
-one. The autopilot's own HOLD/LAND stabilizer flies on the true state.
+one. The autopilot's own HOLD/LAND stabilizer flies on the true state; its rate loop (rate
+set-points, :mod:`firmware_sim.rate_loop`) on the body rates published last, the estimate's.
 """
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ import math
 from pymavlink.dialects.v20 import common as mavlink2
 
 from . import modes
-from .autopilot import Autopilot, state_messages
+from .autopilot import OFFBOARD_TARGETS, Autopilot, state_messages
 from .channel import Downlink, Uplink
 from .estimator import Estimator
 from .faults import FaultyDownlink, FaultyUplink
@@ -46,8 +47,10 @@ class Engine:
     Attributes
     ----------
     targets_received : int
-        Valid SET_ACTUATOR_CONTROL_TARGETs received (counted on arrival, before the
-        uplink's delay and loss): what the lockstep loop waits for.
+        Valid offboard targets (SET_ACTUATOR_CONTROL_TARGET or SET_ATTITUDE_TARGET) received
+        (counted on arrival, before the uplink's delay and loss): what the lockstep loop waits for.
+    gyro_rad_s : tuple or None
+        The body rates published last (the estimate's): what the autopilot's rate loop flies on.
     complete_released : int
         Complete state bundles the last :meth:`begin_period` released to the peers.
     """
@@ -58,6 +61,7 @@ class Engine:
         self.ap = autopilot
         if autopilot.px4.rate_hz != sim.params.rate_hz:     # the streams count control periods
             autopilot.px4 = Px4Services(autopilot.px4.cfg, sim.params.rate_hz)
+            autopilot.rates.set_rate_hz(sim.params.rate_hz)
         self._status: list = []
         self.link = link
         self.world = world if world is not None else PRESETS["ideal"]
@@ -80,6 +84,7 @@ class Engine:
         self.counters = {"lockstep_timeouts": 0, "overruns": 0}
         self.targets_received = 0
         self.complete_released = 0
+        self.gyro_rad_s = None
 
     # ---------------------------------------------------------------- uplink
     def process_datagram(self) -> bool:
@@ -109,7 +114,7 @@ class Engine:
         undelayed = True
         for m in msgs:
             mtype = m.get_type()
-            if mtype == "SET_ACTUATOR_CONTROL_TARGET":
+            if mtype in OFFBOARD_TARGETS:
                 carries_target = True
                 if ap.target_drop_reason(m) is None:
                     self.targets_received += 1
@@ -178,6 +183,7 @@ class Engine:
         else:
             s = sim.state
             pos, vel, q, rates = s[0:3], s[7:10], s[3:7], s[10:13]
+        self.gyro_rad_s = rates
         rec = sim.recorder
         if rec is not None:
             rec.record_estimate(t, pos, vel, q, rates)
@@ -195,7 +201,7 @@ class Engine:
         sim, ap, up = self.sim, self.ap, self.uplink
         end = sim.step_count + self._substeps
         while True:
-            cmd = ap.rotor_command_n(sim.state, sim.on_ground)
+            cmd = ap.rotor_command_n(sim.state, sim.on_ground, sim.t_s, self.gyro_rad_s)
             due = up.next_due()
             if due is None or due >= end:
                 sim.advance(cmd, ap.armed, ap.mode, end - sim.step_count)

@@ -45,7 +45,8 @@ HOLD = custom_mode(MAIN_AUTO, SUB_AUTO_LOITER)
 LAND = custom_mode(MAIN_AUTO, SUB_AUTO_LAND)
 """AUTO.LAND: descend, touch down, disarm. 0x06040000."""
 OFFBOARD = custom_mode(MAIN_OFFBOARD, 0)
-"""OFFBOARD: rotor thrusts from SET_ACTUATOR_CONTROL_TARGET. 0x00060000."""
+"""OFFBOARD: rotor thrusts (SET_ACTUATOR_CONTROL_TARGET), body rates and thrust
+(SET_ATTITUDE_TARGET) or position/velocity set-points. 0x00060000."""
 
 TAKEOFF = custom_mode(MAIN_AUTO, SUB_AUTO_TAKEOFF)
 """AUTO.TAKEOFF: climb straight up to the take-off height, then HOLD. 0x02040000."""

@@ -24,7 +24,10 @@ period with the published state and gets the messages that are due; the autopilo
 - **Streams**: :data:`DEFAULT_RATES_HZ`; ``None`` there means every control period (the
   state messages the daemon flies on). ``MAV_CMD_SET_MESSAGE_INTERVAL`` changes any of them
   (an interval shorter than a control period gives every period).
-- **Parameters** (all REAL32, :data:`PARAMS`): the ones the emulator has, under PX4's names.
+- **Parameters** (all REAL32, :data:`PARAMS`): the ones the emulator has, under PX4's names:
+  the autopilot's settings, the rate loop's gains, filters and thrust model
+  (:mod:`firmware_sim.rate_loop`), and ``MPC_THR_HOVER``, read only, computed from the
+  vehicle file and ``THR_MDL_FAC``.
 """
 from __future__ import annotations
 
@@ -36,6 +39,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from . import modes
 from .messages import state_messages
 from .physics import euler_from_quat
+from .rate_loop import thrust_for_force
 
 __all__ = ["Px4Config", "Px4Services", "Param", "PARAMS", "DEFAULT_RATES_HZ", "CAPABILITIES",
            "SENSORS", "EARTH_RADIUS_M", "landed_state"]
@@ -55,9 +59,11 @@ SENSORS = (M.MAV_SYS_STATUS_SENSOR_3D_GYRO | M.MAV_SYS_STATUS_SENSOR_3D_ACCEL
            | M.MAV_SYS_STATUS_SENSOR_Z_ALTITUDE_CONTROL | M.MAV_SYS_STATUS_SENSOR_XY_POSITION_CONTROL
            | M.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS | M.MAV_SYS_STATUS_AHRS | M.MAV_SYS_STATUS_PREARM_CHECK)
 CAPABILITIES = (M.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT | M.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_C_CAST
-                | M.MAV_PROTOCOL_CAPABILITY_COMMAND_INT | M.MAV_PROTOCOL_CAPABILITY_MAVLINK2)
+                | M.MAV_PROTOCOL_CAPABILITY_COMMAND_INT | M.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+                | M.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET)
 """What is true of the emulator: float parameters (all REAL32, so both encodings agree),
-COMMAND_INT, MAVLink 2. No missions, no SET_ATTITUDE_TARGET, no position targets, no FTP."""
+COMMAND_INT, MAVLink 2, SET_ATTITUDE_TARGET (body rates and thrust, from the offboard peer).
+No missions, no FTP."""
 FIRMWARE_VERSION = (0 << 24) | (1 << 16) | (0 << 8) | 255     # 0.1.0, official release type
 
 
@@ -86,8 +92,24 @@ class Param:
     low: float
     high: float
     attribute: str
-    """An :class:`firmware_sim.autopilot.AutopilotConfig` field, or ``takeoff_height_m`` of
-    :class:`Px4Services`."""
+    """An :class:`firmware_sim.autopilot.AutopilotConfig` field, ``rates.`` and a
+    :class:`firmware_sim.rate_loop.RateLoopConfig` field, ``takeoff_height_m`` of
+    :class:`Px4Services`, or ``hover_thrust`` (read only)."""
+    read_only: bool = False
+
+
+def _rate_params() -> tuple:
+    """The rate loop's gains under PX4's names (normalized torque, :mod:`firmware_sim.rate_loop`)."""
+    out = []
+    for axis, px4 in (("roll", "ROLLRATE"), ("pitch", "PITCHRATE"), ("yaw", "YAWRATE")):
+        for k, what, high in (("P", "per rad/s", 10.0), ("I", "per rad", 10.0),
+                              ("D", "per rad/s^2", 0.1), ("FF", "per rad/s", 10.0)):
+            out.append(Param(f"MC_{px4}_{k}", f"{axis} rate {k}, normalized torque {what}", 0.0, high,
+                             f"rates.{axis}_{k.lower()}"))
+    for axis, px4 in (("roll", "RR"), ("pitch", "PR"), ("yaw", "YR")):
+        out.append(Param(f"MC_{px4}_INT_LIM", f"{axis} rate integrator limit, normalized torque", 0.0, 1.0,
+                         f"rates.{axis}_int_lim"))
+    return tuple(out)
 
 
 PARAMS = (
@@ -96,6 +118,13 @@ PARAMS = (
     Param("COM_DISARM_LAND", "time on the ground in LAND before the disarm, s", 0.0, 20.0, "land_disarm_s"),
     Param("MIS_TAKEOFF_ALT", "take-off height above home, m", 0.5, 100.0, "takeoff_height_m"),
     Param("MPC_LAND_SPEED", "descent speed in LAND, m/s", 0.2, 3.0, "land_descent_m_s"),
+    *_rate_params(),
+    Param("IMU_GYRO_CUTOFF", "rate loop gyro low-pass, Hz (0 or >= half the loop rate: none)", 0.0, 1000.0,
+          "rates.gyro_cutoff_hz"),
+    Param("IMU_DGYRO_CUTOFF", "rate loop D-term low-pass, Hz (as above)", 0.0, 1000.0, "rates.dgyro_cutoff_hz"),
+    Param("THR_MDL_FAC", "thrust model e: F = 4 f_max ((1 - e) t + e t^2)", 0.0, 1.0, "rates.thr_mdl_fac"),
+    Param("MPC_THR_HOVER", "hover collective of the vehicle file under THR_MDL_FAC (read only)", 0.0, 1.0,
+          "hover_thrust", read_only=True),
 )
 """The parameters, in index order (all MAV_PARAM_TYPE_REAL32)."""
 
@@ -258,9 +287,20 @@ class Px4Services:
             0x46534D0000000000 | system_id)
 
     # ---------------------------------------------------------------- parameters
+    def param_get(self, ap, p: Param) -> float:
+        """The value of parameter ``p`` now."""
+        a = p.attribute
+        if a == "takeoff_height_m":
+            return self.takeoff_height_m
+        if a == "hover_thrust":
+            return thrust_for_force(4.0 * ap.hover_thrust_n, ap.rates.cfg.thr_mdl_fac, ap.cfg.max_rotor_thrust_n)
+        if a.startswith("rates."):
+            return getattr(ap.rates.cfg, a[len("rates."):])
+        return getattr(ap.cfg, a)
+
     def param_value(self, ap, index: int):
         p = PARAMS[index]
-        value = self.takeoff_height_m if p.attribute == "takeoff_height_m" else getattr(ap.cfg, p.attribute)
+        value = self.param_get(ap, p)
         return M.MAVLink_param_value_message(p.name.encode(), float(value), M.MAV_PARAM_TYPE_REAL32,
                                              len(PARAMS), index)
 
@@ -275,13 +315,17 @@ class Px4Services:
         return None
 
     def set_param(self, ap, index: int, value: float) -> bool:
-        """Set parameter ``index`` when ``value`` is finite and in bounds; ``False`` otherwise."""
+        """Set parameter ``index`` when ``value`` is finite and in bounds and it is not read
+        only; ``False`` otherwise."""
         import dataclasses
         p = PARAMS[index]
-        if not (math.isfinite(value) and p.low <= value <= p.high):
+        if p.read_only or not (math.isfinite(value) and p.low <= value <= p.high):
             return False
         if p.attribute == "takeoff_height_m":
             self.takeoff_height_m = float(value)
+        elif p.attribute.startswith("rates."):
+            field = p.attribute[len("rates."):]
+            ap.rates.configure(dataclasses.replace(ap.rates.cfg, **{field: float(value)}))
         else:
             ap.cfg = dataclasses.replace(ap.cfg, **{p.attribute: float(value)})
         return True

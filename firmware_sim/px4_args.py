@@ -1,11 +1,17 @@
-"""The command-line options of the PX4-facing side (:mod:`firmware_sim.px4`)."""
+"""The command-line options of the PX4-facing side (:mod:`firmware_sim.px4`) and of the rate
+mode (:mod:`firmware_sim.rate_loop`)."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
 
+from .argtypes import nonneg_float, probability
 from .px4 import Px4Config, Px4Services
+from .rate_loop import RateLoopConfig
 
-__all__ = ["add_px4_args", "px4_services", "parse_home"]
+__all__ = ["add_px4_args", "px4_services", "parse_home", "rate_loop_config", "print_rate_response"]
+
+MAX_RATE_LATENCY_MS = 100.0
 
 
 def parse_home(text: str) -> tuple[float, float, float]:
@@ -36,6 +42,44 @@ def add_px4_args(p: argparse.ArgumentParser) -> None:
                    help="where the local NED origin is on earth, degrees and m AMSL (default "
                    "PX4 SITL's home, 47.397742,8.545594,488); GLOBAL_POSITION_INT and "
                    "HOME_POSITION are converted around it")
+    r = p.add_argument_group("rate mode", "SET_ATTITUDE_TARGET body rates and thrust in OFFBOARD "
+                             "(docs/firmware_sim.md, 'Rate mode, as PX4 OFFBOARD')")
+    r.add_argument("--rate-latency-ms", type=_latency_ms, default=None, metavar="MS",
+                   help="from the receipt of a rate set-point to the rate loop that uses it, 0..100 "
+                   f"(default {1e3 * RateLoopConfig.latency_s:g})")
+    r.add_argument("--thr-mdl-fac", type=probability, default=None, metavar="E",
+                   help="thrust model: collective t gives F = 4 f_max ((1 - E) t + E t^2), E in 0..1 "
+                   f"(parameter THR_MDL_FAC; default {RateLoopConfig.thr_mdl_fac:g})")
+    r.add_argument("--print-rate-response", action="store_true",
+                   help="print the true rate-mode figures and exit: the thrust map and the hover "
+                   "collective (MPC_THR_HOVER), then for roll, pitch (1 rad/s steps) and yaw (0.1 rad/s) "
+                   "the closed-loop step response of the true airframe in the chosen world, from the "
+                   "receipt of the set-point: 10/50/90 %% times, overshoot, final value and a "
+                   "first-order-plus-delay fit (tau, delay). Nothing is listened on")
+
+
+def _latency_ms(text: str) -> float:
+    v = nonneg_float(text)
+    if v > MAX_RATE_LATENCY_MS:
+        raise argparse.ArgumentTypeError(f"expected a number in [0, {MAX_RATE_LATENCY_MS:g}] ms, got {text!r}")
+    return v
+
+
+def rate_loop_config(args) -> RateLoopConfig:
+    """The rate loop's settings of the parsed arguments (the defaults for the others)."""
+    changes = {}
+    if getattr(args, "rate_latency_ms", None) is not None:
+        changes["latency_s"] = args.rate_latency_ms * 1e-3
+    if getattr(args, "thr_mdl_fac", None) is not None:
+        changes["thr_mdl_fac"] = args.thr_mdl_fac
+    return dataclasses.replace(RateLoopConfig(), **changes)
+
+
+def print_rate_response(args, world, nominal, params, max_rotor_thrust_n: float) -> None:
+    """``--print-rate-response``: print :func:`firmware_sim.rate_response.describe_rate_mode`."""
+    from .rate_response import describe_rate_mode
+    for line in describe_rate_mode(params, world, rate_loop_config(args), nominal, max_rotor_thrust_n):
+        print(f"firmware_sim {line}", flush=True)
 
 
 def px4_services(args) -> Px4Services:

@@ -22,7 +22,8 @@ ours or 0). Every command gets one COMMAND_ACK:
 COMMAND_INT is taken like COMMAND_LONG (``x``, ``y``, ``z`` as ``param5..7``).
 PARAM_REQUEST_LIST answers every parameter, PARAM_REQUEST_READ one (by index, or by name with
 index -1), PARAM_SET sets it when in bounds and answers the value it has afterwards (the old one
-when refused, as the parameter protocol says). An unknown name or index gets no answer and is
+when refused, as the parameter protocol says; a read-only one, ``MPC_THR_HOVER``, is refused
+and counted ``unsupported``). An unknown name or index gets no answer and is
 counted ``unsupported``.
 """
 from __future__ import annotations
@@ -136,8 +137,9 @@ def handle_param(ap, msg) -> None:
     if index is None:
         ap.drops["unsupported"] += 1
         return
+    p = PARAMS[index]
     if mtype == "PARAM_SET" and not px4.set_param(ap, index, msg.param_value):
-        ap.drops["out_of_range"] += 1
-        ap._out.append(ap._statustext(M.MAV_SEVERITY_WARNING, f"{PARAMS[index].name}: refused "
-                                      f"(range {PARAMS[index].low:g}..{PARAMS[index].high:g})"))
+        ap.drops["unsupported" if p.read_only else "out_of_range"] += 1
+        why = "read only" if p.read_only else f"range {p.low:g}..{p.high:g}"
+        ap._out.append(ap._statustext(M.MAV_SEVERITY_WARNING, f"{p.name}: refused ({why})"))
     ap._out.append(px4.param_value(ap, index))

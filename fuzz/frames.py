@@ -27,7 +27,8 @@ DAEMON_ACTS_ON = tuple(_BY_NAME[n] for n in (
 VEHICLE_ACTS_ON = tuple(_BY_NAME[n] for n in (
     "COMMAND_LONG", "SET_ACTUATOR_CONTROL_TARGET", "TIMESYNC", "HEARTBEAT", "COMMAND_INT",
     "SET_POSITION_TARGET_LOCAL_NED", "SET_POSITION_TARGET_GLOBAL_INT", "SET_ATTITUDE_TARGET"))
-"""What firmware_sim acts on, and the setpoint messages a PX4 would (firmware_sim refuses them)."""
+"""What firmware_sim acts on (SET_ATTITUDE_TARGET: body rates and thrust from the offboard peer),
+and the setpoint messages a PX4 would (firmware_sim refuses the global one)."""
 
 EXTREME_FLOATS = (math.nan, -math.nan, math.inf, -math.inf, 3.4028235e38, -3.4028235e38, 1e30, -1e30,
                   1.4e-45, -0.0, 0.0, 1.0, -1.0, 0.5, 21196.0, 400.0, 176.0)

@@ -128,7 +128,9 @@ class VehicleTarget:
     """firmware_sim's receive path through its UDP socket (see the module docstring)."""
 
     def __init__(self, system_id: int = 1, component_id: int = 191):
+        from firmware_sim.autopilot import OFFBOARD_TARGETS
         from firmware_sim.cli import build_engine, build_parser
+        self.offboard_targets = OFFBOARD_TARGETS     # rotor forces or body rates: they name the peer
         args = build_parser().parse_args(["--listen", "udpin:127.0.0.1:0", "--preset", "ideal", "--quiet"])
         self.engine, _ = build_engine(args)
         self.ap = self.engine.ap
@@ -182,7 +184,7 @@ class VehicleTarget:
     def feed(self, data: bytes) -> list[str]:
         ap = self.ap
         before = self.snapshot()
-        valid_targets = [m for m in self._decode(data) if m.get_type() == "SET_ACTUATOR_CONTROL_TARGET"
+        valid_targets = [m for m in self._decode(data) if m.get_type() in self.offboard_targets
                          and ap.target_drop_reason(m) is None]
         self.sock.sendto(data, self.addr)
         def receive():
@@ -209,4 +211,7 @@ class VehicleTarget:
         fmax = ap.cfg.max_rotor_thrust_n
         if not all(math.isfinite(f) and 0.0 <= f <= fmax for f in ap.target_n):
             out.append(_finding("bad_target", data, f"target {ap.target_n}"))
+        rates = list(ap.rates.queued) + ([ap.rates.setpoint] if ap.rates.setpoint else [])
+        if not all(math.isfinite(x) for sp in rates for x in sp) or any(not 0.0 <= sp[3] <= 1.0 for sp in rates):
+            out.append(_finding("bad_target", data, f"rate set-points {rates}"))
         return out

@@ -1,4 +1,5 @@
-"""Helpers of the firmware_sim tests: start the emulator as a process, a plain pymavlink client."""
+"""Helpers of the firmware_sim tests: start the emulator as a process, a plain pymavlink client,
+the command line's engine in process with a kept link (:class:`Vehicle`)."""
 from __future__ import annotations
 
 import os
@@ -10,7 +11,10 @@ from pathlib import Path
 
 from pymavlink.dialects.v20 import common as mavlink2
 
+from firmware_sim.cli import build_engine, build_parser
+
 REPO = Path(__file__).resolve().parents[2]
+GCS = 245      # MAVSDK's system id
 
 
 class Emulator:
@@ -110,6 +114,60 @@ class Client:
 
     def close(self) -> None:
         self.sock.close()
+
+
+class _KeptLink:
+    """Stands for the UDP link: keeps every message sent."""
+
+    def __init__(self):
+        self.sent: list = []
+        self.peers = [("127.0.0.1", 1)]
+
+    def send(self, msgs):
+        self.sent.extend(msgs)
+
+    def close(self):
+        pass
+
+
+class Vehicle:
+    """The command line's engine (ideal world, 500 Hz) with a kept link."""
+
+    def __init__(self, *flags):
+        args = build_parser().parse_args(["--listen", "udpin:127.0.0.1:0", "--preset", "ideal", "--quiet",
+                                          "--peer-system-id", str(GCS), *flags])
+        self.engine, _ = build_engine(args)
+        self.engine.link.close()
+        self.engine.link = _KeptLink()
+        self.ap = self.engine.ap
+        self.codec = mavlink2.MAVLink(None, srcSystem=GCS, srcComponent=190)
+
+    def send(self, msg, system_id: int = GCS, component_id: int = 190):
+        self.codec.srcSystem, self.codec.srcComponent = system_id, component_id
+        decoded = self.codec.decode(bytearray(msg.pack(self.codec)))
+        n = len(self.engine.link.sent)
+        self.engine.receive([decoded])
+        return self.engine.link.sent[n:]
+
+    def command(self, command, *params, system_id: int = GCS):
+        p = list(params) + [0.0] * (7 - len(params))
+        return self.send(mavlink2.MAVLink_command_long_message(1, 1, command, 0, *p), system_id)
+
+    def ack(self, command, *params, system_id: int = GCS):
+        acks = [m for m in self.command(command, *params, system_id=system_id) if m.get_type() == "COMMAND_ACK"]
+        assert len(acks) <= 1
+        return acks[0].result if acks else None
+
+    def run(self, seconds: float, each=None) -> list:
+        """Step ``seconds`` of vehicle time; the messages sent meanwhile."""
+        link = self.engine.link
+        n = len(link.sent)
+        for _ in range(int(round(seconds * self.engine.sim.params.rate_hz))):
+            self.engine.begin_period()
+            self.engine.step()
+            if each is not None:
+                each(self)
+        return link.sent[n:]
 
 
 def _collect(texts):

@@ -13,66 +13,9 @@ import pytest
 from pymavlink.dialects.v20 import common as M
 
 from firmware_sim import modes
-from firmware_sim.cli import build_engine, build_parser
 from firmware_sim.px4 import CAPABILITIES, EARTH_RADIUS_M, PARAMS
 
-from fsim_helpers import Client, Emulator
-
-GCS = 245      # MAVSDK's system id
-
-
-class _KeptLink:
-    """Stands for the UDP link: keeps every message sent."""
-
-    def __init__(self):
-        self.sent: list = []
-        self.peers = [("127.0.0.1", 1)]
-
-    def send(self, msgs):
-        self.sent.extend(msgs)
-
-    def close(self):
-        pass
-
-
-class Vehicle:
-    """The command line's engine (ideal world, 500 Hz) with a kept link."""
-
-    def __init__(self, *flags):
-        args = build_parser().parse_args(["--listen", "udpin:127.0.0.1:0", "--preset", "ideal", "--quiet",
-                                          "--peer-system-id", str(GCS), *flags])
-        self.engine, _ = build_engine(args)
-        self.engine.link.close()
-        self.engine.link = _KeptLink()
-        self.ap = self.engine.ap
-        self.codec = M.MAVLink(None, srcSystem=GCS, srcComponent=190)
-
-    def send(self, msg, system_id: int = GCS):
-        self.codec.srcSystem = system_id
-        decoded = self.codec.decode(bytearray(msg.pack(self.codec)))
-        n = len(self.engine.link.sent)
-        self.engine.receive([decoded])
-        return self.engine.link.sent[n:]
-
-    def command(self, command, *params, system_id: int = GCS):
-        p = list(params) + [0.0] * (7 - len(params))
-        return self.send(M.MAVLink_command_long_message(1, 1, command, 0, *p), system_id)
-
-    def ack(self, command, *params, system_id: int = GCS):
-        acks = [m for m in self.command(command, *params, system_id=system_id) if m.get_type() == "COMMAND_ACK"]
-        assert len(acks) <= 1
-        return acks[0].result if acks else None
-
-    def run(self, seconds: float, each=None) -> list:
-        """Step ``seconds`` of vehicle time; the messages sent meanwhile."""
-        link = self.engine.link
-        n = len(link.sent)
-        for _ in range(int(round(seconds * self.engine.sim.params.rate_hz))):
-            self.engine.begin_period()
-            self.engine.step()
-            if each is not None:
-                each(self)
-        return link.sent[n:]
+from fsim_helpers import GCS, Client, Emulator, Vehicle
 
 
 def _count(msgs) -> Counter:
@@ -123,7 +66,8 @@ def test_request_message_is_answered():
     caps = out[1].capabilities
     assert caps == CAPABILITIES and caps & M.MAV_PROTOCOL_CAPABILITY_MAVLINK2 \
         and caps & M.MAV_PROTOCOL_CAPABILITY_COMMAND_INT and caps & M.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
-    assert not caps & (M.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT | M.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET)
+    assert caps & M.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET            # body rates and thrust
+    assert not caps & (M.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT | M.MAV_PROTOCOL_CAPABILITY_MISSION_INT)
     out = v.command(M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_HOME_POSITION)
     assert [m.get_type() for m in out] == ["COMMAND_ACK", "HOME_POSITION"]
     assert out[1].latitude == 473977420 and out[1].altitude == 488000
