@@ -8,8 +8,8 @@ import signal
 import sys
 import textwrap
 
-from .argtypes import (checked, input_file, nonneg_float, nonneg_int, output_file, positive_float,
-                       positive_int, probability, sysid, unit_scale)
+from .argtypes import (add_deprecated_alias, checked, input_file, nonneg_float, nonneg_int, output_file,
+                       positive_float, positive_int, probability, sysid, unit_scale)
 from .autopilot import Autopilot, AutopilotConfig
 from .clock import StopRun, run_lockstep, run_realtime
 from .engine import Engine
@@ -46,11 +46,11 @@ are rotors 1..4 (front, right, back, left) as a fraction of the maximum rotor th
 
 By default the world is realistic: the telemetry is a state estimate, late and noisy,
 sent over a link with delay, jitter and loss, and commands arrive late (all in sim time,
-seeded by --seed, deterministic in lockstep). --preset ideal sends the exact true state
+seeded by --seed, deterministic in lockstep). --world ideal sends the exact true state
 with no delay and no loss. Motor lag and rotor noise come from the vehicle YAML in both.
 
 The first stdout line is 'firmware_sim listening on udpin:HOST:PORT'; the second one
-('firmware_sim world: ...') names the preset, its values and any overrides; with
+('firmware_sim world: ...') names the world, its values and any overrides; with
 --mismatch-seed a third one ('firmware_sim airframe: key=value ...') gives the true
 airframe drawn around the vehicle file.
 Exit status: 0 done or signalled, 1 internal error (a bug: a traceback
@@ -59,7 +59,7 @@ and a request to report it), 2 bad input (a flag, a file; checked before the run
 
 
 def _presets_epilog() -> str:
-    lines = ["presets (--preset):"]
+    lines = ["worlds (--world):"]
     for name in PRESET_NAMES:
         text = PRESETS[name].describe(EmulatorParams()).replace("world: preset ", "", 1)
         lines.extend(textwrap.wrap(text, 88, initial_indent="  ", subsequent_indent="      "))
@@ -85,18 +85,22 @@ def build_parser() -> argparse.ArgumentParser:
     a("--listen", default="udpin:127.0.0.1:14540", metavar="URL", type=checked(parse_listen_url, "URL"),
       help="UDP address to listen on, udpin:HOST:PORT; port 0 picks a free port "
            "(default %(default)s)")
-    a("--vehicle", default=None, metavar="YAML", type=input_file,
-      help="vehicle parameter file (default params/vehicles/mk_quadro.yaml, bundled with mavreg)")
-    a("--rate-hz", type=positive_int, default=500,
-      help="control and telemetry rate (default %(default)s)")
+    # Old spellings (--vehicle, --rate-hz, --lockstep-timeout, --offboard-loss-timeout, --preset)
+    # are hidden aliases for one release; the dest names are kept (docs/cli.md).
+    add_deprecated_alias(p, "--vehicle", a(
+        "--vehicle-params", dest="vehicle", default=None, metavar="YAML", type=input_file,
+        help="vehicle parameter file (default params/vehicles/mk_quadro.yaml, bundled with mavreg)"))
+    add_deprecated_alias(p, "--rate-hz", a(
+        "--control-rate-hz", dest="rate_hz", type=positive_int, default=500, metavar="HZ",
+        help="control and telemetry rate (default %(default)s)"))
     a("--physics-hz", type=positive_int, default=1000,
-      help="RK4 physics rate, an integer multiple of --rate-hz (default %(default)s)")
+      help="RK4 physics rate, an integer multiple of --control-rate-hz (default %(default)s)")
     a("--lockstep", action="store_true",
       help="advance one control period per SET_ACTUATOR_CONTROL_TARGET (deterministic) "
            "instead of the wall clock")
-    a("--lockstep-timeout", type=positive_float, default=0.1, metavar="S",
-      help="wall seconds to wait for a period's command before it counts as lost "
-           "(default %(default)s)")
+    add_deprecated_alias(p, "--lockstep-timeout", a(
+        "--lockstep-timeout-s", dest="lockstep_timeout", type=positive_float, default=0.1, metavar="S",
+        help="wall seconds to wait for a period's command before it counts as lost (default %(default)s)"))
     a("--lockstep-stall-speed", type=nonneg_float, default=1.0, metavar="X",
       help="while no commands stream in lockstep, run at X times real time; 0 = as fast "
            "as possible (default %(default)s)")
@@ -110,8 +114,9 @@ def build_parser() -> argparse.ArgumentParser:
            "@T0:T1 for a gust window in sim seconds, e.g. force:0,2,0@3:3.5")
     a("--record", default=None, metavar="FILE.npz", type=output_file,
       help="write the true state and rotor forces of every physics step to FILE.npz")
-    a("--offboard-loss-timeout", type=positive_float, default=0.25, metavar="S",
-      help="sim seconds without a valid actuator target before the failsafe (default %(default)s)")
+    add_deprecated_alias(p, "--offboard-loss-timeout", a(
+        "--offboard-loss-timeout-s", dest="offboard_loss_timeout", type=positive_float, default=0.25,
+        metavar="S", help="sim seconds without a valid actuator target before the failsafe (default %(default)s)"))
     a("--failsafe-hold-s", type=nonneg_float, default=1.5, metavar="S",
       help="failsafe: seconds of level/hold-altitude before landing (default %(default)s)")
     a("--system-id", type=sysid, default=1, help="our MAVLink system id (default 1)")
@@ -172,8 +177,9 @@ def _add_world_args(p: argparse.ArgumentParser) -> None:
                        help=f"link faults of {what} after the preset's link, in simulation time: "
                        "KEY=VALUE[,...], e.g. loss=0.1,jitter_ms=5,outage=15:0.5 (repeatable; "
                        "docs/reliability.md)")
-    w.add_argument("--preset", choices=PRESET_NAMES, default="realistic",
-                   help="named world (default %(default)s; values below)")
+    add_deprecated_alias(w, "--preset", w.add_argument(
+        "--world", dest="preset", choices=PRESET_NAMES, default="realistic",
+        help="named world (default %(default)s; values below)"))
     w.add_argument("--telemetry-delay-ms", type=nonneg_float, default=None, metavar="MS",
                    help="mean delay of the telemetry (vehicle to peers), sim time")
     w.add_argument("--telemetry-jitter-ms", type=nonneg_float, default=None, metavar="MS",
