@@ -104,7 +104,7 @@ def build_parser() -> argparse.ArgumentParser:
     a("--lockstep-stall-speed", type=nonneg_float, default=1.0, metavar="X",
       help="while no commands stream in lockstep, run at X times real time; 0 = as fast "
            "as possible (default %(default)s)")
-    a("--seed", type=nonneg_int, default=0, help="seed of the rotor noise and perturbations (default 0)")
+    a("--seed", type=nonneg_int, default=0, metavar="N", help="seed of the rotor noise and perturbations (default 0)")
     a("--start", default=None, metavar="STATE", type=checked(parse_start, "STATE"),
       help="start in flight, armed and in OFFBOARD, e.g. 'z_m=-5,vy_m_s=8,roll_deg=120'. "
            f"Keys (missing = 0): {', '.join(START_KEYS)}. Position and velocity NED, "
@@ -138,7 +138,7 @@ def build_parser() -> argparse.ArgumentParser:
     a("--inertia-perturb-sd-kg-m2", type=nonneg_float, default=None, metavar="SD",
       help="add Gaussian noise of this SD to each principal moment (drawn from --seed)")
     a("--rotor-time-constant-s", type=nonneg_float, default=None, help="override the motor lag")
-    a("--rotor-noise-sd-n", type=nonneg_float, default=None, help="override the thrust noise SD")
+    a("--rotor-noise-sd-n", type=nonneg_float, default=None, metavar="SD", help="override the thrust noise SD, N")
     a("--max-rotor-thrust-n", type=positive_float, default=None,
       help="override the rotor saturation and the thrust a control value of 1 asks for")
     a("--rotor-saturation-n", type=positive_float, default=None, metavar="F",

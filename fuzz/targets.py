@@ -129,7 +129,7 @@ class VehicleTarget:
 
     def __init__(self, system_id: int = 1, component_id: int = 191):
         from firmware_sim.cli import build_engine, build_parser
-        args = build_parser().parse_args(["--listen", "udpin:127.0.0.1:0", "--preset", "ideal", "--quiet"])
+        args = build_parser().parse_args(["--listen", "udpin:127.0.0.1:0", "--world", "ideal", "--quiet"])
         self.engine, _ = build_engine(args)
         self.ap = self.engine.ap
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
