@@ -24,7 +24,7 @@ def main() -> None:
     for preset in ("realistic", "ideal"):
         for io in ("reference", "fast"):
             r = trivial_lockstep(io, args.periods, preset)
-            print(f"lockstep, --preset {preset:9s}, 500 Hz control, 1 kHz physics, {io:9s} I/O: "
+            print(f"lockstep, --world {preset:9s}, 500 Hz control, 1 kHz physics, {io:9s} I/O: "
                   f"{r['periods_per_s']:7.0f} periods/s ({r['periods_per_s'] / 500:5.1f}x real time)")
 
 

@@ -23,7 +23,7 @@ def main() -> None:
     args = ap.parse_args()
     for preset in ("ideal", "realistic"):
         for io in ("reference", "fast"):
-            print(f"engine, 500 Hz control, 1 kHz physics, --preset {preset:9s}, {io:9s}: "
+            print(f"engine, 500 Hz control, 1 kHz physics, --world {preset:9s}, {io:9s}: "
                   f"{engine_cpu_us(io, preset, args.periods):6.1f} us CPU per period")
 
 

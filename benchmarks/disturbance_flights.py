@@ -39,7 +39,7 @@ def fly_case(case: str, out: Path, realtime: bool, calibrated: Path | None) -> d
     """Fly one case into ``out``; its summary row."""
     name, _, variant = case.partition("-")
     preset, _, wind_from = name.partition("@")
-    args = ["fly", str(BARREL), "--out", str(out), f"--emulator-arg=--preset={preset}"]
+    args = ["fly", str(BARREL), "--out", str(out), f"--emulator-arg=--world={preset}"]
     if wind_from:
         args.append(f"--emulator-arg=--wind-from-deg={wind_from}")
     if not realtime:

@@ -54,8 +54,8 @@ def trivial_lockstep(io: str, periods: int, preset: str = "realistic") -> dict:
 
     Returns periods per wall second and the cycle times (µs) between consecutive samples.
     """
-    proc, port = start_emulator(io, "--lockstep", "--preset", preset, "--rate-hz", "500",
-                                "--physics-hz", "1000", "--start", "z_m=-50", "--lockstep-timeout", "2")
+    proc, port = start_emulator(io, "--lockstep", "--world", preset, "--control-rate-hz", "500",
+                                "--physics-hz", "1000", "--start", "z_m=-50", "--lockstep-timeout-s", "2")
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     try:
         sock.bind(("127.0.0.1", 0))
@@ -114,8 +114,8 @@ def engine_cpu_us(io: str, preset: str, periods: int) -> float:
     old = os.environ.get("MAVREG_IO")
     os.environ["MAVREG_IO"] = io
     try:
-        args = ["--listen", "udpin:127.0.0.1:0", "--quiet", "--start", "z_m=-50", "--rate-hz", "500",
-                "--preset", preset]
+        args = ["--listen", "udpin:127.0.0.1:0", "--quiet", "--start", "z_m=-50", "--control-rate-hz", "500",
+                "--world", preset]
         engine, _ = cli.build_engine(cli.build_parser().parse_args(args))
     finally:
         if old is None:
@@ -181,7 +181,7 @@ def run_sitl(quick: bool) -> dict:
         fig[f"sitl_periods_per_s.{key}"] = figure(
             _median(fast, "periods_per_s"), _median(ref, "periods_per_s"), target=8000.0, unit="periods/s",
             higher_is_better=True,
-            note=f"firmware_sim --lockstep --preset {preset}, 500 Hz control, 1 kHz physics, trivial hover "
+            note=f"firmware_sim --lockstep --world {preset}, 500 Hz control, 1 kHz physics, trivial hover "
                  f"controller; baseline MAVREG_IO=reference (pymavlink, one message per datagram); median of "
                  f"{repeats} x {n} periods")
         if key == "trivial_ideal":      # in the realistic world samples come in jittered clumps
@@ -209,7 +209,7 @@ def run_sitl(quick: bool) -> dict:
         fig[f"fsim_engine_us_per_period.{preset}"] = figure(
             engine_cpu_us("fast", preset, m), engine_cpu_us("reference", preset, m), unit="us CPU",
             higher_is_better=False,
-            note=f"firmware_sim in-process, --preset {preset}, best of 5 x {m} periods; baseline: pymavlink "
+            note=f"firmware_sim in-process, --world {preset}, best of 5 x {m} periods; baseline: pymavlink "
                  "codec, one datagram per message, rk4_step_reference")
     return fig
 

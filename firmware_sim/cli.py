@@ -8,8 +8,8 @@ import signal
 import sys
 import textwrap
 
-from .argtypes import (checked, input_file, nonneg_float, nonneg_int, output_file, positive_float,
-                       positive_int, probability, sysid, unit_scale)
+from .argtypes import (add_deprecated_alias, checked, input_file, nonneg_float, nonneg_int, output_file,
+                       positive_float, positive_int, probability, sysid, unit_scale)
 from .autopilot import Autopilot, AutopilotConfig
 from .clock import StopRun, run_lockstep, run_realtime
 from .engine import Engine
@@ -48,11 +48,11 @@ SET_ATTITUDE_TARGET with type_mask 128 gives body rates (rad/s) and a collective
 
 By default the world is realistic: the telemetry is a state estimate, late and noisy,
 sent over a link with delay, jitter and loss, and commands arrive late (all in sim time,
-seeded by --seed, deterministic in lockstep). --preset ideal sends the exact true state
+seeded by --seed, deterministic in lockstep). --world ideal sends the exact true state
 with no delay and no loss. Motor lag and rotor noise come from the vehicle YAML in both.
 
 The first stdout line is 'firmware_sim listening on udpin:HOST:PORT'; the second one
-('firmware_sim world: ...') names the preset, its values and any overrides; with
+('firmware_sim world: ...') names the world, its values and any overrides; with
 --mismatch-seed a third one ('firmware_sim airframe: key=value ...') gives the true
 airframe drawn around the vehicle file.
 Exit status: 0 done or signalled, 1 internal error (a bug: a traceback
@@ -61,7 +61,7 @@ and a request to report it), 2 bad input (a flag, a file; checked before the run
 
 
 def _presets_epilog() -> str:
-    lines = ["presets (--preset):"]
+    lines = ["worlds (--world):"]
     for name in PRESET_NAMES:
         text = PRESETS[name].describe(EmulatorParams()).replace("world: preset ", "", 1)
         lines.extend(textwrap.wrap(text, 88, initial_indent="  ", subsequent_indent="      "))
@@ -87,23 +87,27 @@ def build_parser() -> argparse.ArgumentParser:
     a("--listen", default="udpin:127.0.0.1:14540", metavar="URL", type=checked(parse_listen_url, "URL"),
       help="UDP address to listen on, udpin:HOST:PORT; port 0 picks a free port "
            "(default %(default)s)")
-    a("--vehicle", default=None, metavar="YAML", type=input_file,
-      help="vehicle parameter file (default params/vehicles/mk_quadro.yaml, bundled with mavreg)")
-    a("--rate-hz", type=positive_int, default=500,
-      help="control and telemetry rate (default %(default)s)")
+    # Old spellings (--vehicle, --rate-hz, --lockstep-timeout, --offboard-loss-timeout, --preset)
+    # are hidden aliases for one release; the dest names are kept (docs/cli.md).
+    add_deprecated_alias(p, "--vehicle", a(
+        "--vehicle-params", dest="vehicle", default=None, metavar="YAML", type=input_file,
+        help="vehicle parameter file (default params/vehicles/mk_quadro.yaml, bundled with mavreg)"))
+    add_deprecated_alias(p, "--rate-hz", a(
+        "--control-rate-hz", dest="rate_hz", type=positive_int, default=500, metavar="HZ",
+        help="control and telemetry rate (default %(default)s)"))
     a("--physics-hz", type=positive_int, default=1000,
-      help="RK4 physics rate, an integer multiple of --rate-hz (default %(default)s)")
+      help="RK4 physics rate, an integer multiple of --control-rate-hz (default %(default)s)")
     a("--lockstep", action="store_true",
       help="advance one control period per offboard target, SET_ACTUATOR_CONTROL_TARGET or "
            "SET_ATTITUDE_TARGET (deterministic) "
            "instead of the wall clock")
-    a("--lockstep-timeout", type=positive_float, default=0.1, metavar="S",
-      help="wall seconds to wait for a period's command before it counts as lost "
-           "(default %(default)s)")
+    add_deprecated_alias(p, "--lockstep-timeout", a(
+        "--lockstep-timeout-s", dest="lockstep_timeout", type=positive_float, default=0.1, metavar="S",
+        help="wall seconds to wait for a period's command before it counts as lost (default %(default)s)"))
     a("--lockstep-stall-speed", type=nonneg_float, default=1.0, metavar="X",
       help="while no commands stream in lockstep, run at X times real time; 0 = as fast "
            "as possible (default %(default)s)")
-    a("--seed", type=nonneg_int, default=0, help="seed of the rotor noise and perturbations (default 0)")
+    a("--seed", type=nonneg_int, default=0, metavar="N", help="seed of the rotor noise and perturbations (default 0)")
     a("--start", default=None, metavar="STATE", type=checked(parse_start, "STATE"),
       help="start in flight, armed and in OFFBOARD, e.g. 'z_m=-5,vy_m_s=8,roll_deg=120'. "
            f"Keys (missing = 0): {', '.join(START_KEYS)}. Position and velocity NED, "
@@ -113,9 +117,10 @@ def build_parser() -> argparse.ArgumentParser:
            "@T0:T1 for a gust window in sim seconds, e.g. force:0,2,0@3:3.5")
     a("--record", default=None, metavar="FILE.npz", type=output_file,
       help="write the true state and rotor forces of every physics step to FILE.npz")
-    a("--offboard-loss-timeout", type=positive_float, default=0.25, metavar="S",
-      help="sim seconds without a valid offboard target or set-point before the failsafe "
-           "(default %(default)s)")
+    add_deprecated_alias(p, "--offboard-loss-timeout", a(
+        "--offboard-loss-timeout-s", dest="offboard_loss_timeout", type=positive_float, default=0.25,
+        metavar="S", help="sim seconds without a valid offboard target or set-point before the failsafe "
+        "(default %(default)s)"))
     a("--failsafe-hold-s", type=nonneg_float, default=1.5, metavar="S",
       help="failsafe: seconds of level/hold-altitude before landing (default %(default)s)")
     a("--system-id", type=sysid, default=1, help="our MAVLink system id (default 1)")
@@ -137,7 +142,7 @@ def build_parser() -> argparse.ArgumentParser:
     a("--inertia-perturb-sd-kg-m2", type=nonneg_float, default=None, metavar="SD",
       help="add Gaussian noise of this SD to each principal moment (drawn from --seed)")
     a("--rotor-time-constant-s", type=nonneg_float, default=None, help="override the motor lag")
-    a("--rotor-noise-sd-n", type=nonneg_float, default=None, help="override the thrust noise SD")
+    a("--rotor-noise-sd-n", type=nonneg_float, default=None, metavar="SD", help="override the thrust noise SD, N")
     a("--max-rotor-thrust-n", type=positive_float, default=None,
       help="override the rotor saturation and the thrust a control value of 1 asks for")
     a("--rotor-saturation-n", type=positive_float, default=None, metavar="F",
@@ -176,8 +181,9 @@ def _add_world_args(p: argparse.ArgumentParser) -> None:
                        help=f"link faults of {what} after the preset's link, in simulation time: "
                        "KEY=VALUE[,...], e.g. loss=0.1,jitter_ms=5,outage=15:0.5 (repeatable; "
                        "docs/reliability.md)")
-    w.add_argument("--preset", choices=PRESET_NAMES, default="realistic",
-                   help="named world (default %(default)s; values below)")
+    add_deprecated_alias(w, "--preset", w.add_argument(
+        "--world", dest="preset", choices=PRESET_NAMES, default="realistic",
+        help="named world (default %(default)s; values below)"))
     w.add_argument("--telemetry-delay-ms", type=nonneg_float, default=None, metavar="MS",
                    help="mean delay of the telemetry (vehicle to peers), sim time")
     w.add_argument("--telemetry-jitter-ms", type=nonneg_float, default=None, metavar="MS",

@@ -131,7 +131,7 @@ class VehicleTarget:
         from firmware_sim.autopilot import OFFBOARD_TARGETS
         from firmware_sim.cli import build_engine, build_parser
         self.offboard_targets = OFFBOARD_TARGETS     # rotor forces or body rates: they name the peer
-        args = build_parser().parse_args(["--listen", "udpin:127.0.0.1:0", "--preset", "ideal", "--quiet"])
+        args = build_parser().parse_args(["--listen", "udpin:127.0.0.1:0", "--world", "ideal", "--quiet"])
         self.engine, _ = build_engine(args)
         self.ap = self.engine.ap
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)

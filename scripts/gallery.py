@@ -2,7 +2,7 @@
 
 For each file: plan it (params/controller/design.yaml) and save its plan figure
 (``mavreg plan --plot``: docs/gallery/<name>_plan.png); fly it on the design model from
-0.6 m off its entry in north, east and down (``mavreg simulate --offset 0.6 0.6 0.6 --plot``:
+0.6 m off its entry in north, east and down (``mavreg simulate --entry-offset 0.6 0.6 0.6 --plot``:
 <name>_simulate.png); with ``--sitl`` fly it through the daemon against firmware_sim in
 lockstep in the ideal world with the paper's weights (design.yaml) and in the realistic world
 (20 ms rotor lag, link delay, estimate noise, drag) with realistic.yaml, keeping the realistic
@@ -64,7 +64,7 @@ def design_flight(plan) -> dict:
 
 
 def offset_figure(plan, png: Path) -> dict:
-    """``mavreg simulate --offset 0.6 0.6 0.6 --plot``'s figure; its status and errors."""
+    """``mavreg simulate --entry-offset 0.6 0.6 0.6 --plot``'s figure; its status and errors."""
     run = fly_on_design_model(plan, offset_m=OFFSET_M, true_metrics=False)
     plot_simulation(png, plan, run, 1000.0, f"{plan.name} on the design model (offset "
                     f"{' '.join(f'{v:g}' for v in OFFSET_M)} m NED, control 1000 Hz)")

@@ -83,7 +83,7 @@ boundaries).
 - **plan** (`mavreg plan FILE --plot plan.png`): the nominal's speed, collective thrust (the
   dotted line is the weight), rotor forces against their limit (red bands where a rotor would
   exceed it or pull) and body rates, against s.
-- **simulate** (`mavreg simulate FILE --offset 0.6 0.6 0.6 --plot sim.png`): the design model
+- **simulate** (`mavreg simulate FILE --entry-offset 0.6 0.6 0.6 --plot sim.png`): the design model
   started 1.04 m off the entry (0.85 m across the path). Errors are on a log scale, so the
   metre at the start and the micrometres after convergence are both readable; speed and
   thrust flown against the nominal; the rotor forces applied; and the schedule (arc length

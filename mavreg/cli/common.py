@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import sys
 from pathlib import Path
 
 # The bundled parameter files have one home, mavreg.config.paths; re-exported for the commands.
@@ -20,11 +21,13 @@ from ..config.paths import (DEFAULT_VEHICLE, DESIGN_CONTROLLER, PAPER_CONTROLLER
                             PAPER_GOVERNED_CONTROLLER, PARAMS_DIR, REAL_CONTROLLER)
 
 __all__ = ["PARAMS_DIR", "DEFAULT_VEHICLE", "PAPER_CONTROLLER", "PAPER_GOVERNED_CONTROLLER",
-           "DESIGN_CONTROLLER", "REAL_CONTROLLER", "add_model_arguments", "add_laps_argument", "load_model_params", "load_maneuver_arg",
+           "DESIGN_CONTROLLER", "REAL_CONTROLLER", "add_model_arguments", "add_laps_argument",
+           "add_entry_offset_argument", "load_model_params", "load_maneuver_arg",
            "add_gcs_arguments", "gcs_config", "add_signing_argument", "add_output_argument",
            "add_planner_arguments", "planner_bounds", "Parser", "positive_float", "nonneg_float",
            "finite_float", "positive_int", "nonneg_int", "vehicle_url", "plot_file", "input_file",
-           "output_file", "output_dir", "socket_path", "check_output_file", "check_output_dir"]
+           "output_file", "output_dir", "socket_path", "check_output_file", "check_output_dir",
+           "DeprecatedAlias", "add_deprecated_alias"]
 
 
 def add_model_arguments(p: argparse.ArgumentParser, controller: Path = DESIGN_CONTROLLER) -> None:
@@ -35,8 +38,16 @@ def add_model_arguments(p: argparse.ArgumentParser, controller: Path = DESIGN_CO
 
 
 def add_laps_argument(p: argparse.ArgumentParser) -> None:
+    """``--laps N`` (plan, simulate, fly, upload): the maneuver file's laps count, overridden."""
     p.add_argument("--laps", type=positive_int, default=None, metavar="N",
                    help="fly the maneuver's laps segment N times (default: as in the file)")
+
+
+def add_entry_offset_argument(p: argparse.ArgumentParser, what: str) -> argparse.Action:
+    """``--entry-offset DN DE DD`` (simulate, fly): start the maneuver off its entry, NED, m;
+    ``what`` says what the command does with it. Returns the Action (for an alias)."""
+    return p.add_argument("--entry-offset", nargs=3, type=finite_float, default=(0.0, 0.0, 0.0),
+                          metavar=("DN", "DE", "DD"), help=f"{what} (default: 0 0 0)")
 
 
 def add_planner_arguments(p: argparse.ArgumentParser) -> None:
@@ -277,5 +288,34 @@ def load_maneuver_arg(args):
     that a rejected file answers at once.
     """
     from ..config.maneuver import load_maneuver
+    from ..errors import UsageError
     spec = load_maneuver(args.maneuver)
-    return spec if args.laps is None else spec.with_laps(args.laps)
+    if args.laps is None:
+        return spec
+    try:
+        return spec.with_laps(args.laps)
+    except ValueError as exc:        # no laps segment, or a count out of range: the user's
+        raise UsageError(f"--laps {args.laps}: {exc}") from None
+
+
+class DeprecatedAlias(argparse.Action):
+    """A hidden old spelling of an option: stores into the new option's ``dest`` and prints
+    one line ``PROG: warning: OLD is deprecated, use NEW ...`` on stderr (docs/cli.md)."""
+
+    def __init__(self, option_strings, dest, new: str, **kwargs):
+        self.new = new
+        super().__init__(option_strings, dest, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(f"{parser.prog}: warning: {option_string} is deprecated and goes in the next release; "
+              f"use {self.new}", file=sys.stderr, flush=True)
+        setattr(namespace, self.dest, values)
+
+
+def add_deprecated_alias(p, old: str, new: argparse.Action) -> None:
+    """Accept ``old`` as a hidden alias of the option ``new`` (the Action ``add_argument``
+    returned): same destination, type, count and choices, with :class:`DeprecatedAlias`'s
+    warning. ``p`` is the parser or the argument group ``new`` was added to."""
+    p.add_argument(old, dest=new.dest, type=new.type, nargs=new.nargs, choices=new.choices,
+                   metavar=new.metavar, default=argparse.SUPPRESS, action=DeprecatedAlias,
+                   new=new.option_strings[0], help=argparse.SUPPRESS)

@@ -6,9 +6,10 @@ import time
 from pathlib import Path
 
 from ..errors import UsageError
-from .common import (REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, add_output_argument, add_planner_arguments,
-                     add_signing_argument, check_output_dir, finite_float, gcs_config, input_file, output_dir,
-                     planner_bounds, positive_float, socket_path, vehicle_url)
+from .common import (REAL_CONTROLLER, add_entry_offset_argument, add_gcs_arguments,
+                     add_laps_argument, add_model_arguments, add_output_argument, add_planner_arguments,
+                     add_signing_argument, check_output_dir, gcs_config, input_file, load_maneuver_arg,
+                     output_dir, planner_bounds, positive_float, socket_path, vehicle_url)
 
 MAX_ENTRY_OFFSET_M = 2.0
 """Longest --entry-offset: an experiment's start error, not a relocation of the maneuver."""
@@ -74,6 +75,7 @@ anything starts).
 
 def add_arguments(p):
     p.add_argument("maneuver", metavar="FILE", type=input_file, help="maneuver YAML (kind: maneuver)")
+    add_laps_argument(p)
     p.add_argument("--vehicle", metavar="URL", type=vehicle_url, default=None,
                    help="vehicle connection, udpout:HOST:PORT or udpin:HOST:PORT "
                    "(default: start the bundled firmware_sim on a free loopback port)")
@@ -112,12 +114,12 @@ def add_arguments(p):
     p.add_argument("--emulator-arg", action="append", default=[], metavar="ARG",
                    help="bundled emulator only: extra firmware_sim argument (repeatable), "
                    "e.g. --emulator-arg=--rotor-time-constant-s=0")
-    p.add_argument("--entry-offset", nargs=3, type=finite_float, default=(0.0, 0.0, 0.0), metavar=("DN", "DE", "DD"),
-                   help="start the maneuver off its path: the hold point and the end of the run-in "
-                   "move by this NED offset (m, at most %(max)g m) from the entry, with the entry's "
-                   "velocity, and the regulator takes over there (the paper's Section 4: 0.6 0.6 0.6; "
-                   "more than 0.5 m across the path needs a controller file whose envelope allows "
-                   "it, see mavreg experiment) (default: 0 0 0)" % {"max": MAX_ENTRY_OFFSET_M})
+    add_entry_offset_argument(
+        p, "start the maneuver off its path: the hold point and the end of the run-in move by "
+        "this NED offset (m, at most %g m) from the entry, with the entry's velocity, and the "
+        "regulator takes over there (the paper's Section 4: 0.6 0.6 0.6; more than 0.5 m across "
+        "the path needs a controller file whose envelope allows it, see mavreg experiment)"
+        % MAX_ENTRY_OFFSET_M)
     add_output_argument(p)
     add_signing_argument(p, bundled_emulator=True)
     add_gcs_arguments(p)
@@ -142,6 +144,7 @@ def run(args) -> int:
                          f"got {' '.join(f'{v:g}' for v in offset)}")
     gcs = gcs_config(args)
     with_output(load_vehicle(args.vehicle_params), args.output)   # a bad vehicle file: before anything starts
+    load_maneuver_arg(args)             # a bad maneuver file or --laps: before anything starts
     out = Path(args.out) if args.out else Path("flights") / time.strftime("%Y%m%d-%H%M%S")
     why = check_output_dir(str(out))    # the default --out too, before the flight
     if why is not None:
@@ -152,5 +155,6 @@ def run(args) -> int:
                       args.stale_timeout_s, offset,
                       signing_key=Path(args.signing_key) if args.signing_key is not None else None,
                       gcs_urls=gcs["gcs_urls"], gcs=gcs["gcs"], tlog_clock=args.tlog_clock,
-                      argv=tuple(getattr(args, "command_line", ())), planner=planner_bounds(args), output=args.output)
+                      argv=tuple(getattr(args, "command_line", ())), planner=planner_bounds(args), output=args.output,
+                      laps=args.laps)
     return fly(opts)

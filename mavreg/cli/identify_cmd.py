@@ -91,7 +91,7 @@ def add_arguments(p):
                    "(default: auto)")
     p.add_argument("--replicates", type=_replicates, default=300, metavar="N",
                    help="bootstrap replicates for the intervals (default: %(default)s)")
-    p.add_argument("--seed", type=nonneg_int, default=0, help="bootstrap seed (default: %(default)s)")
+    p.add_argument("--seed", type=nonneg_int, default=0, metavar="N", help="bootstrap seed (default: %(default)s)")
 
 
 def run(args) -> int:

@@ -17,8 +17,8 @@ $XDG_RUNTIME_DIR/mavreg.sock, else /tmp/mavreg-$UID/mavreg.sock.
 The first accepted upload arms the vehicle, takes off to the hold point before its entry
 and flies it; afterwards the daemon holds at the exit and flies later uploads from there.
 Uploads are planned in a worker process (the control loop keeps its rate) and start only at
-a safe point (hold); a rejected upload changes nothing. `mavreg upload --land` lands and
-disarms; the daemon then exits.
+a safe point (hold); a rejected upload changes nothing. `mavreg upload FILE --laps N` flies
+FILE's laps segment N times. `mavreg upload --land` lands and disarms; the daemon then exits.
 
 SIGINT/SIGTERM: the first lands (when airborne) and then exits; a second one exits at once,
 which stops the command stream so that the vehicle's own failsafe lands it.

@@ -5,25 +5,27 @@ import json
 import sys
 
 from ..errors import UsageError
-from .common import (add_laps_argument, add_model_arguments, finite_float, input_file, load_maneuver_arg,
-                     load_model_params,
-                     nonneg_float, nonneg_int, plot_file, positive_float)
+from .common import (add_deprecated_alias, add_entry_offset_argument, add_laps_argument, add_model_arguments,
+                     finite_float, input_file, load_maneuver_arg, load_model_params, nonneg_float, nonneg_int,
+                     plot_file, positive_float)
 
 PHYSICS_STEP_S = 1e-3
-"""The design model's RK4 step (mavreg.sim.maneuver_run): --rate-hz divides its rate."""
+"""The design model's RK4 step (mavreg.sim.maneuver_run): --control-rate-hz divides its rate."""
 
 HELP = "fly a maneuver with the regulator on the design model; tracking errors against s"
 DESCRIPTION = """\
-Plan the maneuver, start at its nominal entry state (plus --offset), and integrate the
-paper's quadrotor model (eqs 6-17, RK4, 1 ms) in closed loop with the s-scheduled LQR
-regulator run at --rate-hz with zero-order hold. Rotor forces may carry Gaussian noise and
-saturate per rotor; the plant's inertia may differ from the design (--inertia-kg-m2); a gust
-(--gust-n, --gust-window) may push the vehicle. The regulator allocates and governs its
-speed as the controller file's allocation: and speed_governor: sections say
-(docs/governor.md), knowing the --saturation-n limit.
-Reports, overall and per named segment: transverse position error (max, RMS), attitude
-error (max), rotor command range and time saturated. With --json: stable, completed,
-transverse_error_m {max, rms}, attitude_error_deg {max}, segments {...}.
+Plan the maneuver, start at its nominal entry state (plus --entry-offset), and integrate
+the paper's quadrotor model (eqs 6-17, RK4, 1 ms) in closed loop with the s-scheduled LQR
+regulator run at --control-rate-hz with zero-order hold. Rotor forces may carry Gaussian
+noise (--rotor-noise-sd-n) and saturate per rotor (--rotor-saturation-n); the plant's
+inertia may differ from the design (--inertia-kg-m2); a gust (--gust-n, --gust-window) may
+push the vehicle. The regulator allocates and governs its speed as the controller file's
+allocation: and speed_governor: sections say (docs/governor.md), knowing the
+--rotor-saturation-n limit.
+Reports, overall and per named segment: transverse position error (max, RMS; mm in the
+text), attitude error (max, deg), rotor command range and time saturated. With --json, in
+the units of the keys: stable, completed, transverse_error_m {max, rms}, attitude_error_deg
+{max}, segments {NAME: {..., s_start_m, s_end_m, samples}}.
 
 Exit status: 0 stable and completed, 1 diverged or not completed (or the maneuver cannot
 be flown), 2 invalid input (options, files; --plot is checked before the simulation).
@@ -31,7 +33,7 @@ be flown), 2 invalid input (options, files; --plot is checked before the simulat
 
 
 def control_rate_hz(text: str) -> float:
-    """--rate-hz: a positive rate whose period is a whole number of physics steps."""
+    """--control-rate-hz: a positive rate whose period is a whole number of physics steps."""
     import argparse
     rate = positive_float(text)
     steps = round(1.0 / (rate * PHYSICS_STEP_S))
@@ -43,16 +45,21 @@ def control_rate_hz(text: str) -> float:
 
 def add_arguments(p):
     p.add_argument("maneuver", metavar="FILE", type=input_file, help="maneuver YAML (kind: maneuver)")
-    p.add_argument("--offset", nargs=3, type=finite_float, default=(0.0, 0.0, 0.0),
-                   metavar=("DX", "DY", "DZ"), help="initial position offset, NED metres")
-    p.add_argument("--noise-n", type=nonneg_float, default=0.0, metavar="SD",
-                   help="Gaussian noise SD on each rotor force, N (default 0)")
-    p.add_argument("--saturation-n", type=positive_float, default=None, metavar="F",
-                   help="per-rotor saturation, N, known to the controller's allocation and speed "
-                        "governor (default: none)")
+    add_deprecated_alias(p, "--offset", add_entry_offset_argument(
+        p, "start this far (NED, m) from the maneuver's entry, with the entry's velocity, attitude "
+        "and rates"))
+    add_deprecated_alias(p, "--noise-n", p.add_argument(
+        "--rotor-noise-sd-n", type=nonneg_float, default=0.0, metavar="SD",
+        help="Gaussian noise SD on each rotor force, N (default 0)"))
+    add_deprecated_alias(p, "--saturation-n", p.add_argument(
+        "--rotor-saturation-n", type=positive_float, default=None, metavar="F",
+        help="the rotors give at most F N; here the controller's allocation and speed governor "
+        "are told the limit (default: none)"))
     add_laps_argument(p)
     p.add_argument("--seed", type=nonneg_int, default=None, metavar="N", help="noise seed")
-    p.add_argument("--rate-hz", type=control_rate_hz, default=1000.0, help="controller rate (default 1000)")
+    add_deprecated_alias(p, "--rate-hz", p.add_argument(
+        "--control-rate-hz", type=control_rate_hz, default=1000.0, metavar="HZ",
+        help="the regulator's rate, 1000 Hz divided by a whole number (default %(default)s)"))
     p.add_argument("--inertia-kg-m2", nargs=3, type=positive_float, default=None,
                    metavar=("JX", "JY", "JZ"), help="plant inertia (default: the design's)")
     p.add_argument("--gust-n", nargs=3, type=finite_float, default=None, metavar=("FN", "FE", "FD"),
@@ -78,16 +85,16 @@ def run(args) -> int:
     plan = plan_cached(spec, vehicle, controller, cache=default_cache())
     print(f"{plan.name}: planned, {plan.length_m:.1f} m in {plan.duration_s:.1f} s; simulating",
           file=sys.stderr, flush=True)
-    run_ = fly_on_design_model(plan, offset_m=args.offset, inertia_kg_m2=args.inertia_kg_m2,
-                               rotor_noise_sd_n=args.noise_n, saturation_n=args.saturation_n,
-                               seed=args.seed, control_rate_hz=args.rate_hz,
+    run_ = fly_on_design_model(plan, offset_m=args.entry_offset, inertia_kg_m2=args.inertia_kg_m2,
+                               rotor_noise_sd_n=args.rotor_noise_sd_n, saturation_n=args.rotor_saturation_n,
+                               seed=args.seed, control_rate_hz=args.control_rate_hz,
                                gust_force_n=args.gust_n, gust_window_s=tuple(args.gust_window),
-                               allocation=told_rotor_limit(controller.allocation, args.saturation_n),
+                               allocation=told_rotor_limit(controller.allocation, args.rotor_saturation_n),
                                speed_governor=controller.speed_governor)
     m = run_.metrics
     if args.plot:
         from ..plots import plot_simulation
-        plot_simulation(args.plot, plan, run_, args.rate_hz, _heading(plan, args))
+        plot_simulation(args.plot, plan, run_, args.control_rate_hz, _heading(plan, args))
     if args.json:
         print(json.dumps(m, indent=2))
     else:
@@ -105,9 +112,9 @@ def run(args) -> int:
 
 def _heading(plan, args) -> str:
     """The figure's first title line: the maneuver and what was changed from the nominal."""
-    extras = [f"offset {' '.join(f'{v:g}' for v in args.offset)} m NED" if any(args.offset) else "",
-              f"rotor noise {args.noise_n:g} N" if args.noise_n else "",
-              f"rotors saturate at {args.saturation_n:g} N" if args.saturation_n else "",
+    extras = [f"offset {' '.join(f'{v:g}' for v in args.entry_offset)} m NED" if any(args.entry_offset) else "",
+              f"rotor noise {args.rotor_noise_sd_n:g} N" if args.rotor_noise_sd_n else "",
+              f"rotors saturate at {args.rotor_saturation_n:g} N" if args.rotor_saturation_n else "",
               f"gust {' '.join(f'{v:g}' for v in args.gust_n)} N NED" if args.gust_n else "",
-              f"control {args.rate_hz:g} Hz"]
+              f"control {args.control_rate_hz:g} Hz"]
     return f"{plan.name} on the design model ({', '.join(e for e in extras if e)})"

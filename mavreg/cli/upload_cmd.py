@@ -5,7 +5,7 @@ import json
 from pathlib import Path
 
 from ..errors import UsageError
-from .common import input_file, positive_float
+from .common import add_laps_argument, input_file, positive_float
 
 HELP = "upload a maneuver YAML to a running `mavreg serve` (or ask it to land / report)"
 DESCRIPTION = """\
@@ -13,7 +13,8 @@ Send FILE to the daemon's control endpoint and print its verdict: "accepted" (th
 was planned and is queued; it starts at the next safe point, a hold) or "rejected" with the
 loader's or the feasibility check's reasons. Planning takes a few seconds; the daemon keeps
 flying meanwhile. --land asks the daemon to land and disarm at the next safe point;
---status prints its status as JSON.
+--status prints its status as JSON. --laps N sends FILE with its laps segment flown N times
+(the file is rewritten here, as YAML without its comments; the daemon plans what it gets).
 
 Endpoint: --socket, else $MAVREG_SOCKET, else $XDG_RUNTIME_DIR/mavreg.sock, else
 /tmp/mavreg-$UID/mavreg.sock.
@@ -30,6 +31,7 @@ def add_arguments(p):
     g.add_argument("maneuver", metavar="FILE", nargs="?", type=input_file, help="maneuver YAML (kind: maneuver)")
     g.add_argument("--land", action="store_true", help="ask the daemon to land and disarm")
     g.add_argument("--status", action="store_true", help="print the daemon's status as JSON")
+    add_laps_argument(p)
     p.add_argument("--socket", metavar="PATH", default=None, help="control endpoint (default: see above)")
     p.add_argument("--timeout-s", type=positive_float, default=120.0, metavar="S",
                    help="wait this long for the verdict (default: %(default)s)")
@@ -38,6 +40,8 @@ def add_arguments(p):
 def run(args) -> int:
     from ..daemon.endpoint import default_socket_path, request
     path = Path(args.socket) if args.socket else default_socket_path()
+    if args.laps is not None and args.maneuver is None:
+        raise UsageError("--laps needs a maneuver FILE")
     if args.land:
         req = {"op": "land"}
     elif args.status:
@@ -50,6 +54,8 @@ def run(args) -> int:
             text = f.read_text(encoding="utf-8")
         except UnicodeDecodeError:
             raise UsageError(f"{f}: not UTF-8 text") from None
+        if args.laps is not None:
+            text = _with_laps(text, args.laps, str(f))
         req = {"op": "upload", "name": str(f), "yaml": text}
     try:
         resp = request(path, req, args.timeout_s)
@@ -69,3 +75,12 @@ def run(args) -> int:
         return 1
     print(f"{resp.get('verdict', 'rejected')}: {resp.get('reason')}")
     return 1
+
+
+def _with_laps(text: str, laps: int, source: str) -> str:
+    """FILE's text with ``--laps`` applied; a file that cannot take it is refused here (exit 2)."""
+    from ..config.maneuver import maneuver_text_with_laps
+    try:
+        return maneuver_text_with_laps(text, laps, source)
+    except ValueError as exc:       # ConfigError too: the file is refused before it is sent
+        raise UsageError(f"--laps {laps}: {exc}") from None

@@ -16,9 +16,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .envelope import MAX_GEOFENCE_M
-from .loader import load_file, load_text
+from .loader import load_file, load_text, replace_value
 
-__all__ = ["ManeuverSpec", "SegmentSpec", "load_maneuver", "load_maneuver_text", "MAX_EXTENT_M",
+__all__ = ["ManeuverSpec", "SegmentSpec", "load_maneuver", "load_maneuver_text", "maneuver_text_with_laps", "MAX_EXTENT_M",
            "MAX_SPEED_M_S", "MAX_TURN_DEG", "MIN_LENGTH_M", "MIN_SPEED_M_S"]
 
 MAX_EXTENT_M = MAX_GEOFENCE_M
@@ -188,9 +188,12 @@ class ManeuverSpec:
 
     def with_laps(self, count: int) -> "ManeuverSpec":
         """The same maneuver with its repeated segment flown ``count`` times."""
-        from dataclasses import replace
+        from dataclasses import fields, replace
         if self.laps is None:
             raise ValueError(f"maneuver {self.name!r} has no 'laps' segment to repeat")
+        bound = next(f.metadata for f in fields(LapsSpec) if f.name == "count")
+        if not bound["min"] <= count <= bound["max"]:
+            raise ValueError(f"a laps count is {bound['min']} to {bound['max']}, got {count}")
         return replace(self, laps=replace(self.laps, count=count))
 
 
@@ -200,3 +203,21 @@ def load_maneuver(path: str | Path) -> ManeuverSpec:
 
 def load_maneuver_text(text: str, source: str = "<upload>") -> ManeuverSpec:
     return load_text(text, ManeuverSpec, source, kind="maneuver")
+
+
+def maneuver_text_with_laps(text: str, count: int, source: str = "<upload>") -> str:
+    """The maneuver YAML ``text`` with its laps segment flown ``count`` times (``--laps`` of
+    ``fly`` and ``upload``: the daemon plans text), validated.
+
+    Raises
+    ------
+    ConfigError
+        ``text`` is not a valid maneuver.
+    ValueError
+        The maneuver has no laps segment, or ``count`` is out of range
+        (:meth:`ManeuverSpec.with_laps`).
+    """
+    load_maneuver_text(text, source).with_laps(count)
+    out = replace_value(text, ("laps", "count"), int(count))
+    load_maneuver_text(out, source)
+    return out

@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..config.controller import load_controller
+from ..config.maneuver import maneuver_text_with_laps
 from ..config.vehicle import load_vehicle, with_output
 from ..control.hover import HoverParams
 from .app import Daemon, DaemonConfig, regulator_factory
@@ -88,6 +89,8 @@ class FlyOptions:
     """What one upload may cost the planner worker."""
     output: str | None = None
     """``rotors`` or ``rates`` (what the daemon commands); None: the vehicle file's."""
+    laps: int | None = None
+    """Fly the maneuver's laps segment this many times (``--laps``); None: as in the file."""
 
 
 def spawn_emulator(vehicle_path: Path, record: Path | None, lockstep: bool, extra: tuple[str, ...] = (),
@@ -101,18 +104,18 @@ def spawn_emulator(vehicle_path: Path, record: Path | None, lockstep: bool, extr
     Ctrl-C in the terminal reaches only the daemon, which lands first and then stops the
     emulator (:func:`stop_process`). Call it from a thread that lives as long as the
     flight (the parent-death signal fires when the starting thread ends).
-    ``preset`` is the emulator's world (``realistic`` by default; ``ideal``: the true state, no
-    link effects); ``extra``
-    comes after it, so an ``--preset`` (or ``--lockstep-timeout``) there wins.
+    ``preset`` is the emulator's world (``--world``: ``realistic`` by default; ``ideal``: the
+    true state, no link effects); ``extra`` comes after it, so a ``--world`` (or
+    ``--lockstep-timeout-s``) there wins.
     """
     cmd = [sys.executable, "-m", "firmware_sim", "--listen", "udpin:127.0.0.1:0", "--quiet",
-           "--vehicle", str(vehicle_path), "--rate-hz", f"{rate_hz:g}", "--preset", preset]
+           "--vehicle-params", str(vehicle_path), "--control-rate-hz", f"{rate_hz:g}", "--world", preset]
     if record is not None:
         cmd += ["--record", str(record)]
     if lockstep:
         # The daemon is the only pacer: a lost period (the default 0.1 s wait missed on a
         # loaded machine) would leave every later command one period late for good.
-        cmd += ["--lockstep", "--lockstep-timeout", f"{LOCKSTEP_TIMEOUT_S:g}"]
+        cmd += ["--lockstep", "--lockstep-timeout-s", f"{LOCKSTEP_TIMEOUT_S:g}"]
     cmd += list(extra)
     proc = subprocess.Popen(wrap_command(cmd), stdout=subprocess.PIPE, stderr=None, text=True,
                             start_new_session=True)
@@ -145,6 +148,8 @@ def fly(opts: FlyOptions) -> int:
     """Run the whole job; returns the process exit code (0 success, 1 flight failed)."""
     io_impl()          # a bad MAVREG_IO is the user's mistake: one line before anything starts
     text = opts.maneuver_path.read_text()
+    if opts.laps is not None:
+        text = maneuver_text_with_laps(text, opts.laps, str(opts.maneuver_path))
     vehicle = with_output(load_vehicle(opts.vehicle_path), opts.output)
     controller = load_controller(opts.controller_path)
     opts.out_dir.mkdir(parents=True, exist_ok=True)
@@ -246,7 +251,7 @@ def _provenance(opts: FlyOptions) -> dict:
     from ..provenance import provenance
     world = None
     if opts.vehicle_url is None:
-        world = " ".join([f"firmware_sim --preset {opts.world}", *(["--lockstep"] if opts.lockstep else []),
+        world = " ".join([f"firmware_sim --world {opts.world}", *(["--lockstep"] if opts.lockstep else []),
                           *opts.emulator_args])
     return provenance(opts.argv or sys.argv, {"maneuver": opts.maneuver_path, "vehicle": opts.vehicle_path,
                                               "controller": opts.controller_path}, world)

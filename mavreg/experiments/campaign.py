@@ -94,5 +94,5 @@ def _provenance(exp: Experiment, via: str, command: str, argv: list[str] | None)
     for cell in getattr(exp, "cells", ()):                  # robustness: each cell's maneuver
         files[f"maneuver.{cell.name}"] = cell.maneuver_path
     world = ("the design model (no firmware_sim)" if via == "sim"
-             else f"firmware_sim --preset {getattr(exp, 'world', None) or 'ideal'}, lockstep")
+             else f"firmware_sim --world {getattr(exp, 'world', None) or 'ideal'}, lockstep")
     return provenance(argv if argv is not None else shlex.split(command), files, world)

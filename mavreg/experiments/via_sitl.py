@@ -46,7 +46,7 @@ import numpy as np
 import yaml
 
 from ..config.controller import load_controller
-from ..config.maneuver import load_maneuver
+from ..config.maneuver import load_maneuver, maneuver_text_with_laps
 from ..daemon.lifeline import wrap_command
 from ..sim.truth import quats_to_matrices
 from .record import Flight
@@ -144,14 +144,9 @@ def prepare_sitl_files(exp, out_dir: Path, jobs: int = 1) -> SitlFiles:
         if laps is None or (file_laps is not None and file_laps.count == laps):
             maneuvers[laps] = Path(exp.maneuver_path).resolve()
             continue
-        raw = yaml.safe_load(Path(exp.maneuver_path).read_text())
-        if not isinstance(raw.get("laps"), dict):
-            raise ValueError(f"{exp.maneuver_path}: no laps section to fly it {laps} times")
-        raw["laps"]["count"] = laps
+        text = maneuver_text_with_laps(Path(exp.maneuver_path).read_text(), laps, str(exp.maneuver_path))
         path = out_dir / f"{Path(exp.maneuver_path).stem}_laps{laps}.yaml"
-        path.write_text(f"# {exp.maneuver_path} flown {laps} times round its laps segment\n"
-                        + yaml.safe_dump(raw, sort_keys=False))
-        load_maneuver(path)
+        path.write_text(f"# {exp.maneuver_path} flown {laps} times round its laps segment\n" + text)
         maneuvers[laps] = path
     told = []
     for limit in sorted({r.saturation_n for r in exp.runs if r.saturation_n is not None}):

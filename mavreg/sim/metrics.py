@@ -76,7 +76,7 @@ def tracking_metrics(s, w, segments: Sequence[tuple[str, float, float]],
     segments : sequence of (name, s_start, s_end)
         A sample belongs to a segment when ``s_start <= s < s_end``; a sample exactly at
         the largest ``s_end`` of all segments belongs to the segments ending there. Segments
-        sharing a name (laps) are merged into one entry whose ``s_start``/``s_end`` are the
+        sharing a name (laps) are merged into one entry whose ``s_start_m``/``s_end_m`` are the
         extreme values. Samples outside every segment count only in the totals.
     rotor_forces_n : (N, 4) array_like, optional
         Rotor forces commanded at each sample.
@@ -90,7 +90,7 @@ def tracking_metrics(s, w, segments: Sequence[tuple[str, float, float]],
     dict
         ``{"samples", "transverse_error_m": {"max", "rms"}, "attitude_error_deg": {"max",
         "rms"}, ["rotor_command_n": {"max", "min"}], ["saturated_s", "saturated_samples"],
-        "segments": {name: {same keys, "s_start", "s_end", "samples"}}}``. A segment with no
+        "segments": {name: {same keys, "s_start_m", "s_end_m", "samples"}}}``. A segment with no
         sample has ``None`` (JSON null) statistics. ``saturated_s`` is the time with any
         rotor at or beyond ``max_rotor_thrust_n``: (number of such samples) * ``dt_s``.
 
@@ -144,7 +144,7 @@ def tracking_metrics(s, w, segments: Sequence[tuple[str, float, float]],
     out["segments"] = {}
     for name, mask in masks.items():
         block = _block(mask, trans, att, forces, saturated, dt_s)
-        block.update({"s_start": bounds[name][0], "s_end": bounds[name][1],
+        block.update({"s_start_m": bounds[name][0], "s_end_m": bounds[name][1],
                       "samples": int(np.count_nonzero(mask))})
         out["segments"][name] = block
     return out

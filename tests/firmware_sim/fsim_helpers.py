@@ -134,7 +134,7 @@ class Vehicle:
     """The command line's engine (ideal world, 500 Hz) with a kept link."""
 
     def __init__(self, *flags):
-        args = build_parser().parse_args(["--listen", "udpin:127.0.0.1:0", "--preset", "ideal", "--quiet",
+        args = build_parser().parse_args(["--listen", "udpin:127.0.0.1:0", "--world", "ideal", "--quiet",
                                           "--peer-system-id", str(GCS), *flags])
         self.engine, _ = build_engine(args)
         self.engine.link.close()

@@ -86,7 +86,7 @@ def test_bad_airframe_values_name_the_flag(kwargs, flag):
 
 
 def test_cli_wind_preset_drifts_the_vehicle_downwind():
-    args = build_parser().parse_args(["--preset", "wind6", "--wind-from-deg", "270", "--listen",
+    args = build_parser().parse_args(["--world", "wind6", "--wind-from-deg", "270", "--listen",
                                       "udpin:127.0.0.1:0", "--start", "z_m=-20", "--quiet",
                                       "--rotor-time-constant-s", "0"])
     engine, _ = build_engine(args)

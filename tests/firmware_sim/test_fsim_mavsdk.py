@@ -41,7 +41,7 @@ def _call(fn, tel):
 
 
 def test_mavsdk_connects_reads_telemetry_takes_off_lands_and_disarms():
-    with Emulator("--peer-system-id", "245", "--rate-hz", "250") as em:
+    with Emulator("--peer-system-id", "245", "--control-rate-hz", "250") as em:
         sdk = Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION))
         try:
             assert sdk.add_any_connection(f"udpout://127.0.0.1:{em.port}") == mavsdk.ConnectionResult.SUCCESS
@@ -94,7 +94,7 @@ def test_mavsdk_offboard_position_example():
     (``MPC_LAND_SPEED`` set through MAVSDK's Param plugin). About 20 s."""
     from mavsdk.plugins.offboard import Offboard, PositionNedYaw
 
-    with Emulator("--peer-system-id", "245", "--rate-hz", "250") as em:
+    with Emulator("--peer-system-id", "245", "--control-rate-hz", "250") as em:
         sdk = Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION))
         try:
             sdk.add_any_connection(f"udpout://127.0.0.1:{em.port}")

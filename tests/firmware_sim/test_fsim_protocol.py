@@ -16,7 +16,7 @@ HOVER = 0.749 * 9.81 / 4 / 12.0
 
 
 def test_arm_disarm_acks_and_offboard_refused_without_stream():
-    with Emulator("--preset", "ideal") as emu:
+    with Emulator("--world", "ideal") as emu:
         c = Client(emu.port)
         c.heartbeat()
         hb = c.wait_for("HEARTBEAT")
@@ -41,7 +41,7 @@ def test_arm_disarm_acks_and_offboard_refused_without_stream():
 
 def fly_lockstep(rec, seed="5", kill_at=None):
     """Strict lockstep client: answer every telemetry period; arm, stream, OFFBOARD, climb."""
-    args = ["--preset", "ideal", "--lockstep", "--seed", seed, "--rotor-noise-sd-n", "0.1", "--lockstep-stall-speed", "0", "--duration-s", "3"]
+    args = ["--world", "ideal", "--lockstep", "--seed", seed, "--rotor-noise-sd-n", "0.1", "--lockstep-stall-speed", "0", "--duration-s", "3"]
     with Emulator(*args, record=rec) as emu:
         c = Client(emu.port)
         c.heartbeat()
@@ -79,7 +79,7 @@ def test_failsafe_from_inverted_in_flight_start_lands_and_disarms(tmp_path):
     rec = tmp_path / "f.npz"
     # The emulator stops itself at --duration-s: the test reads nothing (a stalled lockstep
     # runs flat out, and a slow reader would lose datagrams to its full socket buffer).
-    with Emulator("--preset", "ideal", "--lockstep", "--lockstep-stall-speed", "0", "--start",
+    with Emulator("--world", "ideal", "--lockstep", "--lockstep-stall-speed", "0", "--start",
                   "z_m=-6,vy_m_s=8,roll_deg=120", "--duration-s", "12", record=rec) as emu:
         c = Client(emu.port)
         c.heartbeat()                  # the daemon "dies" right away: no targets ever
@@ -104,7 +104,7 @@ def test_failsafe_from_inverted_in_flight_start_lands_and_disarms(tmp_path):
 
 
 def test_bad_input_is_dropped_counted_and_sim_keeps_running(tmp_path):
-    with Emulator("--preset", "ideal", "--lockstep", "--lockstep-stall-speed", "0",
+    with Emulator("--world", "ideal", "--lockstep", "--lockstep-stall-speed", "0",
                   record=tmp_path / "r.npz") as emu:
         c = Client(emu.port)
         foreign = Client(emu.port, system_id=9, component_id=191)
@@ -136,7 +136,7 @@ def test_bad_input_is_dropped_counted_and_sim_keeps_running(tmp_path):
 
 def test_mavutil_connection_sees_heartbeat_arms_and_reads_telemetry():
     # a ground station (system 255) is a peer only when configured so (docs/firmware_sim.md)
-    with Emulator("--preset", "ideal", "--peer-system-id", "255") as emu:
+    with Emulator("--world", "ideal", "--peer-system-id", "255") as emu:
         conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{emu.port}", source_system=255,
                                           source_component=190)
         conn.mav.heartbeat_send(6, 8, 0, 0, 0)
@@ -165,8 +165,8 @@ def test_cli_bad_input_exits_2_without_traceback(tmp_path):
     import sys
     bad = tmp_path / "v.yaml"
     bad.write_text("kind: vehicle\nversion: 1\nname: x\nmass_kg: -1\n")
-    for args in (["--vehicle", str(bad)], ["--rate-hz", "300"], ["--wind", "breeze:1"],
-                 ["--start", "z_m=1"], ["--listen", "tcp:1"], ["--preset", "perfect"], ["--loss", "1.5"],
+    for args in (["--vehicle-params", str(bad)], ["--control-rate-hz", "300"], ["--wind", "breeze:1"],
+                 ["--start", "z_m=1"], ["--listen", "tcp:1"], ["--world", "perfect"], ["--loss", "1.5"],
                  ["--loss", "x"], ["--telemetry-delay-ms", "-1"], ["--telemetry-jitter-ms", "20"],
                  ["--command-delay-ms", "2", "--command-jitter-ms", "3"], ["--estimator-scale", "nan"],
                  ["--estimate-latency-ms", "5000"], ["--command-delay-ms", "inf"]):

@@ -86,7 +86,7 @@ def _values(out) -> dict:
 
 
 def test_parameter_list_read_and_set_round_trip():
-    v = Vehicle("--offboard-loss-timeout", "0.3")
+    v = Vehicle("--offboard-loss-timeout-s", "0.3")
     listed = _values(v.send(M.MAVLink_param_request_list_message(1, 1)))
     assert sorted(listed) == sorted(p.name for p in PARAMS)
     assert {i for _, i, _ in listed.values()} == set(range(len(PARAMS)))
@@ -186,7 +186,7 @@ def test_a_ground_station_that_is_not_a_configured_peer_is_not_obeyed():
 def test_over_udp_commands_need_the_peer_flag():
     """The link's peer filter too: MAVSDK's 245 without --peer-system-id is dropped."""
     for flags, expected in (((), None), (("--peer-system-id", "245"), M.MAV_RESULT_ACCEPTED)):
-        with Emulator("--preset", "ideal", "--rate-hz", "100", *flags) as em:
+        with Emulator("--world", "ideal", "--control-rate-hz", "100", *flags) as em:
             c = Client(em.port, system_id=245, component_id=190)
             try:
                 c.heartbeat()

@@ -62,7 +62,7 @@ def _crossing(t, y, level) -> float:
 def measured_step(*flags, axis=0, step=1.0, thrust=T_HOVER) -> dict:
     """A step of ``step`` rad/s on ``axis`` flown in the realistic world (estimator errors on, the
     uplink without delay so that the receipt is the send), from hover; times after the receipt."""
-    v = Vehicle("--start", "z_m=-30", "--preset", "realistic", "--command-delay-ms", "0",
+    v = Vehicle("--start", "z_m=-30", "--world", "realistic", "--command-delay-ms", "0",
                 "--command-jitter-ms", "0", "--loss", "0", *flags)
     _, before = fly(v, 0.4, lambda t, s: (0.0, 0.0, 0.0, thrust))
     w0 = float(np.mean(before[-50:, 10 + axis]))        # the loop holds the gyro's bias: from there
@@ -122,11 +122,11 @@ def test_the_gains_are_parameters_that_act():
 
 @pytest.mark.parametrize("preset", ["ideal", "realistic"])
 def test_hover_at_the_hover_thrust_holds_altitude_and_a_linear_model_does_not(preset):
-    v = Vehicle("--start", "z_m=-20", "--preset", preset)
+    v = Vehicle("--start", "z_m=-20", "--world", preset)
     _, s = fly(v, 5.0, lambda t, s: (0.0, 0.0, 0.0, T_HOVER))
     assert abs(s[-1, 2] - s[0, 2]) < 0.1 and v.ap.mode == modes.OFFBOARD and v.ap.rate_mode
     # negative control: the hover collective of a linear thrust map (e = 0) is too low for this one
-    v = Vehicle("--start", "z_m=-100", "--preset", preset)
+    v = Vehicle("--start", "z_m=-100", "--world", preset)
     _, s = fly(v, 5.0, lambda t, s: (0.0, 0.0, 0.0, _hover_thrust(0.0)))
     assert s[-1, 2] - s[0, 2] > 3.0                                 # sinks metres in 5 s
 
@@ -190,9 +190,9 @@ def test_the_printed_true_response_matches_a_flight_and_the_docs(capsys):
 
 def test_the_mismatch_draw_changes_the_rate_response(capsys):
     """Seed 3 draws a 41 ms motor lag (file: 20 ms): the loop, tuned on the file, is slower there."""
-    assert main(["--print-rate-response", "--preset", "ideal", "--mismatch-seed", "3"]) == 0
+    assert main(["--print-rate-response", "--world", "ideal", "--mismatch-seed", "3"]) == 0
     drawn = capsys.readouterr().out
-    assert main(["--print-rate-response", "--preset", "ideal"]) == 0
+    assert main(["--print-rate-response", "--world", "ideal"]) == 0
     nominal = capsys.readouterr().out
     t50 = [float(re.search(r"rate response roll .*?10/50/90 % at [\d.]+/([\d.]+)", o).group(1))
            for o in (drawn, nominal)]
@@ -255,7 +255,7 @@ def test_offboard_loss_with_rate_setpoints_fails_safe_and_lands():
 
 
 def test_take_off_from_the_ground_hover_and_land_on_rate_setpoints():
-    v = Vehicle("--preset", "realistic")
+    v = Vehicle("--world", "realistic")
 
     def pilot(t, s, thrust):                  # the test is the offboard controller: level, thrust
         qw, qx, qy = s[3], s[4], s[5]

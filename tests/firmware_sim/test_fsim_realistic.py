@@ -58,7 +58,7 @@ def fly_realistic(rec, seed: str = "7", *extra: str):
     every 50 samples, and reacts only to what it receives, so a run is a function of the seed.
     """
     args = ["--lockstep", "--seed", seed, "--rotor-noise-sd-n", "0.1", "--lockstep-stall-speed", "0",
-            "--lockstep-timeout", "2", "--duration-s", "3", *extra]
+            "--lockstep-timeout-s", "2", "--duration-s", "3", *extra]
     status = {"armed": False, "offboard": False, "n": 0, "timesync": []}
 
     def on_msg(m):
@@ -145,7 +145,7 @@ def test_timesync_measures_downlink_plus_uplink_in_lockstep(tmp_path):
     odd = _timesync_delays(tmp_path, "--telemetry-delay-ms", "7", "--telemetry-jitter-ms", "0",
                            "--command-delay-ms", "2.6", "--command-jitter-ms", "0", "--loss", "0")
     assert set(odd) == {11.0} and abs(11.0 - 9.6) <= 1.0 + 0.5
-    ideal = _timesync_delays(tmp_path, "--preset", "ideal")
+    ideal = _timesync_delays(tmp_path, "--world", "ideal")
     assert set(ideal) == {0.0}
 
 
@@ -154,7 +154,7 @@ def test_ideal_preset_reproduces_the_recording_bit_for_bit(tmp_path):
     vehicle = tmp_path / "v.yaml"
     vehicle.write_text(VEHICLE_YAML)
     rec = tmp_path / "ideal.npz"
-    with Emulator("--preset", "ideal", "--vehicle", str(vehicle), "--lockstep", "--seed", "5",
+    with Emulator("--world", "ideal", "--vehicle-params", str(vehicle), "--lockstep", "--seed", "5",
                   "--rotor-noise-sd-n", "0.1", "--lockstep-stall-speed", "0", "--duration-s", "3",
                   record=rec) as emu:
         c = Client(emu.port)
@@ -178,7 +178,7 @@ def test_ideal_preset_reproduces_the_recording_bit_for_bit(tmp_path):
     assert np.array_equal(d["estimate_quat"], d["quaternion_wxyz"][k])
     # failsafe from an inverted in-flight start: the stabilizer path, no peer answering
     rec = tmp_path / "failsafe.npz"
-    with Emulator("--preset", "ideal", "--vehicle", str(vehicle), "--lockstep", "--lockstep-stall-speed",
+    with Emulator("--world", "ideal", "--vehicle-params", str(vehicle), "--lockstep", "--lockstep-stall-speed",
                   "0", "--seed", "3", "--rotor-noise-sd-n", "0.05", "--start", "z_m=-6,vy_m_s=8,roll_deg=120",
                   "--duration-s", "4", record=rec) as emu:
         c = Client(emu.port)

@@ -13,7 +13,7 @@ def _target(c):
 
 
 def _engine(*extra):
-    args = build_parser().parse_args(["--listen", "udpin:127.0.0.1:0", "--quiet", "--preset", "ideal",
+    args = build_parser().parse_args(["--listen", "udpin:127.0.0.1:0", "--quiet", "--world", "ideal",
                                       "--start", "z_m=-20", "--rotor-time-constant-s", "0", *extra])
     return build_engine(args)[0]
 

@@ -65,7 +65,7 @@ def forged(frame: bytes, ts: int) -> bytes:
 
 
 def engine_for(*extra):
-    args = build_parser().parse_args(["--listen", "udpin:127.0.0.1:0", "--preset", "ideal", "--quiet", *extra])
+    args = build_parser().parse_args(["--listen", "udpin:127.0.0.1:0", "--world", "ideal", "--quiet", *extra])
     engine, _ = build_engine(args)
     return engine
 

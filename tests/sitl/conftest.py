@@ -24,7 +24,7 @@ def fly_lockstep(tmp, emulator_args=(), fly_args=(), during=None, vehicle=VEHICL
     design model (``mk_quadro_ideal.yaml``: ideal actuators on both sides). The paper's
     world and design by default: the emulator's ``ideal`` preset, ``paper_lqr.yaml``."""
     record = tmp / "groundtruth.npz"
-    emu, url = start_emulator(record, "--lockstep", "--preset", world, "--vehicle", str(vehicle),
+    emu, url = start_emulator(record, "--lockstep", "--world", world, "--vehicle-params", str(vehicle),
                               *emulator_args)
     out = tmp / "out"
     try:
@@ -42,4 +42,4 @@ def fly_lockstep(tmp, emulator_args=(), fly_args=(), during=None, vehicle=VEHICL
 @pytest.fixture(scope="session")
 def ideal_flight(tmp_path_factory):
     """The barrel roll from the ground with ideal actuators (rotor time constant 0)."""
-    return fly_lockstep(tmp_path_factory.mktemp("ideal"), ("--lockstep-timeout", "3"), vehicle=VEHICLE_IDEAL)
+    return fly_lockstep(tmp_path_factory.mktemp("ideal"), ("--lockstep-timeout-s", "3"), vehicle=VEHICLE_IDEAL)

@@ -28,7 +28,7 @@ def fly_faulted(tmp: Path, faults: str | None, maneuver: Path = BARREL, duration
     ``stall_speed`` 0: once the daemon stops streaming, the emulator runs on as fast as it
     can (the vehicle's failsafe flies) until ``duration_s``."""
     record = tmp / "groundtruth.npz"
-    args = ["--lockstep", "--lockstep-timeout", "3"]
+    args = ["--lockstep", "--lockstep-timeout-s", "3"]
     if faults:
         args += ["--link-faults", faults]
     if duration_s is not None:

@@ -217,7 +217,7 @@ def test_foreign_system_actuator_traffic_changes_nothing(tmp_path, ideal_flight)
 
     # a long lockstep timeout: on a loaded machine a period timed out in one flight and not in
     # the other made them differ by 6 mm; the comparison needs both exactly deterministic
-    f = fly_lockstep(tmp_path, ("--lockstep-timeout", "3"), (), during, vehicle=VEHICLE_IDEAL)
+    f = fly_lockstep(tmp_path, ("--lockstep-timeout-s", "3"), (), during, vehicle=VEHICLE_IDEAL)
     assert f["extra"] > 100
     assert f["code"] == 0, "\n".join(f["lines"][-30:])
     dist, _ = _same_flight(f, ideal_flight)
@@ -230,7 +230,7 @@ def test_killing_the_daemon_mid_maneuver_lets_the_failsafe_land(tmp_path):
     from mavreg.daemon.endpoint import request
     record = tmp_path / "gt.npz"
     sock = tmp_path / "mavreg.sock"
-    emu, url = start_emulator(record, "--lockstep", "--preset", "ideal", "--lockstep-stall-speed", "0",
+    emu, url = start_emulator(record, "--lockstep", "--world", "ideal", "--lockstep-stall-speed", "0",
                               "--duration-s", "100")
     try:
         fly = mavreg("fly", str(BARREL), "--vehicle", url, "--vehicle-lockstep", "--out", str(tmp_path / "out"),

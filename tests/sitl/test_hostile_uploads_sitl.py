@@ -95,7 +95,7 @@ def test_hostile_uploads_while_flying_are_refused_in_one_line_and_the_flight_lan
         return answers, before, loop_ms()
 
     # a 3 s lockstep timeout: a loaded machine cannot make the vehicle fly a period uncommanded
-    f = fly_lockstep(tmp_path, ("--lockstep-timeout", "3"),
+    f = fly_lockstep(tmp_path, ("--lockstep-timeout-s", "3"),
                      ("--socket", str(sock), "--stale-timeout-s", "300",
                       "--planner-memory-mib", "384", "--planner-cpu-s", "10"), during, vehicle=VEHICLE_IDEAL)
     answers, before, after = f["extra"]

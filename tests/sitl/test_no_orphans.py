@@ -47,8 +47,8 @@ def _kill_and_check(proc, tree: dict[int, int | None]) -> list[str]:
 
 def test_sigkilled_serve_mid_plan_leaves_no_worker(tmp_path):
     sock = tmp_path / "d.sock"
-    emu, url = start_emulator(tmp_path / "gt.npz", "--lockstep", "--lockstep-timeout", "30",
-                              "--preset", "ideal", "--duration-s", "600")
+    emu, url = start_emulator(tmp_path / "gt.npz", "--lockstep", "--lockstep-timeout-s", "30",
+                              "--world", "ideal", "--duration-s", "600")
     serve = mavreg("serve", "--vehicle", url, "--vehicle-lockstep", "--socket", str(sock), "--stale-timeout-s", "30")
     upload: dict = {}
 

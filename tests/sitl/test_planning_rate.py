@@ -46,7 +46,7 @@ def _status(sock) -> dict:
 def test_control_loop_runs_every_period_while_planning(tmp_path):
     sock = tmp_path / "d.sock"
     emu = Proc([sys.executable, "-m", "firmware_sim", "--listen", "udpin:127.0.0.1:0", "--quiet",
-                "--lockstep", "--lockstep-timeout", "30", "--preset", "ideal"])
+                "--lockstep", "--lockstep-timeout-s", "30", "--world", "ideal"])
     serve = None
     polls: list[dict] = []
     second: dict = {}

@@ -123,7 +123,7 @@ def test_a_50_ms_link_is_flown_on_prediction(tmp_path, realistic_plan):
                  and abs(est["force_ned_n"][0]) <= 0.3, marks=pytest.mark.slow),
 ])
 def test_thrust_loss_and_wind_are_estimated_and_compensated(tmp_path, realistic_plan, preset, flag, check):
-    args = [f"--emulator-arg=--preset={preset}"] + ([f"--emulator-arg={flag}"] if flag else [])
+    args = [f"--emulator-arg=--world={preset}"] + ([f"--emulator-arg={flag}"] if flag else [])
     f = _fly(tmp_path, *args)
     assert f["code"] == 0 and f["summary"]["result"] == "ok", "\n".join(f["lines"][-20:])
     truth, _, _ = _maneuver(f, realistic_plan)

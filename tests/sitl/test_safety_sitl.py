@@ -1,4 +1,4 @@
-"""Fault injection end to end: firmware_sim --lockstep --preset ideal and ``mavreg fly`` as
+"""Fault injection end to end: firmware_sim --lockstep --world ideal and ``mavreg fly`` as
 processes; each fault must be caught by a bound of the envelope and answered by its action,
 judged by the emulator's ground-truth recording, the daemon's .tlog and summary.json.
 
@@ -41,9 +41,9 @@ def tough_vehicle(tmp: Path) -> Path:
 
 def fly_fault(tmp: Path, duration_s: float, *emulator_args: str) -> dict:
     record = tmp / "groundtruth.npz"
-    emu, url = start_emulator(record, "--lockstep", "--preset", "ideal", "--lockstep-timeout", "3",
+    emu, url = start_emulator(record, "--lockstep", "--world", "ideal", "--lockstep-timeout-s", "3",
                               "--lockstep-stall-speed", "0", "--duration-s", f"{duration_s:g}",
-                              "--vehicle", str(tough_vehicle(tmp)), *emulator_args)
+                              "--vehicle-params", str(tough_vehicle(tmp)), *emulator_args)
     out = tmp / "out"
     try:
         fly = mavreg("fly", str(NEAR), "--vehicle", url, "--vehicle-lockstep", "--controller", str(CONTROLLER), "--out", str(out),

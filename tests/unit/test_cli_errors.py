@@ -33,9 +33,9 @@ def _one_error_line(capsys, prog: str) -> str:
 
 
 @pytest.mark.parametrize("argv, words", [
-    (["simulate", BARREL, "--rate-hz", "0"], "--rate-hz: expected a number > 0"),          # was ZeroDivisionError
-    (["simulate", BARREL, "--rate-hz", "300"], "1000 Hz divided by a whole number"),        # was a ValueError deep down
-    (["simulate", BARREL, "--noise-n", "nan"], "--noise-n: expected a finite number"),
+    (["simulate", BARREL, "--control-rate-hz", "0"], "--control-rate-hz: expected a number > 0"),          # was ZeroDivisionError
+    (["simulate", BARREL, "--control-rate-hz", "300"], "1000 Hz divided by a whole number"),        # was a ValueError deep down
+    (["simulate", BARREL, "--rotor-noise-sd-n", "nan"], "--rotor-noise-sd-n: expected a finite number"),
     (["simulate", BARREL, "--plot", "/no/such/dir/x.png"], "no such directory /no/such/dir"),  # was after 9 s
     (["simulate", BARREL, "--plot", "{tmp}"], "expected a file name ending in .png"),
     (["simulate", BARREL, "--seed", "-1"], "--seed: must be at least 0"),
@@ -146,7 +146,7 @@ def test_as_a_process_bad_input_exits_2_and_a_bug_exits_70():
     r = _mavreg(f"""
         import sys
         from mavreg.cli.main import main
-        sys.exit(main(["simulate", {BARREL!r}, "--rate-hz", "0"]))
+        sys.exit(main(["simulate", {BARREL!r}, "--control-rate-hz", "0"]))
     """)
     assert r.returncode == EXIT_USAGE and len(r.stderr.strip().splitlines()) == 1, r.stderr
     r = _mavreg(f"""

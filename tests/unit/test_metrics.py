@@ -31,7 +31,7 @@ def test_overall_and_per_segment_values():
     assert m["transverse_error_m"]["rms"] == pytest.approx(np.sqrt((20 * 0.25 + 21 * 1e-4) / 41))
     run, loop = m["segments"]["run_up"], m["segments"]["loop"]
     assert (run["samples"], loop["samples"]) == (20, 21)
-    assert (run["s_start"], run["s_end"], loop["s_start"], loop["s_end"]) == (0, 10, 10, 20)
+    assert (run["s_start_m"], run["s_end_m"], loop["s_start_m"], loop["s_end_m"]) == (0, 10, 10, 20)
     assert run["transverse_error_m"] == pytest.approx({"max": 0.5, "rms": 0.5})
     assert loop["transverse_error_m"] == pytest.approx({"max": 0.01, "rms": 0.01})
     assert run["attitude_error_deg"] == {"max": 0.0, "rms": 0.0}
@@ -75,7 +75,7 @@ def test_laps_merge_and_empty_and_outside_segments():
     m = tracking_metrics(s, w, segs)
     assert m["transverse_error_m"]["max"] == 7.0               # outside samples count overall
     loop = m["segments"]["loop"]
-    assert loop["samples"] == 4 and (loop["s_start"], loop["s_end"]) == (0.0, 4.0)
+    assert loop["samples"] == 4 and (loop["s_start_m"], loop["s_end_m"]) == (0.0, 4.0)
     assert loop["transverse_error_m"]["max"] == 4.0
     assert m["segments"]["exit"]["samples"] == 0
     assert m["segments"]["exit"]["transverse_error_m"] is None

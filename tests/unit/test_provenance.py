@@ -19,11 +19,11 @@ def test_files_are_hashed_and_an_unreadable_one_is_null(tmp_path):
     f = tmp_path / "m.yaml"
     f.write_bytes(b"kind: maneuver\n")
     p = provenance(["mavreg", "fly", str(f)], {"maneuver": f, "vehicle": tmp_path / "gone.yaml", "world": None},
-                   world="firmware_sim --preset ideal")
+                   world="firmware_sim --world ideal")
     assert p["argv"] == ["mavreg", "fly", str(f)]
     assert p["files"]["maneuver"] == {"path": str(f), "sha256": hashlib.sha256(b"kind: maneuver\n").hexdigest()}
     assert p["files"]["vehicle"]["sha256"] is None and p["files"]["world"] is None
-    assert p["world"] == "firmware_sim --preset ideal"
+    assert p["world"] == "firmware_sim --world ideal"
     assert p["python_version"] == platform.python_version() and p["numpy_version"] == numpy.__version__
     assert file_sha256(tmp_path) is None                  # a directory: not a file, no crash
 
