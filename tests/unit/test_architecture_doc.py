@@ -63,6 +63,9 @@ def test_the_check_sees_a_module_left_out_and_a_module_made_up():
 
 @pytest.mark.parametrize("pattern", ["shared/design", "shared/paper", "../shared"])
 def test_nothing_points_outside_the_repository(pattern):
-    found = subprocess.run(["git", "grep", "-n", "-F", pattern, "--", ".", ":!tests/unit/test_architecture_doc.py"],
+    # The one exception: the ArduCopter SITL test harness looks for the simulator next to the
+    # repository by default (an environment variable overrides it; tests skip without it).
+    found = subprocess.run(["git", "grep", "-n", "-F", pattern, "--", ".", ":!tests/unit/test_architecture_doc.py",
+                            ":!tests/helpers/ardupilot_sitl.py"],
                            cwd=REPO, capture_output=True, text=True).stdout
     assert found == "", found
