@@ -64,6 +64,8 @@ CAPABILITIES = (M.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT | M.MAV_PROTOCOL_CAPABILIT
 """What is true of the emulator: float parameters (all REAL32, so both encodings agree),
 COMMAND_INT, MAVLink 2, SET_ATTITUDE_TARGET (body rates and thrust, from the offboard peer).
 No missions, no FTP."""
+OFFBOARD_LOSS_HOLD = 5.0
+"""PX4's COM_OBL_RC_ACT value for what the emulator does when offboard set-points stop: Hold."""
 FIRMWARE_VERSION = (0 << 24) | (1 << 16) | (0 << 8) | 255     # 0.1.0, official release type
 
 
@@ -125,6 +127,8 @@ PARAMS = (
     Param("THR_MDL_FAC", "thrust model e: F = 4 f_max ((1 - e) t + e t^2)", 0.0, 1.0, "rates.thr_mdl_fac"),
     Param("MPC_THR_HOVER", "hover collective of the vehicle file under THR_MDL_FAC (read only)", 0.0, 1.0,
           "hover_thrust", read_only=True),
+    Param("COM_OBL_RC_ACT", "offboard-loss action: 5 = Hold (then LAND: the failsafe; read only)", 0.0, 7.0,
+          "offboard_loss_action", read_only=True),
 )
 """The parameters, in index order (all MAV_PARAM_TYPE_REAL32)."""
 
@@ -292,6 +296,8 @@ class Px4Services:
         a = p.attribute
         if a == "takeoff_height_m":
             return self.takeoff_height_m
+        if a == "offboard_loss_action":
+            return OFFBOARD_LOSS_HOLD
         if a == "hover_thrust":
             return thrust_for_force(4.0 * ap.hover_thrust_n, ap.rates.cfg.thr_mdl_fac, ap.cfg.max_rotor_thrust_n)
         if a.startswith("rates."):

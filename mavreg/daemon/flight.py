@@ -288,7 +288,7 @@ class FlightPhases:
         covered = None
         if self.forecaster.predict:
             cap = self.forecaster.predictor.max_horizon_s
-            covered = min(self.link_delay_s(), cap) - self.vehicle.estimate_latency_s
+            covered = min(self.link_delay_s(), cap) - self.vehicle_latency_s()
         return MarginCheck(*margin, covered, self.forecaster.period_s)
 
     def _start_exit_hold(self, sample, out) -> None:

@@ -375,15 +375,19 @@ class Supervisor(FlightPhases, SafetyActions):
 
     def link_delay_s(self) -> float:
         """Sample-to-actuation delay the prediction uses: the configured one, else the TIMESYNC
-        median (0 before the first reply), plus the vehicle file's ``estimate_latency_s``, plus,
-        with ``output: rates``, the autopilot rate loop's ``rate_delay_s``."""
+        median (0 before the first reply), plus :meth:`vehicle_latency_s`."""
         if self.fixed_delay_s is not None:
             d = self.fixed_delay_s
         else:
             est = self.timesync.estimate()
             d = 0.0 if est is None else est.delay_s
+        return d + self.vehicle_latency_s()
+
+    def vehicle_latency_s(self) -> float:
+        """The delays TIMESYNC cannot see, from the vehicle file: its estimate's age
+        (``estimate_latency_s``) and, with ``output: rates``, the autopilot rate loop's delay."""
         rates = self.vehicle.rate_interface if self.output.kind == "rates" else None
-        return d + self.vehicle.estimate_latency_s + (0.0 if rates is None else rates.rate_delay_s)
+        return self.vehicle.estimate_latency_s + (0.0 if rates is None else rates.rate_delay_s)
 
     def _controller_state(self, sample: StateSample) -> np.ndarray:
         """The state every controller acts on: the sample predicted to the instant the answer
