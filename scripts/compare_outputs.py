@@ -29,7 +29,7 @@ OUTPUTS = ("rotors", "rates")
 
 
 def fly(maneuver: str, output: str, extra: tuple[str, ...], out: Path) -> dict:
-    cmd = [sys.executable, "-m", "mavreg", "fly", maneuver, "--lockstep", "--output", output,
+    cmd = [sys.executable, "-m", "mavreg.cli.main", "fly", maneuver, "--lockstep", "--output", output,
            "--out", str(out), *(f"--emulator-arg={a}" for a in extra)]
     subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=900)
     try:

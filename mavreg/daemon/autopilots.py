@@ -16,13 +16,14 @@ import math
 import struct
 from dataclasses import dataclass
 
-from .messages import decode_heartbeat, mavlink2, mode_name, set_offboard
+from .messages import PX4_MAIN_AUTO, PX4_SUB_LAND, decode_heartbeat, mavlink2, mode_name, set_offboard
 
 __all__ = ["ParamRule", "ParamVerdict", "ParamChecker", "HeartbeatInfo", "Dialect", "PX4", "ARDUCOPTER",
            "dialect_for", "unsupported_reason", "ARDUCOPTER_MODES", "ARDUCOPTER_GUIDED"]
 
 M = mavlink2
 ARDUCOPTER_GUIDED = 4
+ARDUCOPTER_LAND = 9
 ARDUCOPTER_MODES = {0: "STABILIZE", 1: "ACRO", 2: "ALT_HOLD", 3: "AUTO", 4: "GUIDED", 5: "LOITER", 6: "RTL",
                     7: "CIRCLE", 9: "LAND", 11: "DRIFT", 13: "SPORT", 14: "FLIP", 15: "AUTOTUNE",
                     16: "POSHOLD", 17: "BRAKE", 18: "THROW", 19: "AVOID_ADSB", 20: "GUIDED_NOGPS",
@@ -153,6 +154,22 @@ class Dialect:
         return M.MAVLink_command_long_message(
             target_system, target_component, M.MAV_CMD_DO_SET_MODE, 0,
             float(M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED), float(ARDUCOPTER_GUIDED), 0, 0, 0, 0, 0)
+
+    def set_land_mode(self, target_system: int, target_component: int):
+        """COMMAND_LONG DO_SET_MODE to the autopilot's own landing mode (PX4 AUTO.LAND; ArduCopter
+        LAND), whose land detector disarms the vehicle on the ground."""
+        if self.autopilot == M.MAV_AUTOPILOT_PX4:
+            return M.MAVLink_command_long_message(
+                target_system, target_component, M.MAV_CMD_DO_SET_MODE, 0,
+                float(M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED), float(PX4_MAIN_AUTO), float(PX4_SUB_LAND), 0, 0, 0, 0)
+        return M.MAVLink_command_long_message(
+            target_system, target_component, M.MAV_CMD_DO_SET_MODE, 0,
+            float(M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED), float(ARDUCOPTER_LAND), 0, 0, 0, 0, 0)
+
+    @property
+    def land_mode(self) -> str:
+        """Name of the landing mode :meth:`set_land_mode` asks for."""
+        return "AUTO.LAND" if self.autopilot == M.MAV_AUTOPILOT_PX4 else ARDUCOPTER_MODES[ARDUCOPTER_LAND]
 
     def telemetry_requests(self, target_system: int, target_component: int, rate_hz: float,
                            status_rate_hz: float = 5.0) -> list:

@@ -320,6 +320,17 @@ class FlightPhases:
         if blend <= 0.0:
             st = self.vehicle_status
             if st is not None and st.armed:
-                self._command(out, mm.arm_disarm(
-                    self.params.vehicle_system_id, self.params.vehicle_component_id, False))
+                idle_s = t - self._spool_down_t0 - self.params.spool_s
+                self._command(out, self._ground_disarm(idle_s, st))
         return rotors * blend
+
+    def _ground_disarm(self, idle_s: float, st):
+        """Touched down, motors idle for ``idle_s``: ask for a disarm; after
+        ``land_mode_after_s`` (an autopilot whose land detector has not seen the landing
+        refuses it: ArduCopter in GUIDED), ask for the autopilot's own landing mode instead,
+        which disarms on the ground by itself."""
+        if idle_s < self.params.land_mode_after_s or st.mode == self.autopilot.dialect.land_mode:
+            return mm.arm_disarm(self.params.vehicle_system_id, self.params.vehicle_component_id, False)
+        self._land_mode_requested = True
+        return self.autopilot.dialect.set_land_mode(self.params.vehicle_system_id,
+                                                    self.params.vehicle_component_id)

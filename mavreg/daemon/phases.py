@@ -75,6 +75,10 @@ class SupervisorParams:
     land_speed_m_s: float = 0.3
     land_slow_altitude_m: float = 0.4
     touchdown_altitude_m: float = 0.03
+    land_mode_after_s: float = 1.0
+    """Vehicle time after the spool-down that disarm requests are tried; then the autopilot's
+    own landing mode is asked for (its land detector disarms; ArduCopter refuses a disarm in
+    GUIDED until it has detected the landing itself)."""
     land_when_done: bool = True
     """Land after the last queued maneuver (``fly``); ``serve`` keeps holding."""
     gap_fill: bool = True

@@ -2,9 +2,10 @@
 (sans-I/O; a part of the :class:`~mavreg.daemon.supervisor.Supervisor`).
 
 The first vehicle HEARTBEAT chooses the :class:`~mavreg.daemon.autopilots.Dialect` (PX4 or
-ArduCopter); every later one is decoded by it. Before the first arm request,
-:meth:`AutopilotSetup.ready` sends the dialect's SET_MESSAGE_INTERVAL requests (the
-telemetry mavreg flies on, at the control rate) and reads the parameters the dialect checks
+ArduCopter); every later one is decoded by it. With each HEARTBEAT until the first complete
+state sample, the dialect's SET_MESSAGE_INTERVAL requests go out (the telemetry mavreg flies
+on, at the control rate: ArduCopter sends none of it by default). Before the first arm
+request, :meth:`AutopilotSetup.ready` reads the parameters the dialect checks
 (PARAM_REQUEST_READ by name, repeated every ``retry_s`` for those not yet answered). It
 passes when every parameter has been read and holds; it refuses, with the dialect's one line
 naming the parameter and the value to set, when one does not hold, when the autopilot is
@@ -49,14 +50,19 @@ class AutopilotSetup:
         self._t0 = math.nan
         self._sent_t = -math.inf
 
-    def heartbeat(self, msg) -> HeartbeatInfo | None:
+    def heartbeat(self, msg, messages: list, streaming: bool) -> HeartbeatInfo | None:
         """Decode a vehicle HEARTBEAT (the first one chooses the dialect); None when its
-        autopilot is not supported."""
+        autopilot is not supported. Until the telemetry is ``streaming`` (complete samples
+        arrive), its requests are appended to ``messages``."""
         if self.dialect is None and self.unsupported is None:
             self.dialect = dialect_for(msg)
             if self.dialect is None:
                 self.unsupported = unsupported_reason(msg)
-        return None if self.dialect is None else self.dialect.decode(msg)
+        if self.dialect is None:
+            return None
+        if not streaming:
+            messages.extend(self.dialect.telemetry_requests(*self.target, self.telemetry_rate_hz))
+        return self.dialect.decode(msg)
 
     def param_value(self, msg) -> None:
         """Take a PARAM_VALUE (ignored unless a check is under way)."""
@@ -77,7 +83,6 @@ class AutopilotSetup:
         if self.checker is None:
             self.checker = self.dialect.param_checker()
             self._t0 = t_s
-            messages.extend(self.dialect.telemetry_requests(*self.target, self.telemetry_rate_hz))
         verdict = self.checker.verdict()
         if verdict.state == "ok":
             return GateVerdict(True)

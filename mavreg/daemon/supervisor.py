@@ -120,6 +120,7 @@ class Supervisor(FlightPhases, SafetyActions):
         self._phase_t0 = 0.0
         self._ground_z = 0.0
         self._spool_down_t0: float | None = None
+        self._land_mode_requested = False
         self._descent: collections.deque = collections.deque()
         self._touchdown_speed: float | None = None
         self._land_requested = False
@@ -205,7 +206,7 @@ class Supervisor(FlightPhases, SafetyActions):
             return out
         mtype = msg.get_type()
         if mtype == "HEARTBEAT":
-            st = self.autopilot.heartbeat(msg)
+            st = self.autopilot.heartbeat(msg, out.messages, self.last_sample is not None)
             if st is not None:
                 self._on_heartbeat(st, out)
             else:
@@ -303,6 +304,8 @@ class Supervisor(FlightPhases, SafetyActions):
             self._set_phase(out, Phase.DISARMED, "touched down and disarmed")
         elif self.phase == Phase.PREFLIGHT and self._land_requested and not st.armed:
             self._set_phase(out, Phase.DISARMED, "disarmed on the ground")
+        elif self.phase == Phase.LAND and self._land_mode_requested and st.mode == self.autopilot.dialect.land_mode:
+            pass                           # on the ground, the autopilot's landing mode disarms
         elif self.phase in AIRBORNE and (not st.armed or not st.offboard):
             self._hand_over(out, "vehicle_mode", math.nan, math.nan, "",
                             f"vehicle left OFFBOARD control (armed={st.armed}, mode {st.mode}); "

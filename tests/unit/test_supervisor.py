@@ -42,7 +42,8 @@ def test_preflight_streams_idle_then_arms_then_offboard():
     _, _, sent = run(sup, veh, 2.5)
     kinds = [(t, m.get_type(), getattr(m, "command", None)) for t, m in sent]
     first_cmd = next(k for k in kinds if k[1] == "COMMAND_LONG" and k[2] != 511)
-    assert kinds[0][1] == "SET_ACTUATOR_CONTROL_TARGET"
+    assert kinds[0][2] == 511                               # the telemetry asked for at the first HEARTBEAT
+    assert next(k for k in kinds if k[2] != 511)[1] == "SET_ACTUATOR_CONTROL_TARGET"
     assert first_cmd[2] == 400
     # before arming: the telemetry asked for (SET_MESSAGE_INTERVAL) and the parameters read
     before = [k for k in kinds if k[0] < first_cmd[0]]
@@ -90,7 +91,7 @@ def test_without_a_plan_it_streams_idle_but_never_arms():
     sup = make_supervisor(None)
     veh = SimVehicle()
     _, _, sent = run(sup, veh, 2.0)
-    assert not any(m.get_type() == "COMMAND_LONG" for _, m in sent)
+    assert not any(m.get_type() == "COMMAND_LONG" and m.command != 511 for _, m in sent)  # telemetry asks only
     assert sup.phase == Phase.PREFLIGHT and not veh.armed
 
 

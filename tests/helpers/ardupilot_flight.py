@@ -1,0 +1,109 @@
+"""``mavreg fly`` on a stock ArduCopter SITL, judged by the SITL's ground truth.
+
+:func:`fly_on_ardupilot` starts the SITL (:class:`~tests.helpers.ardupilot_sitl.ArduPilotSitl`),
+sets what a pilot sets once on a real vehicle (``GUID_OPTIONS`` 8, ``GUID_TIMEOUT``; mavreg
+itself only checks them), asks for the SITL's true state (``SIM_STATE``) and the EKF origin
+(``GPS_GLOBAL_ORIGIN``), then hands the link to ``mavreg fly --vehicle udpin:...`` (the SITL
+keeps sending to the same port) and waits for it. The daemon's ``flight.tlog`` keeps every
+frame, ``SIM_STATE`` included: :func:`true_errors_from_tlog` turns those into NED positions
+about the EKF origin, stamps each with the vehicle time of the telemetry before it, and
+measures them against the plan over the maneuver's window (summary.json's events).
+"""
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .ardupilot_sitl import M, ArduPilotSitl
+
+__all__ = ["fly_on_ardupilot", "true_errors_from_tlog", "PILOT_PARAMS", "VEHICLE", "CONTROLLER"]
+
+REPO = Path(__file__).resolve().parents[2]
+VEHICLE = REPO / "mavreg" / "params" / "vehicles" / "ardupilot_freestyle.yaml"
+CONTROLLER = REPO / "mavreg" / "params" / "controller" / "freestyle.yaml"
+PILOT_PARAMS = {"GUID_OPTIONS": 8, "GUID_TIMEOUT": 0.5}
+"""What docs/autopilots.md tells a pilot to set before flying mavreg."""
+EARTH_RADIUS_M = 6378137.0
+
+
+def fly_on_ardupilot(maneuver: Path, out: Path, control_rate_hz: float = 200.0, timeout_s: float = 240.0,
+                     extra_args: tuple = (), frame: str = "freestyle") -> dict:
+    """Fly ``maneuver`` with mavreg on a fresh SITL; summary.json plus ``ardupilot_truth``."""
+    out = Path(out)
+    with ArduPilotSitl(frame=frame, params=PILOT_PARAMS) as sitl:
+        sitl.set_rate(M.MAVLINK_MSG_ID_SIM_STATE, 50.0)
+        sitl.command_long(M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN)
+        origin = sitl.wait_for(lambda m: m.get_type() == "GPS_GLOBAL_ORIGIN", 10.0, "GPS_GLOBAL_ORIGIN")
+        port = sitl.port
+        sitl.conn.close()                 # the daemon takes the port; the SITL keeps sending there
+        sitl.conn = None
+        cmd = [sys.executable, "-m", "mavreg.cli.main", "fly", str(maneuver), "--vehicle", f"udpin:127.0.0.1:{port}",
+               "--vehicle-params", str(VEHICLE), "--controller", str(CONTROLLER),
+               "--control-rate-hz", f"{control_rate_hz:g}", "--out", str(out),
+               "--timeout-s", f"{timeout_s:g}", *extra_args]
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s + 60)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "fly.log").write_text(proc.stdout + proc.stderr)
+    summary = json.loads((out / "summary.json").read_text())
+    summary["exit_code"] = proc.returncode
+    summary["ardupilot_truth"] = true_errors_from_tlog(out, maneuver, origin)
+    return summary
+
+
+def _ned(lat_deg, lon_deg, alt_m, origin) -> np.ndarray:
+    lat0, lon0, alt0 = origin.latitude * 1e-7, origin.longitude * 1e-7, origin.altitude * 1e-3
+    north = math.radians(lat_deg - lat0) * EARTH_RADIUS_M
+    east = math.radians(lon_deg - lon0) * EARTH_RADIUS_M * math.cos(math.radians(lat0))
+    return np.array([north, east, -(alt_m - alt0)])
+
+
+def _truth_samples(tlog: Path, origin):
+    """(vehicle time s, NED position, rotation, NED velocity) of every SIM_STATE in the tlog."""
+    from pymavlink import mavutil
+
+    from mavreg.sim.truth import quats_to_matrices
+    log = mavutil.mavlink_connection(str(tlog), dialect="common")
+    t_vehicle, rows = math.nan, []
+    while (m := log.recv_match()) is not None:
+        kind = m.get_type()
+        if kind in ("ATTITUDE_QUATERNION", "LOCAL_POSITION_NED") and m.get_srcComponent() == 1:
+            t_vehicle = m.time_boot_ms / 1000.0
+        elif kind == "SIM_STATE" and math.isfinite(t_vehicle):
+            lat = m.lat_int * 1e-7 if getattr(m, "lat_int", 0) else m.lat
+            lon = m.lon_int * 1e-7 if getattr(m, "lon_int", 0) else m.lon
+            rows.append((t_vehicle, _ned(lat, lon, m.alt, origin), (m.q1, m.q2, m.q3, m.q4), (m.vn, m.ve, m.vd)))
+    if not rows:
+        return None
+    t = np.array([r[0] for r in rows])
+    return t, np.array([r[1] for r in rows]), quats_to_matrices(np.array([r[2] for r in rows])), \
+        np.array([r[3] for r in rows])
+
+
+def true_errors_from_tlog(out: Path, maneuver: Path, origin) -> dict | None:
+    """True errors of the maneuver's window against its plan (None: no maneuver, no truth)."""
+    from mavreg.config.controller import load_controller
+    from mavreg.config.vehicle import load_vehicle
+    from mavreg.maneuver.plan import plan_file
+    from mavreg.sim.truth import true_errors
+    summary = json.loads((Path(out) / "summary.json").read_text())
+    events = summary.get("events") or []
+    begin = [e["time_s"] for e in events if e.get("kind") == "phase" and e.get("phase") == "maneuver"]
+    if not begin:
+        return None
+    after = [e["time_s"] for e in events if e.get("kind") == "phase" and e.get("time_s") is not None
+             and e["time_s"] > begin[0] and e.get("phase") != "maneuver"]
+    truth = _truth_samples(Path(out) / "flight.tlog", origin)
+    if truth is None:
+        return None
+    t, pos, rot, vel = truth
+    end = after[0] if after else t[-1]
+    sel = (t >= begin[0]) & (t <= end)
+    plan = plan_file(maneuver, load_vehicle(VEHICLE), load_controller(CONTROLLER))
+    result = true_errors(plan, pos[sel], rot[sel], vel[sel])
+    result["lowest_altitude_m"] = float(-pos[:, 2].min()) if len(pos) else math.nan
+    return result
