@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Callable
 
 from ..blas import one_blas_thread
-from ..config.controller import ControllerParams
+from ..config.controller import ControllerParams, load_controller
 from ..config.defaults import CONTROL_RATE_HZ, MAX_PREDICTION_S
 from ..config.disturbance import DisturbanceParams
 from ..config.envelope import EnvelopeParams
@@ -313,7 +313,11 @@ class Daemon:
         if install_signals:
             for sig in (signal.SIGINT, signal.SIGTERM):
                 loop.add_signal_handler(sig, self.request_stop)
-        self.pool = PlannerPool(self.config.vehicle_path, self.config.controller_path, self.config.planner)
+        # the parameters this daemon regulates with, not their files: a restarted worker plans
+        # with them even if a file changed since
+        controller = (self.config.controller if self.config.controller is not None
+                      else load_controller(self.config.controller_path))
+        self.pool = PlannerPool(self.vehicle, controller, self.config.planner)
         blas = one_blas_thread()        # at once, for the loop's small products (mavreg/blas.py)
         try:
             await self.pool.warm_up()
