@@ -4,7 +4,7 @@ import math
 import numpy as np
 
 from mavreg.daemon.supervisor import Phase
-from test_supervisor_harness import FakePlan, SimVehicle, VEHICLE, make_supervisor, run
+from tests.helpers.supervisor_harness import FakePlan, SimVehicle, VEHICLE, make_supervisor, run
 
 
 def _phases(events):
@@ -97,3 +97,11 @@ def test_events_format_with_time_and_arc_length():
     lines = [e.line() for e in events]
     assert any("maneuver" in ln and "s=0.000 m" in ln for ln in lines)
     assert all(not math.isnan(e.time_s) for e in events if e.kind == "phase")
+
+
+def test_harness_vehicle_sits_still_when_disarmed():
+    """The harness's vehicle (tests/helpers/supervisor_harness.py) does not move unarmed."""
+    veh = SimVehicle()
+    for _ in range(10):
+        veh.physics()
+    assert np.all(veh.x == 0.0)
