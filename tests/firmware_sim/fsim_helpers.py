@@ -9,8 +9,7 @@ import time
 from pathlib import Path
 
 from pymavlink.dialects.v20 import common as mavlink2
-
-REPO = Path(__file__).resolve().parents[2]
+from tests.helpers.repo import ROOT as REPO
 
 
 class Emulator:

@@ -9,7 +9,6 @@ import os
 import re
 import signal
 import sys
-from pathlib import Path
 
 import pytest
 
@@ -19,7 +18,6 @@ from tests.helpers import params
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="RLIMIT_AS, /proc")
 
-REPO = Path(__file__).resolve().parents[2]
 VEHICLE = params.vehicle()
 CONTROLLER = params.controller("paper_lqr")
 BARREL = params.BARREL_ROLL.read_text()
