@@ -58,9 +58,14 @@ import signal
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from ..errors import EXIT_FAILED, exit_status_of, one_line
 from .lifeline import die_with_parent
+
+if TYPE_CHECKING:
+    from ..config.controller import ControllerParams
+    from ..config.vehicle import VehicleParams
 
 __all__ = ["PlanResult", "PlannerPool", "PlannerDied", "PlannerBounds", "plan_in_worker", "lower_priority"]
 
@@ -123,7 +128,7 @@ def _over_memory(source: str, bounds: PlannerBounds) -> PlanResult:
                       retire_worker=True)
 
 
-def plan_in_worker(yaml_text: str, source: str, vehicle, controller,
+def plan_in_worker(yaml_text: str, source: str, vehicle: VehicleParams, controller: ControllerParams,
                    bounds: PlannerBounds = PlannerBounds()) -> PlanResult:
     """Validate and plan one maneuver, with its margins (runs in the worker process).
 
@@ -260,7 +265,8 @@ class PlannerPool:
         What one upload may cost (module docstring).
     """
 
-    def __init__(self, vehicle, controller, bounds: PlannerBounds = PlannerBounds()):
+    def __init__(self, vehicle: VehicleParams, controller: ControllerParams,
+                 bounds: PlannerBounds = PlannerBounds()):
         self.vehicle = vehicle
         self.controller = controller
         self.bounds = bounds
