@@ -16,7 +16,8 @@ The samples are those of two closed-loop flights on the design model with the re
 controller (``realistic.yaml``: prediction, the observer, the lag-aware SO(3) regulator), as
 the daemon runs it at 500 Hz: a hover (take-off ramp to 1.5 m, then hold) and the barrel
 roll, the rotors lagging by 20 ms, the state seen 14 ms late and the command acting 6 ms
-later, a steady 0.6 N side force for the observer to find. Each flight is flown once (its
+later, a steady 0.6 N side force for the observer to find (the flights:
+``tests/helpers/controller_flight.py``, which the tests replay too). Each flight is flown once (its
 samples and commands recorded), then replayed through fresh objects in a timed loop, one
 sample after the other (the replay computes what the flight did). Baseline: the same, same
 run, in a child process on the pure path (``MAVREG_PURE=1``: the predictor's kernel as plain
@@ -34,91 +35,13 @@ import time
 
 import numpy as np
 
-from benchmarks.io_helpers import BARREL, REALISTIC_CONTROLLER, REPO, VEHICLE, figure
-from mavreg.config.controller import load_controller
-from mavreg.config.vehicle import load_vehicle
-from mavreg.control.forecast import Forecaster
-from mavreg.control.hover import HoverController, HoverParams, plan_ramp
-from mavreg.control.regulator import ManeuverRegulator
-from mavreg.maneuver.plan import plan_file
-from mavreg.model.mixer import Mixer
-from mavreg.model.quadrotor import QuadrotorModel
-from mavreg.model.rotation import rpy_to_matrix
-from mavreg.sim.closed_loop import SimOptions, simulate
+from benchmarks.io_helpers import REPO, figure
+from mavreg.control.hover import HoverController, HoverParams
+from tests.helpers.controller_flight import Setup, fly, hover_ramp
 
-__all__ = ["run_controller", "Setup", "fly", "replay"]
+__all__ = ["run_controller", "replay"]
 
-RATE_HZ = 500.0
-MEASUREMENT_DELAY_S = 0.014
-COMMAND_DELAY_S = 0.006
-SIDE_FORCE_N = (0.3, 0.5, 0.0)
 PARTS = ("forecast", "hover", "regulator", "command")
-
-
-class Setup:
-    """The vehicle, the realistic controller file, the barrel roll's plan, and builders of
-    the daemon's objects (fresh for each flight and each replay)."""
-
-    def __init__(self):
-        self.vehicle = load_vehicle(VEHICLE)
-        self.controller = load_controller(REALISTIC_CONTROLLER)
-        self.plan = plan_file(BARREL, self.vehicle, self.controller)
-
-    def forecaster(self) -> Forecaster:
-        c = self.controller
-        f = Forecaster(self.vehicle, 1.0 / RATE_HZ, predict=c.predict_delay, max_horizon_s=c.max_prediction_s,
-                       disturbance=c.disturbance)
-        f.observing = True
-        return f
-
-    def regulator(self) -> ManeuverRegulator:
-        c = self.controller
-        return ManeuverRegulator(self.plan, self.vehicle, control_period_s=1.0 / RATE_HZ,
-                                 max_compensation_turn_rad=c.disturbance.max_compensation_turn_rad,
-                                 allocation=c.allocation, speed_governor=c.speed_governor)
-
-
-def _hover_ramp(x0):
-    p0 = np.asarray(x0[:3], dtype=float)
-    return plan_ramp(p0, np.zeros(3), 0.0, p0 + np.array([0.5, -0.3, -1.5]), np.zeros(3), 0.0, HoverParams())
-
-
-def fly(setup: Setup, phase: str, duration_s: float) -> list:
-    """One closed-loop flight of ``phase`` ("hover" or "maneuver"): the samples
-    ``(t_s, x, R, delay_s)`` the controller was handed, in order."""
-    v = setup.vehicle
-    horizon = MEASUREMENT_DELAY_S + COMMAND_DELAY_S
-    fc = setup.forecaster()
-    samples = []
-    if phase == "hover":
-        x0 = np.zeros(12)
-        ctl, ramp = HoverController(v, HoverParams()), _hover_ramp(x0)
-    else:
-        x0 = setup.plan.entry_state.copy()
-        reg = setup.regulator()
-        reg.reset(x0, s_guess=0.0)
-    fc.reset(np.full(4, v.mass_kg * 9.81 / 4))
-
-    def controller(t, x):
-        t_s = t - MEASUREMENT_DELAY_S
-        R = rpy_to_matrix(*x[3:6])
-        samples.append((t_s, x.copy(), R, horizon))
-        f = fc.update(t_s, x, R, horizon)
-        if phase == "hover":
-            out = ctl.step(f.x, ramp, t_s, fc.disturbance)
-        else:
-            out = reg.step(f.x, f.rotor_forces_n, fc.disturbance)
-        return fc.command(t_s, out.rotor_forces_n)
-
-    opts = SimOptions(initial_state=tuple(x0), dt_s=1e-3, control_period_steps=2,
-                      max_duration_s=duration_s, rotor_time_constant_s=v.rotor_time_constant_s,
-                      measurement_delay_s=MEASUREMENT_DELAY_S, command_delay_s=COMMAND_DELAY_S,
-                      force_fn=lambda t, x: np.asarray(SIDE_FORCE_N), attitude="so3",
-                      done=None if phase == "hover" else (lambda t, x: reg.s >= setup.plan.length_m - 1e-6))
-    res = simulate(QuadrotorModel.from_vehicle(v), Mixer(v.arm_length_m, v.drag_torque_ratio_m), controller, opts)
-    if res.status.value == "diverged":
-        raise RuntimeError(f"the {phase} flight diverged: {res.reason}")
-    return samples
 
 
 def replay(setup: Setup, phase: str, samples: list) -> dict:
@@ -128,7 +51,7 @@ def replay(setup: Setup, phase: str, samples: list) -> dict:
     fc = setup.forecaster()
     fc.reset(np.full(4, setup.vehicle.mass_kg * 9.81 / 4))
     if phase == "hover":
-        ctl, ramp = HoverController(setup.vehicle, HoverParams()), _hover_ramp(samples[0][1])
+        ctl, ramp = HoverController(setup.vehicle, HoverParams()), hover_ramp(samples[0][1])
         ctl.gain(0.0)
         step = lambda f, t: ctl.step(f.x, ramp, t, fc.disturbance)       # noqa: E731
     else:

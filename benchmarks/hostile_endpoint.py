@@ -22,7 +22,9 @@ import threading
 import time
 from pathlib import Path
 
+from mavreg.config.controller import load_controller
 from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER, PARAMS_DIR
+from mavreg.config.vehicle import load_vehicle
 from mavreg.daemon import endpoint
 from mavreg.daemon.endpoint import EndpointServer, request
 from mavreg.daemon.planner_pool import PlannerPool
@@ -124,7 +126,7 @@ def _as_other_user(path):
 
 
 async def main():
-    pool = PlannerPool(DEFAULT_VEHICLE, PAPER_CONTROLLER)
+    pool = PlannerPool(load_vehicle(DEFAULT_VEHICLE), load_controller(PAPER_CONTROLLER))
     await pool.warm_up()
 
     async def handler(req):

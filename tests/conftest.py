@@ -1,11 +1,21 @@
-"""Test-wide setup. pytest puts this directory on ``sys.path`` (rootdir conftest, no
-package), so helpers shared by the unit and the end-to-end tests live here once
-(``proc_helpers.py``)."""
+"""Test-wide setup and the shared fixtures.
+
+pytest puts this directory on ``sys.path`` (rootdir conftest, no package) and
+``pyproject.toml`` puts the repository root there (``pythonpath``), so shared helpers are
+imported as ``tests.helpers.<module>`` (``tests/helpers/``) or, for the older ones, by
+their name (``proc_helpers.py``).
+
+Fixtures (session-scoped, from :mod:`tests.helpers.params`; shared objects, read-only):
+``vehicle`` (the MK-Quadro), ``paper_controller``, ``design_controller``,
+``realistic_controller`` and ``barrel_roll_plan`` (the barrel roll with ``paper_lqr.yaml``).
+"""
 
 import os
 import tempfile
 
 import pytest
+
+from tests.helpers import params
 
 
 @pytest.fixture(autouse=True, scope="session")
@@ -20,3 +30,33 @@ def _plan_cache_of_this_run():
         os.environ.pop("MAVREG_PLAN_CACHE", None)
     else:
         os.environ["MAVREG_PLAN_CACHE"] = before
+
+
+@pytest.fixture(scope="session")
+def vehicle():
+    """The MK-Quadro (``params/vehicles/mk_quadro.yaml``), loaded."""
+    return params.vehicle()
+
+
+@pytest.fixture(scope="session")
+def paper_controller():
+    """``params/controller/paper_lqr.yaml``: the paper's design, loaded."""
+    return params.controller("paper_lqr")
+
+
+@pytest.fixture(scope="session")
+def design_controller():
+    """``params/controller/design.yaml``: the paper's weights on the SO(3) error, loaded."""
+    return params.controller("design")
+
+
+@pytest.fixture(scope="session")
+def realistic_controller():
+    """``params/controller/realistic.yaml``: lag-aware, predicting, observing; loaded."""
+    return params.controller("realistic")
+
+
+@pytest.fixture(scope="session")
+def barrel_roll_plan(_plan_cache_of_this_run):
+    """The barrel roll planned with ``paper_lqr.yaml`` for the MK-Quadro (planned once)."""
+    return params.barrel_roll_plan("paper_lqr")

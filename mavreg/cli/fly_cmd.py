@@ -6,6 +6,7 @@ import time
 from pathlib import Path
 
 from ..errors import UsageError
+from ..config.defaults import CONTROL_RATE_HZ, STALE_TIMEOUT_S
 from .common import (REAL_CONTROLLER, add_entry_offset_argument, add_gcs_arguments,
                      add_laps_argument, add_model_arguments, add_output_argument, add_planner_arguments,
                      add_signing_argument, check_output_dir, gcs_config, input_file, load_maneuver_arg,
@@ -85,7 +86,7 @@ def add_arguments(p):
                    help="also accept uploads on this Unix socket during the flight (default: none)")
     p.add_argument("--timeout-s", type=positive_float, default=300.0, metavar="S",
                    help="give up (exit 1) after this many wall seconds (default: %(default)s)")
-    p.add_argument("--control-rate-hz", type=positive_float, default=500.0, metavar="HZ",
+    p.add_argument("--control-rate-hz", type=positive_float, default=CONTROL_RATE_HZ, metavar="HZ",
                    help="the vehicle's telemetry/control rate; the bundled emulator is started "
                    "at it and the regulator leads its feedforward by half its period "
                    "(default %(default)s)")
@@ -100,7 +101,7 @@ def add_arguments(p):
                    "params/controller/paper_lqr.yaml). See docs/firmware_sim.md and docs/robustness.md")
     p.add_argument("--lockstep", action="store_true",
                    help="bundled emulator only: run it in lockstep (faster than real time)")
-    p.add_argument("--stale-timeout-s", type=positive_float, default=0.5, metavar="S",
+    p.add_argument("--stale-timeout-s", type=positive_float, default=STALE_TIMEOUT_S, metavar="S",
                    help="link lost: stop streaming for good when no complete state arrives for S "
                    "wall seconds; shorter pauses are ridden out in hover (docs/safety.md) "
                    "(default: %(default)s)")

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..config.defaults import CONTROL_RATE_HZ, STALE_TIMEOUT_S
 from .common import (REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, add_output_argument, add_planner_arguments,
                      add_signing_argument, gcs_config, output_file, planner_bounds, positive_float, socket_path,
                      vehicle_url)
@@ -43,10 +44,10 @@ def add_arguments(p):
                    "here (stamped with the vehicle's clock with --vehicle-lockstep, else the wall clock)")
     p.add_argument("--control-log", metavar="FILE.npz", type=output_file, default=None,
                    help="write the controller log (s, w, u, phase) here on exit")
-    p.add_argument("--control-rate-hz", type=positive_float, default=500.0, metavar="HZ",
+    p.add_argument("--control-rate-hz", type=positive_float, default=CONTROL_RATE_HZ, metavar="HZ",
                    help="the vehicle's telemetry/control rate; the regulator leads its "
                    "feedforward by half its period (default %(default)s)")
-    p.add_argument("--stale-timeout-s", type=positive_float, default=0.5, metavar="S",
+    p.add_argument("--stale-timeout-s", type=positive_float, default=STALE_TIMEOUT_S, metavar="S",
                    help="link lost: stop streaming for good when no complete state arrives for S "
                    "seconds; shorter pauses are ridden out in hover, a recovery starts after 0.1 s "
                    "in a maneuver (docs/safety.md) (default: %(default)s)")

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .defaults import MAX_PREDICTION_S
 from .disturbance import DisturbanceParams
 from .envelope import EnvelopeParams
 from .loader import load_file
@@ -62,7 +63,7 @@ class ControllerParams:
     before regulating (:mod:`mavreg.control.predictor`). False: regulate the sample as it is."""
     fixed_delay_s: float | None = field(default=None, metadata={"min": 0.0, "max": 0.5})
     """A configured link delay (downlink + uplink, s) that overrides the measured one."""
-    max_prediction_s: float = field(default=0.1, metadata={"min": 0.0, "max": 0.5})
+    max_prediction_s: float = field(default=MAX_PREDICTION_S, metadata={"min": 0.0, "max": 0.5})
     """Cap on the prediction horizon; past it a gap is not flown on the prediction."""
     disturbance: DisturbanceParams = field(default_factory=DisturbanceParams)
     """The disturbance observer (:mod:`mavreg.config.disturbance`); off by default."""

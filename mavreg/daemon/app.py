@@ -19,7 +19,8 @@ from pathlib import Path
 from typing import Callable
 
 from ..blas import one_blas_thread
-from ..config.controller import ControllerParams
+from ..config.controller import ControllerParams, load_controller
+from ..config.defaults import CONTROL_RATE_HZ, MAX_PREDICTION_S
 from ..config.disturbance import DisturbanceParams
 from ..config.envelope import EnvelopeParams
 from ..config.regulation import AllocationParams, SpeedGovernorParams
@@ -78,7 +79,7 @@ class DaemonConfig:
     controller: ControllerParams | None = None
     """The controller file: its prediction settings (``predict_delay``, ``fixed_delay_s``,
     ``max_prediction_s``). None: no prediction."""
-    control_rate_hz: float = 500.0
+    control_rate_hz: float = CONTROL_RATE_HZ
     """The vehicle's telemetry (control) rate: the prediction's integration step."""
     gcs_urls: tuple[str, ...] = ()
     """Ground stations to forward the flight to (``--gcs``; :mod:`mavreg.daemon.gcs`)."""
@@ -114,7 +115,7 @@ class Daemon:
         ctl = config.controller
         forecaster = Forecaster(vehicle, 1.0 / config.control_rate_hz,
                                 predict=ctl is not None and ctl.predict_delay,
-                                max_horizon_s=0.1 if ctl is None else ctl.max_prediction_s,
+                                max_horizon_s=MAX_PREDICTION_S if ctl is None else ctl.max_prediction_s,
                                 disturbance=None if ctl is None else ctl.disturbance)
         self.supervisor = Supervisor(vehicle, config.supervisor, regulator_factory, envelope=config.envelope,
                                      forecaster=forecaster,
@@ -312,13 +313,17 @@ class Daemon:
         if install_signals:
             for sig in (signal.SIGINT, signal.SIGTERM):
                 loop.add_signal_handler(sig, self.request_stop)
-        self.pool = PlannerPool(self.config.vehicle_path, self.config.controller_path, self.config.planner)
+        # the parameters this daemon regulates with, not their files: a restarted worker plans
+        # with them even if a file changed since
+        controller = (self.config.controller if self.config.controller is not None
+                      else load_controller(self.config.controller_path))
+        self.pool = PlannerPool(self.vehicle, controller, self.config.planner)
         blas = one_blas_thread()        # at once, for the loop's small products (mavreg/blas.py)
         try:
             await self.pool.warm_up()
             ctl = self.config.controller        # compiled now, not in the take-off's first period
             warm_up_sample_kernels(self.vehicle, 1.0 / self.config.control_rate_hz,
-                                   0.1 if ctl is None else ctl.max_prediction_s,
+                                   MAX_PREDICTION_S if ctl is None else ctl.max_prediction_s,
                                    None if ctl is None else ctl.disturbance, self.config.supervisor.hover)
             for text, source in initial or []:
                 verdict, status = await self._offer(text, source)

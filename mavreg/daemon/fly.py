@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..config.controller import load_controller
+from ..config.defaults import CONTROL_RATE_HZ, STALE_TIMEOUT_S
 from ..config.maneuver import maneuver_text_with_laps
 from ..config.vehicle import load_vehicle, with_output
 from ..control.hover import HoverParams
@@ -61,14 +62,14 @@ class FlyOptions:
     timeout_s: float
     lockstep: bool
     emulator_args: tuple[str, ...]
-    control_rate_hz: float = 500.0
+    control_rate_hz: float = CONTROL_RATE_HZ
     """The vehicle's telemetry (control) rate; the bundled emulator is started at it."""
     vehicle_lockstep: bool = False
     """The vehicle (``--vehicle``) is a lockstep simulator: no telemetry gaps to fly through."""
     world: str = "realistic"
     """The bundled emulator's world preset: ``realistic`` (link delay, jitter and loss, an
     EKF-like estimate in telemetry) or ``ideal`` (the true state at once: the paper's world)."""
-    stale_timeout_s: float = 0.5
+    stale_timeout_s: float = STALE_TIMEOUT_S
     """Wall seconds without a complete sample before the link counts as lost."""
     entry_offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     """The run-in ends this far (NED) from the maneuver's entry: the regulator takes over off
@@ -94,7 +95,7 @@ class FlyOptions:
 
 
 def spawn_emulator(vehicle_path: Path, record: Path | None, lockstep: bool, extra: tuple[str, ...] = (),
-                   timeout_s: float = 20.0, rate_hz: float = 500.0,
+                   timeout_s: float = 20.0, rate_hz: float = CONTROL_RATE_HZ,
                    preset: str = "realistic") -> tuple[subprocess.Popen, str]:
     """Start ``firmware_sim`` on a free loopback port; return (process, ``udpout:`` URL for us).
 

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..config.defaults import STALE_TIMEOUT_S
 from ..control.hover import HoverParams
 
 __all__ = ["Phase", "PHASE_CODES", "SupervisorParams", "Event", "LogRecord", "Output", "Counters",
@@ -42,7 +43,7 @@ class SupervisorParams:
 
     vehicle_system_id: int = 1
     vehicle_component_id: int = 1
-    stale_timeout_s: float = 0.5
+    stale_timeout_s: float = STALE_TIMEOUT_S
     """No complete sample for this long (injected clock) while armed: the link is lost, the
     stream stops for good and the vehicle's failsafe takes over (docs/safety.md, gaps)."""
     tick_stall_s: float = 0.05

@@ -4,7 +4,9 @@ Planning (loader, nominal, feasibility, Riccati sweep) is seconds of CPU-bound P
 that holds the GIL, so a thread would stall the control loop; it runs in a
 :class:`concurrent.futures.ProcessPoolExecutor` (one worker, ``spawn`` context, so the
 worker shares no sockets or event loop with the daemon) through ``loop.run_in_executor``.
-The worker loads the vehicle and controller files once and returns the picklable Plan with
+The worker plans with the vehicle and controller parameters the daemon loaded (frozen
+dataclasses, pickled with each upload: a restarted worker cannot read a file edited since the
+daemon started, so planner and regulator use the same parameters) and returns the picklable Plan with
 its delay and gain margins (:func:`~mavreg.maneuver.plan_margins.with_margins`, which the
 health gate holds the link to), or the one-line reason a user error (ConfigError,
 ManeuverError) gave.
@@ -56,14 +58,17 @@ import signal
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
-from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..errors import EXIT_FAILED, exit_status_of, one_line
 from .lifeline import die_with_parent
 
+if TYPE_CHECKING:
+    from ..config.controller import ControllerParams
+    from ..config.vehicle import VehicleParams
+
 __all__ = ["PlanResult", "PlannerPool", "PlannerDied", "PlannerBounds", "plan_in_worker", "lower_priority"]
 
-_CACHE: dict = {}
 _MIB = 1024 * 1024
 
 
@@ -107,15 +112,6 @@ class PlannerDied(RuntimeError):
     """The worker process died while planning; the pool has been restarted."""
 
 
-def _params(vehicle_path: str, controller_path: str):
-    key = (vehicle_path, controller_path)
-    if key not in _CACHE:
-        from ..config.controller import load_controller
-        from ..config.vehicle import load_vehicle
-        _CACHE[key] = (load_vehicle(vehicle_path), load_controller(controller_path))
-    return _CACHE[key]
-
-
 class _OverCpuBudget(BaseException):
     """Raised in the worker by the CPU timer's signal (not an Exception: a library's ``except
     Exception`` does not swallow it)."""
@@ -132,7 +128,7 @@ def _over_memory(source: str, bounds: PlannerBounds) -> PlanResult:
                       retire_worker=True)
 
 
-def plan_in_worker(yaml_text: str, source: str, vehicle_path: str, controller_path: str,
+def plan_in_worker(yaml_text: str, source: str, vehicle: VehicleParams, controller: ControllerParams,
                    bounds: PlannerBounds = PlannerBounds()) -> PlanResult:
     """Validate and plan one maneuver, with its margins (runs in the worker process).
 
@@ -140,12 +136,12 @@ def plan_in_worker(yaml_text: str, source: str, vehicle_path: str, controller_pa
     planner's), the memory and CPU bounds and the result size give a rejection; any other
     exception propagates (a bug: the daemon logs its traceback and answers an error).
     """
-    _warm(vehicle_path, controller_path, bounds.memory_bytes)   # a replaced worker: bounded too
+    _warm(bounds.memory_bytes)   # a replaced worker: bounded too
     old = signal.signal(signal.SIGPROF, _over_cpu_budget)
     signal.setitimer(signal.ITIMER_PROF, bounds.cpu_s)
     try:
         try:
-            return _plan_checked(yaml_text, source, vehicle_path, controller_path, bounds)
+            return _plan_checked(yaml_text, source, vehicle, controller, bounds)
         finally:
             signal.setitimer(signal.ITIMER_PROF, 0)
     except _OverCpuBudget:
@@ -162,11 +158,10 @@ def plan_in_worker(yaml_text: str, source: str, vehicle_path: str, controller_pa
         signal.signal(signal.SIGPROF, old)
 
 
-def _plan_checked(yaml_text, source, vehicle_path, controller_path, bounds) -> PlanResult:
+def _plan_checked(yaml_text, source, vehicle, controller, bounds) -> PlanResult:
     from ..maneuver.plan import plan_text
     from ..control.hover import HoverParams
     from ..maneuver.plan_margins import with_margins
-    vehicle, controller = _params(vehicle_path, controller_path)
     plan = with_margins(plan_text(yaml_text, source, vehicle, controller), HoverParams.from_controller(controller))
     size = len(pickle.dumps(plan, protocol=pickle.HIGHEST_PROTOCOL))
     if size > bounds.result_bytes:
@@ -229,9 +224,8 @@ def _init_worker(parent_pid: int) -> None:
 _LIMITED: list[int | None] = []
 
 
-def _warm(vehicle_path: str, controller_path: str, memory_bytes: int) -> int:
-    """Load the files and the planner, then bound the address space (once per worker)."""
-    _params(vehicle_path, controller_path)
+def _warm(memory_bytes: int) -> int:
+    """Import the planner, then bound the address space (once per worker)."""
     import mavreg.maneuver.plan  # noqa: F401  (import cost paid before the first upload)
     import mavreg.maneuver.plan_margins  # noqa: F401
     if not _LIMITED:
@@ -263,16 +257,18 @@ class PlannerPool:
 
     Parameters
     ----------
-    vehicle_path, controller_path : str or Path
-        Parameter files the worker loads once.
+    vehicle : mavreg.config.vehicle.VehicleParams
+        The vehicle the daemon flies (as loaded; the worker gets a pickled copy with each upload).
+    controller : mavreg.config.controller.ControllerParams
+        The controller file's parameters, as loaded by the daemon.
     bounds : PlannerBounds, optional
         What one upload may cost (module docstring).
     """
 
-    def __init__(self, vehicle_path: str | Path, controller_path: str | Path,
+    def __init__(self, vehicle: VehicleParams, controller: ControllerParams,
                  bounds: PlannerBounds = PlannerBounds()):
-        self.vehicle_path = str(vehicle_path)
-        self.controller_path = str(controller_path)
+        self.vehicle = vehicle
+        self.controller = controller
         self.bounds = bounds
         self._pool = self._new_executor()
         self._turn = asyncio.Lock()
@@ -292,8 +288,7 @@ class PlannerPool:
     async def warm_up(self) -> None:
         """Start the worker and import the planner, so the first upload plans at once."""
         loop = asyncio.get_running_loop()
-        self.worker_pid = await loop.run_in_executor(self._pool, _warm, self.vehicle_path,
-                                                     self.controller_path, self.bounds.memory_bytes)
+        self.worker_pid = await loop.run_in_executor(self._pool, _warm, self.bounds.memory_bytes)
 
     async def plan(self, yaml_text: str, source: str) -> PlanResult:
         """Plan one upload in the worker.
@@ -322,7 +317,7 @@ class PlannerPool:
             except BrokenProcessPool:
                 self._restart()
         loop = asyncio.get_running_loop()
-        args = (plan_in_worker, yaml_text, source, self.vehicle_path, self.controller_path, self.bounds)
+        args = (plan_in_worker, yaml_text, source, self.vehicle, self.controller, self.bounds)
         try:
             try:
                 future = loop.run_in_executor(self._pool, *args)

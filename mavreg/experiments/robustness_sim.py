@@ -36,6 +36,7 @@ import numpy as np
 
 from ..errors import UsageError
 from ..config.controller import load_controller
+from ..config.defaults import CONTROL_RATE_HZ
 from ..config.regulation import told_rotor_limit
 from ..sim.estimate_noise import EstimateNoise
 from ..sim.maneuver_run import fly_on_design_model
@@ -47,7 +48,7 @@ __all__ = ["SIM_CONTROL_RATE_HZ", "REAL_TELEMETRY_DELAY_S", "REAL_COMMAND_DELAY_
            "REAL_ESTIMATE", "MISMATCH_INERTIA_REL", "SIM_UNREPRESENTABLE", "SimWorld", "sim_skip_reason",
            "robustness_via_sim", "sim_world", "fly_robust_sim", "judge_sim", "sim_description"]
 
-SIM_CONTROL_RATE_HZ = 500.0
+SIM_CONTROL_RATE_HZ = CONTROL_RATE_HZ
 """The daemon's control rate (its telemetry rate, ``mavreg fly``'s default)."""
 # firmware_sim's realistic preset (firmware_sim/world.py, _REAL_LINK and _REAL_ESTIMATOR),
 # written here so that mavreg does not depend on the emulator:

@@ -7,6 +7,7 @@ import numpy as np
 
 import dataclasses
 
+from ..config.defaults import MAX_PREDICTION_S
 from ..config.disturbance import DisturbanceParams
 from ..config.regulation import AllocationParams, SpeedGovernorParams
 from ..control.forecast import Forecaster
@@ -44,7 +45,7 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
                         predict: bool = False, assumed_delay_s: float | None = None,
                         start_s_m: float = 0.0, allocation: AllocationParams | None = None,
                         speed_governor: SpeedGovernorParams | None = None, thrust_scale: float = 1.0,
-                        max_prediction_s: float = 0.1, disturbance: DisturbanceParams | None = None,
+                        max_prediction_s: float = MAX_PREDICTION_S, disturbance: DisturbanceParams | None = None,
                         true_metrics: bool = True) -> ManeuverRun:
     """Start at the nominal entry state plus ``offset_m`` and fly to the end of the path
     (with ``start_s_m``: at the nominal state at that arc length plus ``offset_m``).

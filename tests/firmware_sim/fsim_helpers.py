@@ -12,8 +12,8 @@ from pathlib import Path
 from pymavlink.dialects.v20 import common as mavlink2
 
 from firmware_sim.cli import build_engine, build_parser
+from tests.helpers.repo import ROOT as REPO
 
-REPO = Path(__file__).resolve().parents[2]
 GCS = 245      # MAVSDK's system id
 
 

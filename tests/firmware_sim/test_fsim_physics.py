@@ -190,9 +190,10 @@ def test_wind_force_gust_and_velocity_through_drag():
 
 
 def test_firmware_sim_imports_only_mavreg_config():
-    import pathlib
     import re
-    root = pathlib.Path(__file__).resolve().parents[2] / "firmware_sim"
+
+    from tests.helpers.repo import ROOT
+    root = ROOT / "firmware_sim"
     for path in root.glob("*.py"):
         text = path.read_text()
         for mod in re.findall(r"^\s*(?:from|import)\s+(mavreg[\w.]*)", text, re.M):

@@ -11,12 +11,12 @@ from pathlib import Path
 
 import numpy as np
 
-from mavreg.config.paths import PARAMS_DIR
+from mavreg.config.paths import DEFAULT_VEHICLE, REAL_CONTROLLER
 
 from sitl_helpers import BARREL, load_record, mavreg, start_emulator
 
 NEAR = Path(__file__).resolve().parent / "barrel_roll_near.yaml"
-REAL_CONTROLLER = PARAMS_DIR / "controller/realistic.yaml"
+REAL_CONTROLLER = REAL_CONTROLLER
 GROUND_Z_M = 0.05
 
 
@@ -74,7 +74,7 @@ def true_errors(f: dict, maneuver: Path) -> dict:
     from mavreg.daemon.report import ground_truth_errors
     from mavreg.maneuver.plan import plan_file
     if maneuver not in _PLANS:
-        _PLANS[maneuver] = plan_file(maneuver, load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml"),
+        _PLANS[maneuver] = plan_file(maneuver, load_vehicle(DEFAULT_VEHICLE),
                                      load_controller(REAL_CONTROLLER))
     t0, t1 = maneuver_window(f)
     rec = f["record"]

@@ -14,14 +14,14 @@ from pathlib import Path
 
 import numpy as np
 
-from mavreg.config.paths import PARAMS_DIR
+from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER, maneuver_file, vehicle_file
+from tests.helpers.repo import ROOT as REPO
 
-REPO = Path(__file__).resolve().parents[2]
-BARREL = PARAMS_DIR / "maneuvers/barrel_roll.yaml"
-VEHICLE = PARAMS_DIR / "vehicles/mk_quadro.yaml"
-VEHICLE_IDEAL = PARAMS_DIR / "vehicles/mk_quadro_ideal.yaml"
+BARREL = maneuver_file("barrel_roll")
+VEHICLE = DEFAULT_VEHICLE
+VEHICLE_IDEAL = vehicle_file("mk_quadro_ideal")
 """Ideal actuators in the emulator, and a controller that knows it (no lag to lead)."""
-CONTROLLER = PARAMS_DIR / "controller/paper_lqr.yaml"
+CONTROLLER = PAPER_CONTROLLER
 
 
 class Proc:

@@ -13,7 +13,7 @@ import json
 
 import pytest
 
-from mavreg.config.paths import PARAMS_DIR
+from mavreg.config.paths import REAL_CONTROLLER
 
 from sitl_helpers import BARREL, mavreg
 
@@ -66,7 +66,7 @@ def test_the_calibrated_vehicle_flies_the_drag_forward(calibration):
                  "--vehicle-params", str(vehicle), *EMULATOR)
     assert fly.wait(400) == 0, "\n".join(fly.lines[-20:])
     summary = json.loads((out / "summary.json").read_text())
-    plan = plan_file(BARREL, load_vehicle(vehicle), load_controller(PARAMS_DIR / "controller/realistic.yaml"))
+    plan = plan_file(BARREL, load_vehicle(vehicle), load_controller(REAL_CONTROLLER))
     events = [e for e in summary["events"] if e["kind"] == "phase"]
     i = next(k for k, e in enumerate(events) if e["phase"] == "maneuver")
     truth = ground_truth_errors(load_record(out / "groundtruth.npz"), plan, events[i]["time_s"],

@@ -22,9 +22,11 @@ from pathlib import Path
 
 import pytest
 
+from mavreg.config.paths import maneuver_files
+from tests.helpers.repo import ROOT as REPO
+
 pytestmark = pytest.mark.slow
 
-REPO = Path(__file__).resolve().parents[2]
 HOP = Path(__file__).resolve().parent / "signing_hop.yaml"
 _ANYWHERE = shutil.ignore_patterns("__pycache__", "*.egg-info", ".pytest_cache", ".hypothesis")
 _AT_ROOT = {".git", ".venv", "build", "dist", "flights", "experiments"}
@@ -77,7 +79,7 @@ def test_the_installed_package_is_the_wheel_and_carries_the_library(installed):
     venv = py.parent.parent
     assert Path(module).is_relative_to(venv) and Path(vehicle).is_relative_to(venv)
     assert Path(vehicle).is_file()
-    assert sorted(names.split()) == sorted(f.name for f in (REPO / "params" / "maneuvers").glob("*.yaml"))
+    assert sorted(names.split()) == sorted(f.name for f in maneuver_files())
 
 
 def test_plan_every_library_maneuver_outside_the_checkout(installed):

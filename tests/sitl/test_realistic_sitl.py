@@ -15,7 +15,7 @@ import json
 import numpy as np
 import pytest
 
-from mavreg.config.paths import PARAMS_DIR
+from mavreg.config.paths import DEFAULT_VEHICLE, REAL_CONTROLLER
 from mavreg.daemon.ctrllog import load_control_log
 from mavreg.daemon.report import ground_truth_errors
 from mavreg.sim.metrics import rotor_jitter_n
@@ -62,8 +62,8 @@ def realistic_plan():
     from mavreg.config.controller import load_controller
     from mavreg.config.vehicle import load_vehicle
     from mavreg.maneuver.plan import plan_file
-    return plan_file(BARREL, load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml"),
-                     load_controller(PARAMS_DIR / "controller/realistic.yaml"))
+    return plan_file(BARREL, load_vehicle(DEFAULT_VEHICLE),
+                     load_controller(REAL_CONTROLLER))
 
 
 def test_barrel_roll_on_a_realistic_vehicle(tmp_path, realistic_plan):
@@ -139,7 +139,7 @@ def test_without_the_observer_the_drag_throws_the_loop_off(tmp_path, realistic_p
     """The same flight as the first test with the observer off: the drag it no longer knows
     costs the loop several centimetres (the comparison in docs/robustness.md)."""
     ctl = tmp_path / "no_observer.yaml"
-    ctl.write_text((PARAMS_DIR / "controller/realistic.yaml").read_text()
+    ctl.write_text(REAL_CONTROLLER.read_text()
                    .replace("disturbance:\n  enabled: true", "disturbance:\n  enabled: false"))
     f = _fly(tmp_path, "--controller", str(ctl))
     truth, _, _ = _maneuver(f, realistic_plan)

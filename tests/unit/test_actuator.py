@@ -4,6 +4,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from mavreg.config.paths import DEFAULT_VEHICLE, REAL_CONTROLLER, maneuver_file
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
 from mavreg.control.actuator import NZ, augmented_jacobians, augmented_rhs
@@ -13,14 +14,14 @@ from mavreg.config.maneuver import load_maneuver
 from mavreg.geometry.build import build_path
 from mavreg.model.quadrotor import QuadrotorModel
 
-VEHICLE = load_vehicle("params/vehicles/mk_quadro.yaml")
+VEHICLE = load_vehicle(DEFAULT_VEHICLE)
 MODEL = QuadrotorModel.from_vehicle(VEHICLE)
 TAU = 0.02
 
 
 @pytest.fixture(scope="module")
 def roll():
-    spec = load_maneuver("params/maneuvers/barrel_roll.yaml")
+    spec = load_maneuver(maneuver_file("barrel_roll"))
     path = build_path(spec)
     speed, yaw = build_profiles(spec, path)
     s = np.linspace(0.5, path.length_m - 0.5, 400)
@@ -67,10 +68,10 @@ def test_lag_block_is_the_first_order_lag_in_s(roll):
 def test_steady_line_gain_is_the_augmented_care_and_lag_aware_plan_flies():
     """At the end of the barrel roll (a steady line) the swept gain equals the CARE of the
     augmented pair, and the (4, 15) schedule exists along the whole maneuver."""
-    ctl = dataclasses.replace(load_controller("params/controller/realistic.yaml"))
-    plan = plan_file("params/maneuvers/barrel_roll.yaml", VEHICLE, ctl)
+    ctl = dataclasses.replace(load_controller(REAL_CONTROLLER))
+    plan = plan_file(maneuver_file("barrel_roll"), VEHICLE, ctl)
     assert plan.K.shape[1:] == (4, NZ) and plan.rotor_time_constant_s == TAU
-    spec = load_maneuver("params/maneuvers/barrel_roll.yaml")
+    spec = load_maneuver(maneuver_file("barrel_roll"))
     path = build_path(spec)
     speed, yaw = build_profiles(spec, path)
     s = plan.s[-3:]

@@ -7,8 +7,8 @@ import subprocess
 from pathlib import Path
 
 import pytest
+from tests.helpers.repo import ROOT as REPO
 
-REPO = Path(__file__).resolve().parents[2]
 DOC = REPO / "docs" / "architecture.md"
 _NAMES = re.compile(r"^-\s+((?:`[\w./]+`(?:,\s*|\s+and\s+)?)+):", re.M)
 

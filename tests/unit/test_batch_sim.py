@@ -8,12 +8,11 @@ it) and numpy (the pure path).
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from mavreg.config.paths import PARAMS_DIR
+from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER, REAL_CONTROLLER, maneuver_file
 from mavreg.accel import ACCELERATED
 from mavreg.config.controller import load_controller
 from mavreg.config.maneuver import load_maneuver_text
@@ -29,10 +28,9 @@ from mavreg.sim.maneuver_run import fly_on_design_model
 
 PATHS = [pytest.param(True, id="compiled", marks=pytest.mark.skipif(not ACCELERATED, reason="numba not in use")),
          pytest.param(False, id="numpy")]
-REPO = Path(__file__).resolve().parents[2]
-VEHICLE = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
-PAPER = load_controller(PARAMS_DIR / "controller/paper_lqr.yaml")
-BARREL = PARAMS_DIR / "maneuvers/barrel_roll.yaml"
+VEHICLE = load_vehicle(DEFAULT_VEHICLE)
+PAPER = load_controller(PAPER_CONTROLLER)
+BARREL = maneuver_file("barrel_roll")
 
 SHORT = """\
 kind: maneuver
@@ -146,7 +144,7 @@ def test_lag_aware_gains_and_odd_control_rates_are_refused(barrel):
         fly_batch(barrel, [BatchRun()], control_rate_hz=300.0)
     with pytest.raises(ValueError, match="at least one run"):
         fly_batch(barrel, [])
-    lagged = load_controller(PARAMS_DIR / "controller/realistic.yaml")
+    lagged = load_controller(REAL_CONTROLLER)
     with pytest.raises(ValueError, match="paper's design"):
         fly_batch(plan_file(BARREL, VEHICLE, lagged), [BatchRun()])
     if not ACCELERATED:

@@ -1,16 +1,12 @@
 """The I/O benchmarks' plumbing: figure records, the .tlog reader, the codec figures' shape."""
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-from benchmarks.codec import pymavlink_crc_is_fast, run_codec  # noqa: E402
-from benchmarks.io_helpers import figure, read_tlog  # noqa: E402
-from mavreg.daemon.tlog import TlogWriter  # noqa: E402
+from benchmarks.codec import pymavlink_crc_is_fast, run_codec
+from benchmarks.io_helpers import figure, read_tlog
+from mavreg.daemon.tlog import TlogWriter
 
 
 def test_ratio_is_always_times_better_than_the_baseline():

@@ -10,13 +10,10 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-from pathlib import Path
-
 import pytest
 
-REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO))
-from benchmarks.report import fmt, format_table  # noqa: E402
+from benchmarks.report import fmt, format_table
+from tests.helpers.repo import ROOT as REPO
 
 
 @pytest.mark.slow     # 11 s: every benchmark section once; run before releases (README)

@@ -6,6 +6,7 @@ import pytest
 
 threadpoolctl = pytest.importorskip("threadpoolctl")
 
+from mavreg.config.paths import maneuver_file
 from mavreg.blas import one_blas_thread  # noqa: E402
 
 
@@ -23,7 +24,7 @@ def test_one_thread_inside_and_as_before_after():
 
 def test_the_planner_runs_on_one_blas_thread(monkeypatch):
     """Negative control of the wrapping: the thread count seen inside the Riccati stage."""
-    from mavreg.cli.common import DEFAULT_VEHICLE, PAPER_CONTROLLER, PARAMS_DIR
+    from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER
     from mavreg.config.controller import load_controller
     from mavreg.config.maneuver import load_maneuver
     from mavreg.config.vehicle import load_vehicle
@@ -36,6 +37,6 @@ def test_the_planner_runs_on_one_blas_thread(monkeypatch):
         return real(*args, **kwargs)
 
     monkeypatch.setattr(planmod, "_gains_on_grid", spy)
-    planmod.plan_spec(load_maneuver(PARAMS_DIR / "maneuvers" / "slalom.yaml"), load_vehicle(DEFAULT_VEHICLE),
+    planmod.plan_spec(load_maneuver(maneuver_file("slalom")), load_vehicle(DEFAULT_VEHICLE),
                       load_controller(PAPER_CONTROLLER))
     assert seen and all(s <= {1} for s in seen)

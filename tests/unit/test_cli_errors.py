@@ -9,11 +9,11 @@ import textwrap
 
 import pytest
 
-from mavreg.cli.common import PARAMS_DIR
+from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER, maneuver_file
 from mavreg.cli.main import BUG_REPORT, SUBCOMMANDS, main
 from mavreg.errors import EXIT_BUG, EXIT_FAILED, EXIT_USAGE, ConfigError, ManeuverError, UsageError, exit_status_of
 
-BARREL = str(PARAMS_DIR / "maneuvers" / "barrel_roll.yaml")
+BARREL = str(maneuver_file("barrel_roll"))
 
 
 def _run(argv) -> int:
@@ -189,7 +189,7 @@ def test_fly_gives_2_for_a_bad_file_and_1_for_an_infeasible_maneuver():
     from mavreg.daemon.app import Daemon, DaemonConfig, regulator_factory
     from mavreg.daemon.supervisor import SupervisorParams
     from mavreg.errors import UserError
-    vehicle_path, controller_path = PARAMS_DIR / "vehicles/mk_quadro.yaml", PARAMS_DIR / "controller/paper_lqr.yaml"
+    vehicle_path, controller_path = DEFAULT_VEHICLE, PAPER_CONTROLLER
     vehicle = load_vehicle(vehicle_path)
     config = DaemonConfig("udpout:127.0.0.1:9", vehicle_path, controller_path, None, None, SupervisorParams(),
                           controller=load_controller(controller_path))

@@ -10,10 +10,10 @@ import time
 
 import pytest
 
-from mavreg.cli.common import PARAMS_DIR
+from mavreg.config.paths import maneuver_file
 from mavreg.cli.guard import EXIT_BROKEN_PIPE, EXIT_INTERRUPTED
 
-BARREL = str(PARAMS_DIR / "maneuvers" / "barrel_roll.yaml")
+BARREL = str(maneuver_file("barrel_roll"))
 
 
 def _mavreg(*args):

@@ -12,7 +12,7 @@ import sys
 
 import pytest
 
-from mavreg.cli.common import PARAMS_DIR
+from mavreg.config.paths import maneuver_file
 
 HEAVY = ("numba", "scipy", "matplotlib")
 
@@ -58,7 +58,7 @@ def test_a_plan_from_the_cache_imports_no_numba(tmp_path, monkeypatch):
     also the probe's negative control: it sees the heavy imports of a command that plans."""
     from mavreg import accel
     monkeypatch.setenv("MAVREG_PLAN_CACHE", str(tmp_path))
-    argv = ["plan", str(PARAMS_DIR / "maneuvers" / "slalom.yaml"), "--json"]
+    argv = ["plan", str(maneuver_file("slalom")), "--json"]
     first, second = _imported(argv), _imported(argv)
     assert first["code"] == second["code"] == 0
     assert "scipy" in first["heavy"]

@@ -7,13 +7,12 @@ is flown to its end).
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO))
-from benchmarks import controller_bench as cb  # noqa: E402
+from benchmarks import controller_bench as cb
+from tests.helpers import controller_flight as flight
+from tests.helpers.repo import ROOT as REPO
 
 
 def test_every_part_has_a_value_and_a_pure_baseline():
@@ -25,29 +24,12 @@ def test_every_part_has_a_value_and_a_pure_baseline():
 
 
 def test_the_timed_flights_hold_the_hover_point_and_finish_the_maneuver():
-    setup = cb.Setup()
-    hover = cb.fly(setup, "hover", 8.0)
+    setup = flight.Setup()
+    hover = flight.fly(setup, "hover", 8.0)
     p_end = hover[-1][1][:3]
     assert np.linalg.norm(p_end - np.array([0.5, -0.3, -1.5])) < 0.05
-    maneuver = cb.fly(setup, "maneuver", setup.plan.duration_s + 0.5)
-    assert len(maneuver) < (setup.plan.duration_s + 0.5) * cb.RATE_HZ     # stopped at the path's end
-
-
-def forecasts_of_a_recorded_flight() -> np.ndarray:
-    """The forecaster's outputs (x, R, rotor forces, and the observer's estimate after each
-    sample) over the hover flight, each command answered as the flight answered it."""
-    setup = cb.Setup()
-    samples = cb.fly(setup, "hover", 3.0)
-    hover = cb.HoverController(setup.vehicle, cb.HoverParams())
-    ramp = cb._hover_ramp(samples[0][1])
-    fc = setup.forecaster()
-    fc.reset(np.full(4, setup.vehicle.mass_kg * 9.81 / 4))
-    rows = []
-    for t, x, R, delay in samples:
-        f = fc.update(t, x, R, delay)
-        fc.command(t, hover.step(f.x, ramp, t, fc.disturbance).rotor_forces_n)
-        rows.append(np.concatenate([f.x, f.rotation.ravel(), f.rotor_forces_n, fc.observer.theta, fc.observer.P[0]]))
-    return np.array(rows)
+    maneuver = flight.fly(setup, "maneuver", setup.plan.duration_s + 0.5)
+    assert len(maneuver) < (setup.plan.duration_s + 0.5) * flight.RATE_HZ     # stopped at the path's end
 
 
 def test_the_forecaster_compiled_and_pure_agree_over_a_recorded_flight(tmp_path):
@@ -56,8 +38,8 @@ def test_the_forecaster_compiled_and_pure_agree_over_a_recorded_flight(tmp_path)
     observer's state agree to 1e-12 relative after 1500 samples."""
     import os
     import subprocess
-    code = ("import sys, numpy as np; sys.path.insert(0, 'tests/unit'); import test_controller_bench as t; "
-            "np.save(sys.argv[1], t.forecasts_of_a_recorded_flight())")
+    code = ("import sys, numpy as np; from tests.helpers.controller_flight import hover_forecasts; "
+            "np.save(sys.argv[1], hover_forecasts())")
     out = {}
     for pure in ("0", "1"):
         path = tmp_path / f"f{pure}.npy"

@@ -23,9 +23,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO))
-from benchmarks import controller_bench as cb  # noqa: E402
+from mavreg.control.hover import HoverController, HoverParams
+from tests.helpers import controller_flight as flight
+from tests.helpers.repo import ROOT as REPO
 
 OBSERVER_OFF_SAMPLES = 50
 GAPS = ((300, 303), (900, 901), (1200, 1230))
@@ -34,13 +34,13 @@ GAPS = ((300, 303), (900, 901), (1200, 1230))
 
 def _chain(phase: str, samples: np.lib.npyio.NpzFile) -> np.ndarray:
     """Every output of the per-sample chain, one row per replayed sample."""
-    setup = cb.Setup()
+    setup = flight.Setup()
     fc = setup.forecaster()
     fc.observing = False
     fc.reset(np.full(4, setup.vehicle.mass_kg * 9.81 / 4))
     t, x, R, delay = samples["t"], samples["x"], samples["R"], samples["delay"]
     if phase == "hover":
-        ctl, ramp = cb.HoverController(setup.vehicle, cb.HoverParams()), cb._hover_ramp(x[0])
+        ctl, ramp = HoverController(setup.vehicle, HoverParams()), flight.hover_ramp(x[0])
     else:
         reg = setup.regulator()
         reg.reset(x[0], s_guess=float(samples["s0"]))
@@ -76,11 +76,11 @@ def chain_outputs(phase: str, samples_path: str, out_path: str) -> None:
 def flights(tmp_path_factory):
     """The hover (3 s: take-off ramp and hold) and the barrel roll's run-up end and roll
     (4 to 9.5 s), as saved sample files."""
-    setup = cb.Setup()
+    setup = flight.Setup()
     tmp = tmp_path_factory.mktemp("replay")
     out = {}
     for phase, duration_s, t_from in (("hover", 3.0, 0.0), ("maneuver", 9.5, 4.0)):
-        samples = [s for s in cb.fly(setup, phase, duration_s) if s[0] >= t_from - 1e-9]
+        samples = [s for s in flight.fly(setup, phase, duration_s) if s[0] >= t_from - 1e-9]
         # the regulator starts near the node closest to the first replayed sample
         near = np.argmin(np.linalg.norm(setup.plan.x[:, :3] - samples[0][1][:3], axis=1))
         s0 = float(setup.plan.s[near])
@@ -92,8 +92,7 @@ def flights(tmp_path_factory):
 
 
 def _both_paths(phase: str, samples_path: Path, tmp_path: Path) -> tuple[np.ndarray, np.ndarray]:
-    code = ("import sys; sys.path.insert(0, 'tests/unit'); import test_controller_replay as t; "
-            "t.chain_outputs(*sys.argv[1:])")
+    code = "import sys; from tests.unit.test_controller_replay import chain_outputs; chain_outputs(*sys.argv[1:])"
     res = []
     for pure in ("0", "1"):
         out = tmp_path / f"{phase}{pure}.npy"
@@ -116,7 +115,7 @@ def test_hover_chain_compiled_agrees_with_pure(flights, tmp_path):
     assert fast.shape == pure.shape and fast.shape[0] > 1400
     assert _relative(fast, pure).max() < 1e-12
     est = pure[-1, 38:44]                     # the filter's (c_xy, c_z, F_n, F_e, F_d, k)
-    assert np.linalg.norm(est[2:4] - np.array(cb.SIDE_FORCE_N[:2])) < 0.2      # the observer found the force
+    assert np.linalg.norm(est[2:4] - np.array(flight.SIDE_FORCE_N[:2])) < 0.2      # the observer found the force
     assert np.isnan(pure[:, -16:]).any() and np.isfinite(pure[:, -16:]).any()   # past the cap and within
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mavreg.cli.common import DEFAULT_VEHICLE, PAPER_CONTROLLER, PARAMS_DIR
+from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER, maneuver_file
 from mavreg.config.controller import load_controller
 from mavreg.config.maneuver import load_maneuver_text
 from mavreg.config.vehicle import load_vehicle
@@ -47,7 +47,7 @@ def test_a_loop_flown_nose_first_is_refused_for_its_real_cause():
     held, the nose reference crosses the thrust axis and the attitude flips (any attitude
     form); with the nose on the velocity, the paper's roll-pitch-yaw form is singular, and
     the message points at the SO(3) form. Never a Riccati step size."""
-    text = (PARAMS_DIR / "maneuvers" / "barrel_roll.yaml").read_text()
+    text = maneuver_file("barrel_roll").read_text()
     text = text.replace("heading_deg: 270", "heading_deg: 0")
     for yaw, expected in (("", "the attitude flips by 180 deg"),
                           ("\n  mode: velocity", "roll-pitch-yaw attitude is singular")):

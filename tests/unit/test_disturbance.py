@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from mavreg.config.paths import PARAMS_DIR
+from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER, REAL_CONTROLLER
 from mavreg.config.disturbance import DisturbanceParams
 from mavreg.config.loader import ConfigError
 from mavreg.config.controller import load_controller
@@ -17,11 +17,8 @@ from mavreg.control.forecast import Forecaster
 from mavreg.control.predictor import StatePredictor
 from mavreg.model.rotation import rpy_to_matrix
 
-from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[2]
-
-VEHICLE = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
+VEHICLE = load_vehicle(DEFAULT_VEHICLE)
 M = VEHICLE.mass_kg
 
 
@@ -173,11 +170,11 @@ def test_estimate_is_bounded():
 
 
 def test_disturbance_section_of_the_controller_file(tmp_path):
-    ctl = load_controller(PARAMS_DIR / "controller/realistic.yaml")
+    ctl = load_controller(REAL_CONTROLLER)
     assert ctl.disturbance.enabled
-    assert not load_controller(PARAMS_DIR / "controller/paper_lqr.yaml").disturbance.enabled
+    assert not load_controller(PAPER_CONTROLLER).disturbance.enabled
     bad = tmp_path / "c.yaml"
-    text = (PARAMS_DIR / "controller/realistic.yaml").read_text()
+    text = REAL_CONTROLLER.read_text()
     bad.write_text(text.replace("  enabled: true", "  enabled: true\n  force_sd: 1.0"))
     with pytest.raises(ConfigError, match="force_sd"):
         load_controller(bad)

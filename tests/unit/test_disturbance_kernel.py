@@ -8,12 +8,11 @@ to both filters side by side (the rounding of the two must not grow).
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from mavreg.config.paths import PARAMS_DIR
+from mavreg.config.paths import DEFAULT_VEHICLE
 from mavreg.accel import ACCELERATED
 from mavreg.config.disturbance import DisturbanceParams
 from mavreg.config.vehicle import load_vehicle
@@ -21,8 +20,7 @@ from mavreg.control import observer_kernel as ok
 from mavreg.control.disturbance import DisturbanceObserver
 from mavreg.model.rotation import rpy_to_matrix
 
-REPO = Path(__file__).resolve().parents[2]
-VEHICLE = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
+VEHICLE = load_vehicle(DEFAULT_VEHICLE)
 PARAMS = DisturbanceParams(enabled=True, vertical_force_sd_n=0.5)
 
 

@@ -2,12 +2,11 @@
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path as FilePath
 
 import numpy as np
 import pytest
 
-from mavreg.config.paths import PARAMS_DIR
+from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER, maneuver_file
 from mavreg.config.controller import load_controller
 from mavreg.config.maneuver import load_maneuver
 from mavreg.config.vehicle import load_vehicle
@@ -16,16 +15,15 @@ from mavreg.maneuver.flatness import nominal_from_flat
 from mavreg.maneuver.plan import plan_file
 from mavreg.model.quadrotor import QuadrotorModel
 
-ROOT = FilePath(__file__).resolve().parents[2]
-BASE = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
+BASE = load_vehicle(DEFAULT_VEHICLE)
 DRAG = dataclasses.replace(BASE, rotor_drag_n_s_per_m=(0.34, 0.12), parasitic_drag_n_s2_per_m2=0.01)
 
 
 @pytest.fixture(scope="module")
 def flat():
-    spec = load_maneuver(PARAMS_DIR / "maneuvers/barrel_roll.yaml")
-    plan = plan_file(PARAMS_DIR / "maneuvers/barrel_roll.yaml", BASE,
-                     load_controller(PARAMS_DIR / "controller/paper_lqr.yaml"), strict=False)
+    spec = load_maneuver(maneuver_file("barrel_roll"))
+    plan = plan_file(maneuver_file("barrel_roll"), BASE,
+                     load_controller(PAPER_CONTROLLER), strict=False)
     speed, yaw = plan_mod.build_profiles(spec, plan.path)
 
     def at(model, s):

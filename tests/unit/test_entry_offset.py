@@ -6,7 +6,7 @@ import numpy as np
 from mavreg.control.hover import HoverParams
 from mavreg.daemon import flightpath as fp
 from mavreg.daemon.supervisor import Phase
-from test_supervisor_harness import FakePlan, SimVehicle, make_supervisor, run
+from tests.helpers.supervisor_harness import FakePlan, SimVehicle, make_supervisor, run
 
 
 def test_entry_moves_by_the_offset_and_keeps_its_velocity():

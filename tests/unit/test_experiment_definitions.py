@@ -10,7 +10,7 @@ from mavreg.experiments.definitions import (BARREL_ROLL, CONTROLLERS, CONVERGENC
                                             MIN_INERTIA_KG_M2, PAPER_INERTIA_SD_KG_M2, REGULATOR, ROTOR_LIMITS_N,
                                             SATURATION, build_experiment, draw_inertia, gust, lag, nominal_clock,
                                             paper_group1, paper_group2, run_seed)
-from mavreg.cli.common import DEFAULT_VEHICLE
+from mavreg.config.paths import DEFAULT_VEHICLE
 
 J0 = np.array(load_vehicle(DEFAULT_VEHICLE).inertia_kg_m2)
 

@@ -8,12 +8,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from pathlib import Path as FilePath
 
 import numpy as np
 import pytest
 
-from mavreg.config.paths import PARAMS_DIR
+from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER, controller_file, maneuver_file
 from mavreg.config.controller import load_controller
 from mavreg.config.maneuver import load_maneuver_text
 from mavreg.config.vehicle import load_vehicle
@@ -34,9 +33,8 @@ from mavreg.model.rotation_kernel import log_vee
 from mavreg.model.so3 import exp_so3, log_so3
 from mavreg.sim.batch import BatchRun, fly_batch
 
-ROOT = FilePath(__file__).resolve().parents[2]
-VEHICLE = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
-BARREL = PARAMS_DIR / "maneuvers/barrel_roll.yaml"
+VEHICLE = load_vehicle(DEFAULT_VEHICLE)
+BARREL = maneuver_file("barrel_roll")
 ESTIMATE = DisturbanceEstimate((0.35, 0.12), (0.6, -0.4, 0.3), 0.97)
 compiled_only = pytest.mark.skipif(not fastpath.available(), reason="numba missing or MAVREG_PURE set")
 
@@ -71,7 +69,7 @@ def _projection_points(path, rng):
 def test_projection_kernel_gives_the_projectors_answers(which):
     spec = load_maneuver_text(CIRCLE, "circle.yaml") if which == "circle" else None
     path = build_path(spec) if spec is not None else plan_file(
-        BARREL, VEHICLE, load_controller(PARAMS_DIR / "controller/paper_lqr.yaml")).path
+        BARREL, VEHICLE, load_controller(PAPER_CONTROLLER)).path
     s_nodes, coef, ends = path_tables(path)
     proj = Projector(path)
     pts = _projection_points(path, np.random.default_rng(1))
@@ -167,7 +165,7 @@ def flight():
     and the last; then the first again, held back by a gust (:func:`_held_back`)."""
     plans = {}
     for name in ("paper_lqr", "realistic"):
-        controller = load_controller(PARAMS_DIR / f"controller/{name}.yaml")
+        controller = load_controller(controller_file(name))
         for form in ("rpy", "so3"):
             plans[name, form] = (plan_file(BARREL, VEHICLE, dataclasses.replace(controller, attitude_error=form)),
                                  controller)

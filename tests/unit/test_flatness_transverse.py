@@ -1,31 +1,23 @@
 """Flatness nominal and transverse dynamics on the planned barrel roll."""
 from __future__ import annotations
 
-from pathlib import Path as FilePath
-
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from mavreg.config.paths import PARAMS_DIR
-from mavreg.config.controller import load_controller
-from mavreg.config.vehicle import G, load_vehicle
+from mavreg.config.paths import maneuver_file
+from mavreg.config.vehicle import G
 from mavreg.control.transverse import transverse_jacobians, transverse_rhs
 from mavreg.config.maneuver import load_maneuver
 from mavreg.maneuver.flatness import nominal_from_flat
 from mavreg.maneuver import plan as plan_mod
-from mavreg.maneuver.plan import plan_file
 from mavreg.model.quadrotor import QuadrotorModel
 from mavreg.model.rotation import wrap_angle
 
-ROOT = FilePath(__file__).resolve().parents[2]
-
 
 @pytest.fixture(scope="module")
-def plan():
-    v = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
-    c = load_controller(PARAMS_DIR / "controller/paper_lqr.yaml")
-    return plan_file(PARAMS_DIR / "maneuvers/barrel_roll.yaml", v, c)
+def plan(barrel_roll_plan):
+    return barrel_roll_plan
 
 
 @pytest.fixture(scope="module")
@@ -41,7 +33,7 @@ def _away_from_blend_ends(plan, s, margin=0.05):
 @pytest.fixture(scope="module")
 def exact(plan, model):
     """x-bar(s), u-bar(s) straight from the flatness map at any s (not the table)."""
-    spec = load_maneuver(PARAMS_DIR / "maneuvers/barrel_roll.yaml")
+    spec = load_maneuver(maneuver_file("barrel_roll"))
     speed, yaw = plan_mod.build_profiles(spec, plan.path)
 
     def at(s):

@@ -96,7 +96,7 @@ def test_extreme_state_in_flight_never_raises_nor_commands_non_finite():
     ground at 176 m/s read as an impact (forced disarm in the air); the monitor now judges a
     sample that contradicts the one before as a position jump (a recovery) first."""
     from mavreg.daemon.phases import AIRBORNE
-    from test_supervisor_harness import FakePlan, SimVehicle, make_supervisor, run, wire
+    from tests.helpers.supervisor_harness import FakePlan, SimVehicle, make_supervisor, run, wire
 
     veh = SimVehicle()
     sup = make_supervisor(FakePlan(length_m=3.0))

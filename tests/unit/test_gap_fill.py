@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from mavreg.control.forecast import Forecaster
 from mavreg.daemon.supervisor import Phase, Supervisor, SupervisorParams
-from test_supervisor_harness import VEHICLE, FakePlan, FakeRegulator, SimVehicle, wire
+from tests.helpers.supervisor_harness import VEHICLE, FakePlan, FakeRegulator, SimVehicle, wire
 
 RATE = 250
 

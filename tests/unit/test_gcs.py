@@ -1,11 +1,10 @@
 """The ground-station forwarder (sans-I/O): what reaches a ground station, what reaches the vehicle."""
 from __future__ import annotations
 
-
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavreg.config.paths import PARAMS_DIR
+from mavreg.config.paths import maneuver_file
 from mavreg.daemon import messages as mm
 from mavreg.daemon.gcs import GcsHub, GcsParams, parse_gcs_url
 from mavreg.daemon.gcs_policy import DROP, FORWARD, LAND, REFUSE, judge
@@ -242,7 +241,7 @@ def test_fly_and_serve_take_gcs_options():
     from mavreg.cli.common import gcs_config
     from mavreg.cli.main import build_parser
     parser, _ = build_parser()
-    maneuver = str(PARAMS_DIR / "maneuvers" / "barrel_roll.yaml")
+    maneuver = str(maneuver_file("barrel_roll"))
     for argv in (["serve"], ["fly", maneuver]):
         args = parser.parse_args(argv + ["--gcs", "udpout:127.0.0.1", "--gcs", "udpin:0.0.0.0:14551",
                                          "--gcs-allow-commands"])

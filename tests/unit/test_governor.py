@@ -3,12 +3,11 @@ closed-loop outcomes on the design model (the issue 9 gust and saturation target
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from mavreg.config.paths import PARAMS_DIR
+from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_GOVERNED_CONTROLLER, maneuver_file
 from mavreg.config.controller import load_controller
 from mavreg.config.regulation import AllocationParams, SpeedGovernorParams
 from mavreg.config.vehicle import load_vehicle
@@ -18,9 +17,8 @@ from mavreg.maneuver.plan import plan_file
 from mavreg.model.rotation import rpy_to_matrix
 from mavreg.sim.maneuver_run import fly_on_design_model
 
-ROOT = Path(__file__).resolve().parents[2]
-VEHICLE = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
-PAPER = load_controller(PARAMS_DIR / "controller/paper_governed.yaml")
+VEHICLE = load_vehicle(DEFAULT_VEHICLE)
+PAPER = load_controller(PAPER_GOVERNED_CONTROLLER)
 PARAMS = SpeedGovernorParams(enabled=True)
 S = np.linspace(0.0, 40.0, 801)
 RAMP = np.minimum(0.5 + 0.75 * S, 8.0)            # a profile that speeds up, then cruises
@@ -111,7 +109,7 @@ def test_retiming_force_is_the_change_of_the_acceleration_times_the_mass():
 
 @pytest.fixture(scope="module")
 def plan():
-    return plan_file(PARAMS_DIR / "maneuvers/barrel_roll.yaml", VEHICLE, PAPER)
+    return plan_file(maneuver_file("barrel_roll"), VEHICLE, PAPER)
 
 
 def test_no_thrust_cap_with_the_airframes_rotors_and_the_loops_bottom_speed_at_7n(plan):
@@ -190,7 +188,7 @@ def test_three_laps_at_7n_plain_clipping_against_the_governor():
     """The paper's group 2 case at 7 N (3 laps): the paper's regulator with per-rotor
     clipping leaves the loop by 85 cm; told the limit, torques first and the governor keep
     it within 40 cm."""
-    plan3 = plan_file(PARAMS_DIR / "maneuvers/barrel_roll.yaml", VEHICLE, PAPER, laps=3)
+    plan3 = plan_file(maneuver_file("barrel_roll"), VEHICLE, PAPER, laps=3)
     clip = fly_on_design_model(plan3, rotor_noise_sd_n=0.1, saturation_n=7.0, seed=1)
     assert clip.metrics["true"]["segments"]["loop"]["max_m"] > 0.6
     gov = fly_on_design_model(plan3, rotor_noise_sd_n=0.1, saturation_n=7.0, seed=1,

@@ -1,23 +1,13 @@
 """Maneuver regulation's point: a vehicle pushed back resumes where it is, without racing."""
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
-from mavreg.config.paths import PARAMS_DIR
-from mavreg.config.controller import load_controller
-from mavreg.config.vehicle import load_vehicle
-from mavreg.maneuver.plan import plan_file
 from mavreg.sim.maneuver_run import fly_on_design_model
 
-ROOT = Path(__file__).resolve().parents[2]
 
-
-def test_pushed_back_on_the_run_up_it_resumes_without_catching_up():
-    vehicle = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
-    plan = plan_file(PARAMS_DIR / "maneuvers/barrel_roll.yaml", vehicle,
-                     load_controller(PARAMS_DIR / "controller/paper_lqr.yaml"))
+def test_pushed_back_on_the_run_up_it_resumes_without_catching_up(barrel_roll_plan):
+    plan = barrel_roll_plan
     # The run-up flies west: a 2 N force towards east for 1 s pushes the vehicle back.
     run = fly_on_design_model(plan, gust_force_n=(0.0, 2.0, 0.0), gust_window_s=(3.0, 4.0))
     assert run.metrics["completed"]

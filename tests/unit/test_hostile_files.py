@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from mavreg.cli.common import PARAMS_DIR
+from mavreg.config.paths import DESIGN_CONTROLLER, maneuver_file
 from mavreg.cli.main import main
 
 HOSTILE = Path(__file__).resolve().parents[1] / "data" / "hostile"
@@ -26,8 +26,8 @@ _spec = importlib.util.spec_from_file_location("hostile_generate", HOSTILE / "ge
 GEN = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(GEN)
 CORPUS = sorted(HOSTILE.glob("*.yaml"))
-BARREL = PARAMS_DIR / "maneuvers" / "barrel_roll.yaml"
-DESIGN = PARAMS_DIR / "controller" / "design.yaml"
+BARREL = maneuver_file("barrel_roll")
+DESIGN = DESIGN_CONTROLLER
 MAX_STDERR_CHARS = 600
 MAX_RSS_MB = 300
 

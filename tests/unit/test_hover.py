@@ -3,12 +3,12 @@
 import numpy as np
 import pytest
 
-from mavreg.config.paths import PARAMS_DIR
+from mavreg.config.paths import DEFAULT_VEHICLE
 from mavreg.config.vehicle import load_vehicle
 from mavreg.control.hover import HoverController, HoverParams, hold_ramp, plan_ramp
 from mavreg.model.quadrotor import QuadrotorModel
 
-VEHICLE = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
+VEHICLE = load_vehicle(DEFAULT_VEHICLE)
 
 
 def _simulate(ctrl, ramp, x0, duration_s, dt_s=0.002):

@@ -7,20 +7,17 @@ constant velocity. Found in the realistic world: a 25 m take-off at 2.2 m/s rang
 until the rate bound fired."""
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-from mavreg.config.paths import PARAMS_DIR
+from mavreg.config.paths import DEFAULT_VEHICLE
 from mavreg.config.vehicle import load_vehicle
 from mavreg.control.hover import HoverController, HoverParams, plan_ramp
 from mavreg.model.mixer import Mixer
 from mavreg.model.quadrotor import QuadrotorModel
 from mavreg.model.rotation import rpy_to_matrix
 
-REPO = Path(__file__).resolve().parents[2]
-VEHICLE = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
+VEHICLE = load_vehicle(DEFAULT_VEHICLE)
 
 
 def test_moving_exactly_with_the_reference_is_no_velocity_error_whatever_the_attitude():

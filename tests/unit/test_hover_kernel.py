@@ -9,19 +9,18 @@ four lifted) is taken alike.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from mavreg.config.paths import PARAMS_DIR
 from mavreg.accel import ACCELERATED
-from mavreg.config.vehicle import load_vehicle
 from mavreg.control.disturbance import DisturbanceEstimate
 from mavreg.control.hover import HoverController, HoverParams, hold_ramp, plan_ramp
 
-REPO = Path(__file__).resolve().parents[2]
-VEHICLE = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
+from tests.helpers import controller_flight as flight
+from tests.helpers import params
+
+VEHICLE = params.vehicle()
 
 
 def _pair():
@@ -77,12 +76,9 @@ def test_the_rotors_low_end_branch_is_taken_alike():
 
 
 def test_a_closed_loop_hover_agrees_state_by_state():
-    import sys
-    sys.path.insert(0, str(REPO))
-    from benchmarks import controller_bench as cb
-    setup = cb.Setup()
-    samples = cb.fly(setup, "hover", 3.0)
-    ramp = cb._hover_ramp(samples[0][1])
+    setup = flight.Setup()
+    samples = flight.fly(setup, "hover", 3.0)
+    ramp = flight.hover_ramp(samples[0][1])
     ref, fast = _pair()
     est = DisturbanceEstimate((0.3, 0.1), (0.3, 0.5, 0.0), 1.02)
     for t, x, _, _ in samples[::5]:

@@ -8,6 +8,7 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
 from identify_synth import synthetic_flight, write_tlog
+from mavreg.config.paths import DEFAULT_VEHICLE
 from mavreg.cli.main import main
 from mavreg.config.vehicle import load_vehicle
 from mavreg.daemon.messages import actuator_target, timesync_request
@@ -118,7 +119,7 @@ def test_identify_json_and_write_vehicle(flight_tlog, tmp_path, capsys):
     assert v.rotor_drag_n_s_per_m[0] == pytest.approx(d["drag_xy_n_s_per_m"]["value"], abs=1e-4)
     assert v.rotor_drag_n_s_per_m[1] == pytest.approx(d["drag_n_s_per_m"]["z"]["value"], abs=1e-4)
     assert v.parasitic_drag_n_s2_per_m2 == 0.0
-    assert v.emulator == load_vehicle("params/vehicles/mk_quadro.yaml").emulator   # left alone
+    assert v.emulator == load_vehicle(DEFAULT_VEHICLE).emulator   # left alone
     assert d["written"]["path"] == str(out)
 
 

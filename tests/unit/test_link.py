@@ -26,6 +26,21 @@ def _frames():
     return [hb, bundle, ts + text, b"\x01\x02garbage", bundle[:-7]]
 
 
+async def _until(condition, timeout_s: float = 5.0) -> None:
+    """Let the event loop run until ``condition()`` holds (the link has read what was sent);
+    fail after ``timeout_s``, a bound on a broken link, not a wait that the test relies on."""
+    loop = asyncio.get_running_loop()
+    deadline = loop.time() + timeout_s
+    while not condition():
+        assert loop.time() < deadline, f"not within {timeout_s} s"
+        await asyncio.sleep(0.001)
+
+
+def _frames_in(datagrams: list[bytes]) -> int:
+    """Whole MAVLink frames in ``datagrams``."""
+    return len(mavlink2.MAVLink(None).parse_buffer(b"".join(datagrams)) or [])
+
+
 async def _exchange(impl: str, tmp_path):
     """A vehicle socket sends the datagrams to a udpin link; the link answers with a command
     and a TIMESYNC request through send_many. Returns what the link delivered and sent."""
@@ -42,17 +57,17 @@ async def _exchange(impl: str, tmp_path):
         for d in _frames():
             vehicle.sendto(d, ("127.0.0.1", port))
         await asyncio.wait_for(link.connected.wait(), 2.0)
-        for _ in range(30):
-            await asyncio.sleep(0.01)
+        sent = 1 + len(_frames())                                            # the stranger's, the vehicle's
+        await _until(lambda: link.counters.datagrams_in == sent)
         stranger.sendto(_frames()[1], ("127.0.0.1", port))                   # not the vehicle's address
-        for _ in range(20):
-            await asyncio.sleep(0.01)
+        await _until(lambda: link.counters.datagrams_in == sent + 1)
         cmd = mavlink2.MAVLink_set_actuator_control_target_message(5, 0, 1, 1, [0.3, 0.3, 0.3, 0.3, 0, 0, 0, 0])
         assert link.send_many([cmd, mavlink2.MAVLink_timesync_message(0, 1234)])
-        vehicle.settimeout(2.0)
+        vehicle.settimeout(5.0)
         datagrams = [vehicle.recv(65535)]
-        vehicle.setblocking(False)
-        await asyncio.sleep(0.05)
+        while _frames_in(datagrams) < 2:                                     # the reference sends two
+            datagrams.append(vehicle.recv(65535))
+        vehicle.setblocking(False)                                           # and nothing more is queued
         try:
             while True:
                 datagrams.append(vehicle.recv(65535))

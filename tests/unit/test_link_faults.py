@@ -9,7 +9,7 @@ from mavreg.daemon.messages import PX4_MAIN_AUTO, PX4_MAIN_OFFBOARD, PX4_SUB_LOI
 from mavreg.daemon.state import StateAssembler
 from mavreg.daemon.supervisor import Phase
 from mavreg.tools.faultlink import FaultLine, FaultParams
-from test_supervisor_harness import FakePlan, SimVehicle, make_supervisor, wire
+from tests.helpers.supervisor_harness import FakePlan, SimVehicle, make_supervisor, wire
 
 N = 3000
 

@@ -7,19 +7,18 @@ import math
 import re
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
-from mavreg.config.paths import PARAMS_DIR
+from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER, maneuver_file
 from mavreg.config.controller import load_controller
 from mavreg.config.loader import ConfigError
 from mavreg.config.maneuver import load_maneuver, load_maneuver_text
 from mavreg.config.vehicle import load_vehicle
+from tests.helpers.repo import ROOT
 
-ROOT = Path(__file__).resolve().parents[2]
-VEHICLE = (PARAMS_DIR / "vehicles/mk_quadro.yaml").read_text()
-MANEUVER = (PARAMS_DIR / "maneuvers/barrel_roll.yaml").read_text()
+VEHICLE = DEFAULT_VEHICLE.read_text()
+MANEUVER = maneuver_file("barrel_roll").read_text()
 
 
 def _write(tmp_path, text, name="bad.yaml"):
@@ -144,7 +143,7 @@ def test_unknown_shape_kind():
 
 
 def test_deg_keys_are_converted_to_radians():
-    spec = load_maneuver(PARAMS_DIR / "maneuvers/barrel_roll.yaml")
+    spec = load_maneuver(maneuver_file("barrel_roll"))
     assert spec.start.heading_rad == pytest.approx(math.radians(270))
     loop = spec.segments[1].arc
     assert loop.angle_rad == pytest.approx(math.radians(400))
@@ -155,9 +154,9 @@ def test_deg_keys_are_converted_to_radians():
 
 
 def test_good_files_load():
-    v = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
+    v = load_vehicle(DEFAULT_VEHICLE)
     assert v.mass_kg == 0.749 and v.inertia_kg_m2 == (0.0176, 0.0177, 0.034)
-    c = load_controller(PARAMS_DIR / "controller/paper_lqr.yaml")
+    c = load_controller(PAPER_CONTROLLER)
     assert len(c.q) == 11 and len(c.r) == 4
 
 
@@ -204,7 +203,7 @@ def test_a_number_in_exponent_notation_without_a_dot_is_a_number(tmp_path):
     number it says. Quoted, it stays a string and is refused."""
     from mavreg.config.controller import load_controller
     from mavreg.config.loader import ConfigError
-    from mavreg.cli.common import PAPER_CONTROLLER
+    from mavreg.config.paths import PAPER_CONTROLLER
     text = PAPER_CONTROLLER.read_text().replace("riccati_step_s: 0.002", "riccati_step_s: 2e-3")
     f = tmp_path / "c.yaml"
     f.write_text(text)

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import pytest
 
-from mavreg.cli.common import PARAMS_DIR
+from mavreg.config.paths import maneuver_file
 from mavreg.config import loader
 from mavreg.config.bounded_yaml import MAX_DEPTH, MAX_NODES, Refusal, compose_bounded
 from mavreg.config.loader import EXCERPT_CHARS, ConfigError, load_file
 from mavreg.config.maneuver import ManeuverSpec, load_maneuver_text
 
-BARREL = (PARAMS_DIR / "maneuvers" / "barrel_roll.yaml").read_text()
+BARREL = maneuver_file("barrel_roll").read_text()
 
 
 def _nested(levels: int) -> str:

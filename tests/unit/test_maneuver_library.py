@@ -8,7 +8,7 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from mavreg.cli.common import DEFAULT_VEHICLE, DESIGN_CONTROLLER, PARAMS_DIR
+from mavreg.config.paths import DEFAULT_VEHICLE, DESIGN_CONTROLLER, maneuver_files
 from mavreg.config.controller import load_controller
 from mavreg.config.maneuver import load_maneuver, load_maneuver_text
 from mavreg.config.vehicle import load_vehicle
@@ -17,7 +17,7 @@ from mavreg.maneuver.plan import plan_spec
 
 VEHICLE = load_vehicle(DEFAULT_VEHICLE)
 CONTROLLER = load_controller(DESIGN_CONTROLLER)
-LIBRARY = sorted((PARAMS_DIR / "maneuvers").glob("*.yaml"))
+LIBRARY = maneuver_files()
 NAMES = ("barrel_roll", "forward_loop", "split_s", "immelmann", "figure_eight",
          "climbing_helix", "slalom")
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from mavreg.cli.common import DEFAULT_VEHICLE, REAL_CONTROLLER
+from mavreg.config.paths import DEFAULT_VEHICLE, REAL_CONTROLLER, maneuver_file
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
 from mavreg.control.actuator import lag_augment
@@ -23,7 +23,7 @@ from mavreg.model.quadrotor import QuadrotorModel
 from mavreg.sim.closed_loop import SimOptions, simulate
 from mavreg.sim.maneuver_run import fly_on_design_model
 
-BARREL = "params/maneuvers/barrel_roll.yaml"
+BARREL = maneuver_file("barrel_roll")
 
 
 # ----------------------------------------------------------------------------- closed forms

@@ -6,13 +6,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from mavreg.config.paths import DEFAULT_VEHICLE
 from mavreg.config.vehicle import G, load_vehicle
 from mavreg.model.mixer import Mixer
 from mavreg.model.quadrotor import QuadrotorModel
 from mavreg.model.rotation import (matrix_to_rpy, quat_to_matrix, quat_to_rpy, rpy_to_matrix,
                                    rpy_to_quat, wrap_angle)
 
-VEHICLE = load_vehicle("params/vehicles/mk_quadro.yaml")
+VEHICLE = load_vehicle(DEFAULT_VEHICLE)
 MODEL = QuadrotorModel.from_vehicle(VEHICLE)
 E3 = np.array([0.0, 0.0, 1.0])
 

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from mavreg.cli.common import DEFAULT_VEHICLE, DESIGN_CONTROLLER
+from mavreg.config.paths import DEFAULT_VEHICLE, DESIGN_CONTROLLER
 from mavreg.cli.main import main
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle

@@ -2,30 +2,18 @@
 what the production regulator computes, state by state along a closed-loop barrel roll."""
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 
-from mavreg.config.paths import PARAMS_DIR
-from mavreg.config.controller import load_controller
-from mavreg.config.vehicle import load_vehicle
 from mavreg.control.regulator import ManeuverRegulator
-from mavreg.maneuver.plan import plan_file
 from mavreg.sim.batch import BatchRun, fly_batch
-
-REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO))
-from benchmarks.plain_regulator import PlainRegulator  # noqa: E402
+from tests.helpers.plain_regulator import PlainRegulator
 
 
-def test_plain_step_agrees_with_the_regulator_on_closed_loop_states():
+def test_plain_step_agrees_with_the_regulator_on_closed_loop_states(vehicle, barrel_roll_plan):
     """The first 9 s of a flight from 0.6 m off (the offset taken out, the run-up, the
     loop's first quarter at 8 m/s), each state pushed about 5 cm and 3 deg further off; both steps are
     taken on every state in turn."""
-    vehicle = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
-    plan = plan_file(PARAMS_DIR / "maneuvers/barrel_roll.yaml", vehicle,
-                     load_controller(PARAMS_DIR / "controller/paper_lqr.yaml"))
+    plan = barrel_roll_plan
     run = fly_batch(plan, [BatchRun((0.6, 0.6, 0.6))], extra_time_s=9.0 - plan.duration_s)[0]
     rng = np.random.default_rng(1)
     states = run.x + np.concatenate([rng.normal(0, 0.05, (len(run.x), 3)), rng.normal(0, 0.05, (len(run.x), 3)),

@@ -8,7 +8,7 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from mavreg.cli.common import DEFAULT_VEHICLE, DESIGN_CONTROLLER, PARAMS_DIR
+from mavreg.config.paths import DEFAULT_VEHICLE, DESIGN_CONTROLLER, maneuver_file
 from mavreg.config.controller import load_controller
 from mavreg.config.maneuver import load_maneuver, load_maneuver_text
 from mavreg.config.vehicle import load_vehicle
@@ -19,9 +19,8 @@ from mavreg.maneuver.budget import MAX_PLAN_BYTES, PlanBudgetError, check_budget
 from mavreg.maneuver.cache import PlanCache
 from mavreg.maneuver.feasibility import check_feasibility
 
-MANEUVERS = PARAMS_DIR / "maneuvers"
-BARREL_TEXT = (MANEUVERS / "barrel_roll.yaml").read_text()
-BARREL = load_maneuver(MANEUVERS / "barrel_roll.yaml")
+BARREL_TEXT = maneuver_file("barrel_roll").read_text()
+BARREL = load_maneuver(maneuver_file("barrel_roll"))
 VEHICLE = load_vehicle(DEFAULT_VEHICLE)
 CONTROLLER = load_controller(DESIGN_CONTROLLER)
 
@@ -30,7 +29,7 @@ CONTROLLER = load_controller(DESIGN_CONTROLLER)
 def test_the_estimate_matches_the_grid_the_planner_builds(name):
     """The node counts from the file alone against the path and the time grid built (the
     slalom's waypoint curve is a little longer than its polygon)."""
-    spec = load_maneuver(MANEUVERS / f"{name}.yaml")
+    spec = load_maneuver(maneuver_file(name))
     est = estimate(spec, CONTROLLER.riccati_step_s)
     path = build_path(spec)
     speed, _ = pm.build_profiles(spec, path)
@@ -99,7 +98,7 @@ def test_max_tilt_makes_the_nominal_infeasible_where_it_tilts_further():
 def test_max_tilt_of_the_file_reaches_the_plan():
     """The forward loop pitches through 90 deg: with limits.max_tilt_deg 10 it is infeasible
     (no gains are computed for it), without it feasible."""
-    text = (MANEUVERS / "forward_loop.yaml").read_text().replace("yaw:", "limits: {max_tilt_deg: 10}\nyaw:")
+    text = maneuver_file("forward_loop").read_text().replace("yaw:", "limits: {max_tilt_deg: 10}\nyaw:")
     plan = pm.plan_spec(load_maneuver_text(text), VEHICLE, CONTROLLER, strict=False)
     assert not plan.feasibility.feasible
     assert any(v.startswith("tilt ") and "max_tilt_deg 10.0" in v for v in plan.feasibility.violations)

@@ -12,7 +12,7 @@ import pickle
 import numpy as np
 import pytest
 
-from mavreg.cli.common import DEFAULT_VEHICLE, PAPER_CONTROLLER, PARAMS_DIR
+from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER, maneuver_file
 from mavreg.config.controller import load_controller
 from mavreg.config.maneuver import load_maneuver
 from mavreg.config.vehicle import load_vehicle
@@ -47,7 +47,7 @@ def test_a_packed_table_of_another_shape_is_refused():
 def fresh_and_cached(tmp_path_factory):
     vehicle = load_vehicle(DEFAULT_VEHICLE)
     controller = load_controller(PAPER_CONTROLLER)
-    spec = load_maneuver(PARAMS_DIR / "maneuvers" / "barrel_roll.yaml")
+    spec = load_maneuver(maneuver_file("barrel_roll"))
     cache = PlanCache(tmp_path_factory.mktemp("plans"))
     fresh = plan_cached(spec, vehicle, controller, cache=cache)
     cached = plan_cached(spec, vehicle, controller, cache=cache)
@@ -106,7 +106,7 @@ def test_a_damaged_entry_is_planned_again(fresh_and_cached, tmp_path):
         pickle.dump(damaged, f)
     vehicle = load_vehicle(DEFAULT_VEHICLE)
     controller = load_controller(PAPER_CONTROLLER)
-    spec = load_maneuver(PARAMS_DIR / "maneuvers" / "barrel_roll.yaml")
+    spec = load_maneuver(maneuver_file("barrel_roll"))
     again = plan_cached(spec, vehicle, controller, cache=other)
     assert other.hits == 1                       # the damaged entry was read ...
     assert _same_bits(again.K, fresh.K)          # ... and the plan made again

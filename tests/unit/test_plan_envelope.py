@@ -4,10 +4,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from mavreg.config.paths import PARAMS_DIR
+from mavreg.config.paths import maneuver_file
 from mavreg.cli.main import main
-
-ROOT = Path(__file__).resolve().parents[2]
 
 
 def _plan(path: Path, capsys) -> tuple[int, dict]:
@@ -17,7 +15,7 @@ def _plan(path: Path, capsys) -> tuple[int, dict]:
 
 def test_a_plan_above_the_geofence_ceiling_is_infeasible_with_the_cause(tmp_path, capsys):
     """forward_loop.yaml entered 40 m up climbs to 44 m: above the 30 m ceiling."""
-    text = (PARAMS_DIR / "maneuvers/forward_loop.yaml").read_text()
+    text = maneuver_file("forward_loop").read_text()
     assert "position_m: [0.0, 0.0, -3.0]" in text
     high = tmp_path / "high_loop.yaml"
     high.write_text(text.replace("position_m: [0.0, 0.0, -3.0]", "position_m: [0.0, 0.0, -40.0]"))
@@ -28,5 +26,5 @@ def test_a_plan_above_the_geofence_ceiling_is_infeasible_with_the_cause(tmp_path
 
 
 def test_the_library_barrel_roll_is_inside_the_envelope(capsys):
-    code, d = _plan(PARAMS_DIR / "maneuvers/barrel_roll.yaml", capsys)
+    code, d = _plan(maneuver_file("barrel_roll"), capsys)
     assert code == 0 and d["envelope"]["inside"] and d["envelope"]["takeoff_point_ned_m"] == [0.0, 0.0, 0.0]

@@ -1,19 +1,16 @@
 """A maneuver that ends going round its laps segment gets the periodic Riccati solution."""
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-from mavreg.config.paths import PARAMS_DIR
+from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER
 from mavreg.config.controller import load_controller
 from mavreg.config.maneuver import load_maneuver_text
 from mavreg.config.vehicle import load_vehicle
 from mavreg.errors import ManeuverError
 from mavreg.maneuver.plan import plan_spec
 
-ROOT = Path(__file__).resolve().parents[2]
 RADIUS = 2.0
 CIRCLE = f"""
 kind: maneuver
@@ -36,8 +33,8 @@ laps: {{segment: circle, count: 3}}
 
 @pytest.fixture(scope="module")
 def params():
-    return (load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml"),
-            load_controller(PARAMS_DIR / "controller/paper_lqr.yaml"))
+    return (load_vehicle(DEFAULT_VEHICLE),
+            load_controller(PAPER_CONTROLLER))
 
 
 def _gain_at(plan, s):

@@ -11,15 +11,15 @@ import sys
 import numpy as np
 import pytest
 
-from mavreg.cli.common import DEFAULT_VEHICLE, PAPER_CONTROLLER, PARAMS_DIR
+from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER, REAL_CONTROLLER, maneuver_file
 from mavreg.config.controller import load_controller
 from mavreg.config.maneuver import load_maneuver
 from mavreg.config.vehicle import load_vehicle
 from mavreg.maneuver import plan as pm
 from mavreg.maneuver.cache import PlanCache
 
-BARREL = PARAMS_DIR / "maneuvers" / "barrel_roll.yaml"
-REALISTIC = PARAMS_DIR / "controller" / "realistic.yaml"
+BARREL = maneuver_file("barrel_roll")
+REALISTIC = REAL_CONTROLLER
 VEHICLE = load_vehicle(DEFAULT_VEHICLE)
 SPEC = load_maneuver(BARREL)
 

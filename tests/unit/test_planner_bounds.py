@@ -9,20 +9,18 @@ import os
 import re
 import signal
 import sys
-from pathlib import Path
 
 import pytest
 
-from mavreg.config.paths import PARAMS_DIR
 from mavreg.daemon.planner_pool import PlannerBounds, PlannerPool
 from mavreg.errors import EXIT_FAILED, EXIT_USAGE, MAX_MESSAGE_CHARS
+from tests.helpers import params
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="RLIMIT_AS, /proc")
 
-REPO = Path(__file__).resolve().parents[2]
-VEHICLE = PARAMS_DIR / "vehicles/mk_quadro.yaml"
-CONTROLLER = PARAMS_DIR / "controller/paper_lqr.yaml"
-BARREL = (PARAMS_DIR / "maneuvers/barrel_roll.yaml").read_text()
+VEHICLE = params.vehicle()
+CONTROLLER = params.controller("paper_lqr")
+BARREL = params.BARREL_ROLL.read_text()
 BAD = BARREL.replace("radius_m: 1.5", "radius_m: -1.5")
 
 

@@ -1,24 +1,26 @@
-"""The planner worker: lowest CPU priority, a dead worker reported and replaced, no orphans."""
+"""The planner worker: lowest CPU priority, a dead worker reported and replaced, no orphans;
+it plans with the parameter objects the daemon hands it."""
 import asyncio
+import dataclasses
 import os
 import signal
 import subprocess
 import sys
 import textwrap
-from pathlib import Path
 
 import pytest
 
-from mavreg.config.paths import PARAMS_DIR
+from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER
+from mavreg.config.vehicle import load_vehicle
 from mavreg.daemon.planner_pool import PlannerDied, PlannerPool
 from proc_helpers import start_time, survivors
+from tests.helpers import params
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 
-REPO = Path(__file__).resolve().parents[2]
-VEHICLE = PARAMS_DIR / "vehicles/mk_quadro.yaml"
-CONTROLLER = PARAMS_DIR / "controller/paper_lqr.yaml"
-BARREL = (PARAMS_DIR / "maneuvers/barrel_roll.yaml").read_text()
+VEHICLE = params.vehicle()
+CONTROLLER = params.controller("paper_lqr")
+BARREL = params.BARREL_ROLL.read_text()
 SCHED_IDLE = 5   # <linux/sched.h>
 
 
@@ -93,10 +95,12 @@ def test_shutdown_abandons_a_plan_and_kills_the_worker():
 
 _OWNER = textwrap.dedent("""
     import asyncio, sys, time
+    from mavreg.config.controller import load_controller
+    from mavreg.config.vehicle import load_vehicle
     from mavreg.daemon.planner_pool import PlannerPool
 
     async def main():
-        pool = PlannerPool({vehicle!r}, {controller!r})
+        pool = PlannerPool(load_vehicle({vehicle!r}), load_controller({controller!r}))
         await pool.warm_up()
         print(pool.worker_pid, flush=True)
         await pool.plan(open({barrel!r}).read(), "barrel.yaml")   # killed while planning
@@ -108,8 +112,8 @@ _OWNER = textwrap.dedent("""
 
 def test_worker_dies_with_a_sigkilled_owner(tmp_path):
     script = tmp_path / "owner.py"
-    script.write_text(_OWNER.format(vehicle=str(VEHICLE), controller=str(CONTROLLER),
-                                    barrel=str(PARAMS_DIR / "maneuvers/barrel_roll.yaml")))
+    script.write_text(_OWNER.format(vehicle=str(DEFAULT_VEHICLE), controller=str(PAPER_CONTROLLER),
+                                    barrel=str(params.BARREL_ROLL)))
     owner = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
     try:
         worker = int(owner.stdout.readline())
@@ -125,3 +129,26 @@ def test_worker_dies_with_a_sigkilled_owner(tmp_path):
     for pid in left:
         os.kill(pid, signal.SIGKILL)
     assert left == []
+
+
+def test_the_worker_plans_with_the_parameters_it_is_handed():
+    """The daemon hands the worker the parameters it loaded, not their files: a vehicle that no
+    file describes (rotors of 3 N) gets the barrel roll rejected for its rotor limit, and so
+    does a restarted worker. Negative control: the vehicle file's rotors give more than the
+    9.81 N the loop needs, so a worker that read the file would not reject it for that."""
+    weak = dataclasses.replace(VEHICLE, max_rotor_thrust_n=3.0)
+
+    async def main():
+        pool = PlannerPool(weak, CONTROLLER)
+        try:
+            await pool.warm_up()
+            first = await pool.plan(BARREL, "barrel.yaml")
+            pool._restart()
+            again = await pool.plan(BARREL, "barrel.yaml")
+            return first, again
+        finally:
+            pool.shutdown()
+    first, again = asyncio.run(main())
+    for r in (first, again):
+        assert not r.accepted and "needs 9.81 N > max_rotor_thrust_n 3.00 N" in r.reason, r.reason
+    assert load_vehicle(DEFAULT_VEHICLE).max_rotor_thrust_n > 9.81

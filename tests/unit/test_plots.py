@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mavreg.cli.common import DEFAULT_VEHICLE, DESIGN_CONTROLLER
+from mavreg.config.paths import DEFAULT_VEHICLE, DESIGN_CONTROLLER
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
 from mavreg.daemon.phases import PHASE_CODES

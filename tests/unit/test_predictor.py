@@ -5,14 +5,16 @@ import math
 import numpy as np
 import pytest
 
-from mavreg.config.vehicle import G, load_vehicle
+from mavreg.config.vehicle import G
 from mavreg.control.predictor import StatePredictor
 from mavreg.model.mixer import Mixer
 from mavreg.model.quadrotor import QuadrotorModel
 from mavreg.model.rotation import rpy_to_matrix
 from mavreg.sim.closed_loop import SimOptions, simulate
+from tests.helpers import params
+from tests.helpers.repo import ROOT as REPO
 
-VEHICLE = load_vehicle("params/vehicles/mk_quadro.yaml")
+VEHICLE = params.vehicle()
 PERIOD = 0.002
 
 
@@ -197,12 +199,12 @@ def test_compiled_prediction_agrees_with_plain_python(tmp_path):
     import os
     import subprocess
     import sys
-    code = ("import sys, numpy as np; sys.path.insert(0, 'tests/unit'); import test_predictor as t; "
-            "np.save(sys.argv[1], t.prediction_cases())")
+    code = ("import sys, numpy as np; from tests.unit.test_predictor import prediction_cases; "
+            "np.save(sys.argv[1], prediction_cases())")
     out = {}
     for pure in ("0", "1"):
         path = tmp_path / f"p{pure}.npy"
-        subprocess.run([sys.executable, "-c", code, str(path)], check=True, timeout=300,
+        subprocess.run([sys.executable, "-c", code, str(path)], check=True, timeout=300, cwd=REPO,
                        env=dict(os.environ, MAVREG_PURE=pure))
         out[pure] = np.load(path)
     assert out["0"].shape == (240, 2 + 12 + 9 + 4) and np.all(np.isfinite(out["0"]))

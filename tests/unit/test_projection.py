@@ -1,17 +1,14 @@
 """Nearest-point projection: continuous through laps and self-approaches, extension, tube."""
 from __future__ import annotations
 
-from pathlib import Path as FilePath
-
 import numpy as np
 import pytest
 
-from mavreg.config.paths import PARAMS_DIR
+from mavreg.config.paths import maneuver_file
 from mavreg.config.maneuver import load_maneuver, load_maneuver_text
 from mavreg.geometry.build import build_path
 from mavreg.geometry.projection import Projector
 
-ROOT = FilePath(__file__).resolve().parents[2]
 R = 2.0
 CIRCLE = f"""\
 kind: maneuver
@@ -65,7 +62,7 @@ def test_s_increases_continuously_through_all_laps(circle):
 
 @pytest.fixture(scope="module")
 def barrel_path():
-    return build_path(load_maneuver(PARAMS_DIR / "maneuvers/barrel_roll.yaml"))
+    return build_path(load_maneuver(maneuver_file("barrel_roll")))
 
 
 def test_s_stays_on_its_branch_at_the_barrel_roll_self_approach(barrel_path):

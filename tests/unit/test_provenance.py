@@ -5,14 +5,12 @@ import hashlib
 import platform
 import shutil
 import subprocess
-from pathlib import Path
 
 import numpy
 import pytest
 
 from mavreg.provenance import file_sha256, git_state, provenance
-
-REPO = Path(__file__).resolve().parents[2]
+from tests.helpers.repo import ROOT as REPO
 
 
 def test_files_are_hashed_and_an_unreadable_one_is_null(tmp_path):

@@ -14,14 +14,14 @@ from hypothesis import given, settings, strategies as st
 
 from firmware_sim.physics import RigidBody, inertia_matrix, quat_from_euler
 from firmware_sim.rotors import Rotors, mix
-from mavreg.config.paths import PARAMS_DIR
+from mavreg.config.paths import DEFAULT_VEHICLE
 from mavreg.config.envelope import RecoveryParams
 from mavreg.config.vehicle import load_vehicle
 from mavreg.control.recovery import RecoveryController, allocate, attitude_error, heading_rad, tilt_rad
 from mavreg.model.mixer import Mixer
 from mavreg.model.rotation import quat_to_matrix, rpy_to_matrix
 
-VEHICLE = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
+VEHICLE = load_vehicle(DEFAULT_VEHICLE)
 MIXER = Mixer(VEHICLE.arm_length_m, VEHICLE.drag_torque_ratio_m)
 FMAX = VEHICLE.max_rotor_thrust_n
 

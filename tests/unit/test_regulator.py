@@ -1,13 +1,11 @@
 """The s-scheduled LQR: steady gain on a straight line, and closed-loop barrel rolls."""
 from __future__ import annotations
 
-from pathlib import Path as FilePath
-
 import numpy as np
 import pytest
 from scipy.linalg import solve_continuous_are
 
-from mavreg.config.paths import PARAMS_DIR
+from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER, maneuver_file
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
 from mavreg.control.transverse import transverse_jacobians
@@ -15,9 +13,8 @@ from mavreg.maneuver.plan import plan_file, plan_text
 from mavreg.model.quadrotor import QuadrotorModel
 from mavreg.sim.maneuver_run import fly_on_design_model
 
-ROOT = FilePath(__file__).resolve().parents[2]
-VEHICLE = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
-CONTROLLER = load_controller(PARAMS_DIR / "controller/paper_lqr.yaml")
+VEHICLE = load_vehicle(DEFAULT_VEHICLE)
+CONTROLLER = load_controller(PAPER_CONTROLLER)
 
 LINE = """\
 kind: maneuver
@@ -46,8 +43,8 @@ def test_mid_line_gain_is_the_steady_lqr_gain():
 
 
 @pytest.fixture(scope="module")
-def plan():
-    return plan_file(PARAMS_DIR / "maneuvers/barrel_roll.yaml", VEHICLE, CONTROLLER)
+def plan(barrel_roll_plan):
+    return barrel_roll_plan
 
 
 def _span(plan, name):
@@ -83,7 +80,7 @@ def test_robust_to_ten_percent_inertia_error(plan):
 @pytest.mark.slow
 def test_three_laps_with_rotor_noise_and_saturation():
     """Issue 2: stable over 3 laps with 0.1 N rotor noise, saturation none / 8.5 / 7 N."""
-    plan3 = plan_file(PARAMS_DIR / "maneuvers/barrel_roll.yaml", VEHICLE, CONTROLLER, laps=3)
+    plan3 = plan_file(maneuver_file("barrel_roll"), VEHICLE, CONTROLLER, laps=3)
     assert plan3.laps == 3
     for saturation in (None, 8.5, 7.0):
         m = fly_on_design_model(plan3, rotor_noise_sd_n=0.1, saturation_n=saturation,

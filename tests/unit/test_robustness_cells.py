@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from mavreg.cli.common import PARAMS_DIR, REAL_CONTROLLER
+from mavreg.config.paths import REAL_CONTROLLER, maneuver_files
 from mavreg.cli.main import main
 from mavreg.experiments.definitions import GUST_PLACES, gust, run_seed
 from mavreg.experiments.robustness import (DEFAULT_FLIGHTS, MISMATCH_STREAM, ROBUSTNESS, all_cells, robustness,
@@ -42,7 +42,7 @@ def test_the_matrix_is_the_documented_one():
     assert by["loss-5pct"].emulator_args == ("--loss=0.05",)
     assert by["no-timesync"].emulator_args == ("--no-timesync",)
     assert by["estimator-x2"].emulator_args == ("--estimator-scale=2",)
-    files = sorted(p.stem for p in (PARAMS_DIR / "maneuvers").glob("*.yaml") if p.stem != "barrel_roll")
+    files = sorted(p.stem for p in maneuver_files() if p.stem != "barrel_roll")
     assert groups["maneuvers"] == [f"maneuver-{f}" for f in files] and files
     assert all(c.maneuver_path.name == "barrel_roll.yaml" for c in cells if c.group != "maneuvers")
 

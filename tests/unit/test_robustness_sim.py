@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from mavreg.cli.common import DEFAULT_VEHICLE
+from mavreg.config.paths import DEFAULT_VEHICLE
 from mavreg.cli.main import main
 from mavreg.config.vehicle import load_vehicle
 from mavreg.experiments.campaign import run_campaign

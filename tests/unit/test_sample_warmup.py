@@ -3,7 +3,7 @@
 In a fresh process (numba's dispatchers start empty there), the kernels' compiled
 signatures are read before the warm-up, after it, and after a closed-loop realistic.yaml
 hover and the barrel roll's first second flown through the daemon's objects
-(``benchmarks.controller_bench.fly``): the warm-ups the daemon runs before it opens the link
+(``tests/helpers/controller_flight.py``): the warm-ups the daemon runs before it opens the link
 (the regulator's step, :func:`mavreg.control.fastpath.warm_up`, then the sample kernels)
 must have compiled every kernel the flights call, for every argument type they call it with.
 (The regulator's step compiles the compensation kernels into itself; on a cold numba cache
@@ -14,23 +14,20 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
 from mavreg.accel import ACCELERATED
-
-REPO = Path(__file__).resolve().parents[2]
+from tests.helpers.repo import ROOT as REPO
 
 _CHILD = """
-import json, sys
-sys.path.insert(0, '.')
+import json
 from mavreg.control import (command_history_kernel, compensation_kernel, hover_kernel, observer_kernel,
                             predictor_kernel)
 from mavreg.control.hover import HoverParams
 from mavreg.control import fastpath
 from mavreg.control.sample_warmup import warm_up_sample_kernels
-from benchmarks import controller_bench as cb
+from tests.helpers import controller_flight as flight
 
 MODULES = (predictor_kernel, command_history_kernel, observer_kernel, hover_kernel, compensation_kernel)
 
@@ -38,14 +35,14 @@ def compiled():
     return {f"{m.__name__}.{k}": [str(s) for s in v.signatures] for m in MODULES
             for k, v in vars(m).items() if hasattr(v, "signatures") and v.__module__ == m.__name__}
 
-setup = cb.Setup()
+setup = flight.Setup()
 before = compiled()
 c = setup.controller
 fastpath.warm_up()      # as the daemon: its regulator factory compiles the step before the link
-seconds = warm_up_sample_kernels(setup.vehicle, 1.0 / cb.RATE_HZ, c.max_prediction_s, c.disturbance, HoverParams())
+seconds = warm_up_sample_kernels(setup.vehicle, 1.0 / flight.RATE_HZ, c.max_prediction_s, c.disturbance, HoverParams())
 warm = compiled()
-cb.fly(setup, "hover", 1.0)
-cb.fly(setup, "maneuver", 1.0)
+flight.fly(setup, "hover", 1.0)
+flight.fly(setup, "maneuver", 1.0)
 print(json.dumps({"before": before, "warm": warm, "flown": compiled(), "seconds": seconds}))
 """
 

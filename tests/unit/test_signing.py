@@ -10,7 +10,7 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
 from firmware_sim import signing as fsim_signing
-from mavreg.config.paths import PARAMS_DIR
+from mavreg.config.paths import maneuver_file
 from mavreg.daemon import signing as sg
 from mavreg.daemon.peers import PeerFilter
 from mavreg.daemon.tlog import TlogWriter
@@ -183,7 +183,7 @@ def test_key_file_rules(tmp_path, mod):
 def test_fly_and_serve_refuse_a_readable_key_file_in_one_line(tmp_path, capsys):
     from mavreg.cli.main import main
     key = write_key(tmp_path / "key", KEY.hex(), 0o644)
-    maneuver = PARAMS_DIR / "maneuvers/barrel_roll.yaml"
+    maneuver = maneuver_file("barrel_roll")
     for argv in (["fly", str(maneuver), "--out", str(tmp_path / "out")],
                  ["serve", "--socket", str(tmp_path / "s.sock")]):
         assert main([*argv, "--signing-key", str(key)]) == 2

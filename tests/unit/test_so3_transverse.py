@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mavreg.cli.common import DEFAULT_VEHICLE
+from mavreg.config.paths import DEFAULT_VEHICLE, maneuver_file
 from mavreg.config.maneuver import load_maneuver_text
 from mavreg.config.vehicle import load_vehicle
 from mavreg.control.transverse import transverse_jacobians, transverse_rhs, transverse_rhs_so3
@@ -136,13 +136,13 @@ def test_so3_plant_turns_through_pitch_ninety():
 def test_nominal_attitude_between_rows_matches_the_flat_map():
     """Plan.nominal_attitude between rows (the cubic in the rotation vector) against the flat
     map evaluated at those arc lengths, along a loop flown nose-first: within 1e-8 rad."""
-    from mavreg.cli.common import DESIGN_CONTROLLER, PARAMS_DIR
+    from mavreg.config.paths import DESIGN_CONTROLLER
     from mavreg.config.controller import load_controller
     from mavreg.config.maneuver import load_maneuver
     from mavreg.maneuver.plan import plan_spec
     from mavreg.model.so3 import attitude_error
 
-    spec = load_maneuver(PARAMS_DIR / "maneuvers" / "forward_loop.yaml")
+    spec = load_maneuver(maneuver_file("forward_loop"))
     plan = plan_spec(spec, VEHICLE, load_controller(DESIGN_CONTROLLER))
     s = (plan.s[:-1] + plan.s[1:])[::37] / 2 + 0.13 * np.diff(plan.s)[::37]
     speed, yaw = build_profiles(spec, plan.path)

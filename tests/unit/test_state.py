@@ -6,7 +6,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from mavreg.daemon.state import StateAssembler
 from mavreg.model.rotation import rpy_to_matrix, rpy_to_quat
-from test_supervisor_harness import wire
+from tests.helpers.supervisor_harness import wire
 
 
 def att_q(t, rpy=(0.0, 0.0, 0.0), rates=(0.0, 0.0, 0.0)):

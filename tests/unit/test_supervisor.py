@@ -4,7 +4,7 @@ import math
 import numpy as np
 
 from mavreg.daemon.supervisor import Phase
-from test_supervisor_harness import FakePlan, SimVehicle, VEHICLE, make_supervisor, run
+from tests.helpers.supervisor_harness import FakePlan, SimVehicle, VEHICLE, make_supervisor, run
 
 
 def _phases(events):
@@ -78,7 +78,7 @@ def test_unanswered_parameter_reads_refuse_after_the_timeout():
 
 
 def test_an_autopilot_mavreg_does_not_speak_to_is_refused():
-    from test_supervisor_harness import mavlink2 as m2, wire
+    from tests.helpers.supervisor_harness import mavlink2 as m2, wire
     sup = make_supervisor(FakePlan())
     veh = SimVehicle()
     veh.heartbeat = lambda: wire(m2.MAVLink_heartbeat_message(2, m2.MAV_AUTOPILOT_GENERIC, 0, 0, 4, 3))
@@ -133,3 +133,11 @@ def test_events_format_with_time_and_arc_length():
     lines = [e.line() for e in events]
     assert any("maneuver" in ln and "s=0.000 m" in ln for ln in lines)
     assert all(not math.isnan(e.time_s) for e in events if e.kind == "phase")
+
+
+def test_harness_vehicle_sits_still_when_disarmed():
+    """The harness's vehicle (tests/helpers/supervisor_harness.py) does not move unarmed."""
+    veh = SimVehicle()
+    for _ in range(10):
+        veh.physics()
+    assert np.all(veh.x == 0.0)

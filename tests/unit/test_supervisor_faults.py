@@ -3,7 +3,7 @@ import numpy as np
 
 from mavreg.daemon.supervisor import Phase
 from test_state import att_q, pos
-from test_supervisor_harness import FakePlan, FakeRegulator, SimVehicle, make_supervisor, run, wire
+from tests.helpers.supervisor_harness import FakePlan, FakeRegulator, SimVehicle, make_supervisor, run, wire
 from pymavlink.dialects.v20 import common as mavlink2
 
 
@@ -163,7 +163,7 @@ def test_rejected_upload_changes_nothing_accepted_waits_for_safe_point():
     from mavreg.daemon.app import Daemon, DaemonConfig
     from mavreg.daemon.planner_pool import PlanResult
     from mavreg.daemon.supervisor import SupervisorParams
-    from test_supervisor_harness import VEHICLE
+    from tests.helpers.supervisor_harness import VEHICLE
 
     class FakePool:
         busy = 0

@@ -1,4 +1,4 @@
-"""The supervisor's safety actions on the fake vehicle of test_supervisor_harness (design
+"""The supervisor's safety actions on the fake vehicle of tests/helpers/supervisor_harness.py (design
 model RK4, injected clock = vehicle time, no sockets): recover, stop the motors, hand
 over, refuse at the gate, gaps, the honest outcome."""
 from __future__ import annotations
@@ -13,7 +13,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from mavreg.config.envelope import EnvelopeParams
 from mavreg.daemon.phases import Phase
 from mavreg.model.rotation import rpy_to_quat, rpy_to_matrix
-from test_supervisor_harness import FakePlan, SimVehicle, make_supervisor, run, wire
+from tests.helpers.supervisor_harness import FakePlan, SimVehicle, make_supervisor, run, wire
 
 
 def _kinds(events):

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from mavreg.cli.common import DEFAULT_VEHICLE, PAPER_CONTROLLER, PARAMS_DIR
+from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER, maneuver_file
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
 from mavreg.control.riccati import sweep_backward
@@ -23,7 +23,7 @@ CONTROLLER = load_controller(PAPER_CONTROLLER)
 
 @pytest.fixture(scope="module")
 def timed():
-    plan = plan_file(PARAMS_DIR / "maneuvers" / "barrel_roll.yaml", load_vehicle(DEFAULT_VEHICLE), CONTROLLER)
+    plan = plan_file(maneuver_file("barrel_roll"), load_vehicle(DEFAULT_VEHICLE), CONTROLLER)
     return TimedNominal(plan)
 
 

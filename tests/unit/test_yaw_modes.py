@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mavreg.cli.common import DEFAULT_VEHICLE, PAPER_CONTROLLER
+from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER
 from mavreg.config.controller import load_controller
 from mavreg.config.maneuver import load_maneuver_text
 from mavreg.config.vehicle import load_vehicle

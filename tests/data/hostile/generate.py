@@ -16,10 +16,10 @@ from pathlib import Path
 
 import yaml
 
-from mavreg.config.paths import PARAMS_DIR
+from mavreg.config.paths import DESIGN_CONTROLLER, maneuver_file
 
 HERE = Path(__file__).resolve().parent
-BARREL = (PARAMS_DIR / "maneuvers" / "barrel_roll.yaml").read_text()
+BARREL = maneuver_file("barrel_roll").read_text()
 HEAD = "kind: maneuver\nversion: 1\n"
 
 
@@ -200,8 +200,7 @@ def _waypoints(n: int, compact: bool) -> str:
 
 def big_cases(tmp: Path) -> dict[str, list[str]]:
     """The big cases, written into ``tmp``: name -> arguments of ``mavreg plan``."""
-    params = PARAMS_DIR
-    barrel = str(params / "maneuvers" / "barrel_roll.yaml")
+    barrel = str(maneuver_file("barrel_roll"))
     big = tmp / "100MB.yaml"
     with open(big, "wb") as f:
         f.write(BARREL.encode())
@@ -210,9 +209,9 @@ def big_cases(tmp: Path) -> dict[str, list[str]]:
         "deep100k.yaml": "kind: maneuver\nversion: 1\nname: " + "[" * 100_000 + "]" * 100_000 + "\n",
         "waypoints100k.yaml": _waypoints(100_000, compact=False),
         "waypoints60k_compact.yaml": _waypoints(60_000, compact=True),
-        "step1e-9.yaml": (params / "controller" / "design.yaml").read_text().replace(
+        "step1e-9.yaml": DESIGN_CONTROLLER.read_text().replace(
             "riccati_step_s: 0.002", "riccati_step_s: 1e-9"),
-        "step1e-4.yaml": (params / "controller" / "design.yaml").read_text().replace(
+        "step1e-4.yaml": DESIGN_CONTROLLER.read_text().replace(
             "riccati_step_s: 0.002", "riccati_step_s: 1e-4"),
     }
     for name, text in files.items():

@@ -1,5 +1,8 @@
 """Deterministic harness for supervisor tests: a fake plan, a fake regulator and a tiny
-vehicle on the design model (RK4), all driven by an injected clock (no sockets)."""
+vehicle on the design model (RK4), all driven by an injected clock (no sockets).
+
+The harness's own check (the vehicle sits still while disarmed) is in
+``tests/unit/test_supervisor.py``."""
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
@@ -7,8 +10,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavreg.config.paths import PARAMS_DIR
-from mavreg.config.vehicle import load_vehicle
 from mavreg.control.hover import HoverController, Ramp
 from mavreg.control.regulator import RegulatorOutput
 from mavreg.daemon.messages import PX4_MAIN_AUTO, PX4_MAIN_OFFBOARD, PX4_SUB_LOITER
@@ -16,8 +17,9 @@ from mavreg.daemon.supervisor import Supervisor, SupervisorParams
 from mavreg.model.mixer import Mixer
 from mavreg.model.quadrotor import QuadrotorModel
 from mavreg.model.rotation import rpy_to_quat, rpy_to_matrix
+from tests.helpers import params
 
-VEHICLE = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
+VEHICLE = params.vehicle()
 _PARSER = mavlink2.MAVLink(None)
 _PARSER.robust_parsing = True
 
@@ -219,9 +221,3 @@ def run(sup, veh, seconds, on_step=None):
             break
     return events, logs, sent
 
-
-def test_harness_vehicle_sits_still_when_disarmed():
-    veh = SimVehicle()
-    for _ in range(10):
-        veh.physics()
-    assert np.all(veh.x == 0.0)
