@@ -203,6 +203,10 @@ ARDUCOPTER_RULES = (
               "GUID_TIMEOUT is {value} s: set 1 or less (e.g. GUID_TIMEOUT=0.5) so that when mavreg's "
               "set-points stop the vehicle levels and holds altitude within a second instead of "
               "flying on the last rates and thrust"),
+    ParamRule("ATC_ANGLE_BOOST", lambda v: int(v) == 0,
+              "ATC_ANGLE_BOOST is {value}: set 0 (ATC_ANGLE_BOOST=0) so the thrust mavreg sends is the "
+              "thrust flown: with it on, ArduCopter divides the thrust by the cosine of the tilt and "
+              "cuts it past 84 deg, upside down in a loop"),
 )
 PX4_RULES = (
     ParamRule("COM_OF_LOSS_T", lambda v: 0.0 < v <= 1.0,

@@ -26,7 +26,7 @@ __all__ = ["fly_on_ardupilot", "true_errors_from_tlog", "PILOT_PARAMS", "VEHICLE
 REPO = Path(__file__).resolve().parents[2]
 VEHICLE = REPO / "mavreg" / "params" / "vehicles" / "ardupilot_freestyle.yaml"
 CONTROLLER = REPO / "mavreg" / "params" / "controller" / "freestyle.yaml"
-PILOT_PARAMS = {"GUID_OPTIONS": 8, "GUID_TIMEOUT": 0.5}
+PILOT_PARAMS = {"GUID_OPTIONS": 8, "GUID_TIMEOUT": 0.5, "ATC_ANGLE_BOOST": 0}
 """What docs/autopilots.md tells a pilot to set before flying mavreg."""
 EARTH_RADIUS_M = 6378137.0
 

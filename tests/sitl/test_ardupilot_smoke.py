@@ -29,7 +29,7 @@ def read_params(sitl, dialect, timeout_s=5.0):
 @pytest.mark.slow
 def test_arducopter_sitl_dialect_params_guided_arm():
     require_ardupilot()
-    with ArduPilotSitl(frame="freestyle", params={"GUID_OPTIONS": 8, "GUID_TIMEOUT": 0.5}) as sitl:
+    with ArduPilotSitl(frame="freestyle", params={"GUID_OPTIONS": 8, "GUID_TIMEOUT": 0.5, "ATC_ANGLE_BOOST": 0}) as sitl:
         pid = sitl.pid
         hb = sitl.wait_for(lambda m: m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1, 5, "heartbeat")
         dialect = dialect_for(hb)

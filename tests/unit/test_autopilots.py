@@ -105,7 +105,7 @@ def test_telemetry_requests_and_arducopter_rate_cap():
 
 
 def test_param_requests_by_name_and_never_a_param_set():
-    for dialect, names in ((ARDUCOPTER, ["GUID_OPTIONS", "GUID_TIMEOUT"]),
+    for dialect, names in ((ARDUCOPTER, ["GUID_OPTIONS", "GUID_TIMEOUT", "ATC_ANGLE_BOOST"]),
                            (PX4, ["COM_OF_LOSS_T", "COM_OBL_RC_ACT"])):
         reqs = [roundtrip(m) for m in dialect.param_requests(1, 1)]
         assert [r.param_id for r in reqs] == names
@@ -118,7 +118,8 @@ def test_param_requests_by_name_and_never_a_param_set():
 # -- parameter checks ----------------------------------------------------------------------
 def test_arducopter_defaults_are_refused_with_the_fix():
     chk = ARDUCOPTER.param_checker()
-    assert chk.verdict().state == "waiting" and chk.verdict().missing == ("GUID_OPTIONS", "GUID_TIMEOUT")
+    assert chk.verdict().state == "waiting" and chk.verdict().missing == ("GUID_OPTIONS", "GUID_TIMEOUT",
+                                                                           "ATC_ANGLE_BOOST")
     chk.add(param_value("GUID_OPTIONS", 0.0, M.MAV_PARAM_TYPE_INT32))
     v = chk.verdict()
     assert v.state == "refused" and len(v.lines) == 1
@@ -126,23 +127,28 @@ def test_arducopter_defaults_are_refused_with_the_fix():
     chk.add(param_value("GUID_TIMEOUT", 3.0))
     lines = chk.verdict().lines
     assert len(lines) == 2 and "GUID_TIMEOUT is 3 s" in lines[1] and "\n" not in "".join(lines)
+    chk.add(param_value("ATC_ANGLE_BOOST", 1.0, M.MAV_PARAM_TYPE_INT8))      # ArduCopter's default
+    lines = chk.verdict().lines
+    assert len(lines) == 3 and "ATC_ANGLE_BOOST is 1" in lines[2] and "ATC_ANGLE_BOOST=0" in lines[2]
 
 
 def test_arducopter_good_values_pass():
     chk = ARDUCOPTER.param_checker()
     assert chk.add(param_value("GUID_OPTIONS", 9.0, M.MAV_PARAM_TYPE_INT32))    # bits 0 and 3
-    assert chk.verdict().state == "waiting" and chk.verdict().missing == ("GUID_TIMEOUT",)
+    assert chk.verdict().state == "waiting" and chk.verdict().missing == ("GUID_TIMEOUT", "ATC_ANGLE_BOOST")
     assert chk.add(param_value("GUID_TIMEOUT", 0.5))
+    assert chk.add(param_value("ATC_ANGLE_BOOST", 0.0, M.MAV_PARAM_TYPE_INT8))
     assert chk.verdict().state == "ok"
 
 
 @pytest.mark.parametrize("name,value", [("GUID_OPTIONS", 7.0), ("GUID_OPTIONS", 16.0),
                                         ("GUID_TIMEOUT", 1.5), ("GUID_TIMEOUT", 0.0),
-                                        ("GUID_TIMEOUT", math.nan)])
+                                        ("GUID_TIMEOUT", math.nan), ("ATC_ANGLE_BOOST", 1.0)])
 def test_arducopter_bad_values_refused(name, value):
     chk = ARDUCOPTER.param_checker()
     chk.add(param_value("GUID_OPTIONS", 8.0))
     chk.add(param_value("GUID_TIMEOUT", 1.0))
+    chk.add(param_value("ATC_ANGLE_BOOST", 0.0))
     assert chk.verdict().state == "ok"
     chk.add(param_value(name, value))                   # a later value replaces the earlier one
     v = chk.verdict()
