@@ -1,0 +1,282 @@
+"""A stock ArduCopter SITL as a test fixture: start, configure over MAVLink, wait, stop.
+
+The SITL directory holds ArduPilot's ``arducopter`` SITL binary and a ``start.sh`` that
+starts it headless with a ``FRAME`` and a ``MAVLINK`` address and prints its PID (the same
+layout the measurements of ``docs/autopilots.md`` used). It is found through the
+environment variable ``MAVREG_ARDUPILOT_DIR``, else in ``shared/autopilot/ardupilot`` next to
+the repository's directory; tests that need it are skipped when it is absent.
+
+:class:`ArduPilotSitl` starts the SITL on a free loopback UDP port (the harness listens
+first, then the SITL sends there), sets parameters over MAVLink (``PARAM_SET``, confirmed by
+the echoed ``PARAM_VALUE``), asks for telemetry rates, and waits by messages, never by
+sleeps: the first HEARTBEAT, then the first ``LOCAL_POSITION_NED`` (sent once EKF3 uses GPS,
+about 20 s after it set its origin; GUIDED refuses to arm before: "Need Position Estimate") and
+the pre-arm checks passing (``SYS_STATUS`` health bit ``MAV_SYS_STATUS_PREARM_CHECK``). It stops
+the SITL by its PID (SIGTERM, then SIGKILL) on leaving the ``with`` block, also on failure.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+os.environ.setdefault("MAVLINK20", "1")
+from pymavlink import mavutil  # noqa: E402  (MAVLINK20 must be set first)
+
+__all__ = ["ardupilot_dir", "ArduPilotSitl", "SitlError", "require_ardupilot"]
+
+REPO = Path(__file__).resolve().parents[2]
+ENV_VAR = "MAVREG_ARDUPILOT_DIR"
+M = mavutil.mavlink
+PREARM_BIT = M.MAV_SYS_STATUS_PREARM_CHECK
+
+
+class SitlError(RuntimeError):
+    """The SITL did not start, answer or become ready in time (one line, with its last texts)."""
+
+
+def ardupilot_dir() -> Path | None:
+    """The SITL directory, or None.
+
+    ``$MAVREG_ARDUPILOT_DIR`` when set; else ``../shared/autopilot/ardupilot`` from the
+    repository's root, or from the main checkout's root when this is a git worktree."""
+    env = os.environ.get(ENV_VAR)
+    roots = [REPO]
+    git = REPO / ".git"
+    if git.is_file() and git.read_text().startswith("gitdir:"):   # a worktree: .git names the main one's
+        roots.append(Path(git.read_text().split(":", 1)[1].strip()).parents[2])
+    for d in [Path(env)] if env else [r / ".." / "shared" / "autopilot" / "ardupilot" for r in roots]:
+        if (d / "start.sh").is_file() and (d / "arducopter").is_file():
+            return d.resolve()
+    return None
+
+
+def require_ardupilot() -> Path:
+    """The SITL directory, or skip the calling test with a clear message."""
+    import pytest
+    d = ardupilot_dir()
+    if d is None:
+        pytest.skip(f"ArduCopter SITL not found: set {ENV_VAR} to a directory holding "
+                    "start.sh and arducopter")
+    return d
+
+
+def free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class ArduPilotSitl:
+    """One ArduCopter SITL process and a pymavlink connection to it.
+
+    Parameters
+    ----------
+    frame : str
+        ``freestyle`` (0.8 kg 5-inch quad) or ``quad`` (3 kg default quad).
+    params : dict
+        Parameters set over MAVLink once it answers, e.g. ``{"GUID_OPTIONS": 8}``.
+    rates_hz : dict
+        Message id -> rate asked for with ``MAV_CMD_SET_MESSAGE_INTERVAL``.
+    wait_ready : bool
+        Wait for EKF origin and passing pre-arm checks before returning from ``start``.
+    timeout_s : float
+        Bound on each wait (heartbeat, each parameter, readiness).
+    directory : Path
+        The SITL directory; :func:`ardupilot_dir` by default.
+    """
+
+    def __init__(self, frame: str = "freestyle", params: dict | None = None,
+                 rates_hz: dict | None = None, wait_ready: bool = True, timeout_s: float = 90.0,
+                 directory: Path | None = None):
+        self.frame = frame
+        self.params = dict(params or {})
+        self.rates_hz = dict(rates_hz or {})
+        self.wait_ready = wait_ready
+        self.timeout_s = float(timeout_s)
+        self.directory = directory or ardupilot_dir()
+        self.pid: int | None = None
+        self.conn = None
+        self.port: int | None = None
+        self.workdir: tempfile.TemporaryDirectory | None = None
+        self.texts: list[tuple[float, str]] = []
+        """(seconds since start, STATUSTEXT) of everything seen by :meth:`recv`."""
+        self.t0 = 0.0
+        self.sysid = 1
+        self.compid = 1
+        self._last_hb = -1e9
+        self.first_seen: dict[str, float] = {}
+        """Message type -> seconds since start when :meth:`recv` first saw it."""
+        self.prearm_ok = False
+        """The pre-arm health bit of the latest SYS_STATUS."""
+
+    # -- life cycle -------------------------------------------------------------------------
+    def __enter__(self) -> "ArduPilotSitl":
+        try:
+            self.start()
+        except BaseException:
+            self.stop()
+            raise
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    def start(self) -> None:
+        """Start the SITL, configure it and (optionally) wait until it can arm."""
+        if self.directory is None:
+            raise SitlError(f"ArduCopter SITL not found (set {ENV_VAR})")
+        self.port = free_udp_port()
+        self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{self.port}", source_system=255,
+                                               source_component=190, dialect="ardupilotmega")
+        self.workdir = tempfile.TemporaryDirectory(prefix="mavreg-ardupilot-")
+        env = dict(os.environ, FRAME=self.frame, MAVLINK=f"udpclient:127.0.0.1:{self.port}",
+                   MAVLINK2=f"udpclient:127.0.0.1:{free_udp_port()}", WORKDIR=self.workdir.name)
+        self.t0 = time.monotonic()
+        out = subprocess.run([str(self.directory / "start.sh")], env=env, capture_output=True,
+                             text=True, timeout=30)
+        if out.returncode != 0 or not out.stdout.strip().isdigit():
+            raise SitlError(f"start.sh failed ({out.returncode}): {out.stderr.strip()[-200:]}")
+        self.pid = int(out.stdout.strip())
+        hb = self.wait_for(lambda m: m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1,
+                           self.timeout_s, "first HEARTBEAT")
+        self.sysid, self.compid = hb.get_srcSystem(), hb.get_srcComponent()
+        self.conn.target_system, self.conn.target_component = self.sysid, self.compid
+        self.recv(0.0)                   # our first HEARTBEAT: ArduPilot sends STATUSTEXT only to active links
+        self.set_rate(M.MAVLINK_MSG_ID_SYS_STATUS, 2.0)      # not streamed by default
+        for name, value in self.params.items():
+            self.set_param(name, value)
+        for msg_id, hz in self.rates_hz.items():
+            self.set_rate(msg_id, hz)
+        if self.wait_ready:
+            if M.MAVLINK_MSG_ID_LOCAL_POSITION_NED not in self.rates_hz:
+                self.set_rate(M.MAVLINK_MSG_ID_LOCAL_POSITION_NED, 10.0)
+            self.wait_until(lambda: "LOCAL_POSITION_NED" in self.first_seen, self.timeout_s,
+                            "local position (EKF using GPS)")
+            self.wait_until(lambda: self.prearm_ok, self.timeout_s, "pre-arm checks passing")
+
+    def stop(self) -> None:
+        """SIGTERM the SITL by its PID, SIGKILL after 10 s; close the link; remove its files."""
+        if self.pid is not None:
+            _terminate(self.pid)
+            self.pid = None
+        if self.conn is not None:
+            self.conn.close()
+            self.conn = None
+        if self.workdir is not None:
+            self.workdir.cleanup()
+            self.workdir = None
+
+    # -- messages ---------------------------------------------------------------------------
+    def elapsed_s(self) -> float:
+        return time.monotonic() - self.t0
+
+    def recv(self, timeout_s: float = 0.1):
+        """The next message from the vehicle (None on timeout); STATUSTEXTs are recorded.
+
+        Sends a ground-station HEARTBEAT every second on the way."""
+        now = time.monotonic()
+        if now - self._last_hb >= 1.0:
+            self._last_hb = now
+            self.conn.mav.heartbeat_send(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID,
+                                         0, 0, 0)
+        m = self.conn.recv_match(blocking=True, timeout=timeout_s)
+        if m is None or m.get_type() == "BAD_DATA":
+            return None
+        mtype = m.get_type()
+        self.first_seen.setdefault(mtype, self.elapsed_s())
+        if mtype == "STATUSTEXT":
+            self.texts.append((self.elapsed_s(), m.text))
+        elif mtype == "SYS_STATUS":
+            self.prearm_ok = bool(m.onboard_control_sensors_health & PREARM_BIT)
+        return m
+
+    def wait_until(self, cond, timeout_s: float, what: str) -> None:
+        """Receive until ``cond()`` holds; :class:`SitlError` after ``timeout_s``."""
+        deadline = time.monotonic() + timeout_s
+        while not cond():
+            if time.monotonic() > deadline:
+                raise SitlError(f"ArduCopter SITL: no {what} within {timeout_s:.0f} s "
+                                f"(last texts: {'; '.join(t for _, t in self.texts[-3:])})")
+            self._check_alive(what)
+            self.recv(0.2)
+
+    def wait_for(self, pred, timeout_s: float, what: str):
+        """The first message satisfying ``pred``; :class:`SitlError` after ``timeout_s``."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            self._check_alive(what)
+            m = self.recv(0.2)
+            if m is not None and pred(m):
+                return m
+        last = "; ".join(t for _, t in self.texts[-3:])
+        raise SitlError(f"ArduCopter SITL: no {what} within {timeout_s:.0f} s (last texts: {last})")
+
+    def send(self, msg) -> None:
+        self.conn.mav.send(msg)
+
+    def command_long(self, command: int, *params: float, timeout_s: float = 3.0):
+        """Send a COMMAND_LONG and return its COMMAND_ACK (SitlError if none)."""
+        p = [float(v) for v in params] + [0.0] * (7 - len(params))
+        self.conn.mav.command_long_send(self.sysid, self.compid, command, 0, *p)
+        return self.wait_for(lambda m: m.get_type() == "COMMAND_ACK" and m.command == command,
+                             timeout_s, f"COMMAND_ACK of command {command}")
+
+    def set_rate(self, msg_id: int, hz: float) -> int:
+        """MAV_CMD_SET_MESSAGE_INTERVAL; returns the ACK's result."""
+        ack = self.command_long(M.MAV_CMD_SET_MESSAGE_INTERVAL, msg_id,
+                                1e6 / hz if hz > 0 else -1)
+        return int(ack.result)
+
+    def get_param(self, name: str, timeout_s: float = 3.0) -> float:
+        """PARAM_REQUEST_READ by name; the PARAM_VALUE's value."""
+        self.conn.mav.param_request_read_send(self.sysid, self.compid, name.encode(), -1)
+        return float(self.wait_for(lambda m: m.get_type() == "PARAM_VALUE" and m.param_id == name,
+                                   timeout_s, f"PARAM_VALUE {name}").param_value)
+
+    def set_param(self, name: str, value: float, timeout_s: float = 3.0) -> None:
+        """PARAM_SET, confirmed by the echoed PARAM_VALUE (test setup only)."""
+        self.conn.mav.param_set_send(self.sysid, self.compid, name.encode(), float(value),
+                                     M.MAV_PARAM_TYPE_REAL32)
+        got = self.wait_for(lambda m: m.get_type() == "PARAM_VALUE" and m.param_id == name,
+                            timeout_s, f"PARAM_VALUE echo of {name}").param_value
+        if abs(got - float(value)) > 1e-6 * max(1.0, abs(float(value))):
+            raise SitlError(f"ArduCopter SITL: {name} is {got} after setting {value}")
+
+    def _check_alive(self, what: str) -> None:
+        if self.pid is not None:
+            try:
+                pid, status = os.waitpid(self.pid, os.WNOHANG)
+            except ChildProcessError:          # not our child (start.sh's): probe it
+                pid, status = 0, 0
+                if not _alive(self.pid):
+                    pid = self.pid
+            if pid == self.pid:
+                self.pid = None
+                raise SitlError(f"ArduCopter SITL exited (status {status}) while waiting for {what}")
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] not in ("Z", "X")
+    except OSError:
+        return False
+
+
+def _terminate(pid: int, grace_s: float = 10.0) -> None:
+    """SIGTERM ``pid``, SIGKILL it if still alive after ``grace_s``."""
+    for sig, wait_s in ((signal.SIGTERM, grace_s), (signal.SIGKILL, 5.0)):
+        try:
+            os.kill(pid, sig)
+        except ProcessLookupError:
+            return
+        deadline = time.monotonic() + wait_s
+        while time.monotonic() < deadline:
+            if not _alive(pid):
+                return
+            time.sleep(0.05)
