@@ -7,7 +7,8 @@ environment variable ``MAVREG_ARDUPILOT_DIR``, else in ``shared/autopilot/ardupi
 the repository's directory; tests that need it are skipped when it is absent.
 
 :class:`ArduPilotSitl` starts the SITL on a free loopback UDP port (the harness listens
-first, then the SITL sends there), sets parameters over MAVLink (``PARAM_SET``, confirmed by
+first, then the SITL sends there) and a free instance number (each instance binds a fixed
+UDP port, ``5501 + 10 * instance``), sets parameters over MAVLink (``PARAM_SET``, confirmed by
 the echoed ``PARAM_VALUE``), asks for telemetry rates, and waits by messages, never by
 sleeps: the first HEARTBEAT, then the first ``LOCAL_POSITION_NED`` (sent once EKF3 uses GPS,
 about 20 s after it set its origin; GUIDED refuses to arm before: "Need Position Estimate") and
@@ -33,10 +34,17 @@ REPO = Path(__file__).resolve().parents[2]
 ENV_VAR = "MAVREG_ARDUPILOT_DIR"
 M = mavutil.mavlink
 PREARM_BIT = M.MAV_SYS_STATUS_PREARM_CHECK
+START_ATTEMPTS = 6
+"""start.sh's exit races with the SITL's start (see ``ArduPilotSitl._launch``): about 1 in 4
+starts die at once; six attempts all fail about once in 4000."""
 
 
 class SitlError(RuntimeError):
     """The SITL did not start, answer or become ready in time (one line, with its last texts)."""
+
+
+class SitlExitedEarly(SitlError):
+    """The SITL process ended while the harness waited for it."""
 
 
 def ardupilot_dir() -> Path | None:
@@ -69,6 +77,21 @@ def free_udp_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
+
+
+def free_instance(first: int = 1, last: int = 60) -> int:
+    """A SITL instance number whose fixed port is free.
+
+    Each instance binds UDP ``5501 + 10 * instance`` on all interfaces (its RC input); a
+    free one keeps two SITLs (ours and anybody's) from sharing it."""
+    for instance in range(first, last + 1):
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            try:
+                s.bind(("0.0.0.0", 5501 + 10 * instance))
+            except OSError:
+                continue
+            return instance
+    raise SitlError(f"no free SITL instance in {first}..{last} (UDP ports 5501 + 10 * instance all taken)")
 
 
 class ArduPilotSitl:
@@ -113,6 +136,8 @@ class ArduPilotSitl:
         """Message type -> seconds since start when :meth:`recv` first saw it."""
         self.prearm_ok = False
         """The pre-arm health bit of the latest SYS_STATUS."""
+        self.start_attempts = 0
+        """start.sh runs it took (more than one when the SITL died at once)."""
 
     # -- life cycle -------------------------------------------------------------------------
     def __enter__(self) -> "ArduPilotSitl":
@@ -133,17 +158,16 @@ class ArduPilotSitl:
         self.port = free_udp_port()
         self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{self.port}", source_system=255,
                                                source_component=190, dialect="ardupilotmega")
-        self.workdir = tempfile.TemporaryDirectory(prefix="mavreg-ardupilot-")
-        env = dict(os.environ, FRAME=self.frame, MAVLINK=f"udpclient:127.0.0.1:{self.port}",
-                   MAVLINK2=f"udpclient:127.0.0.1:{free_udp_port()}", WORKDIR=self.workdir.name)
         self.t0 = time.monotonic()
-        out = subprocess.run([str(self.directory / "start.sh")], env=env, capture_output=True,
-                             text=True, timeout=30)
-        if out.returncode != 0 or not out.stdout.strip().isdigit():
-            raise SitlError(f"start.sh failed ({out.returncode}): {out.stderr.strip()[-200:]}")
-        self.pid = int(out.stdout.strip())
-        hb = self.wait_for(lambda m: m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1,
-                           self.timeout_s, "first HEARTBEAT")
+        for attempt in range(1, START_ATTEMPTS + 1):
+            try:
+                hb = self._launch()
+                break
+            except SitlExitedEarly:
+                if attempt == START_ATTEMPTS:
+                    raise
+        self.start_attempts = attempt
+        self.sysid, self.compid = hb.get_srcSystem(), hb.get_srcComponent()
         self.sysid, self.compid = hb.get_srcSystem(), hb.get_srcComponent()
         self.conn.target_system, self.conn.target_component = self.sysid, self.compid
         self.recv(0.0)                   # our first HEARTBEAT: ArduPilot sends STATUSTEXT only to active links
@@ -158,6 +182,27 @@ class ArduPilotSitl:
             self.wait_until(lambda: "LOCAL_POSITION_NED" in self.first_seen, self.timeout_s,
                             "local position (EKF using GPS)")
             self.wait_until(lambda: self.prearm_ok, self.timeout_s, "pre-arm checks passing")
+
+    def _launch(self):
+        """Run start.sh once; the first HEARTBEAT, or :class:`SitlExitedEarly`.
+
+        start.sh starts the SITL in the background and exits at once. Measured: a SITL whose
+        parent exits after its first moments exits too (start.sh kept alive for 1.2 s: 20 of 20
+        died when it ended; start.sh as it is: 5 of 20 died within 0.3 s, never later). So a
+        start either dies before the first heartbeat or not at all, and the caller starts again."""
+        if self.workdir is not None:
+            self.workdir.cleanup()
+        self.workdir = tempfile.TemporaryDirectory(prefix="mavreg-ardupilot-")
+        env = dict(os.environ, FRAME=self.frame, MAVLINK=f"udpclient:127.0.0.1:{self.port}",
+                   MAVLINK2=f"udpclient:127.0.0.1:{free_udp_port()}", WORKDIR=self.workdir.name,
+                   INSTANCE=str(free_instance()))
+        out = subprocess.run([str(self.directory / "start.sh")], env=env, capture_output=True,
+                             text=True, timeout=30)
+        if out.returncode != 0 or not out.stdout.strip().isdigit():
+            raise SitlError(f"start.sh failed ({out.returncode}): {out.stderr.strip()[-200:]}")
+        self.pid = int(out.stdout.strip())
+        return self.wait_for(lambda m: m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1,
+                             self.timeout_s, "first HEARTBEAT")
 
     def stop(self) -> None:
         """SIGTERM the SITL by its PID, SIGKILL after 10 s; close the link; remove its files."""
@@ -200,8 +245,7 @@ class ArduPilotSitl:
         deadline = time.monotonic() + timeout_s
         while not cond():
             if time.monotonic() > deadline:
-                raise SitlError(f"ArduCopter SITL: no {what} within {timeout_s:.0f} s "
-                                f"(last texts: {'; '.join(t for _, t in self.texts[-3:])})")
+                raise self._timeout(what, timeout_s)
             self._check_alive(what)
             self.recv(0.2)
 
@@ -213,8 +257,12 @@ class ArduPilotSitl:
             m = self.recv(0.2)
             if m is not None and pred(m):
                 return m
+        raise self._timeout(what, timeout_s)
+
+    def _timeout(self, what: str, timeout_s: float) -> SitlError:
         last = "; ".join(t for _, t in self.texts[-3:])
-        raise SitlError(f"ArduCopter SITL: no {what} within {timeout_s:.0f} s (last texts: {last})")
+        return SitlError(f"ArduCopter SITL: no {what} within {timeout_s:.0f} s (last texts: {last}; "
+                         f"last output: {self.output_tail()})")
 
     def send(self, msg) -> None:
         self.conn.mav.send(msg)
@@ -257,7 +305,16 @@ class ArduPilotSitl:
                     pid = self.pid
             if pid == self.pid:
                 self.pid = None
-                raise SitlError(f"ArduCopter SITL exited (status {status}) while waiting for {what}")
+                raise SitlExitedEarly(f"ArduCopter SITL exited (status {status}) while waiting for {what}; "
+                                f"its last output: {self.output_tail()}")
+
+    def output_tail(self, lines: int = 3) -> str:
+        """The last lines the SITL printed (its ``arducopter.out``), joined by " | "."""
+        try:
+            text = (Path(self.workdir.name) / "arducopter.out").read_text(errors="replace")
+        except (OSError, AttributeError):
+            return "(none)"
+        return " | ".join(text.strip().splitlines()[-lines:]) or "(none)"
 
 
 def _alive(pid: int) -> bool:
