@@ -16,7 +16,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import struct
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -47,6 +49,8 @@ class Flight:
         self.cmd_log: list = []      # (host s, p cmd, thrust)
         self.events: list = []
         self.timesync_requests = 0
+        self.recording: list | None = None
+        """(wall time s, raw bytes) of every message while not None (for a .tlog)."""
 
     def now(self) -> float:
         return self.s.elapsed_s()
@@ -60,6 +64,9 @@ class Flight:
             if m is None:
                 continue
             t = m.get_type()
+            if self.recording is not None and t in ("ATTITUDE_QUATERNION", "LOCAL_POSITION_NED", "HEARTBEAT",
+                                                    "EXTENDED_SYS_STATE"):
+                self.recording.append((time.time(), bytes(m.get_msgbuf())))
             if t == "ATTITUDE_QUATERNION":
                 w, x, y, z = m.q1, m.q2, m.q3, m.q4
                 self.roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
@@ -154,6 +161,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frame", default="freestyle")
     ap.add_argument("--steps", type=int, default=6)
+    ap.add_argument("--tlog", help="write 2 s of the 100 Hz hover's telemetry to this .tlog")
     args = ap.parse_args()
     res: dict = {}
     rates = {31: 200, 32: 200, 108: 50, 245: 10}
@@ -212,7 +220,14 @@ def main() -> int:
         # telemetry at 100 Hz in flight
         for i in (31, 32):
             s.set_rate(i, 100)
-        f.fly(5.0, f.hold(z_ground - 3.0))
+        f.fly(3.0, f.hold(z_ground - 3.0))
+        f.recording = []
+        f.fly(2.0, f.hold(z_ground - 3.0))
+        if args.tlog:
+            with open(args.tlog, "wb") as out:
+                for t, buf in f.recording:
+                    out.write(struct.pack(">Q", int(t * 1e6)) + buf)
+        f.recording = None
         res["hover_100hz"] = dict(f.hover_stats(4.0), z=f.z, hover_estimate=f.hover)
 
         # set-points stop (GUID_TIMEOUT 1 s for this check), the last thrust 10 % below hover
@@ -262,6 +277,14 @@ def main() -> int:
         pos_t = {int(r[1]) for r in f.pos_log}
         res["flight_pairing_same_time_boot_ms"] = [int(sum(int(a) in pos_t for a in att[:, 1])), len(att),
                                                    len(f.pos_log)]
+        lone = [round(a[0], 2) for a in att if int(a[1]) not in pos_t]
+        spans, start = [], None
+        for i, t in enumerate(lone):
+            start = t if start is None else start
+            if i + 1 == len(lone) or lone[i + 1] - t > 0.1:
+                spans.append((start, t))
+                start = None
+        res["attitudes_without_position_spans_s"] = spans[:20]
         res["vehicle_timesync_requests"] = f.timesync_requests
         res["events"] = f.events
     print(json.dumps(res, indent=1, default=float))

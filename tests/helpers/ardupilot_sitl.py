@@ -50,8 +50,8 @@ class SitlExitedEarly(SitlError):
 def ardupilot_dir() -> Path | None:
     """The SITL directory, or None.
 
-    ``$MAVREG_ARDUPILOT_DIR`` when set; else ``../shared/autopilot/ardupilot`` from the
-    repository's root, or from the main checkout's root when this is a git worktree."""
+    ``$MAVREG_ARDUPILOT_DIR`` when set; else ``shared/autopilot/ardupilot`` in the directory
+    that holds the repository (or the main checkout, when this is a git worktree)."""
     env = os.environ.get(ENV_VAR)
     roots = [REPO]
     git = REPO / ".git"
