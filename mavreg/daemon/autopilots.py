@@ -94,12 +94,19 @@ class ParamChecker:
         self.values[name] = value
         return True
 
-    def verdict(self) -> ParamVerdict:
-        """Refused as soon as a read value breaks its rule; ok when all are read and hold."""
+    def verdict(self, timed_out: bool = False) -> ParamVerdict:
+        """Refused as soon as a read value breaks its rule; ok when all are read and hold.
+
+        Until then "waiting"; the caller bounds the wait and asks once more with
+        ``timed_out=True``, which turns each missing parameter into a refusal line (an
+        autopilot does not answer for a parameter it does not have)."""
         lines = tuple(line for name, v in self.values.items() if (line := self.rules[name].check(v)))
-        if lines:
-            return ParamVerdict("refused", lines)
         missing = tuple(n for n in self.rules if n not in self.values)
+        if timed_out:
+            lines += tuple(f"{n}: no answer to PARAM_REQUEST_READ; the autopilot does not have it or "
+                           "the link loses it, so mavreg cannot check it" for n in missing)
+        if lines:
+            return ParamVerdict("refused", lines, missing)
         return ParamVerdict("waiting", missing=missing) if missing else ParamVerdict("ok")
 
 

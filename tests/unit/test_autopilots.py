@@ -180,3 +180,14 @@ def test_other_messages_and_parameters_ignored():
     assert not chk.add(param_value("GUID_OPTIONX", 8.0))
     assert not chk.add(param_value("FS_GCS_ENABLE", 0.0))
     assert chk.values == {} and chk.verdict().state == "waiting"
+
+
+def test_timeout_turns_missing_parameters_into_refusals():
+    chk = PX4.param_checker()
+    chk.add(param_value("COM_OF_LOSS_T", 0.5))
+    assert chk.verdict().state == "waiting"               # the caller's wait is not over
+    v = chk.verdict(timed_out=True)
+    assert v.state == "refused" and v.missing == ("COM_OBL_RC_ACT",)
+    assert len(v.lines) == 1 and v.lines[0].startswith("COM_OBL_RC_ACT: no answer")
+    chk.add(param_value("COM_OBL_RC_ACT", bytewise(5), M.MAV_PARAM_TYPE_INT32))
+    assert chk.verdict(timed_out=True).state == "ok"      # nothing missing: the timeout changes nothing
