@@ -91,6 +91,16 @@ def test_offboard_mode_commands():
     assert (ap.target_system, ap.target_component) == (1, 1)
 
 
+def test_land_mode_commands_and_how_a_flight_ends():
+    ap = roundtrip(ARDUCOPTER.set_land_mode(1, 1))
+    assert (ap.command, ap.param1, ap.param2) == (M.MAV_CMD_DO_SET_MODE, 1.0, 9.0)
+    assert ARDUCOPTER.mode_name(int(ap.param2)) == "LAND"
+    px = roundtrip(PX4.set_land_mode(1, 1))
+    assert (px.param2, px.param3) == (4.0, 6.0)
+    assert PX4.mode_name((int(px.param2) << 16) | (int(px.param3) << 24)) == "AUTO.LAND"
+    assert ARDUCOPTER.disarm_by_land_mode and not PX4.disarm_by_land_mode
+
+
 def test_telemetry_requests_and_arducopter_rate_cap():
     reqs = [roundtrip(m) for m in ARDUCOPTER.telemetry_requests(1, 1, 100.0)]
     assert [(r.command, int(r.param1), r.param2) for r in reqs] == [
@@ -111,7 +121,7 @@ def test_param_requests_by_name_and_never_a_param_set():
         assert [r.param_id for r in reqs] == names
         assert all(r.param_index == -1 and r.get_type() == "PARAM_REQUEST_READ" for r in reqs)
         built = (dialect.param_requests(1, 1) + dialect.telemetry_requests(1, 1, 50.0)
-                 + [dialect.set_offboard_mode(1, 1)])
+                 + [dialect.set_offboard_mode(1, 1), dialect.set_land_mode(1, 1)])
         assert {m.get_type() for m in built} <= {"PARAM_REQUEST_READ", "COMMAND_LONG"}
 
 
