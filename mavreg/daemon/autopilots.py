@@ -5,8 +5,9 @@ A :class:`Dialect` is chosen from the vehicle's HEARTBEAT by :func:`dialect_for`
 numbers are ArduCopter's). It decodes the armed flag and the flight mode of a heartbeat and
 says whether the vehicle obeys offboard set-points (PX4 OFFBOARD, ArduCopter GUIDED); it
 builds the COMMAND_LONGs that ask for that mode and for the land mode (how a flight ends on
-ArduCopter), and the SET_MESSAGE_INTERVAL commands for the telemetry mavreg needs; and it lists the parameters that must hold before arming
-(:class:`ParamRule`), read with PARAM_REQUEST_READ and judged by a :class:`ParamChecker`.
+ArduCopter), and the SET_MESSAGE_INTERVAL commands for the telemetry mavreg needs; and it
+lists the parameters that must hold before arming (:class:`ParamRule`), read with
+PARAM_REQUEST_READ and judged by a :class:`ParamChecker`.
 Nothing here ever builds a PARAM_SET: mavreg reports a wrong safety parameter, it does not
 change it. See ``docs/autopilots.md`` for the measurements behind the numbers.
 """
@@ -135,7 +136,7 @@ class Dialect:
     rules: tuple
     max_rate_hz: float
     """Highest telemetry rate the autopilot grants by default (ArduCopter: half its 400 Hz loop;
-    PX4: no fixed cap, its link's bandwidth limits it)."""
+    PX4: no cap known to mavreg, not measured)."""
     bytewise_params: bool
     disarm_by_land_mode: bool
     """After touchdown ask for the land mode (:meth:`set_land_mode`; the autopilot then disarms by
@@ -182,8 +183,8 @@ class Dialect:
         """SET_MESSAGE_INTERVAL commands: ATTITUDE_QUATERNION and LOCAL_POSITION_NED at
         ``rate_hz`` (capped at :attr:`max_rate_hz`: a faster request is refused and leaves the old
         rate), EXTENDED_SYS_STATE (landed state) at ``status_rate_hz``."""
-        if not (rate_hz > 0 and status_rate_hz > 0):
-            raise ValueError(f"telemetry rates must be positive, got {rate_hz}, {status_rate_hz}")
+        if not (0 < rate_hz < math.inf and 0 < status_rate_hz < math.inf):
+            raise ValueError(f"telemetry rates must be positive and finite, got {rate_hz}, {status_rate_hz}")
         rate = min(float(rate_hz), self.max_rate_hz)
         wanted = ((M.MAVLINK_MSG_ID_ATTITUDE_QUATERNION, rate), (M.MAVLINK_MSG_ID_LOCAL_POSITION_NED, rate),
                   (M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE, min(float(status_rate_hz), rate)))

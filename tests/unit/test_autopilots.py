@@ -109,7 +109,7 @@ def test_telemetry_requests_and_arducopter_rate_cap():
     # ArduCopter refuses more than half its 400 Hz loop (and keeps the old rate): ask for 200
     assert [r.param2 for r in ARDUCOPTER.telemetry_requests(1, 1, 400.0)][:2] == [5000.0, 5000.0]
     assert [r.param2 for r in PX4.telemetry_requests(1, 1, 400.0)][:2] == [2500.0, 2500.0]
-    for bad in (0.0, -5.0, math.nan):
+    for bad in (0.0, -5.0, math.nan, math.inf):             # inf would make interval 0: "default rate"
         with pytest.raises(ValueError):
             ARDUCOPTER.telemetry_requests(1, 1, bad)
 
