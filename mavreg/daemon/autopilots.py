@@ -141,8 +141,8 @@ class Dialect:
     disarm_by_land_mode: bool
     """After touchdown ask for the land mode (:meth:`set_land_mode`; the autopilot then disarms by
     itself) instead of ARM_DISARM 0. ArduCopter: under thrust set-points its land detector fired
-    in only 2 of 10 landings, and until it fires ARM_DISARM 0 is refused; LAND disarmed 4 of 4
-    within 2.7 s."""
+    in only 2 of 10 landings, and until it fires ARM_DISARM 0 is refused; LAND disarmed 5 of 5
+    (2.1 to 5.3 s after the mode change)."""
 
     def decode(self, hb) -> HeartbeatInfo:
         """Armed flag, mode and "obeys offboard set-points" of a vehicle HEARTBEAT."""

@@ -13,10 +13,11 @@ differently after touchdown:
 Test setup only: GUID_OPTIONS = 8. Prints one JSON document. Uses the Flight helper of
 ``measure_flight.py``.
 
-    python scripts/ardupilot/measure_landing.py
+    python scripts/ardupilot/measure_landing.py [--slow-take-off]
 """
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from pathlib import Path
@@ -53,13 +54,46 @@ def wait_state(f: Flight, cond, seconds: float, law=None) -> float | None:
     return round(f.now() - t0, 2) if cond() else None
 
 
+def slow_take_off(f: Flight, z_ground: float, per_s: float = 0.02) -> dict:
+    """DISARM_DELAY 3 s (test setup), then a thrust ramp of ``per_s`` a second from 0: does the
+    auto-disarm fire before the vehicle leaves the ground?"""
+    f.s.set_param("DISARM_DELAY", 3)
+    f.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, GUIDED)
+    arm(f)
+    t_arm = f.now()
+    seen = {"armed": False}
+
+    def done():                      # the heartbeat (1 Hz) says "armed" only some time after the ACK
+        seen["armed"] |= f.armed
+        return f.z < z_ground - 0.1 or (seen["armed"] and not f.armed)
+    f.fly(12.0, lambda t: (-4 * f.roll, -4 * f.pitch, 0.0, per_s * t), until=done)
+    r = {"ramp_per_s": per_s, "armed": f.armed, "after_s": round(f.now() - t_arm, 2),
+         "left_ground": f.z < z_ground - 0.1}
+    if f.armed:
+        f.fly(4.0, f.hold(lambda t: z_ground - 1.0))
+        touch_down(f, z_ground)
+        f.command(M.MAV_CMD_DO_SET_MODE, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, LAND)
+        r["land_mode_disarmed_after_s"] = wait_state(f, lambda: not f.armed, 15.0)
+    f.s.set_param("DISARM_DELAY", 0)
+    return r
+
+
 def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--slow-take-off", action="store_true",
+                    help="only: does DISARM_DELAY (3 s) disarm during a slow thrust ramp (0.02/s)?")
+    args = ap.parse_args()
     res: dict = {}
     rates = {31: 50, 32: 50, 245: 20}
     with ArduPilotSitl(frame="freestyle", params={"GUID_OPTIONS": 8}, rates_hz=rates, timeout_s=120) as s:
         f = Flight(s)
         f.pump(f.now() + 1.0)
         z_ground = f.z
+        if args.slow_take_off:
+            res["slow_take_off"] = slow_take_off(f, z_ground)
+            res["events"] = f.events
+            print(json.dumps(res, indent=1, default=float))
+            return 0
 
         take_off(f, z_ground)
         touch_down(f, z_ground)
