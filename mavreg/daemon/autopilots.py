@@ -4,9 +4,10 @@ A :class:`Dialect` is chosen from the vehicle's HEARTBEAT by :func:`dialect_for`
 ``autopilot`` field: PX4 or ArduPilot; for ArduPilot only multicopter frames, whose mode
 numbers are ArduCopter's). It decodes the armed flag and the flight mode of a heartbeat and
 says whether the vehicle obeys offboard set-points (PX4 OFFBOARD, ArduCopter GUIDED); it
-builds the COMMAND_LONG that asks for that mode and the SET_MESSAGE_INTERVAL commands for the
-telemetry mavreg needs; and it lists the parameters that must hold before arming
-(:class:`ParamRule`), read with PARAM_REQUEST_READ and judged by a :class:`ParamChecker`.
+builds the COMMAND_LONGs that ask for that mode and for the land mode (how a flight ends on
+ArduCopter), and the SET_MESSAGE_INTERVAL commands for the telemetry mavreg needs; and it
+lists the parameters that must hold before arming (:class:`ParamRule`), read with
+PARAM_REQUEST_READ and judged by a :class:`ParamChecker`.
 Nothing here ever builds a PARAM_SET: mavreg reports a wrong safety parameter, it does not
 change it. See ``docs/autopilots.md`` for the measurements behind the numbers.
 """
@@ -95,12 +96,19 @@ class ParamChecker:
         self.values[name] = value
         return True
 
-    def verdict(self) -> ParamVerdict:
-        """Refused as soon as a read value breaks its rule; ok when all are read and hold."""
+    def verdict(self, timed_out: bool = False) -> ParamVerdict:
+        """Refused as soon as a read value breaks its rule; ok when all are read and hold.
+
+        Until then "waiting"; the caller bounds the wait and asks once more with
+        ``timed_out=True``, which turns each missing parameter into a refusal line (an
+        autopilot does not answer for a parameter it does not have)."""
         lines = tuple(line for name, v in self.values.items() if (line := self.rules[name].check(v)))
-        if lines:
-            return ParamVerdict("refused", lines)
         missing = tuple(n for n in self.rules if n not in self.values)
+        if timed_out:
+            lines += tuple(f"{n}: no answer to PARAM_REQUEST_READ; the autopilot does not have it or "
+                           "the link loses it, so mavreg cannot check it" for n in missing)
+        if lines:
+            return ParamVerdict("refused", lines, missing)
         return ParamVerdict("waiting", missing=missing) if missing else ParamVerdict("ok")
 
 
@@ -128,8 +136,13 @@ class Dialect:
     rules: tuple
     max_rate_hz: float
     """Highest telemetry rate the autopilot grants by default (ArduCopter: half its 400 Hz loop;
-    PX4: no fixed cap, its link's bandwidth limits it)."""
+    PX4: no cap known to mavreg, not measured)."""
     bytewise_params: bool
+    disarm_by_land_mode: bool
+    """After touchdown ask for the land mode (:meth:`set_land_mode`; the autopilot then disarms by
+    itself) instead of ARM_DISARM 0. ArduCopter: under thrust set-points its land detector fired
+    in only 2 of 10 landings, and until it fires ARM_DISARM 0 is refused; LAND disarmed 5 of 5
+    (2.1 to 5.3 s after the mode change)."""
 
     def decode(self, hb) -> HeartbeatInfo:
         """Armed flag, mode and "obeys offboard set-points" of a vehicle HEARTBEAT."""
@@ -156,19 +169,18 @@ class Dialect:
             float(M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED), float(ARDUCOPTER_GUIDED), 0, 0, 0, 0, 0)
 
     def set_land_mode(self, target_system: int, target_component: int):
-        """COMMAND_LONG DO_SET_MODE to the autopilot's own landing mode (PX4 AUTO.LAND; ArduCopter
-        LAND), whose land detector disarms the vehicle on the ground."""
+        """COMMAND_LONG DO_SET_MODE to the land mode (PX4 AUTO.LAND: main 4, sub 6; ArduCopter 9)."""
         if self.autopilot == M.MAV_AUTOPILOT_PX4:
-            return M.MAVLink_command_long_message(
-                target_system, target_component, M.MAV_CMD_DO_SET_MODE, 0,
-                float(M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED), float(PX4_MAIN_AUTO), float(PX4_SUB_LAND), 0, 0, 0, 0)
+            main, sub = PX4_MAIN_AUTO, PX4_SUB_LAND
+        else:
+            main, sub = ARDUCOPTER_LAND, 0
         return M.MAVLink_command_long_message(
             target_system, target_component, M.MAV_CMD_DO_SET_MODE, 0,
-            float(M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED), float(ARDUCOPTER_LAND), 0, 0, 0, 0, 0)
+            float(M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED), float(main), float(sub), 0, 0, 0, 0)
 
     @property
     def land_mode(self) -> str:
-        """Name of the landing mode :meth:`set_land_mode` asks for."""
+        """Name of the mode :meth:`set_land_mode` asks for, as :meth:`decode` names it."""
         return "AUTO.LAND" if self.autopilot == M.MAV_AUTOPILOT_PX4 else ARDUCOPTER_MODES[ARDUCOPTER_LAND]
 
     def telemetry_requests(self, target_system: int, target_component: int, rate_hz: float,
@@ -176,8 +188,8 @@ class Dialect:
         """SET_MESSAGE_INTERVAL commands: ATTITUDE_QUATERNION and LOCAL_POSITION_NED at
         ``rate_hz`` (capped at :attr:`max_rate_hz`: a faster request is refused and leaves the old
         rate), EXTENDED_SYS_STATE (landed state) at ``status_rate_hz``."""
-        if not (rate_hz > 0 and status_rate_hz > 0):
-            raise ValueError(f"telemetry rates must be positive, got {rate_hz}, {status_rate_hz}")
+        if not (0 < rate_hz < math.inf and 0 < status_rate_hz < math.inf):
+            raise ValueError(f"telemetry rates must be positive and finite, got {rate_hz}, {status_rate_hz}")
         rate = min(float(rate_hz), self.max_rate_hz)
         wanted = ((M.MAVLINK_MSG_ID_ATTITUDE_QUATERNION, rate), (M.MAVLINK_MSG_ID_LOCAL_POSITION_NED, rate),
                   (M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE, min(float(status_rate_hz), rate)))
@@ -216,8 +228,9 @@ PX4_RULES = (
               "COM_OBL_RC_ACT is {value}: set 5 (Hold) or 4 (Land); Stabilized (2) leaves the "
               "thrust to absent sticks, Terminate (6) and Disarm (7) stop the motors in the air"),
 )
-PX4 = Dialect("PX4", M.MAV_AUTOPILOT_PX4, "OFFBOARD", PX4_RULES, math.inf, True)
-ARDUCOPTER = Dialect("ArduCopter", M.MAV_AUTOPILOT_ARDUPILOTMEGA, "GUIDED", ARDUCOPTER_RULES, 200.0, False)
+PX4 = Dialect("PX4", M.MAV_AUTOPILOT_PX4, "OFFBOARD", PX4_RULES, math.inf, True, False)
+ARDUCOPTER = Dialect("ArduCopter", M.MAV_AUTOPILOT_ARDUPILOTMEGA, "GUIDED", ARDUCOPTER_RULES, 200.0, False,
+                     True)
 
 
 def dialect_for(hb) -> Dialect | None:

@@ -326,10 +326,13 @@ class FlightPhases:
 
     def _ground_disarm(self, idle_s: float, st):
         """Touched down, motors idle for ``idle_s``: ask for a disarm; after
-        ``land_mode_after_s`` (an autopilot whose land detector has not seen the landing
-        refuses it: ArduCopter in GUIDED), ask for the autopilot's own landing mode instead,
-        which disarms on the ground by itself."""
-        if idle_s < self.params.land_mode_after_s or st.mode == self.autopilot.dialect.land_mode:
+        ``land_mode_after_s`` (at once where the dialect says so: ArduCopter refuses a disarm in
+        GUIDED until its land detector has seen the landing, which under thrust set-points it
+        rarely does), ask for the autopilot's own landing mode instead, which disarms on the
+        ground by itself."""
+        dialect = self.autopilot.dialect
+        wait_s = 0.0 if dialect.disarm_by_land_mode else self.params.land_mode_after_s
+        if idle_s < wait_s or st.mode == dialect.land_mode:
             return mm.arm_disarm(self.params.vehicle_system_id, self.params.vehicle_component_id, False)
         self._land_mode_requested = True
         return self.autopilot.dialect.set_land_mode(self.params.vehicle_system_id,

@@ -147,6 +147,19 @@ def arm(f: Flight, limit_s: float = 60.0) -> float:
     raise SitlError("not armed")
 
 
+def stop_setpoints(f: Flight, fraction_of_hover: float, seconds: float) -> list:
+    """Send 0.3 s of zero rates at ``fraction_of_hover`` times the hover thrust, then nothing:
+    (t, height gained, climb rate, mode, armed) every 0.25 s."""
+    thrust = fraction_of_hover * f.hover
+    f.fly(0.3, lambda t: (0.0, 0.0, 0.0, thrust))
+    z0, t0 = f.z, f.now()
+    trace = []
+    while f.now() - t0 < seconds:
+        f.pump(f.now() + 0.25)
+        trace.append((round(f.now() - t0, 2), round(z0 - f.z, 2), round(-f.vz, 2), f.mode, f.armed))
+    return trace
+
+
 def crossings(t_cmd: float, log: np.ndarray, target: float, base: float) -> list:
     """Host times (ms after t_cmd) at which the rate first passes 10/50/90 % of the step."""
     out = []
@@ -230,15 +243,13 @@ def main() -> int:
         f.recording = None
         res["hover_100hz"] = dict(f.hover_stats(4.0), z=f.z, hover_estimate=f.hover)
 
-        # set-points stop (GUID_TIMEOUT 1 s for this check), the last thrust 10 % below hover
+        # set-points stop: the default GUID_TIMEOUT (3 s) at 5 m, the last thrust 5 % below hover
+        f.fly(6.0, f.hold(lambda t: z_ground - min(5.0, 3.0 + 0.5 * t)))
+        res["no_setpoints_guid_timeout_3_last_0.95_hover"] = stop_setpoints(f, 0.95, 6.0)
+        f.fly(6.0, f.hold(lambda t: z_ground - min(3.0, 1.0 + 0.5 * t)))
+        # GUID_TIMEOUT 1 s (test setup), the last thrust 10 % below hover
         s.set_param("GUID_TIMEOUT", 1.0)
-        f.fly(0.3, lambda t: (0.0, 0.0, 0.0, 0.9 * f.hover))
-        z0, t0 = f.z, f.now()
-        trace = []
-        while f.now() - t0 < 4.0:
-            f.pump(f.now() + 0.25)
-            trace.append((round(f.now() - t0, 2), round(z0 - f.z, 2), round(-f.vz, 2), f.mode, f.armed))
-        res["no_setpoints_guid_timeout_1_trace_t_rise_climbrate_mode_armed"] = trace
+        res["no_setpoints_guid_timeout_1_trace_t_rise_climbrate_mode_armed"] = stop_setpoints(f, 0.9, 4.0)
         f.fly(4.0, f.hold(z_ground - 3.0))
 
         # ordinary disarm in flight (ACK only)
@@ -251,6 +262,10 @@ def main() -> int:
         f.fly(8.0, f.hold(lambda t: min(z_ground + 0.3, z_start + 0.5 * t)))
         res["landing"] = {"height_m": round(z_ground - f.z, 2), "landed_state_on_ground": f.landed,
                           "armed": f.armed}
+        f.fly(5.0, lambda t: (0.0, 0.0, 0.0, 0.02))
+        res["landing"]["landed_state_after_5s_thrust_0.02"] = f.landed
+        res["landing"]["disarm_ack_at_thrust_0.02"] = f.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 0)
+        f.fly(0.5, lambda t: (0.0, 0.0, 0.0, 0.02))
         t_zero = f.now()
         f.fly(8.0, lambda t: (0.0, 0.0, 0.0, 0.0))
         res["landing"]["armed_after_8s_zero_thrust"] = f.armed

@@ -25,10 +25,13 @@ import tempfile
 import time
 from pathlib import Path
 
+import pytest
+
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil  # noqa: E402  (MAVLINK20 must be set first)
 
-__all__ = ["ardupilot_dir", "ArduPilotSitl", "SitlError", "require_ardupilot"]
+__all__ = ["ardupilot_dir", "ArduPilotSitl", "SitlError", "require_ardupilot", "arducopter_sitl_fixture",
+           "TEST_PARAMS"]
 
 REPO = Path(__file__).resolve().parents[2]
 ENV_VAR = "MAVREG_ARDUPILOT_DIR"
@@ -65,12 +68,25 @@ def ardupilot_dir() -> Path | None:
 
 def require_ardupilot() -> Path:
     """The SITL directory, or skip the calling test with a clear message."""
-    import pytest
     d = ardupilot_dir()
     if d is None:
         pytest.skip(f"ArduCopter SITL not found: set {ENV_VAR} to a directory holding "
                     "start.sh and arducopter")
     return d
+
+
+TEST_PARAMS = {"GUID_OPTIONS": 8, "GUID_TIMEOUT": 0.5, "ATC_ANGLE_BOOST": 0}
+"""What mavreg's parameter check requires, set by the tests' own setup (mavreg never sets them)."""
+
+
+@pytest.fixture(name="arducopter_sitl")
+def arducopter_sitl_fixture():
+    """Fixture ``arducopter_sitl``: a freestyle ArduCopter SITL with :data:`TEST_PARAMS`, ready
+    to arm; stopped afterwards. Import ``arducopter_sitl_fixture`` into a test module to use it;
+    skips when the SITL is absent."""
+    require_ardupilot()
+    with ArduPilotSitl(frame="freestyle", params=TEST_PARAMS) as sitl:
+        yield sitl
 
 
 def free_udp_port() -> int:

@@ -10,8 +10,9 @@ import socket
 
 import pytest
 
-from helpers.ardupilot_sitl import (ArduPilotSitl, SitlError, _alive, ardupilot_dir, free_instance,
+from helpers.ardupilot_sitl import (TEST_PARAMS, ArduPilotSitl, SitlError, _alive, ardupilot_dir, free_instance,
                                     require_ardupilot)
+from helpers.ardupilot_sitl import arducopter_sitl_fixture  # noqa: F401  (the fixture arducopter_sitl)
 from mavreg.daemon.autopilots import ARDUCOPTER, dialect_for
 from mavreg.daemon.messages import arm_disarm, mavlink2 as M
 
@@ -27,40 +28,40 @@ def read_params(sitl, dialect, timeout_s=5.0):
 
 
 @pytest.mark.slow
-def test_arducopter_sitl_dialect_params_guided_arm():
-    require_ardupilot()
-    with ArduPilotSitl(frame="freestyle", params={"GUID_OPTIONS": 8, "GUID_TIMEOUT": 0.5, "ATC_ANGLE_BOOST": 0}) as sitl:
-        pid = sitl.pid
-        hb = sitl.wait_for(lambda m: m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1, 5, "heartbeat")
-        dialect = dialect_for(hb)
-        assert dialect is ARDUCOPTER
-        info = dialect.decode(hb)
-        assert not info.armed and not info.offboard
+def test_arducopter_sitl_dialect_params_guided_arm(arducopter_sitl):
+    sitl = arducopter_sitl
+    hb = sitl.wait_for(lambda m: m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1, 5, "heartbeat")
+    dialect = dialect_for(hb)
+    assert dialect is ARDUCOPTER
+    info = dialect.decode(hb)
+    assert not info.armed and not info.offboard
 
-        assert read_params(sitl, dialect).state == "ok"
-        sitl.set_param("GUID_TIMEOUT", 3)              # negative control: ArduCopter's default
-        refused = read_params(sitl, dialect)
-        assert refused.state == "refused" and refused.lines[0].startswith("GUID_TIMEOUT is 3 s")
-        sitl.set_param("GUID_TIMEOUT", 0.5)
+    assert read_params(sitl, dialect).state == "ok"
+    sitl.set_param("GUID_TIMEOUT", 3)              # negative control: ArduCopter's default
+    refused = read_params(sitl, dialect)
+    assert refused.state == "refused" and refused.lines[0].startswith("GUID_TIMEOUT is 3 s")
+    sitl.set_param("GUID_TIMEOUT", TEST_PARAMS["GUID_TIMEOUT"])
 
-        for msg in dialect.telemetry_requests(sitl.sysid, sitl.compid, 100.0):
-            sitl.send(msg)
-        sitl.wait_for(lambda m: m.get_type() == "ATTITUDE_QUATERNION", 5, "ATTITUDE_QUATERNION")
+    for msg in dialect.telemetry_requests(sitl.sysid, sitl.compid, 100.0):
+        sitl.send(msg)
+    sitl.wait_for(lambda m: m.get_type() == "ATTITUDE_QUATERNION", 5, "ATTITUDE_QUATERNION")
 
-        sitl.send(dialect.set_offboard_mode(sitl.sysid, sitl.compid))
-        sitl.wait_for(lambda m: m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1
-                      and dialect.decode(m).offboard, 5, "GUIDED in the heartbeat")
-        sitl.send(arm_disarm(sitl.sysid, sitl.compid, True))       # ready means armable
-        ack = sitl.wait_for(lambda m: m.get_type() == "COMMAND_ACK"
-                            and m.command == M.MAV_CMD_COMPONENT_ARM_DISARM, 5, "arming ACK")
-        assert ack.result == M.MAV_RESULT_ACCEPTED, sitl.texts[-3:]
-        hb = sitl.wait_for(lambda m: m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1
-                           and dialect.decode(m).armed, 5, "armed heartbeat")
-        assert dialect.decode(hb).mode == "GUIDED"
-        sitl.send(arm_disarm(sitl.sysid, sitl.compid, False))      # on the ground: accepted
-        sitl.wait_for(lambda m: m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1
-                      and not dialect.decode(m).armed, 5, "disarmed heartbeat")
-    assert not _alive(pid), "the SITL outlived its with block"
+    sitl.send(dialect.set_offboard_mode(sitl.sysid, sitl.compid))
+    sitl.wait_for(lambda m: m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1
+                  and dialect.decode(m).offboard, 5, "GUIDED in the heartbeat")
+    sitl.send(arm_disarm(sitl.sysid, sitl.compid, True))       # the fixture's "ready" means armable
+    ack = sitl.wait_for(lambda m: m.get_type() == "COMMAND_ACK"
+                        and m.command == M.MAV_CMD_COMPONENT_ARM_DISARM, 5, "arming ACK")
+    assert ack.result == M.MAV_RESULT_ACCEPTED, sitl.texts[-3:]
+    hb = sitl.wait_for(lambda m: m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1
+                       and dialect.decode(m).armed, 5, "armed heartbeat")
+    assert dialect.decode(hb).mode == "GUIDED"
+    sitl.send(arm_disarm(sitl.sysid, sitl.compid, False))      # on the ground: accepted
+    sitl.wait_for(lambda m: m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1
+                  and not dialect.decode(m).armed, 5, "disarmed heartbeat")
+    pid = sitl.pid
+    sitl.stop()                                    # what the fixture's teardown does (twice is harmless)
+    assert not _alive(pid), "the SITL outlived stop()"
 
 
 def test_missing_sitl_is_a_clear_error(tmp_path, monkeypatch):

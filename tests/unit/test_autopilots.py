@@ -91,6 +91,16 @@ def test_offboard_mode_commands():
     assert (ap.target_system, ap.target_component) == (1, 1)
 
 
+def test_land_mode_commands_and_how_a_flight_ends():
+    ap = roundtrip(ARDUCOPTER.set_land_mode(1, 1))
+    assert (ap.command, ap.param1, ap.param2) == (M.MAV_CMD_DO_SET_MODE, 1.0, 9.0)
+    assert ARDUCOPTER.mode_name(int(ap.param2)) == "LAND"
+    px = roundtrip(PX4.set_land_mode(1, 1))
+    assert (px.param2, px.param3) == (4.0, 6.0)
+    assert PX4.mode_name((int(px.param2) << 16) | (int(px.param3) << 24)) == "AUTO.LAND"
+    assert ARDUCOPTER.disarm_by_land_mode and not PX4.disarm_by_land_mode
+
+
 def test_telemetry_requests_and_arducopter_rate_cap():
     reqs = [roundtrip(m) for m in ARDUCOPTER.telemetry_requests(1, 1, 100.0)]
     assert [(r.command, int(r.param1), r.param2) for r in reqs] == [
@@ -99,7 +109,7 @@ def test_telemetry_requests_and_arducopter_rate_cap():
     # ArduCopter refuses more than half its 400 Hz loop (and keeps the old rate): ask for 200
     assert [r.param2 for r in ARDUCOPTER.telemetry_requests(1, 1, 400.0)][:2] == [5000.0, 5000.0]
     assert [r.param2 for r in PX4.telemetry_requests(1, 1, 400.0)][:2] == [2500.0, 2500.0]
-    for bad in (0.0, -5.0, math.nan):
+    for bad in (0.0, -5.0, math.nan, math.inf):             # inf would make interval 0: "default rate"
         with pytest.raises(ValueError):
             ARDUCOPTER.telemetry_requests(1, 1, bad)
 
@@ -111,7 +121,7 @@ def test_param_requests_by_name_and_never_a_param_set():
         assert [r.param_id for r in reqs] == names
         assert all(r.param_index == -1 and r.get_type() == "PARAM_REQUEST_READ" for r in reqs)
         built = (dialect.param_requests(1, 1) + dialect.telemetry_requests(1, 1, 50.0)
-                 + [dialect.set_offboard_mode(1, 1)])
+                 + [dialect.set_offboard_mode(1, 1), dialect.set_land_mode(1, 1)])
         assert {m.get_type() for m in built} <= {"PARAM_REQUEST_READ", "COMMAND_LONG"}
 
 
@@ -127,9 +137,6 @@ def test_arducopter_defaults_are_refused_with_the_fix():
     chk.add(param_value("GUID_TIMEOUT", 3.0))
     lines = chk.verdict().lines
     assert len(lines) == 2 and "GUID_TIMEOUT is 3 s" in lines[1] and "\n" not in "".join(lines)
-    chk.add(param_value("ATC_ANGLE_BOOST", 1.0, M.MAV_PARAM_TYPE_INT8))      # ArduCopter's default
-    lines = chk.verdict().lines
-    assert len(lines) == 3 and "ATC_ANGLE_BOOST is 1" in lines[2] and "ATC_ANGLE_BOOST=0" in lines[2]
 
 
 def test_arducopter_good_values_pass():
@@ -186,3 +193,14 @@ def test_other_messages_and_parameters_ignored():
     assert not chk.add(param_value("GUID_OPTIONX", 8.0))
     assert not chk.add(param_value("FS_GCS_ENABLE", 0.0))
     assert chk.values == {} and chk.verdict().state == "waiting"
+
+
+def test_timeout_turns_missing_parameters_into_refusals():
+    chk = PX4.param_checker()
+    chk.add(param_value("COM_OF_LOSS_T", 0.5))
+    assert chk.verdict().state == "waiting"               # the caller's wait is not over
+    v = chk.verdict(timed_out=True)
+    assert v.state == "refused" and v.missing == ("COM_OBL_RC_ACT",)
+    assert len(v.lines) == 1 and v.lines[0].startswith("COM_OBL_RC_ACT: no answer")
+    chk.add(param_value("COM_OBL_RC_ACT", bytewise(5), M.MAV_PARAM_TYPE_INT32))
+    assert chk.verdict(timed_out=True).state == "ok"      # nothing missing: the timeout changes nothing
