@@ -49,7 +49,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from .bootstrap import BlockBootstrap, block_length_rows
-from .regressors import FlightSeries, IdentifyError, Regressors, lagged_integrals
+from .regressors import FlightSeries, IdentifyError, Regressors, lagged_integrals, rotor_channels
 
 __all__ = ["FlightSeries", "FitOptions", "Estimate", "Identification", "IdentifyError", "identify",
            "lagged_integrals"]
@@ -138,11 +138,15 @@ class Identification:
 
 
 class _Model:
-    """Least squares of one column set for any (tau, D): the fixed columns projected out once."""
+    """Least squares of one column set for any (tau, D): the fixed columns projected out once.
 
-    def __init__(self, P: Regressors, cols: list[int]):
+    ``P`` gives ``y`` (rows, a), ``fixed`` (rows, a, all fixed columns), ``rows``, ``h`` and
+    ``thrust_columns(tau, D)`` (rows, a, m): the m columns that depend on (tau, D) come
+    first in theta."""
+
+    def __init__(self, P, cols: list[int]):
         self.P, self.cols = P, list(cols)
-        self.Z = P.fixed[:, :, self.cols]                       # (rows, 3, k)
+        self.Z = P.fixed[:, :, self.cols]                       # (rows, a, k)
         Zf = self.Z.reshape(-1, len(self.cols))
         self.Q = np.linalg.qr(Zf)[0] if self.cols else np.zeros((Zf.shape[0], 0))
         y = P.y.reshape(-1)
@@ -151,21 +155,26 @@ class _Model:
 
     def rss(self, tau_s: float, delay_s: float) -> float:
         """Residual sum of squares at (tau, D); with Q orthonormal and yt orthogonal to it,
-        |x - QQ'x|^2 = |x|^2 - |Q'x|^2 and (x - QQ'x).yt = x.yt (einsum: no threaded BLAS)."""
-        x = self.P.thrust_column(tau_s, delay_s).reshape(-1)
-        qx = np.einsum("ij,i->j", self.Q, x)
-        xx = float(np.einsum("i,i->", x, x) - np.einsum("j,j->", qx, qx))
-        xy = float(np.einsum("i,i->", x, self.yt))
-        return self.yy - xy * xy / xx if xx > 0 else self.yy
+        X'X less its projection, and (X - QQ'X)'yt = X'yt (einsum: no threaded BLAS)."""
+        X = self.P.thrust_columns(tau_s, delay_s)
+        X = X.reshape(-1, X.shape[-1])
+        qx = np.einsum("ij,im->jm", self.Q, X)
+        xx = np.einsum("im,in->mn", X, X) - np.einsum("jm,jn->mn", qx, qx)
+        xy = np.einsum("im,i->m", X, self.yt)
+        try:
+            fit = float(xy @ np.linalg.solve(xx, xy))
+        except np.linalg.LinAlgError:
+            return self.yy
+        return self.yy - fit if np.isfinite(fit) and fit > 0 else self.yy
 
     def solve(self, tau_s: float, delay_s: float) -> tuple[np.ndarray, np.ndarray]:
-        """theta (thrust scale, then the fixed columns' coefficients) and residuals (rows, 3)."""
+        """theta (the thrust columns', then the fixed columns' coefficients) and residuals (rows, a)."""
         X = self.design(tau_s, delay_s)
         theta = np.linalg.lstsq(X.reshape(-1, X.shape[-1]), self.P.y.reshape(-1), rcond=None)[0]
         return theta, self.P.y - X @ theta
 
     def design(self, tau_s: float, delay_s: float) -> np.ndarray:
-        return np.concatenate([self.P.thrust_column(tau_s, delay_s)[:, :, None], self.Z], axis=2)
+        return np.concatenate([self.P.thrust_columns(tau_s, delay_s), self.Z], axis=2)
 
 
 def _search(model: _Model, o: FitOptions) -> tuple[float, float]:
@@ -206,21 +215,23 @@ def _bootstrap(model: _Model, tau: float, delay: float, o: FitOptions, resid: np
     zy = bs.replicate_sums(bs.chunk_sums(np.einsum("rai,ra->ri", Z, y)))        # (R, k)
     yy = bs.replicate_sums(bs.chunk_sums(np.einsum("ra,ra->r", y, y)))          # (R,)
     grid = [(ta, d) for ta in taus for d in delays]
-    cross = []                                    # per grid point, chunk sums of x'x, x'Z, x'y
+    cross = []                                    # per grid point, chunk sums of X'X, X'Z, X'y
     for ta, d in grid:
-        x = P.thrust_column(ta, d)
-        cross.append(bs.chunk_sums(np.concatenate([np.einsum("ra,ra->r", x, x)[:, None],
-                                                   np.einsum("ra,rai->ri", x, Z),
-                                                   np.einsum("ra,ra->r", x, y)[:, None]], axis=1)))
-    cr = bs.replicate_sums(np.stack(cross, axis=1))                             # (R, G, k + 2)
+        X = P.thrust_columns(ta, d)
+        cross.append(bs.chunk_sums(np.concatenate([np.einsum("ram,ran->rmn", X, X).reshape(X.shape[0], -1),
+                                                   np.einsum("ram,rai->rmi", X, Z).reshape(X.shape[0], -1),
+                                                   np.einsum("ram,ra->rm", X, y)], axis=1)))
+    m = X.shape[2]
+    cr = bs.replicate_sums(np.stack(cross, axis=1))                    # (R, G, m m + m k + m)
     Rn, Gn = cr.shape[0], cr.shape[1]
-    A = np.empty((Rn, Gn, k + 1, k + 1))
-    A[:, :, 0, 0] = cr[:, :, 0]
-    A[:, :, 0, 1:] = cr[:, :, 1:k + 1]
-    A[:, :, 1:, 0] = cr[:, :, 1:k + 1]
-    A[:, :, 1:, 1:] = zz[:, None]
-    b = np.concatenate([cr[:, :, k + 1:], np.broadcast_to(zy[:, None], (Rn, Gn, k))], axis=2)
-    A += 1e-12 * np.trace(A, axis1=2, axis2=3)[..., None, None] * np.eye(k + 1)   # no singular replicate
+    A = np.empty((Rn, Gn, m + k, m + k))
+    A[:, :, :m, :m] = cr[:, :, :m * m].reshape(Rn, Gn, m, m)
+    xz = cr[:, :, m * m:m * m + m * k].reshape(Rn, Gn, m, k)
+    A[:, :, :m, m:] = xz
+    A[:, :, m:, :m] = np.swapaxes(xz, 2, 3)
+    A[:, :, m:, m:] = zz[:, None]
+    b = np.concatenate([cr[:, :, m * m + m * k:], np.broadcast_to(zy[:, None], (Rn, Gn, k))], axis=2)
+    A += 1e-12 * np.trace(A, axis1=2, axis2=3)[..., None, None] * np.eye(m + k)   # no singular replicate
     theta = np.linalg.solve(A, b[..., None])[..., 0]
     rss = yy[:, None] - np.einsum("rgi,rgi->rg", theta, b)
     g = np.argmin(rss, axis=1)
@@ -255,7 +266,9 @@ def _interval(value: float, samples: np.ndarray) -> Estimate:
     return Estimate(float(value), float(min(lo, value)), float(max(hi, value)))
 
 
-def _fit_model(P: Regressors, cols: list[int], o: FitOptions) -> dict:
+def _fit_model(P, cols: list[int], o: FitOptions) -> dict:
+    """Search (tau, D), solve, bootstrap: the fit of one column set (theta: the m thrust
+    columns' coefficients, then ``cols``')."""
     model = _Model(P, cols)
     tau, delay = _search(model, o)
     theta, resid = model.solve(tau, delay)
@@ -263,8 +276,33 @@ def _fit_model(P: Regressors, cols: list[int], o: FitOptions) -> dict:
         th_r, t_r, d_r, edge_tau, edge_d, bs = _bootstrap(model, tau, delay, o, resid, zoom)
         if max(edge_tau, edge_d) <= 0.025:
             break
-    return {"cols": cols, "tau": tau, "delay": delay, "theta": theta, "resid": resid, "theta_r": th_r,
-            "tau_r": t_r, "delay_r": d_r, "edge_tau": edge_tau, "edge_delay": edge_d, "bs": bs}
+    return {"cols": cols, "m": theta.size - len(cols), "tau": tau, "delay": delay, "theta": theta,
+            "resid": resid, "theta_r": th_r, "tau_r": t_r, "delay_r": d_r, "edge_tau": edge_tau,
+            "edge_delay": edge_d, "bs": bs}
+
+
+def checked_options(options: FitOptions | None) -> FitOptions:
+    """The options (defaults if None); IdentifyError (one line) on a bad filter or parasitic."""
+    o = options if options is not None else FitOptions()
+    if o.window < 5 or o.window % 2 == 0 or not 1 <= o.polyorder < o.window - 1:
+        raise IdentifyError(f"the filter window must be odd and at least 5 (got {o.window}), "
+                            f"its polynomial order 1..window-2 (got {o.polyorder})")
+    if o.parasitic not in ("auto", "yes", "no"):
+        raise IdentifyError(f"parasitic must be auto, yes or no, got {o.parasitic!r}")
+    return o
+
+
+def translational_fit(P: Regressors, o: FitOptions) -> tuple[dict, tuple]:
+    """The thrust columns with the drag the flight excites (the parasitic term kept when
+    significant, by ``o.parasitic``): (:func:`_fit_model`'s dict, RMS body speed x y z)."""
+    speed = tuple(float(s) for s in np.sqrt(np.mean(P.vbody_rows ** 2, axis=0)))
+    axes = [k for k in range(3) if speed[k] >= _MIN_FIT_SPEED_M_S]
+    excited = any(speed[k] >= o.min_drag_speed_m_s for k in axes)
+    cols = axes + ([3] if excited and o.parasitic != "no" else [])
+    fit = _fit_model(P, cols, o)
+    if 3 in cols and o.parasitic == "auto" and np.percentile(fit["theta_r"][:, -1], 2.5) <= 0.0:
+        fit = _fit_model(P, axes, o)
+    return fit, speed
 
 
 def identify(series: FlightSeries, mass_kg: float, max_rotor_thrust_n: float,
@@ -274,6 +312,8 @@ def identify(series: FlightSeries, mass_kg: float, max_rotor_thrust_n: float,
     Parameters
     ----------
     series : FlightSeries
+        A flight of the rotor output (:func:`mavreg.identify.rate_fit.identify_rates` fits
+        one of the rates output).
     mass_kg, max_rotor_thrust_n : float
         The vehicle file's values: the commands are fractions of the maximum rotor thrust and
         the forces are divided by the mass (a wrong mass shows as a thrust scale).
@@ -284,32 +324,32 @@ def identify(series: FlightSeries, mass_kg: float, max_rotor_thrust_n: float,
     IdentifyError
         One line, when the flight has too little usable data.
     """
-    o = options if options is not None else FitOptions()
-    if o.window < 5 or o.window % 2 == 0 or not 1 <= o.polyorder < o.window - 1:
-        raise IdentifyError(f"the filter window must be odd and at least 5 (got {o.window}), "
-                            f"its polynomial order 1..window-2 (got {o.polyorder})")
-    if o.parasitic not in ("auto", "yes", "no"):
-        raise IdentifyError(f"parasitic must be auto, yes or no, got {o.parasitic!r}")
-    P = Regressors(series, mass_kg, max_rotor_thrust_n, o)
-    speed = tuple(float(s) for s in np.sqrt(np.mean(P.vbody_rows ** 2, axis=0)))
-    axes = [k for k in range(3) if speed[k] >= _MIN_FIT_SPEED_M_S]
-    excited = any(speed[k] >= o.min_drag_speed_m_s for k in axes)
-    cols = axes + ([3] if excited and o.parasitic != "no" else [])
-    fit = _fit_model(P, cols, o)
-    if 3 in cols and o.parasitic == "auto" and np.percentile(fit["theta_r"][:, -1], 2.5) <= 0.0:
-        fit = _fit_model(P, axes, o)
-    return _result(P, fit, speed, o, series.link_delay_s)
+    o = checked_options(options)
+    if series.output != "rotors":
+        raise IdentifyError(f"this flight's commands are {series.output}, not rotor forces")
+    P = Regressors(series, mass_kg, rotor_channels(series, max_rotor_thrust_n), o)
+    fit, speed = translational_fit(P, o)
+    th = fit["theta"][0], fit["theta_r"][:, 0]
+    drag, drag_xy, parasitic, model = drag_estimates(fit, speed, o)
+    tau, delay = lag_estimates(fit, o)
+    rms, r2 = fit_quality(P.y, fit["resid"])
+    return Identification(
+        thrust_scale=_interval(*th), drag_n_s_per_m=drag, drag_xy_n_s_per_m=drag_xy,
+        parasitic_n_s2_per_m2=parasitic, rotor_time_constant_s=tau, delay_s=delay, model=model,
+        residual_rms_m_s2=rms, r_squared=r2, samples=int(P.rows.size), duration_s=float(P.rows.size * P.h),
+        rms_body_speed_m_s=speed, intervals=intervals_text(fit["bs"], P.h, o), link_delay_s=series.link_delay_s)
 
 
-def _result(P: Regressors, fit: dict, speed, o: FitOptions, link_delay_s) -> Identification:
-    cols, theta, th_r = fit["cols"], fit["theta"], fit["theta_r"]
-    est = {c: _interval(theta[i + 1], th_r[:, i + 1]) for i, c in enumerate(cols)
+def drag_estimates(fit: dict, speed, o: FitOptions):
+    """(drag x y z, drag_xy, parasitic, model name) of a :func:`translational_fit`."""
+    cols, m, theta, th_r = fit["cols"], fit["m"], fit["theta"], fit["theta_r"]
+    est = {c: _interval(theta[i + m], th_r[:, i + m]) for i, c in enumerate(cols)
            if c == 3 or speed[c] >= o.min_drag_speed_m_s}
     slow = [Estimate(None, why=f"body {a} speed RMS {speed[k]:.2f} m/s < {o.min_drag_speed_m_s:g} m/s")
             for k, a in enumerate("xyz")]
     drag = tuple(est.get(k, slow[k]) for k in range(3))
     if 0 in est and 1 in est:
-        i, j = cols.index(0) + 1, cols.index(1) + 1
+        i, j = cols.index(0) + m, cols.index(1) + m
         vx, vy = np.var(th_r[:, i]), np.var(th_r[:, j])
         wx = vy / (vx + vy) if vx + vy > 0 else 0.5
         drag_xy = _interval(wx * theta[i] + (1 - wx) * theta[j], wx * th_r[:, i] + (1 - wx) * th_r[:, j])
@@ -317,34 +357,36 @@ def _result(P: Regressors, fit: dict, speed, o: FitOptions, link_delay_s) -> Ide
         drag_xy = next((drag[k] for k in (0, 1) if k in est),
                        Estimate(None, why=f"{slow[0].why}, {slow[1].why}"))
     if 3 in cols:
-        parasitic = est[3]
-        model = "linear body drag + parasitic |v| v"
-    else:
-        why = ("not fitted (--parasitic no)" if o.parasitic == "no" else
-               "no drag axis is excited" if 3 not in cols and not any(k in est for k in range(3))
-               else "not significant: its 95 % interval includes 0")
-        parasitic = Estimate(None, why=why)
-        model = "linear body drag" if any(k in est for k in range(3)) else "no drag (too slow)"
+        return drag, drag_xy, est[3], "linear body drag + parasitic |v| v"
+    why = ("not fitted (--parasitic no)" if o.parasitic == "no" else
+           "no drag axis is excited" if not any(k in est for k in range(3))
+           else "not significant: its 95 % interval includes 0")
+    model = "linear body drag" if any(k in est for k in range(3)) else "no drag (too slow)"
+    return drag, drag_xy, Estimate(None, why=why), model
+
+
+def lag_estimates(fit: dict, o: FitOptions, what: str = "rotor lag") -> tuple[Estimate, Estimate]:
+    """(tau, D) of a fit: not identified when tau's interval runs into the grid's edge or is
+    wider than tau (or 10 ms); D given, searched with tau, or not identified with it."""
     tau = _interval(fit["tau"], fit["tau_r"])
     if fit["edge_tau"] > 0.025 or fit["edge_delay"] > 0.025 or tau.high - tau.low > max(tau.value, 0.01):
-        tau = Estimate(None, why=f"the flight does not excite the rotor lag (95 % interval "
+        tau = Estimate(None, why=f"the flight does not excite the {what} (95 % interval "
                                  f"{1e3 * tau.low:.0f}-{1e3 * tau.high:.0f} ms or wider"
                                  f"{', delay not pinned' if fit['edge_delay'] > 0.025 else ''})")
     if o.delay_s is not None:
-        delay = Estimate(o.delay_s, o.delay_s, o.delay_s, why="given")
-    elif tau.value is None:
-        delay = Estimate(None, why="searched with the rotor lag, which the flight does not excite")
-    else:
-        delay = _interval(fit["delay"], fit["delay_r"])
-    resid = fit["resid"]
+        return tau, Estimate(o.delay_s, o.delay_s, o.delay_s, why="given")
+    if tau.value is None:
+        return tau, Estimate(None, why=f"searched with the {what}, which the flight does not excite")
+    return tau, _interval(fit["delay"], fit["delay_r"])
+
+
+def fit_quality(y: np.ndarray, resid: np.ndarray) -> tuple[float, float]:
+    """(residual RMS, R^2) of a fit's rows."""
     rss = float(np.sum(resid ** 2))
-    tss = float(np.sum((P.y - P.y.mean(axis=0)) ** 2))
-    bs = fit["bs"]
-    return Identification(
-        thrust_scale=_interval(theta[0], th_r[:, 0]), drag_n_s_per_m=drag, drag_xy_n_s_per_m=drag_xy,
-        parasitic_n_s2_per_m2=parasitic, rotor_time_constant_s=tau, delay_s=delay, model=model,
-        residual_rms_m_s2=float(np.sqrt(rss / resid.size)), r_squared=1.0 - rss / tss if tss > 0 else 0.0,
-        samples=int(P.rows.size), duration_s=float(P.rows.size * P.h), rms_body_speed_m_s=speed,
-        intervals=(f"moving-block bootstrap, {o.replicates} replicates, blocks of {bs.block_rows * P.h:.2f} s "
-                   f"({bs.n_blocks} per replicate), every parameter re-estimated"),
-        link_delay_s=link_delay_s)
+    tss = float(np.sum((y - y.mean(axis=0)) ** 2))
+    return float(np.sqrt(rss / resid.size)), (1.0 - rss / tss if tss > 0 else 0.0)
+
+
+def intervals_text(bs, h: float, o: FitOptions) -> str:
+    return (f"moving-block bootstrap, {o.replicates} replicates, blocks of {bs.block_rows * h:.2f} s "
+            f"({bs.n_blocks} per replicate), every parameter re-estimated")
