@@ -86,6 +86,12 @@ class FitOptions:
     """Telemetry gaps up to this are interpolated; longer ones cut the data."""
     command_timeout_s: float = 0.1
     """Samples this long after the last command are left out (the stream stopped)."""
+    grid_steps_s: tuple[float, float] = (0.005, 0.002)
+    """Steps of the coarse (tau, D) grid the search starts from."""
+    rate_tau_max_s: float = 0.15
+    """Rates output: the longest rate-loop time constant searched."""
+    rate_delay_max_s: float = 0.1
+    """Rates output: the longest sample-to-rate-response delay searched."""
 
 
 @dataclass(frozen=True)
@@ -157,10 +163,13 @@ class _Model:
         """Residual sum of squares at (tau, D); with Q orthonormal and yt orthogonal to it,
         X'X less its projection, and (X - QQ'X)'yt = X'yt (einsum: no threaded BLAS)."""
         X = self.P.thrust_columns(tau_s, delay_s)
-        X = X.reshape(-1, X.shape[-1])
-        qx = np.einsum("ij,im->jm", self.Q, X)
-        xx = np.einsum("im,in->mn", X, X) - np.einsum("jm,jn->mn", qx, qx)
-        xy = np.einsum("im,i->m", X, self.yt)
+        xs = [np.ascontiguousarray(X[..., c]).reshape(-1) for c in range(X.shape[-1])]
+        qx = [np.einsum("ij,i->j", self.Q, x) for x in xs]
+        xx = np.array([[np.einsum("i,i->", a, b) - np.einsum("j,j->", qa, qb) for b, qb in zip(xs, qx)]
+                       for a, qa in zip(xs, qx)])
+        xy = np.array([np.einsum("i,i->", x, self.yt) for x in xs])
+        if xx.shape == (1, 1):
+            return self.yy - xy[0] * xy[0] / xx[0, 0] if xx[0, 0] > 0 else self.yy
         try:
             fit = float(xy @ np.linalg.solve(xx, xy))
         except np.linalg.LinAlgError:
@@ -178,17 +187,19 @@ class _Model:
 
 
 def _search(model: _Model, o: FitOptions) -> tuple[float, float]:
-    """(tau, D) of least residual: a coarse grid, then tau by bounded search on a fine D grid."""
-    taus = np.arange(0.0, o.tau_max_s + 1e-9, 0.005)
+    """(tau, D) of least residual: a coarse grid (steps ``o.grid_steps_s``), then tau by bounded
+    search (1.5 steps either side) on a D grid of an eighth of its step (one step either side)."""
+    ts, ds = o.grid_steps_s
+    taus = np.arange(0.0, o.tau_max_s + 1e-9, ts)
     delays = (np.array([o.delay_s]) if o.delay_s is not None
-              else np.arange(0.0, o.delay_max_s + 1e-9, 0.002))
+              else np.arange(0.0, o.delay_max_s + 1e-9, ds))
     rss = np.array([[model.rss(ta, d) for d in delays] for ta in taus])
     i, j = np.unravel_index(np.argmin(rss), rss.shape)
     tau0, d0 = float(taus[i]), float(delays[j])
     fine = ([d0] if o.delay_s is not None
-            else np.clip(d0 + np.arange(-0.002, 0.00201, 0.00025), 0.0, o.delay_max_s))
+            else np.clip(d0 + np.arange(-ds, ds * 1.005, ds / 8), 0.0, o.delay_max_s))
     best = (rss[i, j], tau0, d0)
-    lo, hi = max(0.0, tau0 - 0.0075), min(o.tau_max_s, tau0 + 0.0075)
+    lo, hi = max(0.0, tau0 - 1.5 * ts), min(o.tau_max_s, tau0 + 1.5 * ts)
     for d in np.unique(fine):
         r = minimize_scalar(lambda ta: model.rss(ta, d), bounds=(lo, hi), method="bounded",
                             options={"xatol": 1e-4})
@@ -218,9 +229,10 @@ def _bootstrap(model: _Model, tau: float, delay: float, o: FitOptions, resid: np
     cross = []                                    # per grid point, chunk sums of X'X, X'Z, X'y
     for ta, d in grid:
         X = P.thrust_columns(ta, d)
-        cross.append(bs.chunk_sums(np.concatenate([np.einsum("ram,ran->rmn", X, X).reshape(X.shape[0], -1),
-                                                   np.einsum("ram,rai->rmi", X, Z).reshape(X.shape[0], -1),
-                                                   np.einsum("ram,ra->rm", X, y)], axis=1)))
+        xs = [np.ascontiguousarray(X[..., c]) for c in range(X.shape[2])]
+        feats = [np.einsum("ra,ra->r", a, b) for a in xs for b in xs]
+        feats += [np.einsum("ra,rai->ri", a, Z) for a in xs] + [np.einsum("ra,ra->r", a, y) for a in xs]
+        cross.append(bs.chunk_sums(np.column_stack(feats)))
     m = X.shape[2]
     cr = bs.replicate_sums(np.stack(cross, axis=1))                    # (R, G, m m + m k + m)
     Rn, Gn = cr.shape[0], cr.shape[1]
@@ -261,12 +273,12 @@ def _vertex(surf: np.ndarray, i: np.ndarray, j: np.ndarray, axis: int, values: n
     return off * (values[1] - values[0])
 
 
-def _interval(value: float, samples: np.ndarray) -> Estimate:
+def interval(value: float, samples: np.ndarray) -> Estimate:
     lo, hi = np.percentile(samples, [2.5, 97.5])
     return Estimate(float(value), float(min(lo, value)), float(max(hi, value)))
 
 
-def _fit_model(P, cols: list[int], o: FitOptions) -> dict:
+def fit_columns(P, cols: list[int], o: FitOptions) -> dict:
     """Search (tau, D), solve, bootstrap: the fit of one column set (theta: the m thrust
     columns' coefficients, then ``cols``')."""
     model = _Model(P, cols)
@@ -294,14 +306,14 @@ def checked_options(options: FitOptions | None) -> FitOptions:
 
 def translational_fit(P: Regressors, o: FitOptions) -> tuple[dict, tuple]:
     """The thrust columns with the drag the flight excites (the parasitic term kept when
-    significant, by ``o.parasitic``): (:func:`_fit_model`'s dict, RMS body speed x y z)."""
+    significant, by ``o.parasitic``): (:func:`fit_columns`'s dict, RMS body speed x y z)."""
     speed = tuple(float(s) for s in np.sqrt(np.mean(P.vbody_rows ** 2, axis=0)))
     axes = [k for k in range(3) if speed[k] >= _MIN_FIT_SPEED_M_S]
     excited = any(speed[k] >= o.min_drag_speed_m_s for k in axes)
     cols = axes + ([3] if excited and o.parasitic != "no" else [])
-    fit = _fit_model(P, cols, o)
+    fit = fit_columns(P, cols, o)
     if 3 in cols and o.parasitic == "auto" and np.percentile(fit["theta_r"][:, -1], 2.5) <= 0.0:
-        fit = _fit_model(P, axes, o)
+        fit = fit_columns(P, axes, o)
     return fit, speed
 
 
@@ -334,7 +346,7 @@ def identify(series: FlightSeries, mass_kg: float, max_rotor_thrust_n: float,
     tau, delay = lag_estimates(fit, o)
     rms, r2 = fit_quality(P.y, fit["resid"])
     return Identification(
-        thrust_scale=_interval(*th), drag_n_s_per_m=drag, drag_xy_n_s_per_m=drag_xy,
+        thrust_scale=interval(*th), drag_n_s_per_m=drag, drag_xy_n_s_per_m=drag_xy,
         parasitic_n_s2_per_m2=parasitic, rotor_time_constant_s=tau, delay_s=delay, model=model,
         residual_rms_m_s2=rms, r_squared=r2, samples=int(P.rows.size), duration_s=float(P.rows.size * P.h),
         rms_body_speed_m_s=speed, intervals=intervals_text(fit["bs"], P.h, o), link_delay_s=series.link_delay_s)
@@ -343,7 +355,7 @@ def identify(series: FlightSeries, mass_kg: float, max_rotor_thrust_n: float,
 def drag_estimates(fit: dict, speed, o: FitOptions):
     """(drag x y z, drag_xy, parasitic, model name) of a :func:`translational_fit`."""
     cols, m, theta, th_r = fit["cols"], fit["m"], fit["theta"], fit["theta_r"]
-    est = {c: _interval(theta[i + m], th_r[:, i + m]) for i, c in enumerate(cols)
+    est = {c: interval(theta[i + m], th_r[:, i + m]) for i, c in enumerate(cols)
            if c == 3 or speed[c] >= o.min_drag_speed_m_s}
     slow = [Estimate(None, why=f"body {a} speed RMS {speed[k]:.2f} m/s < {o.min_drag_speed_m_s:g} m/s")
             for k, a in enumerate("xyz")]
@@ -352,7 +364,7 @@ def drag_estimates(fit: dict, speed, o: FitOptions):
         i, j = cols.index(0) + m, cols.index(1) + m
         vx, vy = np.var(th_r[:, i]), np.var(th_r[:, j])
         wx = vy / (vx + vy) if vx + vy > 0 else 0.5
-        drag_xy = _interval(wx * theta[i] + (1 - wx) * theta[j], wx * th_r[:, i] + (1 - wx) * th_r[:, j])
+        drag_xy = interval(wx * theta[i] + (1 - wx) * theta[j], wx * th_r[:, i] + (1 - wx) * th_r[:, j])
     else:
         drag_xy = next((drag[k] for k in (0, 1) if k in est),
                        Estimate(None, why=f"{slow[0].why}, {slow[1].why}"))
@@ -368,7 +380,7 @@ def drag_estimates(fit: dict, speed, o: FitOptions):
 def lag_estimates(fit: dict, o: FitOptions, what: str = "rotor lag") -> tuple[Estimate, Estimate]:
     """(tau, D) of a fit: not identified when tau's interval runs into the grid's edge or is
     wider than tau (or 10 ms); D given, searched with tau, or not identified with it."""
-    tau = _interval(fit["tau"], fit["tau_r"])
+    tau = interval(fit["tau"], fit["tau_r"])
     if fit["edge_tau"] > 0.025 or fit["edge_delay"] > 0.025 or tau.high - tau.low > max(tau.value, 0.01):
         tau = Estimate(None, why=f"the flight does not excite the {what} (95 % interval "
                                  f"{1e3 * tau.low:.0f}-{1e3 * tau.high:.0f} ms or wider"
@@ -377,7 +389,7 @@ def lag_estimates(fit: dict, o: FitOptions, what: str = "rotor lag") -> tuple[Es
         return tau, Estimate(o.delay_s, o.delay_s, o.delay_s, why="given")
     if tau.value is None:
         return tau, Estimate(None, why=f"searched with the {what}, which the flight does not excite")
-    return tau, _interval(fit["delay"], fit["delay_r"])
+    return tau, interval(fit["delay"], fit["delay_r"])
 
 
 def fit_quality(y: np.ndarray, resid: np.ndarray) -> tuple[float, float]:
