@@ -193,8 +193,8 @@ def identify_rates(series: FlightSeries, mass_kg: float, options: FitOptions | N
     if collective_delay == "rates":
         d = axes["roll_pitch"].delay_s.value
         if d is None:
-            raise IdentifyError("the collective's delay is the rate loop's, which this flight does not "
-                                "identify (roll and pitch); give the delay or search it")
+            raise IdentifyError("the collective's delay is taken from the rate loop, which this flight does "
+                                "not identify (roll and pitch do not turn): search it (--delay search) or give it")
         o = replace(o, delay_s=d)
     fit, speed = translational_fit(P, o)
     hover, expo, fmax = _thrust_map(fit, mass_kg)

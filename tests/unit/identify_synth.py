@@ -82,10 +82,11 @@ def write_tlog(series: FlightSeries, path, link_delay_s: float = 0.018, timesync
     """The flight as the daemon's ``.tlog`` would have it: per sample the vehicle's
     ATTITUDE_QUATERNION and LOCAL_POSITION_NED, then the daemon's command; vehicle HEARTBEATs
     at 1 Hz (armed, OFFBOARD where ``controlled``); a TIMESYNC exchange every
-    ``timesync_every`` samples whose reply says ``link_delay_s``."""
+    ``timesync_every`` samples (0: none) whose reply says ``link_delay_s``. A flight of the rates output
+    has its body rates in ATTITUDE_QUATERNION and its commands as SET_ATTITUDE_TARGET."""
     from pymavlink.dialects.v20 import common as mavlink2
 
-    from mavreg.daemon.messages import actuator_target, timesync_request
+    from mavreg.daemon.messages import actuator_target, rate_target, timesync_request
     from mavreg.daemon.tlog import TlogWriter
     veh = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
     dmn = mavlink2.MAVLink(None, srcSystem=1, srcComponent=191)
@@ -101,15 +102,18 @@ def write_tlog(series: FlightSeries, path, link_delay_s: float = 0.018, timesync
                     mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_PX4, 1 | (128 if on else 0),
                     (6 << 16) if on else (4 << 16) | (3 << 24), mavlink2.MAV_STATE_ACTIVE, 3).pack(veh))
             w, x, y, z = (float(a) for a in series.quaternion_wxyz[k])
-            tl.write(mavlink2.MAVLink_attitude_quaternion_message(ms, w, x, y, z, 0.0, 0.0, 0.0).pack(veh))
+            rates = (0.0, 0.0, 0.0) if series.body_rates_rad_s is None else series.body_rates_rad_s[k]
+            tl.write(mavlink2.MAVLink_attitude_quaternion_message(ms, w, x, y, z, *(float(a) for a in rates)).pack(veh))
             p, v = series.position_ned_m[k], series.velocity_ned_m_s[k]
             tl.write(mavlink2.MAVLink_local_position_ned_message(ms, *(float(a) for a in p),
                                                                  *(float(a) for a in v)).pack(veh))
             if pending is not None and t >= pending[0]:
                 tl.write(mavlink2.MAVLink_timesync_message(int(round(pending[0] * 1e9)), pending[1]).pack(veh))
                 pending = None
-            tl.write(actuator_target(int(t * 1e6) + 500, 1, 1, series.command_controls[k]).pack(dmn))
-            if k % timesync_every == 0 and pending is None:
+            u = series.command_controls[k]
+            tl.write((rate_target(int(t * 1e3) + 1, 1, 1, u[:3], u[3]) if series.output == "rates"
+                      else actuator_target(int(t * 1e6) + 500, 1, 1, u)).pack(dmn))
+            if timesync_every and k % timesync_every == 0 and pending is None:
                 ts1 = int(t * 1e9) + 600_000
                 tl.write(timesync_request(ts1).pack(dmn))
                 pending = (float(t) + link_delay_s, ts1)
