@@ -36,8 +36,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..config.vehicle import G
-from .fit import (Estimate, FitOptions, fit_columns, interval, checked_options, drag_estimates, fit_quality,
-                  intervals_text, lag_estimates, translational_fit)
+from .estimates import Estimate, drag_estimates, fit_quality, interval, intervals_text, lag_estimates
+from .fit import FitOptions, checked_options, fit_columns, translational_fit
 from .regressors import FlightSeries, IdentifyError, Regressors, lagged_integrals
 
 __all__ = ["RateAxis", "RateIdentification", "identify_rates", "thrust_channels", "AXES"]
