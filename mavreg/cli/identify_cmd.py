@@ -98,8 +98,9 @@ def add_arguments(p):
                    help="write a copy of the vehicle file with the identified values filled in")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--delay", type=_delay, default="auto", metavar="auto|timesync|search|MS",
-                   help="sample-to-rotor delay: auto (TIMESYNC if the flight has it, else search), "
-                   "timesync, search (jointly with tau), or a value in ms (default: auto)")
+                   help="sample-to-rotor delay: auto (TIMESYNC if the flight has it, else search; a "
+                   "rates flight: the rate loop's delay), timesync, search (jointly with tau), or a "
+                   "value in ms (default: auto)")
     p.add_argument("--parasitic", choices=("auto", "yes", "no"), default="auto",
                    help="quadratic parasitic drag: auto keeps it when its 95 %% interval excludes 0 "
                    "(default: auto)")

@@ -89,6 +89,9 @@ class FitOptions:
     """Samples this long after the last command are left out (the stream stopped)."""
     grid_steps_s: tuple[float, float] = (0.005, 0.002)
     """Steps of the coarse (tau, D) grid the search starts from."""
+    delay_needs_margin: bool = False
+    """A delay at 0 is the edge of the search, not a value (the rate loop: a response no later
+    than its sample is a lag and delay traded for each other, not a measurement)."""
     rate_tau_max_s: float = 0.15
     """Rates output: the longest rate-loop time constant searched."""
     rate_delay_max_s: float = 0.1
@@ -238,7 +241,7 @@ def _bootstrap(model: _Model, tau: float, delay: float, o: FitOptions, resid: np
     t_r = taus[i] + _vertex(surf, i, j, 1, taus)
     d_r = delays[j] + _vertex(surf, i, j, 2, delays)
     edge_tau = np.mean(((i == 0) & (taus[0] > 0)) | ((i == taus.size - 1) & (taus[-1] < o.tau_max_s)))
-    edge_d = np.mean(((j == 0) & (delays[0] > 0)) | ((j == delays.size - 1) & (delays[-1] < o.delay_max_s))) \
+    edge_d = np.mean(((j == 0) & ((delays[0] > 0) | o.delay_needs_margin)) | ((j == delays.size - 1) & (delays[-1] < o.delay_max_s))) \
         if o.delay_s is None else 0.0
     return theta[np.arange(Rn), g], t_r, d_r, float(edge_tau), float(edge_d), bs
 

@@ -98,8 +98,9 @@ class _Commands:
         self.t.append(math.nan if answered is None else answered)
 
 
-def _command(msg, cmds: dict) -> _Commands | None:
-    """Where a daemon's command goes (with its values and clock), or None if it is no command."""
+def _command(msg, cmds: dict) -> tuple | None:
+    """(where a daemon's command goes, its values, its clock in us), or None if it is none of
+    the two outputs' commands."""
     if msg.get_type() == "SET_ACTUATOR_CONTROL_TARGET":
         if msg.group_mlx != 0:
             return None

@@ -188,7 +188,7 @@ def identify_rates(series: FlightSeries, mass_kg: float, options: FitOptions | N
     P = Regressors(series, mass_kg, channels, o)
     command, _ = P.hold(series.command_t_s, np.asarray(series.command_controls, float)[:, :3], o.command_timeout_s)
     ro = replace(o, tau_max_s=o.rate_tau_max_s, delay_max_s=o.rate_delay_max_s, delay_s=None,
-                 grid_steps_s=_RATE_GRID_S)
+                 grid_steps_s=_RATE_GRID_S, delay_needs_margin=True)
     axes = {name: _rate_axis(P, command, idx, ro, link_delay_part_s) for name, idx in AXES.items()}
     if collective_delay == "rates":
         d = axes["roll_pitch"].delay_s.value
