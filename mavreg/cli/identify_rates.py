@@ -83,21 +83,21 @@ def format_result(r, vehicle, flight: str, delay_source: str) -> str:
 
 def _rate_table(r, ri) -> list[str]:
     """The rate loop's rows: tau, D, d, gain, residual per axis; the file's tau and d last."""
-    lines = ["rate loop dw/dt = (k w_cmd(t - D) - w)/tau: D from the sample the command answered, "
-             "d the loop's own delay",
+    lines = ["rate loop dw/dt = (w_cmd(t - D) - w)/tau: D from the sample the command answered, "
+             "d the loop's own delay, k the gain fitted freely (the model: 1)",
              f"{'axis':<24}{'tau (ms)':>9}  {'95 % interval':<15}{'D (ms)':>7}  {'95 % interval':<15}"
-             f"{'d (ms)':>7}{'gain k':>8}{'resid (rad/s)':>15}"]
+             f"{'d (ms)':>7}{'k':>8}{'resid (rad/s)':>15}"]
     for name, label in (("roll", "roll"), ("pitch", "pitch"), ("yaw", "yaw"),
                         ("roll_pitch", "roll + pitch (written)")):
         a = r.rate_axes[name]
         if a.time_constant_s.value is None:
             lines.append(f"{label:<24}{'not identified':>9}  {a.time_constant_s.why}")
             continue
-        t, d, loop, k = a.time_constant_s, a.delay_s, a.loop_delay_s, a.gain
+        t, d, loop = a.time_constant_s, a.delay_s, a.loop_delay_s
         tau_s = f"{1e3 * t.value:9.1f}  {f'{1e3 * t.low:.1f} .. {1e3 * t.high:.1f}':<15}"
         d_s = (f"{'-':>7}  {'not identified':<15}{'-':>7}" if d.value is None else
                f"{1e3 * d.value:7.1f}  {f'{1e3 * d.low:.1f} .. {1e3 * d.high:.1f}':<15}{1e3 * loop.value:7.1f}")
-        lines.append(f"{label:<24}{tau_s}{d_s}{k.value:8.3f}{a.residual_rms_rad_s:15.4f}")
+        lines.append(f"{label:<24}{tau_s}{d_s}{a.free_gain:8.3f}{a.residual_rms_rad_s:15.4f}")
     if ri is not None:
         lines.append(f"vehicle file: rate_time_constant_s {1e3 * ri.rate_time_constant_s:g} ms, "
                      f"rate_delay_s {1e3 * ri.rate_delay_s:g} ms")

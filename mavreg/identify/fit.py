@@ -132,15 +132,16 @@ class Identification:
         }
 
 
-class _Model:
+class ColumnModel:
     """Least squares of one column set for any (tau, D): the fixed columns projected out once.
 
     ``P`` gives ``y`` (rows, a), ``fixed`` (rows, a, all fixed columns), ``rows``, ``h`` and
     ``thrust_columns(tau, D)`` (rows, a, m): the m columns that depend on (tau, D) come
-    first in theta."""
+    first in theta. ``known`` (m,): their coefficients are these, not fitted."""
 
-    def __init__(self, P, cols: list[int]):
+    def __init__(self, P, cols: list[int], known: np.ndarray | None = None):
         self.P, self.cols = P, list(cols)
+        self.known = None if known is None else np.asarray(known, float)
         self.Z = P.fixed[:, :, self.cols]                       # (rows, a, k)
         Zf = self.Z.reshape(-1, len(self.cols))
         self.Q = np.linalg.qr(Zf)[0] if self.cols else np.zeros((Zf.shape[0], 0))
@@ -152,6 +153,10 @@ class _Model:
         """Residual sum of squares at (tau, D); with Q orthonormal and yt orthogonal to it,
         X'X less its projection, and (X - QQ'X)'yt = X'yt (einsum: no threaded BLAS)."""
         X = self.P.thrust_columns(tau_s, delay_s)
+        if self.known is not None:
+            e = (self.P.y - X @ self.known).reshape(-1)
+            qe = np.einsum("ij,i->j", self.Q, e)
+            return float(np.einsum("i,i->", e, e) - np.einsum("j,j->", qe, qe))
         xs = [np.ascontiguousarray(X[..., c]).reshape(-1) for c in range(X.shape[-1])]
         qx = [np.einsum("ij,i->j", self.Q, x) for x in xs]
         xx = np.array([[np.einsum("i,i->", a, b) - np.einsum("j,j->", qa, qb) for b, qb in zip(xs, qx)]
@@ -168,38 +173,50 @@ class _Model:
     def solve(self, tau_s: float, delay_s: float) -> tuple[np.ndarray, np.ndarray]:
         """theta (the thrust columns', then the fixed columns' coefficients) and residuals (rows, a)."""
         X = self.design(tau_s, delay_s)
-        theta = np.linalg.lstsq(X.reshape(-1, X.shape[-1]), self.P.y.reshape(-1), rcond=None)[0]
+        if self.known is None:
+            theta = np.linalg.lstsq(X.reshape(-1, X.shape[-1]), self.P.y.reshape(-1), rcond=None)[0]
+        else:
+            m = self.known.size
+            e = self.P.y - X[:, :, :m] @ self.known
+            rest = np.linalg.lstsq(self.Z.reshape(-1, len(self.cols)), e.reshape(-1), rcond=None)[0]
+            theta = np.concatenate([self.known, rest])
         return theta, self.P.y - X @ theta
 
     def design(self, tau_s: float, delay_s: float) -> np.ndarray:
         return np.concatenate([self.P.thrust_columns(tau_s, delay_s), self.Z], axis=2)
 
 
-def _search(model: _Model, o: FitOptions) -> tuple[float, float]:
+def _search(model: ColumnModel, o: FitOptions) -> tuple[float, float]:
     """(tau, D) of least residual: a coarse grid (steps ``o.grid_steps_s``), then tau by bounded
-    search (1.5 steps either side) on a D grid of an eighth of its step (one step either side)."""
+    search (1.5 steps either side) on a D grid of an eighth of its step (one step either side),
+    moved along while the best D is at its end (a valley where lag and delay trade)."""
     ts, ds = o.grid_steps_s
     taus = np.arange(0.0, o.tau_max_s + 1e-9, ts)
     delays = (np.array([o.delay_s]) if o.delay_s is not None
               else np.arange(0.0, o.delay_max_s + 1e-9, ds))
     rss = np.array([[model.rss(ta, d) for d in delays] for ta in taus])
     i, j = np.unravel_index(np.argmin(rss), rss.shape)
-    tau0, d0 = float(taus[i]), float(delays[j])
-    fine = ([d0] if o.delay_s is not None
-            else np.clip(d0 + np.arange(-ds, ds * 1.005, ds / 8), 0.0, o.delay_max_s))
-    best = (rss[i, j], tau0, d0)
-    lo, hi = max(0.0, tau0 - 1.5 * ts), min(o.tau_max_s, tau0 + 1.5 * ts)
-    for d in np.unique(fine):
-        r = minimize_scalar(lambda ta: model.rss(ta, d), bounds=(lo, hi), method="bounded",
-                            options={"xatol": 1e-4})
-        cands = [(float(r.fun), float(r.x)), (model.rss(lo, d), lo)]
-        f, ta = min(cands)
-        if f < best[0]:
-            best = (f, ta, float(d))
+    best = (rss[i, j], float(taus[i]), float(delays[j]))
+    for _ in range(8):
+        start = best
+        tau0, d0 = best[1], best[2]
+        fine = ([d0] if o.delay_s is not None
+                else np.unique(np.clip(d0 + np.arange(-ds, ds * 1.005, ds / 8), 0.0, o.delay_max_s)))
+        lo, hi = max(0.0, tau0 - 1.5 * ts), min(o.tau_max_s, tau0 + 1.5 * ts)
+        for d in fine:
+            r = minimize_scalar(lambda ta: model.rss(ta, d), bounds=(lo, hi), method="bounded",
+                                options={"xatol": 1e-4})
+            f, ta = min([(float(r.fun), float(r.x)), (model.rss(lo, d), lo)])
+            if f < best[0]:
+                best = (f, ta, float(d))
+        d_inside = len(fine) < 3 or fine[0] < best[2] < fine[-1] or best[2] in (0.0, o.delay_max_s)
+        t_inside = lo < best[1] < hi or best[1] in (0.0, o.tau_max_s)
+        if best == start or (d_inside and t_inside):
+            break
     return best[1], best[2]
 
 
-def _bootstrap(model: _Model, tau: float, delay: float, o: FitOptions, resid: np.ndarray, zoom: float = 1.0):
+def _bootstrap(model: ColumnModel, tau: float, delay: float, o: FitOptions, resid: np.ndarray, zoom: float = 1.0):
     """Replicates of (theta, tau, D) on a local (tau, D) grid (tau +- 12 ms, D +- 5 ms, times
     ``zoom``); returns them, the shares of replicates at an edge of the grid, the bootstrap."""
     P = model.P
@@ -225,16 +242,18 @@ def _bootstrap(model: _Model, tau: float, delay: float, o: FitOptions, resid: np
     m = X.shape[2]
     cr = bs.replicate_sums(np.stack(cross, axis=1))                    # (R, G, m m + m k + m)
     Rn, Gn = cr.shape[0], cr.shape[1]
-    A = np.empty((Rn, Gn, m + k, m + k))
-    A[:, :, :m, :m] = cr[:, :, :m * m].reshape(Rn, Gn, m, m)
+    xx = cr[:, :, :m * m].reshape(Rn, Gn, m, m)
     xz = cr[:, :, m * m:m * m + m * k].reshape(Rn, Gn, m, k)
-    A[:, :, :m, m:] = xz
-    A[:, :, m:, :m] = np.swapaxes(xz, 2, 3)
-    A[:, :, m:, m:] = zz[:, None]
-    b = np.concatenate([cr[:, :, m * m + m * k:], np.broadcast_to(zy[:, None], (Rn, Gn, k))], axis=2)
-    A += 1e-12 * np.trace(A, axis1=2, axis2=3)[..., None, None] * np.eye(m + k)   # no singular replicate
-    theta = np.linalg.solve(A, b[..., None])[..., 0]
-    rss = yy[:, None] - np.einsum("rgi,rgi->rg", theta, b)
+    xy = cr[:, :, m * m + m * k:]
+    if model.known is None:
+        theta, rss = _replicate_solve(xx, xz, xy, zz, zy, yy)
+    else:
+        gk = model.known
+        ee = yy[:, None] - 2 * xy @ gk + np.einsum("rgmn,m,n->rg", xx, gk, gk)       # |y - X g|^2
+        theta_z, fit = _normal_solve(np.broadcast_to(zz[:, None], (Rn, Gn, k, k)),
+                                     zy[:, None] - np.einsum("rgmk,m->rgk", xz, gk))
+        theta = np.concatenate([np.broadcast_to(gk, (Rn, Gn, m)), theta_z], axis=2)
+        rss = ee - fit
     g = np.argmin(rss, axis=1)
     surf = rss.reshape(Rn, taus.size, delays.size)
     i, j = np.divmod(g, delays.size)
@@ -244,6 +263,30 @@ def _bootstrap(model: _Model, tau: float, delay: float, o: FitOptions, resid: np
     edge_d = np.mean(((j == 0) & ((delays[0] > 0) | o.delay_needs_margin)) | ((j == delays.size - 1) & (delays[-1] < o.delay_max_s))) \
         if o.delay_s is None else 0.0
     return theta[np.arange(Rn), g], t_r, d_r, float(edge_tau), float(edge_d), bs
+
+
+def _replicate_solve(xx, xz, xy, zz, zy, yy):
+    """Every replicate's and grid point's least squares from its sums: (theta, rss)."""
+    Rn, Gn, m, k = xz.shape
+    A = np.empty((Rn, Gn, m + k, m + k))
+    A[:, :, :m, :m] = xx
+    A[:, :, :m, m:] = xz
+    A[:, :, m:, :m] = np.swapaxes(xz, 2, 3)
+    A[:, :, m:, m:] = zz[:, None]
+    b = np.concatenate([xy, np.broadcast_to(zy[:, None], (Rn, Gn, k))], axis=2)
+    theta, fit = _normal_solve(A, b)
+    return theta, yy[:, None] - fit
+
+
+def _normal_solve(A, b):
+    """theta = A^-1 b and theta'b for stacks of normal equations (regularized a hair: no
+    singular replicate)."""
+    n = A.shape[-1]
+    if n == 0:
+        return np.zeros(b.shape), np.zeros(b.shape[:-1])
+    A = A + 1e-12 * np.trace(A, axis1=-2, axis2=-1)[..., None, None] * np.eye(n)
+    theta = np.linalg.solve(A, b[..., None])[..., 0]
+    return theta, np.einsum("...i,...i->...", theta, b)
 
 
 def _vertex(surf: np.ndarray, i: np.ndarray, j: np.ndarray, axis: int, values: np.ndarray) -> np.ndarray:
@@ -262,10 +305,10 @@ def _vertex(surf: np.ndarray, i: np.ndarray, j: np.ndarray, axis: int, values: n
     return off * (values[1] - values[0])
 
 
-def fit_columns(P, cols: list[int], o: FitOptions) -> dict:
+def fit_columns(P, cols: list[int], o: FitOptions, known: np.ndarray | None = None) -> dict:
     """Search (tau, D), solve, bootstrap: the fit of one column set (theta: the m thrust
-    columns' coefficients, then ``cols``')."""
-    model = _Model(P, cols)
+    columns' coefficients, ``known`` if given, then ``cols``')."""
+    model = ColumnModel(P, cols, known)
     tau, delay = _search(model, o)
     theta, resid = model.solve(tau, delay)
     for zoom in (1.0, 2.0, 4.0):               # widen the local grid until the replicates fit in

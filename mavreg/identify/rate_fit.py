@@ -19,13 +19,15 @@ hover thrust :math:`t_h` is the root of :math:`c_2 t_h^2 + c_1 t_h = m g` (m the
 mass). The bootstrap re-estimates :math:`c_1, c_2` on every replicate; :math:`t_h` and e
 are derived per replicate, so their intervals are the map's.
 
-**Rate loop.** Per axis, :math:`\dot\omega = (k\,\omega_c(t - D) - \omega)/\tau_\omega`,
+**Rate loop.** Per axis, :math:`\dot\omega = (\omega_c(t - D) - \omega)/\tau_\omega`,
 compared as output error: the integral of the measured rate over each sample interval
 against the exact integral of the delayed, lagged command (:func:`lagged_integrals`, the
-rotor lag's discretization) times a gain k, plus an offset (a gyro bias). For each
-:math:`(\tau_\omega, D)` that is linear in (k, offset); :math:`(\tau_\omega, D)` minimize the
-residual over a grid, and the bootstrap gives every interval. k near 1 says the model
-fits; the delay D runs from the sample the command answered to the response, so the rate
+rotor lag's discretization), plus an offset (a gyro bias). The gain is the model's, 1: a
+free gain would absorb the small loss of amplitude that, besides the phase, tells a lag
+from a delay, and a flight of smooth rates would then pin only their sum. For each
+:math:`(\tau_\omega, D)` the offset is linear; :math:`(\tau_\omega, D)` minimize the residual
+over a grid, and the bootstrap gives every interval. The gain k fitted freely at that
+:math:`(\tau_\omega, D)` is reported: near 1 says the model fits. The delay D runs from the sample the command answered to the response, so the rate
 loop's own delay is :math:`d = D - D_{link}` with the link's part (TIMESYNC plus the vehicle
 file's estimate latency) given by the caller.
 """
@@ -37,7 +39,7 @@ import numpy as np
 
 from ..config.vehicle import G
 from .estimates import Estimate, drag_estimates, fit_quality, interval, intervals_text, lag_estimates
-from .fit import FitOptions, checked_options, fit_columns, translational_fit
+from .fit import FitOptions, ColumnModel, checked_options, fit_columns, translational_fit
 from .regressors import FlightSeries, IdentifyError, Regressors, lagged_integrals
 
 __all__ = ["RateAxis", "RateIdentification", "identify_rates", "thrust_channels", "AXES"]
@@ -62,14 +64,15 @@ class RateAxis:
     """D: from the sample the command answered to the response."""
     loop_delay_s: Estimate
     """d = D less the link's part: the rate loop's own delay (``rate_delay_s``), at least 0."""
-    gain: Estimate
+    free_gain: float
+    """The gain k of k w_cmd that least squares gives at (tau, D): the model says 1."""
     residual_rms_rad_s: float
     r_squared: float
     command_rms_rad_s: float
 
     def as_dict(self) -> dict:
         return {"time_constant_s": self.time_constant_s.as_dict(), "delay_s": self.delay_s.as_dict(),
-                "loop_delay_s": self.loop_delay_s.as_dict(), "gain": self.gain.as_dict(),
+                "loop_delay_s": self.loop_delay_s.as_dict(), "free_gain": self.free_gain,
                 "residual_rms_rad_s": self.residual_rms_rad_s, "r_squared": self.r_squared,
                 "command_rms_rad_s": self.command_rms_rad_s}
 
@@ -247,9 +250,10 @@ def _rate_axis(P: Regressors, command: np.ndarray, axes: tuple, o: FitOptions, l
     if spread < _MIN_RATE_RMS_RAD_S:
         why = f"commanded rate RMS {spread:.3f} rad/s < {_MIN_RATE_RMS_RAD_S:g}: the flight does not turn about it"
         none = Estimate(None, why=why)
-        return RateAxis(none, none, none, none, float("nan"), float("nan"), spread)
+        return RateAxis(none, none, none, float("nan"), float("nan"), float("nan"), spread)
     R = _RateRows(P, command, axes)
-    fit = fit_columns(R, list(range(len(axes))), o)
+    cols = list(range(len(axes)))
+    fit = fit_columns(R, cols, o, known=np.ones(1))
     tau, delay = lag_estimates(fit, o, what="rate loop")
     if delay.value is None:
         loop = delay
@@ -257,4 +261,5 @@ def _rate_axis(P: Regressors, command: np.ndarray, axes: tuple, o: FitOptions, l
         loop = Estimate(max(0.0, delay.value - link_part_s), max(0.0, delay.low - link_part_s),
                         max(0.0, delay.high - link_part_s))
     rms, r2 = fit_quality(R.y / P.h, fit["resid"] / P.h)
-    return RateAxis(tau, delay, loop, interval(fit["theta"][0], fit["theta_r"][:, 0]), rms, r2, spread)
+    free = float(ColumnModel(R, cols).solve(fit["tau"], fit["delay"])[0][0])
+    return RateAxis(tau, delay, loop, free, rms, r2, spread)
