@@ -94,7 +94,7 @@ class RateIdentification:
     residual_rms_m_s2: float
     r_squared: float
     thrust_range: tuple[float, float]
-    """5th and 95th percentile of the normalized thrust flown."""
+    """5th and 95th percentile of the normalized thrust over the samples fitted."""
     rate_axes: dict
     """``AXES`` name -> :class:`RateAxis`."""
     link_delay_part_s: float
@@ -206,12 +206,12 @@ def identify_rates(series: FlightSeries, mass_kg: float, options: FitOptions | N
         delay_f = replace(axes["roll_pitch"].delay_s, why="the rate loop's (roll and pitch)")
     drag, drag_xy, parasitic, model = drag_estimates(fit, speed, o)
     rms, r2 = fit_quality(P.y, fit["resid"])
-    used = channels[:, 0][np.isfinite(series.command_t_s)]
+    used = P.held[P.rows, 0]                    # the thrust in force at the rows fitted
     return RateIdentification(
         hover_thrust=hover, thrust_expo=expo, max_thrust_n=fmax, collective_time_constant_s=tau_f,
         collective_delay_s=delay_f, drag_n_s_per_m=drag, drag_xy_n_s_per_m=drag_xy,
         parasitic_n_s2_per_m2=parasitic, model=model, residual_rms_m_s2=rms, r_squared=r2,
-        thrust_range=tuple(float(x) for x in np.percentile(used, [5, 95])) if used.size else (0.0, 0.0),
+        thrust_range=tuple(float(x) for x in np.percentile(used, [5, 95])),
         rate_axes=axes, link_delay_part_s=float(link_delay_part_s), samples=int(P.rows.size),
         duration_s=float(P.rows.size * P.h), rms_body_speed_m_s=speed,
         intervals=intervals_text(fit["bs"], P.h, o), link_delay_s=series.link_delay_s)
