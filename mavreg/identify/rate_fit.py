@@ -190,6 +190,9 @@ def identify_rates(series: FlightSeries, mass_kg: float, options: FitOptions | N
     channels = thrust_channels(series)
     P = Regressors(series, mass_kg, channels, o)
     command, _ = P.hold(series.command_t_s, np.asarray(series.command_controls, float)[:, :3], o.command_timeout_s)
+    if not np.any(P.rates[P.rows]):
+        raise IdentifyError("the vehicle reports no body rates (ATTITUDE_QUATERNION and ATTITUDE rollspeed, "
+                            "pitchspeed, yawspeed all 0): the rate loop cannot be measured")
     ro = replace(o, tau_max_s=o.rate_tau_max_s, delay_max_s=o.rate_delay_max_s, delay_s=None,
                  grid_steps_s=_RATE_GRID_S, delay_needs_margin=True)
     axes = {name: _rate_axis(P, command, idx, ro, link_delay_part_s) for name, idx in AXES.items()}

@@ -13,7 +13,7 @@ from mavreg.cli.main import main
 from mavreg.config.vehicle import load_vehicle
 from mavreg.daemon.messages import actuator_target, rate_target
 from mavreg.daemon.tlog import TlogWriter
-from mavreg.identify.fit import IdentifyError
+from mavreg.identify.fit import IdentifyError, identify
 from mavreg.identify.flightlog import read_flight
 from mavreg.identify.rate_fit import identify_rates
 
@@ -93,6 +93,18 @@ def test_a_flight_that_does_not_turn_does_not_identify_the_rate_loop():
     s = _flight(seed=7, excite=0.0, duration_s=5.0)
     with pytest.raises(IdentifyError, match="search it"):
         identify_rates(s, MASS_KG)
+
+
+def test_a_vehicle_that_reports_no_body_rates_is_refused_in_one_line(flight):
+    import dataclasses
+    silent = dataclasses.replace(flight, body_rates_rad_s=np.zeros_like(flight.body_rates_rad_s))
+    with pytest.raises(IdentifyError) as e:
+        identify_rates(silent, MASS_KG)
+    assert "reports no body rates" in str(e.value) and "\n" not in str(e.value)
+    with pytest.raises(IdentifyError, match="not body rates"):
+        identify_rates(dataclasses.replace(flight, output="rotors"), MASS_KG)
+    with pytest.raises(IdentifyError, match="not rotor forces"):       # nor the rotor fit on rates
+        identify(flight, MASS_KG, 12.0)
 
 
 # ------------------------------------------------------------------ reading the tlog
