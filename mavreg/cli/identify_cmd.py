@@ -54,7 +54,7 @@ then first order, dw/dt = (w_cmd(t - D) - w)/tau, per axis from the body rates: 
 integrated over each sample against the exact integral of the delayed, lagged command
 (gain and offset linear, (tau, D) on a grid). D runs from the sample to the response; the
 rate loop's own delay d is D less TIMESYNC and the file's estimate latency. The collective's
-delay is the rate loop's (roll and pitch) with --delay auto. --write-vehicle then writes
+delay is taken as for the rotor output (--delay). --write-vehicle then writes
 output: rates, a rate_interface: section (hover_thrust, thrust_expo, the roll and pitch
 rate_time_constant_s and rate_delay_s) and thrust_scale 1 (the map is absolute).
 
@@ -98,9 +98,8 @@ def add_arguments(p):
                    help="write a copy of the vehicle file with the identified values filled in")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--delay", type=_delay, default="auto", metavar="auto|timesync|search|MS",
-                   help="sample-to-rotor delay: auto (TIMESYNC if the flight has it, else search; a "
-                   "rates flight: the rate loop's delay), timesync, search (jointly with tau), or a "
-                   "value in ms (default: auto)")
+                   help="sample-to-rotor (or collective) delay: auto (TIMESYNC if the flight has it, else "
+                   "search), timesync, search (jointly with tau), or a value in ms (default: auto)")
     p.add_argument("--parasitic", choices=("auto", "yes", "no"), default="auto",
                    help="quadratic parasitic drag: auto keeps it when its 95 %% interval excludes 0 "
                    "(default: auto)")
@@ -119,7 +118,7 @@ def run(args) -> int:
         from . import identify_rates
         result, source = identify_rates.fit(args, vehicle, series)
     else:
-        delay, source = _resolve_delay(args.delay, series.link_delay_s, vehicle.estimate_latency_s)
+        delay, source = resolve_delay(args.delay, series.link_delay_s, vehicle.estimate_latency_s)
         result = identify(series, vehicle.mass_kg, vehicle.max_rotor_thrust_n,
                           FitOptions(delay_s=delay, parasitic=args.parasitic, replicates=args.replicates,
                                      seed=args.seed))
@@ -141,7 +140,7 @@ def run(args) -> int:
     return 0
 
 
-def _resolve_delay(spec, link_delay_s, estimate_latency_s):
+def resolve_delay(spec, link_delay_s, estimate_latency_s):
     """(delay for the fit or None to search, a phrase saying where it came from)."""
     if isinstance(spec, float):
         return spec, f"given ({1e3 * spec:.1f} ms)"

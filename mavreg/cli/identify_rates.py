@@ -3,34 +3,21 @@ vehicle file's values (docs/identify.md, *Rate mode*). :mod:`mavreg.cli.identify
 command; it comes here when the flight's commands are SET_ATTITUDE_TARGET."""
 from __future__ import annotations
 
-from ..errors import UsageError
-
 __all__ = ["fit", "format_result", "vehicle_values"]
 
 
 def fit(args, vehicle, series):
-    """(RateIdentification, a phrase saying where the collective's delay came from)."""
+    """(RateIdentification, a phrase saying where the collective's delay came from): the
+    collective's delay as the rotor output's (``--delay``); the rate loop's own delay is D
+    less TIMESYNC and the file's estimate latency."""
     from ..identify.fit import FitOptions
     from ..identify.rate_fit import identify_rates
-    spec, link = args.delay, series.link_delay_s
-    link_part = 0.0 if link is None else link + vehicle.estimate_latency_s
-    collective, delay = "options", None
-    if isinstance(spec, float):
-        delay, source = spec, f"given ({1e3 * spec:.1f} ms)"
-    elif spec == "auto":
-        collective, source = "rates", "the rate loop's (roll and pitch)"
-    elif spec == "search":
-        source = "searched jointly with the collective's lag"
-    elif link is None:
-        raise UsageError("--delay timesync: the flight has no TIMESYNC replies; use --delay auto, search or MS")
-    else:
-        delay = link_part
-        source = (f"TIMESYNC {1e3 * link:.1f} ms + the vehicle file's estimate latency "
-                  f"{1e3 * vehicle.estimate_latency_s:.1f} ms")
+    from .identify_cmd import resolve_delay
+    link = series.link_delay_s
+    delay, source = resolve_delay(args.delay, link, vehicle.estimate_latency_s)
     options = FitOptions(delay_s=delay, parasitic=args.parasitic, replicates=args.replicates, seed=args.seed)
-    result = identify_rates(series, vehicle.mass_kg, options, link_delay_part_s=link_part,
-                            collective_delay=collective)
-    return result, source
+    link_part = 0.0 if link is None else link + vehicle.estimate_latency_s
+    return identify_rates(series, vehicle.mass_kg, options, link_delay_part_s=link_part), source
 
 
 def _fmt(e, scale=1.0, digits=3) -> tuple[str, str]:

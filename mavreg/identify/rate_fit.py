@@ -155,7 +155,7 @@ class _RateRows:
 
 
 def identify_rates(series: FlightSeries, mass_kg: float, options: FitOptions | None = None,
-                   link_delay_part_s: float = 0.0, collective_delay: str = "rates") -> RateIdentification:
+                   link_delay_part_s: float = 0.0) -> RateIdentification:
     """Fit the thrust map, the collective's lag and the rate loop to a flight of the rates
     output (module docstring).
 
@@ -166,12 +166,9 @@ def identify_rates(series: FlightSeries, mass_kg: float, options: FitOptions | N
     mass_kg : float
         The vehicle file's mass: the hover thrust is the thrust that holds it.
     options : FitOptions, optional
-        The rate loop's delay is always searched, up to ``rate_delay_max_s``, its lag up to
-        ``rate_tau_max_s``.
-    collective_delay : str
-        ``rates``: the collective's delay is the rate loop's (roll and pitch): one autopilot
-        applies both setpoints together, and the rates pin the delay far more sharply than
-        the accelerations; ``options``: ``options.delay_s`` (None: searched with its lag).
+        ``delay_s`` is the collective's delay (None: searched with its lag, as the rotor
+        output's). The rate loop's delay is always searched, up to ``rate_delay_max_s``, its
+        lag up to ``rate_tau_max_s``.
     link_delay_part_s : float
         The part of the sample-to-response delay that is the link's, subtracted to give the
         rate loop's own delay d.
@@ -196,17 +193,9 @@ def identify_rates(series: FlightSeries, mass_kg: float, options: FitOptions | N
     ro = replace(o, tau_max_s=o.rate_tau_max_s, delay_max_s=o.rate_delay_max_s, delay_s=None,
                  grid_steps_s=_RATE_GRID_S, delay_needs_margin=True)
     axes = {name: _rate_axis(P, command, idx, ro, link_delay_part_s) for name, idx in AXES.items()}
-    if collective_delay == "rates":
-        d = axes["roll_pitch"].delay_s.value
-        if d is None:
-            raise IdentifyError("the collective's delay is taken from the rate loop, which this flight does "
-                                "not identify (roll and pitch do not turn): search it (--delay search) or give it")
-        o = replace(o, delay_s=d)
     fit, speed = translational_fit(P, o)
     hover, expo, fmax = _thrust_map(fit, mass_kg)
     tau_f, delay_f = lag_estimates(fit, o, what="collective's lag")
-    if collective_delay == "rates":
-        delay_f = replace(axes["roll_pitch"].delay_s, why="the rate loop's (roll and pitch)")
     drag, drag_xy, parasitic, model = drag_estimates(fit, speed, o)
     rms, r2 = fit_quality(P.y, fit["resid"])
     used = P.held[P.rows, 0]                    # the thrust in force at the rows fitted
