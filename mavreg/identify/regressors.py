@@ -4,9 +4,10 @@ The samples go on a uniform grid (gaps up to ``max_gap_s`` interpolated, the att
 sign-continuous quaternions), the usable samples are found (armed and OFFBOARD, above the
 ground, the command stream alive, the whole filter window inside), and each term of the model
 is integrated over every sample interval and filtered with the kernel :math:`E` of the
-Savitzky-Golay derivative of the velocity (see :mod:`mavreg.identify.fit`). The thrust column
-depends on :math:`(\tau, D)` and is rebuilt on demand (:meth:`Regressors.thrust_column`); the
-drag columns are built once.
+Savitzky-Golay derivative of the velocity (see :mod:`mavreg.identify.fit`). The thrust columns
+(one per command channel: the rotor sum, or the rates output's t and t^2) depend on
+:math:`(\tau, D)` and are rebuilt on demand (:meth:`Regressors.thrust_columns`); the drag
+columns are built once.
 """
 from __future__ import annotations
 
