@@ -72,9 +72,14 @@ class RateAxis:
 
     def as_dict(self) -> dict:
         return {"time_constant_s": self.time_constant_s.as_dict(), "delay_s": self.delay_s.as_dict(),
-                "loop_delay_s": self.loop_delay_s.as_dict(), "free_gain": self.free_gain,
-                "residual_rms_rad_s": self.residual_rms_rad_s, "r_squared": self.r_squared,
+                "loop_delay_s": self.loop_delay_s.as_dict(), "free_gain": _finite(self.free_gain),
+                "residual_rms_rad_s": _finite(self.residual_rms_rad_s), "r_squared": _finite(self.r_squared),
                 "command_rms_rad_s": self.command_rms_rad_s}
+
+
+def _finite(x: float) -> float | None:
+    """x, or None for the NaN of an axis not fitted (strict JSON has no NaN)."""
+    return float(x) if np.isfinite(x) else None
 
 
 @dataclass(frozen=True)

@@ -99,6 +99,7 @@ def test_a_flight_that_does_not_turn_does_not_identify_the_rate_loop():
     r = identify_rates(_flight(seed=7, excite=0.0, duration_s=5.0), MASS_KG, KNOWN_DELAY)
     for a in r.rate_axes.values():
         assert a.time_constant_s.value is None and "does not turn" in a.time_constant_s.why
+    json.dumps(r.as_dict(), allow_nan=False)          # strict JSON: no NaN for the axes not fitted
     assert r.hover_thrust.value == pytest.approx(TRUTH["hover_thrust"], rel=0.02)
 
 
