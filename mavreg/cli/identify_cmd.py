@@ -9,7 +9,8 @@ from pathlib import Path
 from ..errors import UsageError
 from .common import DEFAULT_VEHICLE, input_file, nonneg_int, output_file
 
-HELP = "fit thrust scale, drag and rotor time constant to a flight; optionally write a vehicle YAML"
+HELP = ("fit thrust scale, drag and rotor time constant (or, flown with --output rates, the autopilot's "
+        "thrust map and rate loop) to a flight; optionally write a vehicle YAML")
 DESCRIPTION = """\
 Calibrate a vehicle from one flight. FLIGHT is a 'mavreg fly' output directory (its
 flight.tlog is read) or any .tlog of a vehicle flown by the daemon: the vehicle's
@@ -43,6 +44,19 @@ did not excite, is reported as not identified and keeps the vehicle file's value
 thrust_scale, rotor_time_constant_s (the controller's estimate; the emulator: section is
 left alone), rotor_drag_n_s_per_m [c_xy, c_z] (c_xy the inverse-variance mean of c_x and
 c_y) and parasitic_drag_n_s2_per_m2 (0 when the linear model was fitted).
+
+Rates output (a flight of 'mavreg fly --output rates': the daemon's SET_ATTITUDE_TARGET
+body rates and thrust, detected from the tlog): the autopilot's thrust map
+F = F_max ((1 - e) t + e t^2), with the hover thrust t_h holding the file's mass, is fitted
+on the same model with the lagged t and t^2 in place of the rotor sum (t_h, e, and the
+collective's time constant, written as rotor_time_constant_s), and its rate loop, a delay D
+then first order, dw/dt = (w_cmd(t - D) - w)/tau, per axis from the body rates: the rate
+integrated over each sample against the exact integral of the delayed, lagged command
+(gain and offset linear, (tau, D) on a grid). D runs from the sample to the response; the
+rate loop's own delay d is D less TIMESYNC and the file's estimate latency. The collective's
+delay is taken as for the rotor output (--delay). --write-vehicle then writes
+output: rates, a rate_interface: section (hover_thrust, thrust_expo, the roll and pitch
+rate_time_constant_s and rate_delay_s) and thrust_scale 1 (the map is absolute).
 
 Exit status: 0 identified; 2 bad path, a flight without usable data, bad arguments.
 """
@@ -84,8 +98,8 @@ def add_arguments(p):
                    help="write a copy of the vehicle file with the identified values filled in")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--delay", type=_delay, default="auto", metavar="auto|timesync|search|MS",
-                   help="sample-to-rotor delay: auto (TIMESYNC if the flight has it, else search), "
-                   "timesync, search (jointly with tau), or a value in ms (default: auto)")
+                   help="sample-to-rotor (or collective) delay: auto (TIMESYNC if the flight has it, else "
+                   "search), timesync, search (jointly with tau), or a value in ms (default: auto)")
     p.add_argument("--parasitic", choices=("auto", "yes", "no"), default="auto",
                    help="quadratic parasitic drag: auto keeps it when its 95 %% interval excludes 0 "
                    "(default: auto)")
@@ -100,10 +114,14 @@ def run(args) -> int:
     from ..identify.flightlog import read_flight
     vehicle = load_vehicle(args.vehicle_params)
     series = read_flight(args.flight)
-    delay, source = _resolve_delay(args.delay, series.link_delay_s, vehicle.estimate_latency_s)
-    result = identify(series, vehicle.mass_kg, vehicle.max_rotor_thrust_n,
-                      FitOptions(delay_s=delay, parasitic=args.parasitic, replicates=args.replicates,
-                                 seed=args.seed))
+    if series.output == "rates":
+        from . import identify_rates
+        result, source = identify_rates.fit(args, vehicle, series)
+    else:
+        delay, source = resolve_delay(args.delay, series.link_delay_s, vehicle.estimate_latency_s)
+        result = identify(series, vehicle.mass_kg, vehicle.max_rotor_thrust_n,
+                          FitOptions(delay_s=delay, parasitic=args.parasitic, replicates=args.replicates,
+                                     seed=args.seed))
     written = None
     if args.write_vehicle is not None:
         written = write_vehicle(Path(args.vehicle_params), Path(args.write_vehicle), result)
@@ -113,13 +131,16 @@ def run(args) -> int:
                {"path": str(args.write_vehicle), "values": written}}
         print(json.dumps(out, indent=1))
     else:
-        print(format_result(result, vehicle, str(args.flight), source))
+        if series.output == "rates":
+            print(identify_rates.format_result(result, vehicle, str(args.flight), source))
+        else:
+            print(format_result(result, vehicle, str(args.flight), source))
         if written is not None:
             print(f"wrote {args.write_vehicle}: " + ", ".join(f"{k} {v}" for k, v in written.items()))
     return 0
 
 
-def _resolve_delay(spec, link_delay_s, estimate_latency_s):
+def resolve_delay(spec, link_delay_s, estimate_latency_s):
     """(delay for the fit or None to search, a phrase saying where it came from)."""
     if isinstance(spec, float):
         return spec, f"given ({1e3 * spec:.1f} ms)"
@@ -173,9 +194,18 @@ def format_result(r, vehicle, flight: str, delay_source: str) -> str:
 
 def vehicle_values(result, vehicle) -> dict:
     """The vehicle file's keys the flight identified, with their new values."""
+    if getattr(result, "output", "rotors") == "rates":
+        from .identify_rates import vehicle_values as rate_values
+        return rate_values(result, vehicle)
     out = {"thrust_scale": round(result.thrust_scale.value, 4)}
     if result.rotor_time_constant_s.value is not None:
         out["rotor_time_constant_s"] = round(result.rotor_time_constant_s.value, 4)
+    return {**out, **drag_values(result, vehicle)}
+
+
+def drag_values(result, vehicle) -> dict:
+    """The drag keys of the vehicle file a flight identified (either output)."""
+    out = {}
     cxy, cz = vehicle.rotor_drag_n_s_per_m
     xy, z = result.drag_xy_n_s_per_m.value, result.drag_n_s_per_m[2].value
     if xy is not None or z is not None:
@@ -188,14 +218,16 @@ def vehicle_values(result, vehicle) -> dict:
 
 def write_vehicle(src: Path, dst: Path, result) -> dict:
     """Copy the vehicle file ``src`` to ``dst`` with the identified top-level values replaced
-    (or appended); the copy is checked by the validating loader before it is written."""
+    (a key's whole block: its line and the indented lines under it) or appended, in flow
+    style; the copy is checked by the validating loader before it is written."""
     from ..config.loader import load_text
     from ..config.vehicle import VehicleParams, load_vehicle
     values = vehicle_values(result, load_vehicle(src))
     text = src.read_text()
     for key, value in values.items():
         line = f"{key}: {json.dumps(value)}   # mavreg identify"
-        pattern = re.compile(rf"^{re.escape(key)}\s*:.*$", re.MULTILINE)
+        pattern = re.compile(rf"^{re.escape(key)}\s*:[^\n]*(?:\n(?:[ \t]+[^\n]*|[ \t]*(?=\n)))*",
+                             re.MULTILINE)
         if pattern.search(text):
             text = pattern.sub(lambda _m: line, text, count=1)
         else:

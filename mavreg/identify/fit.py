@@ -49,7 +49,8 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from .bootstrap import BlockBootstrap, block_length_rows
-from .regressors import FlightSeries, IdentifyError, Regressors, lagged_integrals
+from .estimates import Estimate, drag_estimates, fit_quality, interval, intervals_text, lag_estimates
+from .regressors import FlightSeries, IdentifyError, Regressors, lagged_integrals, rotor_channels
 
 __all__ = ["FlightSeries", "FitOptions", "Estimate", "Identification", "IdentifyError", "identify",
            "lagged_integrals"]
@@ -86,21 +87,15 @@ class FitOptions:
     """Telemetry gaps up to this are interpolated; longer ones cut the data."""
     command_timeout_s: float = 0.1
     """Samples this long after the last command are left out (the stream stopped)."""
-
-
-@dataclass(frozen=True)
-class Estimate:
-    """A value with its 95 % bootstrap interval; ``value`` None: not identified (``why``)."""
-
-    value: float | None
-    low: float | None = None
-    high: float | None = None
-    why: str = ""
-
-    def as_dict(self) -> dict:
-        if self.value is None:
-            return {"value": None, "why": self.why}
-        return {"value": self.value, "ci95": [self.low, self.high]}
+    grid_steps_s: tuple[float, float] = (0.005, 0.002)
+    """Steps of the coarse (tau, D) grid the search starts from."""
+    delay_needs_margin: bool = False
+    """A delay at 0 is the edge of the search, not a value (the rate loop: a response no later
+    than its sample is a lag and delay traded for each other, not a measurement)."""
+    rate_tau_max_s: float = 0.15
+    """Rates output: the longest rate-loop time constant searched."""
+    rate_delay_max_s: float = 0.1
+    """Rates output: the longest sample-to-rate-response delay searched."""
 
 
 @dataclass(frozen=True)
@@ -137,12 +132,17 @@ class Identification:
         }
 
 
-class _Model:
-    """Least squares of one column set for any (tau, D): the fixed columns projected out once."""
+class ColumnModel:
+    """Least squares of one column set for any (tau, D): the fixed columns projected out once.
 
-    def __init__(self, P: Regressors, cols: list[int]):
+    ``P`` gives ``y`` (rows, a), ``fixed`` (rows, a, all fixed columns), ``rows``, ``h`` and
+    ``thrust_columns(tau, D)`` (rows, a, m): the m columns that depend on (tau, D) come
+    first in theta. ``known`` (m,): their coefficients are these, not fitted."""
+
+    def __init__(self, P, cols: list[int], known: np.ndarray | None = None):
         self.P, self.cols = P, list(cols)
-        self.Z = P.fixed[:, :, self.cols]                       # (rows, 3, k)
+        self.known = None if known is None else np.asarray(known, float)
+        self.Z = P.fixed[:, :, self.cols]                       # (rows, a, k)
         Zf = self.Z.reshape(-1, len(self.cols))
         self.Q = np.linalg.qr(Zf)[0] if self.cols else np.zeros((Zf.shape[0], 0))
         y = P.y.reshape(-1)
@@ -151,46 +151,72 @@ class _Model:
 
     def rss(self, tau_s: float, delay_s: float) -> float:
         """Residual sum of squares at (tau, D); with Q orthonormal and yt orthogonal to it,
-        |x - QQ'x|^2 = |x|^2 - |Q'x|^2 and (x - QQ'x).yt = x.yt (einsum: no threaded BLAS)."""
-        x = self.P.thrust_column(tau_s, delay_s).reshape(-1)
-        qx = np.einsum("ij,i->j", self.Q, x)
-        xx = float(np.einsum("i,i->", x, x) - np.einsum("j,j->", qx, qx))
-        xy = float(np.einsum("i,i->", x, self.yt))
-        return self.yy - xy * xy / xx if xx > 0 else self.yy
+        X'X less its projection, and (X - QQ'X)'yt = X'yt (einsum: no threaded BLAS)."""
+        X = self.P.thrust_columns(tau_s, delay_s)
+        if self.known is not None:
+            e = (self.P.y - X @ self.known).reshape(-1)
+            qe = np.einsum("ij,i->j", self.Q, e)
+            return float(np.einsum("i,i->", e, e) - np.einsum("j,j->", qe, qe))
+        xs = [np.ascontiguousarray(X[..., c]).reshape(-1) for c in range(X.shape[-1])]
+        qx = [np.einsum("ij,i->j", self.Q, x) for x in xs]
+        xx = np.array([[np.einsum("i,i->", a, b) - np.einsum("j,j->", qa, qb) for b, qb in zip(xs, qx)]
+                       for a, qa in zip(xs, qx)])
+        xy = np.array([np.einsum("i,i->", x, self.yt) for x in xs])
+        if xx.shape == (1, 1):
+            return self.yy - xy[0] * xy[0] / xx[0, 0] if xx[0, 0] > 0 else self.yy
+        try:
+            fit = float(xy @ np.linalg.solve(xx, xy))
+        except np.linalg.LinAlgError:
+            return self.yy
+        return self.yy - fit if np.isfinite(fit) and fit > 0 else self.yy
 
     def solve(self, tau_s: float, delay_s: float) -> tuple[np.ndarray, np.ndarray]:
-        """theta (thrust scale, then the fixed columns' coefficients) and residuals (rows, 3)."""
+        """theta (the thrust columns', then the fixed columns' coefficients) and residuals (rows, a)."""
         X = self.design(tau_s, delay_s)
-        theta = np.linalg.lstsq(X.reshape(-1, X.shape[-1]), self.P.y.reshape(-1), rcond=None)[0]
+        if self.known is None:
+            theta = np.linalg.lstsq(X.reshape(-1, X.shape[-1]), self.P.y.reshape(-1), rcond=None)[0]
+        else:
+            m = self.known.size
+            e = self.P.y - X[:, :, :m] @ self.known
+            rest = np.linalg.lstsq(self.Z.reshape(-1, len(self.cols)), e.reshape(-1), rcond=None)[0]
+            theta = np.concatenate([self.known, rest])
         return theta, self.P.y - X @ theta
 
     def design(self, tau_s: float, delay_s: float) -> np.ndarray:
-        return np.concatenate([self.P.thrust_column(tau_s, delay_s)[:, :, None], self.Z], axis=2)
+        return np.concatenate([self.P.thrust_columns(tau_s, delay_s), self.Z], axis=2)
 
 
-def _search(model: _Model, o: FitOptions) -> tuple[float, float]:
-    """(tau, D) of least residual: a coarse grid, then tau by bounded search on a fine D grid."""
-    taus = np.arange(0.0, o.tau_max_s + 1e-9, 0.005)
+def _search(model: ColumnModel, o: FitOptions) -> tuple[float, float]:
+    """(tau, D) of least residual: a coarse grid (steps ``o.grid_steps_s``), then tau by bounded
+    search (1.5 steps either side) on a D grid of an eighth of its step (one step either side),
+    moved along while the best D is at its end (a valley where lag and delay trade)."""
+    ts, ds = o.grid_steps_s
+    taus = np.arange(0.0, o.tau_max_s + 1e-9, ts)
     delays = (np.array([o.delay_s]) if o.delay_s is not None
-              else np.arange(0.0, o.delay_max_s + 1e-9, 0.002))
+              else np.arange(0.0, o.delay_max_s + 1e-9, ds))
     rss = np.array([[model.rss(ta, d) for d in delays] for ta in taus])
     i, j = np.unravel_index(np.argmin(rss), rss.shape)
-    tau0, d0 = float(taus[i]), float(delays[j])
-    fine = ([d0] if o.delay_s is not None
-            else np.clip(d0 + np.arange(-0.002, 0.00201, 0.00025), 0.0, o.delay_max_s))
-    best = (rss[i, j], tau0, d0)
-    lo, hi = max(0.0, tau0 - 0.0075), min(o.tau_max_s, tau0 + 0.0075)
-    for d in np.unique(fine):
-        r = minimize_scalar(lambda ta: model.rss(ta, d), bounds=(lo, hi), method="bounded",
-                            options={"xatol": 1e-4})
-        cands = [(float(r.fun), float(r.x)), (model.rss(lo, d), lo)]
-        f, ta = min(cands)
-        if f < best[0]:
-            best = (f, ta, float(d))
+    best = (rss[i, j], float(taus[i]), float(delays[j]))
+    for _ in range(8):
+        start = best
+        tau0, d0 = best[1], best[2]
+        fine = ([d0] if o.delay_s is not None
+                else np.unique(np.clip(d0 + np.arange(-ds, ds * 1.005, ds / 8), 0.0, o.delay_max_s)))
+        lo, hi = max(0.0, tau0 - 1.5 * ts), min(o.tau_max_s, tau0 + 1.5 * ts)
+        for d in fine:
+            r = minimize_scalar(lambda ta: model.rss(ta, d), bounds=(lo, hi), method="bounded",
+                                options={"xatol": 1e-4})
+            f, ta = min([(float(r.fun), float(r.x)), (model.rss(lo, d), lo)])
+            if f < best[0]:
+                best = (f, ta, float(d))
+        d_inside = len(fine) < 3 or fine[0] < best[2] < fine[-1] or best[2] in (0.0, o.delay_max_s)
+        t_inside = lo < best[1] < hi or best[1] in (0.0, o.tau_max_s)
+        if best == start or (d_inside and t_inside):
+            break
     return best[1], best[2]
 
 
-def _bootstrap(model: _Model, tau: float, delay: float, o: FitOptions, resid: np.ndarray, zoom: float = 1.0):
+def _bootstrap(model: ColumnModel, tau: float, delay: float, o: FitOptions, resid: np.ndarray, zoom: float = 1.0):
     """Replicates of (theta, tau, D) on a local (tau, D) grid (tau +- 12 ms, D +- 5 ms, times
     ``zoom``); returns them, the shares of replicates at an edge of the grid, the bootstrap."""
     P = model.P
@@ -206,32 +232,61 @@ def _bootstrap(model: _Model, tau: float, delay: float, o: FitOptions, resid: np
     zy = bs.replicate_sums(bs.chunk_sums(np.einsum("rai,ra->ri", Z, y)))        # (R, k)
     yy = bs.replicate_sums(bs.chunk_sums(np.einsum("ra,ra->r", y, y)))          # (R,)
     grid = [(ta, d) for ta in taus for d in delays]
-    cross = []                                    # per grid point, chunk sums of x'x, x'Z, x'y
+    cross = []                                    # per grid point, chunk sums of X'X, X'Z, X'y
     for ta, d in grid:
-        x = P.thrust_column(ta, d)
-        cross.append(bs.chunk_sums(np.concatenate([np.einsum("ra,ra->r", x, x)[:, None],
-                                                   np.einsum("ra,rai->ri", x, Z),
-                                                   np.einsum("ra,ra->r", x, y)[:, None]], axis=1)))
-    cr = bs.replicate_sums(np.stack(cross, axis=1))                             # (R, G, k + 2)
+        X = P.thrust_columns(ta, d)
+        xs = [np.ascontiguousarray(X[..., c]) for c in range(X.shape[2])]
+        feats = [np.einsum("ra,ra->r", a, b) for a in xs for b in xs]
+        feats += [np.einsum("ra,rai->ri", a, Z) for a in xs] + [np.einsum("ra,ra->r", a, y) for a in xs]
+        cross.append(bs.chunk_sums(np.column_stack(feats)))
+    m = X.shape[2]
+    cr = bs.replicate_sums(np.stack(cross, axis=1))                    # (R, G, m m + m k + m)
     Rn, Gn = cr.shape[0], cr.shape[1]
-    A = np.empty((Rn, Gn, k + 1, k + 1))
-    A[:, :, 0, 0] = cr[:, :, 0]
-    A[:, :, 0, 1:] = cr[:, :, 1:k + 1]
-    A[:, :, 1:, 0] = cr[:, :, 1:k + 1]
-    A[:, :, 1:, 1:] = zz[:, None]
-    b = np.concatenate([cr[:, :, k + 1:], np.broadcast_to(zy[:, None], (Rn, Gn, k))], axis=2)
-    A += 1e-12 * np.trace(A, axis1=2, axis2=3)[..., None, None] * np.eye(k + 1)   # no singular replicate
-    theta = np.linalg.solve(A, b[..., None])[..., 0]
-    rss = yy[:, None] - np.einsum("rgi,rgi->rg", theta, b)
+    xx = cr[:, :, :m * m].reshape(Rn, Gn, m, m)
+    xz = cr[:, :, m * m:m * m + m * k].reshape(Rn, Gn, m, k)
+    xy = cr[:, :, m * m + m * k:]
+    if model.known is None:
+        theta, rss = _replicate_solve(xx, xz, xy, zz, zy, yy)
+    else:
+        gk = model.known
+        ee = yy[:, None] - 2 * xy @ gk + np.einsum("rgmn,m,n->rg", xx, gk, gk)       # |y - X g|^2
+        theta_z, fit = _normal_solve(np.broadcast_to(zz[:, None], (Rn, Gn, k, k)),
+                                     zy[:, None] - np.einsum("rgmk,m->rgk", xz, gk))
+        theta = np.concatenate([np.broadcast_to(gk, (Rn, Gn, m)), theta_z], axis=2)
+        rss = ee - fit
     g = np.argmin(rss, axis=1)
     surf = rss.reshape(Rn, taus.size, delays.size)
     i, j = np.divmod(g, delays.size)
     t_r = taus[i] + _vertex(surf, i, j, 1, taus)
     d_r = delays[j] + _vertex(surf, i, j, 2, delays)
     edge_tau = np.mean(((i == 0) & (taus[0] > 0)) | ((i == taus.size - 1) & (taus[-1] < o.tau_max_s)))
-    edge_d = np.mean(((j == 0) & (delays[0] > 0)) | ((j == delays.size - 1) & (delays[-1] < o.delay_max_s))) \
+    edge_d = np.mean(((j == 0) & ((delays[0] > 0) | o.delay_needs_margin)) | ((j == delays.size - 1) & (delays[-1] < o.delay_max_s))) \
         if o.delay_s is None else 0.0
     return theta[np.arange(Rn), g], t_r, d_r, float(edge_tau), float(edge_d), bs
+
+
+def _replicate_solve(xx, xz, xy, zz, zy, yy):
+    """Every replicate's and grid point's least squares from its sums: (theta, rss)."""
+    Rn, Gn, m, k = xz.shape
+    A = np.empty((Rn, Gn, m + k, m + k))
+    A[:, :, :m, :m] = xx
+    A[:, :, :m, m:] = xz
+    A[:, :, m:, :m] = np.swapaxes(xz, 2, 3)
+    A[:, :, m:, m:] = zz[:, None]
+    b = np.concatenate([xy, np.broadcast_to(zy[:, None], (Rn, Gn, k))], axis=2)
+    theta, fit = _normal_solve(A, b)
+    return theta, yy[:, None] - fit
+
+
+def _normal_solve(A, b):
+    """theta = A^-1 b and theta'b for stacks of normal equations (regularized a hair: no
+    singular replicate)."""
+    n = A.shape[-1]
+    if n == 0:
+        return np.zeros(b.shape), np.zeros(b.shape[:-1])
+    A = A + 1e-12 * np.trace(A, axis1=-2, axis2=-1)[..., None, None] * np.eye(n)
+    theta = np.linalg.solve(A, b[..., None])[..., 0]
+    return theta, np.einsum("...i,...i->...", theta, b)
 
 
 def _vertex(surf: np.ndarray, i: np.ndarray, j: np.ndarray, axis: int, values: np.ndarray) -> np.ndarray:
@@ -250,21 +305,43 @@ def _vertex(surf: np.ndarray, i: np.ndarray, j: np.ndarray, axis: int, values: n
     return off * (values[1] - values[0])
 
 
-def _interval(value: float, samples: np.ndarray) -> Estimate:
-    lo, hi = np.percentile(samples, [2.5, 97.5])
-    return Estimate(float(value), float(min(lo, value)), float(max(hi, value)))
-
-
-def _fit_model(P: Regressors, cols: list[int], o: FitOptions) -> dict:
-    model = _Model(P, cols)
+def fit_columns(P, cols: list[int], o: FitOptions, known: np.ndarray | None = None) -> dict:
+    """Search (tau, D), solve, bootstrap: the fit of one column set (theta: the m thrust
+    columns' coefficients, ``known`` if given, then ``cols``')."""
+    model = ColumnModel(P, cols, known)
     tau, delay = _search(model, o)
     theta, resid = model.solve(tau, delay)
     for zoom in (1.0, 2.0, 4.0):               # widen the local grid until the replicates fit in
         th_r, t_r, d_r, edge_tau, edge_d, bs = _bootstrap(model, tau, delay, o, resid, zoom)
         if max(edge_tau, edge_d) <= 0.025:
             break
-    return {"cols": cols, "tau": tau, "delay": delay, "theta": theta, "resid": resid, "theta_r": th_r,
-            "tau_r": t_r, "delay_r": d_r, "edge_tau": edge_tau, "edge_delay": edge_d, "bs": bs}
+    return {"cols": cols, "m": theta.size - len(cols), "tau": tau, "delay": delay, "theta": theta,
+            "resid": resid, "theta_r": th_r, "tau_r": t_r, "delay_r": d_r, "edge_tau": edge_tau,
+            "edge_delay": edge_d, "bs": bs}
+
+
+def checked_options(options: FitOptions | None) -> FitOptions:
+    """The options (defaults if None); IdentifyError (one line) on a bad filter or parasitic."""
+    o = options if options is not None else FitOptions()
+    if o.window < 5 or o.window % 2 == 0 or not 1 <= o.polyorder < o.window - 1:
+        raise IdentifyError(f"the filter window must be odd and at least 5 (got {o.window}), "
+                            f"its polynomial order 1..window-2 (got {o.polyorder})")
+    if o.parasitic not in ("auto", "yes", "no"):
+        raise IdentifyError(f"parasitic must be auto, yes or no, got {o.parasitic!r}")
+    return o
+
+
+def translational_fit(P: Regressors, o: FitOptions) -> tuple[dict, tuple]:
+    """The thrust columns with the drag the flight excites (the parasitic term kept when
+    significant, by ``o.parasitic``): (:func:`fit_columns`'s dict, RMS body speed x y z)."""
+    speed = tuple(float(s) for s in np.sqrt(np.mean(P.vbody_rows ** 2, axis=0)))
+    axes = [k for k in range(3) if speed[k] >= _MIN_FIT_SPEED_M_S]
+    excited = any(speed[k] >= o.min_drag_speed_m_s for k in axes)
+    cols = axes + ([3] if excited and o.parasitic != "no" else [])
+    fit = fit_columns(P, cols, o)
+    if 3 in cols and o.parasitic == "auto" and np.percentile(fit["theta_r"][:, -1], 2.5) <= 0.0:
+        fit = fit_columns(P, axes, o)
+    return fit, speed
 
 
 def identify(series: FlightSeries, mass_kg: float, max_rotor_thrust_n: float,
@@ -274,6 +351,8 @@ def identify(series: FlightSeries, mass_kg: float, max_rotor_thrust_n: float,
     Parameters
     ----------
     series : FlightSeries
+        A flight of the rotor output (:func:`mavreg.identify.rate_fit.identify_rates` fits
+        one of the rates output).
     mass_kg, max_rotor_thrust_n : float
         The vehicle file's values: the commands are fractions of the maximum rotor thrust and
         the forces are divided by the mass (a wrong mass shows as a thrust scale).
@@ -284,67 +363,17 @@ def identify(series: FlightSeries, mass_kg: float, max_rotor_thrust_n: float,
     IdentifyError
         One line, when the flight has too little usable data.
     """
-    o = options if options is not None else FitOptions()
-    if o.window < 5 or o.window % 2 == 0 or not 1 <= o.polyorder < o.window - 1:
-        raise IdentifyError(f"the filter window must be odd and at least 5 (got {o.window}), "
-                            f"its polynomial order 1..window-2 (got {o.polyorder})")
-    if o.parasitic not in ("auto", "yes", "no"):
-        raise IdentifyError(f"parasitic must be auto, yes or no, got {o.parasitic!r}")
-    P = Regressors(series, mass_kg, max_rotor_thrust_n, o)
-    speed = tuple(float(s) for s in np.sqrt(np.mean(P.vbody_rows ** 2, axis=0)))
-    axes = [k for k in range(3) if speed[k] >= _MIN_FIT_SPEED_M_S]
-    excited = any(speed[k] >= o.min_drag_speed_m_s for k in axes)
-    cols = axes + ([3] if excited and o.parasitic != "no" else [])
-    fit = _fit_model(P, cols, o)
-    if 3 in cols and o.parasitic == "auto" and np.percentile(fit["theta_r"][:, -1], 2.5) <= 0.0:
-        fit = _fit_model(P, axes, o)
-    return _result(P, fit, speed, o, series.link_delay_s)
-
-
-def _result(P: Regressors, fit: dict, speed, o: FitOptions, link_delay_s) -> Identification:
-    cols, theta, th_r = fit["cols"], fit["theta"], fit["theta_r"]
-    est = {c: _interval(theta[i + 1], th_r[:, i + 1]) for i, c in enumerate(cols)
-           if c == 3 or speed[c] >= o.min_drag_speed_m_s}
-    slow = [Estimate(None, why=f"body {a} speed RMS {speed[k]:.2f} m/s < {o.min_drag_speed_m_s:g} m/s")
-            for k, a in enumerate("xyz")]
-    drag = tuple(est.get(k, slow[k]) for k in range(3))
-    if 0 in est and 1 in est:
-        i, j = cols.index(0) + 1, cols.index(1) + 1
-        vx, vy = np.var(th_r[:, i]), np.var(th_r[:, j])
-        wx = vy / (vx + vy) if vx + vy > 0 else 0.5
-        drag_xy = _interval(wx * theta[i] + (1 - wx) * theta[j], wx * th_r[:, i] + (1 - wx) * th_r[:, j])
-    else:
-        drag_xy = next((drag[k] for k in (0, 1) if k in est),
-                       Estimate(None, why=f"{slow[0].why}, {slow[1].why}"))
-    if 3 in cols:
-        parasitic = est[3]
-        model = "linear body drag + parasitic |v| v"
-    else:
-        why = ("not fitted (--parasitic no)" if o.parasitic == "no" else
-               "no drag axis is excited" if 3 not in cols and not any(k in est for k in range(3))
-               else "not significant: its 95 % interval includes 0")
-        parasitic = Estimate(None, why=why)
-        model = "linear body drag" if any(k in est for k in range(3)) else "no drag (too slow)"
-    tau = _interval(fit["tau"], fit["tau_r"])
-    if fit["edge_tau"] > 0.025 or fit["edge_delay"] > 0.025 or tau.high - tau.low > max(tau.value, 0.01):
-        tau = Estimate(None, why=f"the flight does not excite the rotor lag (95 % interval "
-                                 f"{1e3 * tau.low:.0f}-{1e3 * tau.high:.0f} ms or wider"
-                                 f"{', delay not pinned' if fit['edge_delay'] > 0.025 else ''})")
-    if o.delay_s is not None:
-        delay = Estimate(o.delay_s, o.delay_s, o.delay_s, why="given")
-    elif tau.value is None:
-        delay = Estimate(None, why="searched with the rotor lag, which the flight does not excite")
-    else:
-        delay = _interval(fit["delay"], fit["delay_r"])
-    resid = fit["resid"]
-    rss = float(np.sum(resid ** 2))
-    tss = float(np.sum((P.y - P.y.mean(axis=0)) ** 2))
-    bs = fit["bs"]
+    o = checked_options(options)
+    if series.output != "rotors":
+        raise IdentifyError(f"this flight's commands are {series.output}, not rotor forces")
+    P = Regressors(series, mass_kg, rotor_channels(series, max_rotor_thrust_n), o)
+    fit, speed = translational_fit(P, o)
+    th = fit["theta"][0], fit["theta_r"][:, 0]
+    drag, drag_xy, parasitic, model = drag_estimates(fit, speed, o)
+    tau, delay = lag_estimates(fit, o)
+    rms, r2 = fit_quality(P.y, fit["resid"])
     return Identification(
-        thrust_scale=_interval(theta[0], th_r[:, 0]), drag_n_s_per_m=drag, drag_xy_n_s_per_m=drag_xy,
+        thrust_scale=interval(*th), drag_n_s_per_m=drag, drag_xy_n_s_per_m=drag_xy,
         parasitic_n_s2_per_m2=parasitic, rotor_time_constant_s=tau, delay_s=delay, model=model,
-        residual_rms_m_s2=float(np.sqrt(rss / resid.size)), r_squared=1.0 - rss / tss if tss > 0 else 0.0,
-        samples=int(P.rows.size), duration_s=float(P.rows.size * P.h), rms_body_speed_m_s=speed,
-        intervals=(f"moving-block bootstrap, {o.replicates} replicates, blocks of {bs.block_rows * P.h:.2f} s "
-                   f"({bs.n_blocks} per replicate), every parameter re-estimated"),
-        link_delay_s=link_delay_s)
+        residual_rms_m_s2=rms, r_squared=r2, samples=int(P.rows.size), duration_s=float(P.rows.size * P.h),
+        rms_body_speed_m_s=speed, intervals=intervals_text(fit["bs"], P.h, o), link_delay_s=series.link_delay_s)

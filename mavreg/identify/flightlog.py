@@ -10,12 +10,18 @@ From the ``.tlog`` (every message in and out, in the order the daemon saw or sen
   LOCAL_POSITION_NED and ATTITUDE_QUATERNION of one ``time_boot_ms`` make one sample;
 - its HEARTBEATs give armed and the PX4 mode (OFFBOARD: main mode 6); each sample carries
   the status of the last HEARTBEAT before it;
+- the body rates of a sample are its ATTITUDE_QUATERNION's (rollspeed, pitchspeed,
+  yawspeed), or its ATTITUDE's of the same ``time_boot_ms`` where the former are all zero
+  (an autopilot that fills only one of them);
 - SET_ACTUATOR_CONTROL_TARGET (group 0) from any other source is a rotor command:
-  ``controls[0..3]`` times the maximum rotor thrust. Each command is paired with the sample
-  it answered: the daemon answers each complete sample with one command, sent right after
+  ``controls[0..3]`` times the maximum rotor thrust (the ``rotors`` output); a
+  SET_ATTITUDE_TARGET that ignores the attitude and uses the three body rates and the thrust
+  (``type_mask`` 128) is a command of the ``rates`` output: body rates (rad/s) and the
+  normalized thrust. A flight is of one output or the other. Each command is paired with the
+  sample it answered: the daemon answers each complete sample with one command, sent right after
   it, so a command goes with the latest complete sample not answered yet. A command with no
   such sample (real time: sent across a telemetry gap) is placed on the vehicle clock by its
-  ``time_usec`` (the daemon's clock) less the median offset of the paired commands;
+  ``time_usec`` or ``time_boot_ms`` (the daemon's clock) less the median offset of the paired commands;
 - TIMESYNC: the daemon's request (``tc1 = 0``) follows the command of the sample it goes
   with; the vehicle's reply carries its clock (``tc1``, ns). ``tc1`` minus that sample's time
   is the sample-to-actuation delay of the link (:mod:`mavreg.daemon.timesync`); the median is
@@ -35,6 +41,10 @@ __all__ = ["read_flight", "read_tlog"]
 
 _OFFBOARD_MAIN = 6
 _ARMED_FLAG = 128
+_RATES_MASK = 128
+"""SET_ATTITUDE_TARGET type_mask bits: attitude ignored (128) ..."""
+_RATES_UNUSED = 1 | 2 | 4 | 64
+"""... and none of the body rates (1, 2, 4) or the thrust (64) ignored: the rates output."""
 
 
 def read_flight(path: str | Path) -> FlightSeries:
@@ -73,22 +83,49 @@ def read_tlog(path: str | Path) -> FlightSeries:
         conn.close()
 
 
+class _Commands:
+    """The commands of one output in the order sent: values, daemon clock (us), the time of
+    the sample each answered (NaN: none)."""
+
+    def __init__(self):
+        self.t: list[float] = []
+        self.usec: list[int] = []
+        self.u: list[list[float]] = []
+
+    def add(self, values, usec: int, answered: float | None) -> None:
+        self.u.append([float(c) for c in values])
+        self.usec.append(int(usec))
+        self.t.append(math.nan if answered is None else answered)
+
+
+def _command(msg, cmds: dict) -> tuple | None:
+    """(where a daemon's command goes, its values, its clock in us), or None if it is none of
+    the two outputs' commands."""
+    if msg.get_type() == "SET_ACTUATOR_CONTROL_TARGET":
+        if msg.group_mlx != 0:
+            return None
+        return cmds["rotors"], msg.controls[:4], int(msg.time_usec)
+    if not msg.type_mask & _RATES_MASK or msg.type_mask & _RATES_UNUSED:
+        return None
+    return (cmds["rates"], (msg.body_roll_rate, msg.body_pitch_rate, msg.body_yaw_rate, msg.thrust),
+            int(msg.time_boot_ms) * 1000)
+
+
 def _parse(conn, path: Path) -> FlightSeries:
     vehicle = None                      # (system, component) of the vehicle
     status: dict[tuple, bool] = {}      # source -> armed and in OFFBOARD, its last HEARTBEAT
     parts: dict[int, dict] = {}         # time_boot_ms -> {"att": msg, "pos": msg}
-    rows: list[tuple] = []              # (t, p3, v3, q4, controlled)
+    euler_rates: dict[int, tuple] = {}  # time_boot_ms -> ATTITUDE's body rates
+    rows: list[tuple] = []              # (t, p3, v3, q4, controlled, w3)
     unanswered: float | None = None
     last_answered = math.nan
-    cmd_t: list[float] = []
-    cmd_usec: list[int] = []
-    cmd_u: list[list[float]] = []
+    cmds = {"rotors": _Commands(), "rates": _Commands()}
     ts_request: dict[int, float] = {}
     delays: list[float] = []
     while True:
         try:
-            msg = conn.recv_match(type=["LOCAL_POSITION_NED", "ATTITUDE_QUATERNION", "HEARTBEAT",
-                                        "SET_ACTUATOR_CONTROL_TARGET", "TIMESYNC"])
+            msg = conn.recv_match(type=["LOCAL_POSITION_NED", "ATTITUDE_QUATERNION", "ATTITUDE", "HEARTBEAT",
+                                        "SET_ACTUATOR_CONTROL_TARGET", "SET_ATTITUDE_TARGET", "TIMESYNC"])
         except Exception as exc:
             raise UsageError(f"{path}: unreadable tlog ({type(exc).__name__}: {exc})") from None
         if msg is None:
@@ -97,15 +134,13 @@ def _parse(conn, path: Path) -> FlightSeries:
         src = (msg.get_srcSystem(), msg.get_srcComponent())
         if vehicle is None and mtype in ("LOCAL_POSITION_NED", "ATTITUDE_QUATERNION"):
             vehicle = src
-        if mtype == "SET_ACTUATOR_CONTROL_TARGET":
-            if src == vehicle or msg.group_mlx != 0:
-                continue
-            cmd_u.append([float(c) for c in msg.controls[:4]])
-            cmd_usec.append(int(msg.time_usec))
-            cmd_t.append(math.nan if unanswered is None else unanswered)
-            if unanswered is not None:
-                last_answered = unanswered
-            unanswered = None
+        if mtype.startswith("SET_"):
+            cmd = None if src == vehicle else _command(msg, cmds)
+            if cmd is not None:
+                cmd[0].add(cmd[1], cmd[2], unanswered)
+                if unanswered is not None:
+                    last_answered = unanswered
+                unanswered = None
         elif mtype == "TIMESYNC":
             if src != vehicle and msg.tc1 == 0 and not math.isnan(last_answered):
                 ts_request[int(msg.ts1)] = last_answered
@@ -116,6 +151,9 @@ def _parse(conn, path: Path) -> FlightSeries:
             status[src] = bool(msg.base_mode & _ARMED_FLAG) and main_mode == _OFFBOARD_MAIN
         elif src != vehicle:
             continue
+        elif mtype == "ATTITUDE":
+            if not rows or int(msg.time_boot_ms) > round(rows[-1][0] * 1e3):
+                euler_rates[int(msg.time_boot_ms)] = (msg.rollspeed, msg.pitchspeed, msg.yawspeed)
         else:
             tms = int(msg.time_boot_ms)
             if rows and tms <= round(rows[-1][0] * 1e3):
@@ -125,23 +163,40 @@ def _parse(conn, path: Path) -> FlightSeries:
             if len(slot) == 2:
                 pos, att = slot["pos"], slot["att"]
                 t = tms * 1e-3
+                w = (att.rollspeed, att.pitchspeed, att.yawspeed)
+                if not any(w):
+                    w = euler_rates.get(tms, w)
                 rows.append((t, pos.x, pos.y, pos.z, pos.vx, pos.vy, pos.vz,
-                             att.q1, att.q2, att.q3, att.q4, status.get(vehicle, False)))
-                for k in [k for k in parts if k <= tms]:
-                    del parts[k]
+                             att.q1, att.q2, att.q3, att.q4, status.get(vehicle, False), *w))
+                for store in (parts, euler_rates):
+                    for k in [k for k in store if k <= tms]:
+                        del store[k]
                 unanswered = t
+    return _series(path, vehicle, rows, cmds, delays)
+
+
+def _series(path: Path, vehicle, rows: list, cmds: dict, delays: list) -> FlightSeries:
+    """The parsed flight as a FlightSeries; UsageError (one line) if it lacks what the fit needs."""
     if vehicle is None or not rows:
         raise UsageError(f"{path}: no vehicle telemetry (LOCAL_POSITION_NED with ATTITUDE_QUATERNION) "
                          "in this tlog")
-    if not cmd_u:
-        raise UsageError(f"{path}: no rotor commands (SET_ACTUATOR_CONTROL_TARGET) in this tlog")
+    n_rot, n_rate = len(cmds["rotors"].u), len(cmds["rates"].u)
+    if not n_rot and not n_rate:
+        raise UsageError(f"{path}: no rotor commands (SET_ACTUATOR_CONTROL_TARGET) or rate commands "
+                         "(SET_ATTITUDE_TARGET, type_mask 128) in this tlog")
+    if n_rot and n_rate:
+        raise UsageError(f"{path}: both rotor commands ({n_rot}) and rate commands ({n_rate}) in this tlog; "
+                         "identify fits a flight of one output")
+    output = "rates" if n_rate else "rotors"
+    c = cmds[output]
     a = np.array(rows, dtype=float)
     return FlightSeries(
         t_s=a[:, 0], position_ned_m=a[:, 1:4], velocity_ned_m_s=a[:, 4:7],
         quaternion_wxyz=a[:, 7:11], controlled=a[:, 11] > 0.5,
-        command_t_s=_place_commands(np.array(cmd_t), np.array(cmd_usec, dtype=float)),
-        command_controls=np.array(cmd_u, dtype=float),
-        link_delay_s=float(np.median(delays)) if delays else None)
+        command_t_s=_place_commands(np.array(c.t), np.array(c.usec, dtype=float)),
+        command_controls=np.array(c.u, dtype=float),
+        link_delay_s=float(np.median(delays)) if delays else None,
+        output=output, body_rates_rad_s=a[:, 12:15])
 
 
 def _place_commands(t: np.ndarray, usec: np.ndarray) -> np.ndarray:

@@ -4,9 +4,10 @@ The samples go on a uniform grid (gaps up to ``max_gap_s`` interpolated, the att
 sign-continuous quaternions), the usable samples are found (armed and OFFBOARD, above the
 ground, the command stream alive, the whole filter window inside), and each term of the model
 is integrated over every sample interval and filtered with the kernel :math:`E` of the
-Savitzky-Golay derivative of the velocity (see :mod:`mavreg.identify.fit`). The thrust column
-depends on :math:`(\tau, D)` and is rebuilt on demand (:meth:`Regressors.thrust_column`); the
-drag columns are built once.
+Savitzky-Golay derivative of the velocity (see :mod:`mavreg.identify.fit`). The thrust columns
+(one per command channel: the rotor sum, or the rates output's t and t^2) depend on
+:math:`(\tau, D)` and are rebuilt on demand (:meth:`Regressors.thrust_columns`); the drag
+columns are built once.
 """
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ from scipy.signal import lfilter, savgol_coeffs
 
 from ..sim.truth import quats_to_matrices
 
-__all__ = ["FlightSeries", "IdentifyError", "Regressors", "lagged_integrals", "G"]
+__all__ = ["FlightSeries", "IdentifyError", "Regressors", "lagged_integrals", "rotor_channels", "G"]
 
 G = 9.81
 
@@ -41,19 +42,37 @@ class FlightSeries:
     command_t_s: np.ndarray
     """(K,) vehicle time of the sample each command answered, in the order sent."""
     command_controls: np.ndarray
-    """(K, 4) rotor commands as a fraction of the maximum rotor thrust."""
+    """(K, 4) the commands as sent: ``output`` rotors, each rotor's force as a fraction of the
+    maximum rotor thrust; ``output`` rates, the body roll, pitch and yaw rates (rad/s, FRD)
+    and the normalized collective thrust in [0, 1]."""
     link_delay_s: float | None = None
     """Sample-to-actuation delay measured by TIMESYNC, if the flight has it."""
+    output: str = "rotors"
+    """What the commands are: ``rotors`` (SET_ACTUATOR_CONTROL_TARGET) or ``rates``
+    (SET_ATTITUDE_TARGET body rates and thrust)."""
+    body_rates_rad_s: np.ndarray | None = None
+    """(N, 3) the measured body rates p, q, r (rad/s, FRD) of each sample, if known."""
+
+
+def rotor_channels(s: FlightSeries, max_rotor_thrust_n: float) -> np.ndarray:
+    """(K, 1) the summed rotor command (N) of each command, each rotor clipped to [0, 1] of
+    its maximum as the vehicle clips it: the thrust channel of the rotor output."""
+    u = np.asarray(s.command_controls, float).reshape(np.size(s.command_t_s), -1)
+    return (np.clip(u, 0.0, 1.0).sum(axis=1) * max_rotor_thrust_n)[:, None]
 
 
 class Regressors:
     """The flight on a uniform grid: acceleration rows ``y`` (rows, 3) less gravity, the drag
-    columns ``fixed`` (rows, 3, 4: c_x, c_y, c_z, c_p) and the thrust column on demand.
+    columns ``fixed`` (rows, 3, 4: c_x, c_y, c_z, c_p) and the thrust columns on demand.
 
     Parameters
     ----------
     s : FlightSeries
-    mass_kg, max_rotor_thrust_n : float
+    mass_kg : float
+    channels : ndarray (K, m)
+        Per command, the m inputs whose lagged, delayed values times the thrust direction
+        over the mass are the thrust columns: the summed rotor force (N,
+        :func:`rotor_channels`), or the normalized thrust t and t^2 of the rates output.
     o : mavreg.identify.fit.FitOptions
         Its ``window``, ``polyorder``, ``min_height_m``, ``max_gap_s``, ``command_timeout_s``
         and ``min_duration_s``.
@@ -65,8 +84,8 @@ class Regressors:
         ``min_duration_s`` of usable flight.
     """
 
-    def __init__(self, s: FlightSeries, mass_kg: float, max_rotor_thrust_n: float, o):
-        t, p, v, q, ctrl = _clean(s)
+    def __init__(self, s: FlightSeries, mass_kg: float, channels: np.ndarray, o):
+        t, p, v, q, ctrl, kept = _clean(s)
         if t.size < o.window + 2:
             raise IdentifyError(f"only {t.size} usable telemetry samples; a calibration needs seconds of flight")
         h = float(np.median(np.diff(t)))
@@ -80,12 +99,15 @@ class Regressors:
         def on_grid(a):
             return np.stack([np.interp(grid, idx, a[:, k]) for k in range(a.shape[1])], axis=1)
         v, pos, R = on_grid(v), on_grid(p), quats_to_matrices(on_grid(q))
+        self.rates = None if s.body_rates_rad_s is None else on_grid(_body_rates(s, kept)[keep])
+        """(n, 3) the measured body rates on the grid, if the flight has them."""
         # good: measured or inside a short gap, controlled, airborne, commands streaming
         k = np.searchsorted(idx, grid, side="right") - 1
         gap = np.append(np.diff(idx), 1)[k]
         near = (grid == idx[k]) | (gap * h <= o.max_gap_s + 1e-9)
         airborne = pos[:, 2] < _ground_z(p[:, 2], ctrl) - o.min_height_m
-        self.csum, alive = self._commands(s, t[0], max_rotor_thrust_n, o.command_timeout_s)
+        self.t0 = float(t[0])
+        self.held, alive = self.hold(s.command_t_s, channels, o.command_timeout_s)
         good = near & ctrl[k] & airborne & alive
         # rows j whose whole window j-M-1 .. j+M is good, M = window // 2
         W = o.window
@@ -107,25 +129,26 @@ class Regressors:
         cols.append(-np.linalg.norm(v, axis=1)[:, None] * v / mass_kg)
         self.fixed = np.stack([self._filtered(h / 2 * (c[:-1] + c[1:])) for c in cols], axis=-1)
 
-    def _commands(self, s: FlightSeries, t0: float, fmax: float, timeout_s: float):
-        """Summed rotor command on the grid (zero-order hold in the order sent) and 'alive'."""
-        ct = np.asarray(s.command_t_s, float)
-        u = np.asarray(s.command_controls, float).reshape(ct.size, -1)
+    def hold(self, command_t_s, values, timeout_s: float):
+        """Commands (K, m) on the grid, each held from its slot until the next one (the last
+        sent wins a slot; zero before the first), and 'alive' (n,): a command in the last
+        ``timeout_s``. IdentifyError when none is on the telemetry's clock."""
+        ct = np.asarray(command_t_s, float).ravel()
+        u = np.asarray(values, float).reshape(ct.size, -1)
         ok = np.isfinite(ct) & np.all(np.isfinite(u), axis=1)
-        slot = np.rint((ct[ok] - t0) / self.h).astype(int)
+        slot = np.rint((ct[ok] - self.t0) / self.h).astype(int)
         order = np.flatnonzero(ok)
         inside = (slot >= 0) & (slot < self.n)
         if not inside.any():
-            raise IdentifyError("no rotor command could be placed on the telemetry's clock")
+            raise IdentifyError("no command could be placed on the telemetry's clock")
         last = np.full(self.n, -1)
         np.maximum.at(last, slot[inside], order[inside])      # the last one sent wins a slot
         which = np.maximum.accumulate(last)                   # the last sent among those due
-        total = np.clip(u, 0.0, 1.0).sum(axis=1) * fmax       # the vehicle clips each rotor
-        csum = np.where(which >= 0, total[np.maximum(which, 0)], 0.0)
+        held = np.where((which >= 0)[:, None], u[np.maximum(which, 0)], 0.0)
         grid = np.arange(self.n)
         latest = np.maximum.accumulate(np.where(last >= 0, grid, -1))
         alive = (latest >= 0) & ((grid - latest) * self.h <= timeout_s + 1e-9)
-        return csum, alive
+        return held, alive
 
     def _deriv(self, v: np.ndarray) -> np.ndarray:
         """The Savitzky-Golay derivative of v (n, 3) at the rows: (rows, 3)."""
@@ -135,10 +158,11 @@ class Regressors:
         """Interval integrals g (n-1, 3) filtered with E at the rows: (rows, 3)."""
         return _correlate(g, self.E)[self.rows - self.M - 1]
 
-    def thrust_column(self, tau_s: float, delay_s: float) -> np.ndarray:
-        """(rows, 3): the filtered integral of (lagged, delayed thrust) (-R e3) / m."""
-        F = lagged_integrals(self.csum, self.h, tau_s, delay_s)
-        return self._filtered(F[:, None] * self.dir / self.mass)
+    def thrust_columns(self, tau_s: float, delay_s: float) -> np.ndarray:
+        """(rows, 3, m): per channel, the filtered integral of (lagged, delayed channel)
+        (-R e3) / m."""
+        cols = [lagged_integrals(self.held[:, c], self.h, tau_s, delay_s) for c in range(self.held.shape[1])]
+        return np.stack([self._filtered(F[:, None] * self.dir / self.mass) for F in cols], axis=-1)
 
 
 def _correlate(a: np.ndarray, kernel: np.ndarray) -> np.ndarray:
@@ -148,7 +172,8 @@ def _correlate(a: np.ndarray, kernel: np.ndarray) -> np.ndarray:
 
 
 def _clean(s: FlightSeries):
-    """Finite samples of increasing time with a usable quaternion; IdentifyError on bad shapes."""
+    """Finite samples of increasing time with a usable quaternion, and the indices of those
+    kept; IdentifyError on bad shapes."""
     t = np.asarray(s.t_s, float).ravel()
     arrays = []
     for name, a, w in (("position_ned_m", s.position_ned_m, 3), ("velocity_ned_m_s", s.velocity_ned_m_s, 3),
@@ -163,11 +188,20 @@ def _clean(s: FlightSeries):
     p, v, q = arrays
     ok = (np.isfinite(t) & np.all(np.isfinite(p), axis=1) & np.all(np.isfinite(v), axis=1)
           & np.all(np.isfinite(q), axis=1) & (np.linalg.norm(np.nan_to_num(q), axis=1) > 0.5))
-    t, p, v, q, ctrl = t[ok], p[ok], v[ok], q[ok], ctrl[ok]
-    if t.size:
-        later = np.concatenate([[True], t[1:] > np.maximum.accumulate(t)[:-1]])
-        t, p, v, q, ctrl = t[later], p[later], v[later], q[later], ctrl[later]
-    return t, p, v, q, ctrl
+    kept = np.flatnonzero(ok)
+    if kept.size:
+        tk = t[kept]
+        kept = kept[np.concatenate([[True], tk[1:] > np.maximum.accumulate(tk)[:-1]])]
+    return t[kept], p[kept], v[kept], q[kept], ctrl[kept], kept
+
+
+def _body_rates(s: FlightSeries, kept: np.ndarray) -> np.ndarray:
+    """The body rates of the samples ``kept`` (indices; non-finite: 0)."""
+    n = np.asarray(s.t_s).size
+    w = np.asarray(s.body_rates_rad_s, float)
+    if w.shape != (n, 3):
+        raise IdentifyError(f"body_rates_rad_s has shape {w.shape}, expected ({n}, 3)")
+    return np.nan_to_num(w[kept])
 
 
 def _ground_z(z: np.ndarray, controlled: np.ndarray) -> float:

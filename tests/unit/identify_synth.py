@@ -82,10 +82,11 @@ def write_tlog(series: FlightSeries, path, link_delay_s: float = 0.018, timesync
     """The flight as the daemon's ``.tlog`` would have it: per sample the vehicle's
     ATTITUDE_QUATERNION and LOCAL_POSITION_NED, then the daemon's command; vehicle HEARTBEATs
     at 1 Hz (armed, OFFBOARD where ``controlled``); a TIMESYNC exchange every
-    ``timesync_every`` samples whose reply says ``link_delay_s``."""
+    ``timesync_every`` samples (0: none) whose reply says ``link_delay_s``. A flight of the rates output
+    has its body rates in ATTITUDE_QUATERNION and its commands as SET_ATTITUDE_TARGET."""
     from pymavlink.dialects.v20 import common as mavlink2
 
-    from mavreg.daemon.messages import actuator_target, timesync_request
+    from mavreg.daemon.messages import actuator_target, rate_target, timesync_request
     from mavreg.daemon.tlog import TlogWriter
     veh = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
     dmn = mavlink2.MAVLink(None, srcSystem=1, srcComponent=191)
@@ -101,15 +102,111 @@ def write_tlog(series: FlightSeries, path, link_delay_s: float = 0.018, timesync
                     mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_PX4, 1 | (128 if on else 0),
                     (6 << 16) if on else (4 << 16) | (3 << 24), mavlink2.MAV_STATE_ACTIVE, 3).pack(veh))
             w, x, y, z = (float(a) for a in series.quaternion_wxyz[k])
-            tl.write(mavlink2.MAVLink_attitude_quaternion_message(ms, w, x, y, z, 0.0, 0.0, 0.0).pack(veh))
+            rates = (0.0, 0.0, 0.0) if series.body_rates_rad_s is None else series.body_rates_rad_s[k]
+            tl.write(mavlink2.MAVLink_attitude_quaternion_message(ms, w, x, y, z, *(float(a) for a in rates)).pack(veh))
             p, v = series.position_ned_m[k], series.velocity_ned_m_s[k]
             tl.write(mavlink2.MAVLink_local_position_ned_message(ms, *(float(a) for a in p),
                                                                  *(float(a) for a in v)).pack(veh))
             if pending is not None and t >= pending[0]:
                 tl.write(mavlink2.MAVLink_timesync_message(int(round(pending[0] * 1e9)), pending[1]).pack(veh))
                 pending = None
-            tl.write(actuator_target(int(t * 1e6) + 500, 1, 1, series.command_controls[k]).pack(dmn))
-            if k % timesync_every == 0 and pending is None:
+            u = series.command_controls[k]
+            tl.write((rate_target(int(t * 1e3) + 1, 1, 1, u[:3], u[3]) if series.output == "rates"
+                      else actuator_target(int(t * 1e6) + 500, 1, 1, u)).pack(dmn))
+            if timesync_every and k % timesync_every == 0 and pending is None:
                 ts1 = int(t * 1e9) + 600_000
                 tl.write(timesync_request(ts1).pack(dmn))
                 pending = (float(t) + link_delay_s, ts1)
+
+
+def _rodrigues(w_dt: np.ndarray) -> np.ndarray:
+    """exp([w_dt]x): the rotation of a body turning at constant rate for one step."""
+    a = float(np.linalg.norm(w_dt))
+    K = np.array([[0.0, -w_dt[2], w_dt[1]], [w_dt[2], 0.0, -w_dt[0]], [-w_dt[1], w_dt[0], 0.0]])
+    if a < 1e-12:
+        return np.eye(3) + K
+    return np.eye(3) + math.sin(a) / a * K + (1 - math.cos(a)) / (a * a) * K @ K
+
+
+def synthetic_rate_flight(duration_s=20.0, h=0.002, hover_thrust=0.35, expo=0.4, rate_tau_s=(0.03, 0.03, 0.05),
+                          delay_s=0.012, thrust_tau_s=0.03, drag=(0.25, 0.35, 0.15), noise_sd=0.02,
+                          noise_tc_s=0.2, gyro_sd=0.01, seed=1, excite=1.0, rate_order=1,
+                          squares=True) -> FlightSeries:
+    """A flight of the rates output, closed loop: the rigid body under a stock autopilot's
+    rate loop (a pure delay, then first order per axis with ``rate_tau_s``; ``rate_order`` 2:
+    two cascaded lags of half that, the wrong model order) and thrust map
+    F = F_max ((1 - e) t + e t^2) holding MASS_KG at ``hover_thrust``, the collective delayed
+    alike and lagged by ``thrust_tau_s``.
+
+    At each sample the "regulator" commands body rates
+    ``0.5 w_measured - 2 (roll, pitch, yaw - yaw_ref) + excitation`` (sinusoids and square
+    waves per axis, scaled by ``excite``; ``squares`` False: the sinusoids only); the measured rates carry white noise ``gyro_sd``)
+    and the thrust that holds the weight through the tilt, less a vertical-speed feedback on
+    the measured (Gauss-Markov noisy) velocity, with a slow sinusoid, a 3 Hz square wave and
+    noise. The fine step is h / 2; body drag as :func:`synthetic_flight`.
+    """
+    from mavreg.model.rate_interface import ThrustMap
+    from mavreg.model.rotation import matrix_to_rpy, matrices_to_quats
+    rng = np.random.default_rng(seed)
+    tmap = ThrustMap(MASS_KG, hover_thrust, expo)
+    sub, n = 2, int(round(duration_s / h)) + 1
+    hf = h / sub
+    n_delay = delay_s / hf
+    tau = np.repeat(np.asarray(rate_tau_s, float), 2) / (1 if rate_order == 1 else 2)
+    decay = np.exp(-hf / tau)                       # stages (p1, p2, q1, q2, r1, r2)
+    ts = np.arange(n) * h
+    sq = np.sign if squares else np.zeros_like
+    exc = excite * np.stack([1.2 * np.sin(2 * np.pi * 0.4 * ts) + 0.6 * sq(np.sin(2 * np.pi * 2.3 * ts)),
+                             1.2 * np.sin(2 * np.pi * 0.3 * ts + 1) + 0.6 * sq(np.sin(2 * np.pi * 1.7 * ts)),
+                             0.8 * np.sin(2 * np.pi * 0.2 * ts) + 0.4 * sq(np.sin(2 * np.pi * 1.1 * ts))], 1)
+    thr_exc = 1 + excite * (0.15 * np.sin(2 * np.pi * 0.9 * ts) + 0.12 * np.sign(np.sin(2 * np.pi * 3.0 * ts))
+                            + 0.02 * rng.standard_normal(n))
+    rho = math.exp(-h / noise_tc_s)
+    cmd = np.zeros((n, 4))
+    out_q, out_v, out_w, out_p = (np.zeros((n, k)) for k in (4, 3, 3, 3))
+    R, v, p = np.eye(3), np.zeros(3), np.array([0.0, 0.0, -50.0])
+    stages, thrust_state, e_v = np.zeros(6), 0.0, rng.standard_normal(3) * noise_sd
+    f_sched = np.zeros(n)                       # the collective each command asks for (N)
+    cx, cy, cz = drag
+    lag_f = math.exp(-hf / thrust_tau_s)
+
+    def accel(Ri, vi, fi):
+        vb = Ri.T @ vi
+        return Ri @ np.array([-cx * vb[0], -cy * vb[1], -cz * vb[2] - fi]) / MASS_KG + np.array([0.0, 0.0, G])
+
+    for i in range((n - 1) * sub + 1):
+        if i % sub == 0:                        # a sample, and the command answering it
+            k = i // sub
+            w_true = stages[1::2]
+            e_v = rho * e_v + rng.standard_normal(3) * noise_sd * math.sqrt(1 - rho * rho)
+            w_m = w_true + gyro_sd * rng.standard_normal(3)
+            out_q[k], out_v[k], out_w[k], out_p[k] = matrices_to_quats(R[None])[0], v + e_v, w_m, p
+            rpy = matrix_to_rpy(R)
+            rpy[2] -= 0.25 * ts[k]
+            cmd[k, :3] = 0.5 * w_m - 2.0 * ((rpy + np.pi) % (2 * np.pi) - np.pi) + exc[k]
+            tilt = max(0.5, R[2, 2])
+            f_sched[k] = MASS_KG * (G + 1.0 * (v[2] + e_v[2])) / tilt * thr_exc[k]
+            cmd[k, 3] = tmap.normalized(f_sched[k])
+            if k == n - 1:
+                break
+        j = int(math.floor((i - n_delay) / sub + 1e-9))        # the command in force over this step
+        u = cmd[j] if j >= 0 else np.zeros(4)   # nothing before the first command, as the fit assumes
+        f_in = float(tmap.thrust_n(u[3]))
+        inputs = np.array([u[0], 0, u[1], 0, u[2], 0], float)
+        w0 = stages[1::2].copy()
+        if rate_order == 1:
+            stages[1::2] = inputs[0::2] + (stages[1::2] - inputs[0::2]) * decay[1::2]
+        else:
+            stages[0::2] = inputs[0::2] + (stages[0::2] - inputs[0::2]) * decay[0::2]
+            stages[1::2] = stages[0::2] + (stages[1::2] - stages[0::2]) * decay[1::2]
+        f0 = thrust_state
+        thrust_state = f_in + (thrust_state - f_in) * lag_f
+        R1 = R @ _rodrigues((w0 + stages[1::2]) / 2 * hf)
+        a0 = accel(R, v, f0)
+        a1 = accel(R1, v + hf * a0, thrust_state)
+        p = p + hf * v + hf * hf / 2 * a0
+        v = v + hf / 2 * (a0 + a1)
+        R = R1
+    return FlightSeries(t_s=ts, position_ned_m=out_p, velocity_ned_m_s=out_v, quaternion_wxyz=out_q,
+                        controlled=np.ones(n, bool), command_t_s=ts.copy(), command_controls=cmd,
+                        link_delay_s=None, output="rates", body_rates_rad_s=out_w)

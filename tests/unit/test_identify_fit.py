@@ -168,7 +168,7 @@ def test_bad_inputs_are_one_line_errors():
         "shape": dataclasses.replace(s, velocity_ned_m_s=s.velocity_ned_m_s[:, :2]),
         "controlled has": dataclasses.replace(s, controlled=s.controlled[:-3]),
         "of usable flight": dataclasses.replace(s, controlled=np.zeros(s.t_s.size, bool)),
-        "no rotor command": dataclasses.replace(s, command_t_s=np.full(s.t_s.size, np.nan)),
+        "no command could be placed": dataclasses.replace(s, command_t_s=np.full(s.t_s.size, np.nan)),
     }
     for words, series in cases.items():
         with pytest.raises(IdentifyError) as e:
