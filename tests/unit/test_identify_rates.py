@@ -2,6 +2,10 @@
 (mavreg.identify.rate_fit), the tlog reader's SET_ATTITUDE_TARGET, and the command."""
 from __future__ import annotations
 
+import re
+
+from mavreg.config.paths import DEFAULT_VEHICLE
+
 import json
 
 import numpy as np
@@ -185,7 +189,8 @@ def test_the_vehicle_file_table_and_a_block_section_rewritten(fitted, tmp_path):
     from mavreg.cli.identify_cmd import write_vehicle
     from mavreg.cli.identify_rates import format_result
     src = tmp_path / "block.yaml"
-    src.write_text(open("params/vehicles/mk_quadro.yaml").read() + "output: rates\nrate_interface:\n"
+    base = re.sub(r"(?m)^rate_interface:\n(?:[ #].*\n|\n)*", "", DEFAULT_VEHICLE.read_text())
+    src.write_text(base + "output: rates\nrate_interface:\n"
                    "  hover_thrust: 0.5\n  rate_time_constant_s: 0.05\n\n  max_body_rate_rad_s: [9, 9, 4]\n"
                    "estimate_latency_s: 0.004\n")
     vehicle = load_vehicle(src)
