@@ -8,7 +8,8 @@ From the ``.tlog`` (every message in and out, in the order the daemon saw or sen
 
 - the vehicle is the source of the first LOCAL_POSITION_NED or ATTITUDE_QUATERNION; its
   LOCAL_POSITION_NED and ATTITUDE_QUATERNION of one ``time_boot_ms`` make one sample;
-- its HEARTBEATs give armed and the PX4 mode (OFFBOARD: main mode 6); each sample carries
+- its HEARTBEATs give armed and the mode, in its autopilot's dialect (PX4 OFFBOARD, ArduCopter
+  GUIDED: :mod:`mavreg.daemon.autopilots`); each sample carries
   the status of the last HEARTBEAT before it;
 - the body rates of a sample are its ATTITUDE_QUATERNION's (rollspeed, pitchspeed,
   yawspeed), or its ATTITUDE's of the same ``time_boot_ms`` where the former are all zero
@@ -34,13 +35,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ..daemon.autopilots import dialect_for
 from ..errors import UsageError
 from .regressors import FlightSeries
 
 __all__ = ["read_flight", "read_tlog"]
 
-_OFFBOARD_MAIN = 6
-_ARMED_FLAG = 128
 _RATES_MASK = 128
 """SET_ATTITUDE_TARGET type_mask bits: attitude ignored (128) ..."""
 _RATES_UNUSED = 1 | 2 | 4 | 64
@@ -147,8 +147,9 @@ def _parse(conn, path: Path) -> FlightSeries:
             elif src == vehicle and msg.tc1 != 0 and int(msg.ts1) in ts_request:
                 delays.append(msg.tc1 * 1e-9 - ts_request.pop(int(msg.ts1)))
         elif mtype == "HEARTBEAT":
-            main_mode = (int(msg.custom_mode) >> 16) & 0xFF
-            status[src] = bool(msg.base_mode & _ARMED_FLAG) and main_mode == _OFFBOARD_MAIN
+            dialect = dialect_for(msg)     # PX4 OFFBOARD or ArduCopter GUIDED; none for a GCS
+            info = None if dialect is None else dialect.decode(msg)
+            status[src] = info is not None and info.armed and info.offboard
         elif src != vehicle:
             continue
         elif mtype == "ATTITUDE":
