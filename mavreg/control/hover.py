@@ -218,7 +218,7 @@ class HoverController:
         if self.compiled and not ACCELERATED:
             raise ValueError("no compiled hover step here: numba is missing or MAVREG_PURE is set")
         self.model = QuadrotorModel.from_vehicle(self.vehicle)
-        self.mixer = Mixer(self.vehicle.arm_length_m, self.vehicle.drag_torque_ratio_m)
+        self.mixer = Mixer.from_vehicle(self.vehicle)
         self._gains: dict[float, np.ndarray] = {}
         self._fast = ACCELERATED if self.compiled is None else bool(self.compiled)
         self._minv = np.ascontiguousarray(self.mixer.inverse, dtype=float).ravel()

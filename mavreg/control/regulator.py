@@ -113,7 +113,7 @@ class ManeuverRegulator:
                  allocation: AllocationParams | None = None,
                  speed_governor: SpeedGovernorParams | None = None, compiled: bool | None = None):
         self.plan = plan
-        mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
+        mixer = Mixer.from_vehicle(vehicle)
         alloc = allocation if allocation is not None else AllocationParams(method="per_rotor_clip")
         self._fmax = float(vehicle.max_rotor_thrust_n if alloc.max_rotor_thrust_n is None
                            else alloc.max_rotor_thrust_n)

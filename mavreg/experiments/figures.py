@@ -34,7 +34,7 @@ def nominal_curves(plan, step: int = 20) -> dict:
     s = plan.s[::step]
     x = plan.x[::step]
     u = plan.u[::step]
-    mixer = Mixer(plan.vehicle.arm_length_m, plan.vehicle.drag_torque_ratio_m)
+    mixer = Mixer.from_vehicle(plan.vehicle)
     return {"s": s, "position": x[:, :3], "rpy_deg": np.degrees(x[:, 3:6]), "v_body": x[:, 6:9],
             "u": u, "rotors": u @ mixer.inverse.T}
 

@@ -103,7 +103,7 @@ def fly_batch(plan: Plan, runs: Sequence[BatchRun], *, control_rate_hz: float = 
         raise ValueError(f"control rate {control_rate_hz} Hz is not a whole number of "
                          f"{dt_s * 1e3:g} ms physics steps")
     vehicle = plan.vehicle
-    mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
+    mixer = Mixer.from_vehicle(vehicle)
     projector = Projector(plan.path)
     x0s, options = [], []
     for run in runs:

@@ -101,7 +101,7 @@ def test_runs_that_end_at_different_times_noise_saturation_and_a_failed_start_ag
     for run, bat in zip(runs[:4], batch):
         assert_agree(sequential(plan, run, 1.0), bat)
     x0 = plan.entry_state + np.r_[2e4, np.zeros(11)]
-    ref = simulate(QuadrotorModel.from_vehicle(VEHICLE), Mixer(VEHICLE.arm_length_m, VEHICLE.drag_torque_ratio_m),
+    ref = simulate(QuadrotorModel.from_vehicle(VEHICLE), Mixer.from_vehicle(VEHICLE),
                    lambda t, x: np.zeros(4), SimOptions(initial_state=x0))
     assert ref.status.value == "diverged" and ref.reason.startswith("initial state: position")
     assert_agree(ref, batch[4])
@@ -117,7 +117,7 @@ def test_a_controller_that_returns_nan_ends_the_run_as_simulate_ends_it(compiled
     broken = dataclasses.replace(plan, K=K)
     runs = [BatchRun((0.1, 0.0, 0.0)), BatchRun((0.0, 0.2, 0.0), (0.02, 0.02, 0.03))]
     batch = fly_batch(broken, runs, extra_time_s=1.0, compiled=compiled)
-    model, mixer = QuadrotorModel.from_vehicle(VEHICLE), Mixer(VEHICLE.arm_length_m, VEHICLE.drag_torque_ratio_m)
+    model, mixer = QuadrotorModel.from_vehicle(VEHICLE), Mixer.from_vehicle(VEHICLE)
     for run, bat in zip(runs, batch):
         reg = ManeuverRegulator(broken, VEHICLE, control_period_s=1e-3, rotor_time_constant_s=0.0)
         x0 = broken.entry_state + np.r_[run.offset_m, np.zeros(9)]

@@ -93,7 +93,7 @@ def test_projection_kernel_gives_the_projectors_answers(which):
 
 
 def test_allocation_kernels_are_the_mixers_allocations():
-    Minv = Mixer(VEHICLE.arm_length_m, VEHICLE.drag_torque_ratio_m).inverse
+    Minv = Mixer.from_vehicle(VEHICLE).inverse
     rng = np.random.default_rng(2)
     # from inside the limits to beyond both ends, with torques up to the spread of the limit
     u = np.column_stack([rng.uniform(-5.0, 60.0, 4000), rng.uniform(-4.0, 4.0, 4000),

@@ -47,7 +47,7 @@ def _climb_rate_rms(error_fn, seed=0):
     hc = HoverController(VEHICLE, HoverParams(), compiled=False)
     hc.error = error_fn
     model = QuadrotorModel.from_vehicle(VEHICLE)
-    mixer = Mixer(VEHICLE.arm_length_m, VEHICLE.drag_torque_ratio_m)
+    mixer = Mixer.from_vehicle(VEHICLE)
     ramp = plan_ramp(np.zeros(3), np.zeros(3), 0.0, np.array([0.0, 0.0, -25.0]), np.zeros(3), 0.0,
                      HoverParams())
     rng = np.random.default_rng(seed)

@@ -123,7 +123,7 @@ def _hover_flight(vehicle, delay_s=0.0, gain=1.0, duration_s=8.0):
     lag; ``gain`` scales the feedback part of the rotor commands, ``delay_s`` delays them.
     Returns (status, peak |position error| over the first and over the last second)."""
     ctl = HoverController(vehicle, HoverParams())
-    mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
+    mixer = Mixer.from_vehicle(vehicle)
     ramp = hold_ramp(np.zeros(3), 0.0)
     _, u_ref = ctl.reference(ramp, 0.0)
 
