@@ -31,6 +31,7 @@ import numpy as np
 from ..accel import njit
 from ..config.vehicle import G
 from ..model.rotation_kernel import mm, rodrigues
+from ..model.rotor_lag_kernel import lag_over4
 
 __all__ = ["integrate", "predict_into", "STATE_SIZE", "PARAM_SIZE", "OUT_SIZE"]
 
@@ -72,15 +73,7 @@ def integrate(state, seg, prm, thrust_scale, fx, fy, fz, cxy, cz):
         while t < start - 1e-12:
             dt = min(max_step, start - t)
             # rotor lag: the forces after dt and their mean over it
-            if tau <= 0.0:
-                f0, f1, f2, f3 = c0, c1, c2, c3
-                m0, m1, m2, m3 = c0, c1, c2, c3
-            else:
-                e = math.exp(-dt / tau)
-                frac = tau / dt * (1.0 - e)
-                m0, m1, m2, m3 = (c0 + (f0 - c0) * frac, c1 + (f1 - c1) * frac,
-                                  c2 + (f2 - c2) * frac, c3 + (f3 - c3) * frac)
-                f0, f1, f2, f3 = c0 + (f0 - c0) * e, c1 + (f1 - c1) * e, c2 + (f2 - c2) * e, c3 + (f3 - c3) * e
+            f0, f1, f2, f3, m0, m1, m2, m3 = lag_over4(f0, f1, f2, f3, c0, c1, c2, c3, dt, tau)
             if thrust_scale != 1.0:
                 m0, m1, m2, m3 = thrust_scale * m0, thrust_scale * m1, thrust_scale * m2, thrust_scale * m3
             # one step of eqs 1-4 with the mean force held

@@ -26,6 +26,7 @@ from ..config.vehicle import VehicleParams
 from ..geometry.projection import Projector
 from ..model.mixer import Mixer, torques_first, yaw_then_lift
 from ..model.rotation import rpy_to_matrix
+from ..model.rotor_lag import lag_decay, lag_toward
 from ..model.so3 import attitude_error
 from . import fastpath
 from .attitude_table import NominalAttitudes
@@ -121,7 +122,7 @@ class ManeuverRegulator:
         self.mixer_inverse = mixer.inverse
         self._mixer = mixer.matrix
         self._augmented = plan.K.shape[-1] > 11
-        self._decay = (float(np.exp(-control_period_s / plan.rotor_time_constant_s))
+        self._decay = (lag_decay(control_period_s, plan.rotor_time_constant_s)
                        if self._augmented and control_period_s > 0 else 0.0)
         self._rotors_est: np.ndarray | None = None
         self.projector = Projector(plan.path)
@@ -324,5 +325,5 @@ class ManeuverRegulator:
         rotors = self._allocate(self.mixer_inverse, u, self._fmax)
         if self._augmented:
             base = self._rotors_est if self._rotors_est is not None else rotors
-            self._rotors_est = rotors + (base - rotors) * self._decay
+            self._rotors_est = lag_toward(base, rotors, self._decay)
         return RegulatorOutput(s, w, u, rotors, proj.in_tube, s >= self.plan.length_m - 1e-6, v_ref)

@@ -38,6 +38,7 @@ import numpy as np
 
 from ..accel import njit
 from ..geometry.projection_kernel import POINT_WIDTH, path_point, project
+from ..model.rotor_lag_kernel import lag_toward
 from ..model.rotation_kernel import log_vee, mm, mtm, mv, rodrigues, rpy_matrix, wrap
 from .compensation_kernel import compensate, extra_force
 from .governor_kernel import G_PROFILE_ACCEL, drag_change, governed_reference, interp, retiming_force
@@ -317,7 +318,7 @@ def regulator_step(x, f_act, has_f, has_dist, dcxy, dcz, fx, fy, fz, table, s_ta
         decay = prm[P_DECAY]
         for r in range(4):
             base = st[ST_EST + r] if st[ST_HAS_EST] != 0.0 else rotors[r]
-            st[ST_EST + r] = rotors[r] + (base - rotors[r]) * decay
+            st[ST_EST + r] = lag_toward(base, rotors[r], decay)
         st[ST_HAS_EST] = 1.0
     out[OUT_S] = s
     return s, inside, s >= prm[P_END], v_ref

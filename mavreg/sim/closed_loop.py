@@ -40,6 +40,7 @@ import numpy as np
 from ..model.mixer import Mixer
 from ..model.quadrotor import NX, QuadrotorModel
 from ..model.rotation import matrix_to_rpy, rpy_to_matrix
+from ..model.rotor_lag import lag_decay, lag_toward, mean_fraction
 from ..model.so3 import hat
 
 __all__ = ["SimOptions", "SimResult", "SimStatus", "simulate", "window_force"]
@@ -294,8 +295,8 @@ def simulate(model: QuadrotorModel, mixer: Mixer, controller: Controller,
     meas_lag = int(round(opt.measurement_delay_s / dt))
     cmd_lag = int(round(opt.command_delay_s / dt))
     pending: list = []                  # (physics step it acts from, command)
-    decay = 0.0 if opt.rotor_time_constant_s <= 0 else float(np.exp(-dt / opt.rotor_time_constant_s))
-    mean_frac = 0.0 if decay == 0.0 else opt.rotor_time_constant_s / dt * (1.0 - decay)
+    decay = lag_decay(dt, opt.rotor_time_constant_s)
+    mean_frac = mean_fraction(dt, opt.rotor_time_constant_s, decay)
     lagged = acting = None              # (before the first command: as if it had always acted)
     command = np.zeros(4)
     noise = np.zeros(4)
@@ -328,8 +329,8 @@ def simulate(model: QuadrotorModel, mixer: Mixer, controller: Controller,
                     noise = rng.normal(0.0, sd, 4)
             while pending and pending[0][0] <= i:
                 acting = np.clip(pending.pop(0)[1], 0.0, upper)
-            mean = acting + (lagged - acting) * mean_frac
-            lagged = acting + (lagged - acting) * decay
+            mean = lag_toward(lagged, acting, mean_frac)
+            lagged = lag_toward(lagged, acting, decay)
             if sd > 0.0 and per_physics:
                 noise = rng.normal(0.0, sd, 4)
             applied = np.clip(mean + noise, 0.0, upper)

@@ -10,7 +10,7 @@ import pytest
 from mavreg.cli.common import DEFAULT_VEHICLE, REAL_CONTROLLER
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
-from mavreg.control.actuator import lag_augment
+from mavreg.model.rotor_lag import lag_augment
 from mavreg.control.hover import HoverController, HoverParams, hold_ramp
 from mavreg.control.margins import (delay_margins, gain_margins, lag_model_loop, loop_margins, node_margins,
                                     rotor_loop, schedule_margins, spectral_abscissa)
