@@ -47,6 +47,7 @@ import numpy as np
 from ..accel import ACCELERATED
 from ..config.disturbance import DisturbanceParams
 from ..config.vehicle import VehicleParams
+from ..model.drag import linear_drag_ned_n
 from ..model.rotation import matrix_to_rpy, rpy_to_matrix, wrap_angle
 from ..model.so3 import log_so3
 from . import observer_kernel as ok
@@ -68,12 +69,9 @@ class DisturbanceEstimate:
     def extra_force_ned(self, R, v, base_drag_n_s_per_m) -> np.ndarray:
         """The force the design model with drag ``base_drag_n_s_per_m`` misses, at attitude
         ``R`` and velocity ``v`` (NED), excluding the thrust scale (the commands carry it)."""
-        b3 = np.asarray(R)[:, 2]
-        v = np.asarray(v, dtype=float)
-        along = float(b3 @ v)
         dcxy = self.drag_n_s_per_m[0] - base_drag_n_s_per_m[0]
         dcz = self.drag_n_s_per_m[1] - base_drag_n_s_per_m[1]
-        return -dcxy * (v - along * b3) - dcz * along * b3 + np.asarray(self.force_ned_n)
+        return linear_drag_ned_n(np.asarray(R)[:, 2], v, dcxy, dcz) + np.asarray(self.force_ned_n)
 
 
 def regressors(R, v, thrust_n: float) -> np.ndarray:

@@ -30,6 +30,7 @@ import numpy as np
 
 from ..accel import njit
 from ..config.vehicle import G
+from ..model.drag_kernel import drag_ned
 from ..model.rotation_kernel import mm, rodrigues
 from ..model.rotor_lag_kernel import lag_over4
 
@@ -38,15 +39,6 @@ __all__ = ["integrate", "predict_into", "STATE_SIZE", "PARAM_SIZE", "OUT_SIZE"]
 STATE_SIZE = 22
 PARAM_SIZE = 11
 OUT_SIZE = 28
-
-
-@njit
-def _drag(R, vx, vy, vz, cxy, cz, cp):
-    """Drag force (NED) at velocity v: -R C R^T v - c_p |v| v, C = diag(c_xy, c_xy, c_z)."""
-    zx, zy, zz = R[2], R[5], R[8]
-    along = (cz - cxy) * (zx * vx + zy * vy + zz * vz)
-    q = cxy + cp * math.sqrt(vx * vx + vy * vy + vz * vz)
-    return -q * vx - along * zx, -q * vy - along * zy, -q * vz - along * zz
 
 
 @njit
@@ -91,9 +83,9 @@ def integrate(state, seg, prm, thrust_scale, fx, fy, fz, cxy, cz):
             a0x, a0y, a0z = -s * R[2] + fx / m, -s * R[5] + fy / m, G - s * R[8] + fz / m
             a1x, a1y, a1z = -s * R1[2] + fx / m, -s * R1[5] + fy / m, G - s * R1[8] + fz / m
             if has_drag:       # both at the step's start velocity
-                dx, dy, dz = _drag(R, vx, vy, vz, cxy, cz, cp)
+                dx, dy, dz = drag_ned(R, vx, vy, vz, cxy, cz, cp)
                 a0x, a0y, a0z = a0x + dx / m, a0y + dy / m, a0z + dz / m
-                dx, dy, dz = _drag(R1, vx, vy, vz, cxy, cz, cp)
+                dx, dy, dz = drag_ned(R1, vx, vy, vz, cxy, cz, cp)
                 a1x, a1y, a1z = a1x + dx / m, a1y + dy / m, a1z + dz / m
             q = dt * dt / 6.0
             px, py, pz = (px + dt * vx + q * (2.0 * a0x + a1x), py + dt * vy + q * (2.0 * a0y + a1y),

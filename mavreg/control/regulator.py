@@ -24,6 +24,7 @@ import numpy as np
 from ..config.regulation import AllocationParams, SpeedGovernorParams
 from ..config.vehicle import VehicleParams
 from ..geometry.projection import Projector
+from ..model.drag import drag_change_n
 from ..model.mixer import Mixer, torques_first, yaw_then_lift
 from ..model.rotation import rpy_to_matrix
 from ..model.rotor_lag import lag_decay, lag_toward
@@ -247,9 +248,7 @@ class ManeuverRegulator:
         cxy, cz = self._base_drag
         if not (cxy or cz or self._parasitic):
             return None
-        C = R @ np.diag((cxy, cxy, cz)) @ R.T
-        speed = float(np.linalg.norm(v_bar_ned))
-        return -(sigma - 1.0) * (C @ v_bar_ned) - self._parasitic * speed * v_bar_ned * (sigma * abs(sigma) - 1.0)
+        return drag_change_n(R, v_bar_ned, sigma, cxy, cz, self._parasitic)
 
     def step(self, x, rotor_forces_n=None, disturbance: DisturbanceEstimate | None = None) -> RegulatorOutput:
         """One control step for state x (12,); ``rotor_forces_n`` (4,): the rotors' forces

@@ -38,10 +38,11 @@ import numpy as np
 
 from ..accel import njit
 from ..geometry.projection_kernel import POINT_WIDTH, path_point, project
+from ..model.drag_kernel import drag_change
 from ..model.rotor_lag_kernel import lag_toward
 from ..model.rotation_kernel import log_vee, mm, mtm, mv, rodrigues, rpy_matrix, wrap
 from .compensation_kernel import compensate, extra_force
-from .governor_kernel import G_PROFILE_ACCEL, drag_change, governed_reference, interp, retiming_force
+from .governor_kernel import G_PROFILE_ACCEL, governed_reference, interp, retiming_force
 
 __all__ = ["regulator_step", "yaw_then_lift", "torques_first", "TABLE_X", "TABLE_U", "TABLE_V",
            "TABLE_K", "ATTITUDE_WIDTH", "P_LEAD", "P_DECAY", "P_FMAX", "P_WINDOW", "P_MARGIN",

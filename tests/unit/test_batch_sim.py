@@ -27,8 +27,8 @@ from mavreg.sim.batch import BatchRun, fly_batch
 from mavreg.sim.closed_loop import SimOptions, simulate
 from mavreg.sim.maneuver_run import fly_on_design_model
 
-PATHS = [pytest.param(True, id="compiled", marks=pytest.mark.skipif(not ACCELERATED, reason="numba not in use")),
-         pytest.param(False, id="numpy")]
+PATHS = [pytest.param(True, id="compiled", marks=pytest.mark.skipif(not ACCELERATED, reason="numba not in use"))]
+"""The compiled batch against the sequential simulator (its pure path is that simulator)."""
 REPO = Path(__file__).resolve().parents[2]
 VEHICLE = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
 PAPER = load_controller(PARAMS_DIR / "controller/paper_lqr.yaml")
@@ -152,6 +152,15 @@ def test_lag_aware_gains_and_odd_control_rates_are_refused(barrel):
     if not ACCELERATED:
         with pytest.raises(ValueError, match="needs numba"):
             fly_batch(barrel, [BatchRun()], compiled=True)
+
+
+def test_the_pure_path_is_the_sequential_simulator(barrel):
+    """compiled=False (and no numba, or MAVREG_PURE=1) flies each run by the sequential
+    simulator: the same records exactly."""
+    run = BatchRun((0.1, -0.1, 0.05), (0.02, 0.015, 0.03), 0.1, 9.0, 5)
+    extra = 0.3 - barrel.duration_s
+    bat = fly_batch(barrel, [run], extra_time_s=extra, compiled=False)[0]
+    assert_agree(sequential(barrel, run, extra), bat, tol=0.0)
 
 
 @pytest.mark.slow
