@@ -23,7 +23,7 @@ from ..accel import njit
 from ..config.vehicle import G
 from ..model.rotation_kernel import mtv, mv, rpy_matrix, wrap
 from .compensation_kernel import extra_force
-from .step_kernel import yaw_then_lift
+from ..model.mixer_kernel import yaw_then_lift
 
 __all__ = ["reference", "feedback", "REF_SIZE", "OUT_SIZE", "MIN_TILT_COS"]
 

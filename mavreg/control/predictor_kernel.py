@@ -31,6 +31,7 @@ import numpy as np
 from ..accel import njit
 from ..config.vehicle import G
 from ..model.drag_kernel import drag_ned
+from ..model.mixer_kernel import wrench
 from ..model.rotation_kernel import mm, rodrigues
 from ..model.rotor_lag_kernel import lag_over4
 
@@ -69,8 +70,7 @@ def integrate(state, seg, prm, thrust_scale, fx, fy, fz, cxy, cz):
             if thrust_scale != 1.0:
                 m0, m1, m2, m3 = thrust_scale * m0, thrust_scale * m1, thrust_scale * m2, thrust_scale * m3
             # one step of eqs 1-4 with the mean force held
-            T = m0 + m1 + m2 + m3
-            g1, g2, g3 = l * (m3 - m1), l * (m0 - m2), k * (-m0 + m1 - m2 + m3)
+            T, g1, g2, g3 = wrench(l, k, m0, m1, m2, m3)
             d0x = (g1 + (jy - jz) * wy * wz) / jx
             d0y = (g2 + (jz - jx) * wx * wz) / jy
             d0z = (g3 + (jx - jy) * wx * wy) / jz

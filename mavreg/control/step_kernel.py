@@ -39,6 +39,7 @@ import numpy as np
 from ..accel import njit
 from ..geometry.projection_kernel import POINT_WIDTH, path_point, project
 from ..model.drag_kernel import drag_change
+from ..model.mixer_kernel import torques_first, yaw_then_lift
 from ..model.rotor_lag_kernel import lag_toward
 from ..model.rotation_kernel import log_vee, mm, mtm, mv, rodrigues, rpy_matrix, wrap
 from .compensation_kernel import compensate, extra_force
@@ -85,65 +86,6 @@ OUT_S, OUT_W, OUT_U, OUT_ROTORS = 0, 1, 12, 16
 OUT_WIDTH = 20
 COMPENSATION_DT_S = 0.02
 """As the regulator's ``_COMPENSATION_DT_S``."""
-
-
-@njit
-def _split(Minv, u, r):
-    """Rotor r's share of thrust, roll and pitch, and of yaw: ``(b, y)`` of eq 34 inverted."""
-    return Minv[4 * r] * u[0] + Minv[4 * r + 1] * u[1] + Minv[4 * r + 2] * u[2], Minv[4 * r + 3] * u[3]
-
-
-@njit
-def _fill(Minv, u, beta, f):
-    """f = b + beta y per rotor; returns (min f, max f)."""
-    low, high = np.inf, -np.inf
-    for r in range(4):
-        b, y = _split(Minv, u, r)
-        f[r] = b + beta * y
-        low = min(low, f[r])
-        high = max(high, f[r])
-    return low, high
-
-
-@njit
-def yaw_then_lift(Minv, u, F, f):
-    """:func:`mavreg.model.mixer.yaw_then_lift` of u (4,) into f (4,), Minv row-major (16,)."""
-    low, _ = _fill(Minv, u, 1.0, f)
-    if low >= 0.0:
-        return
-    beta = 1.0
-    for r in range(4):
-        b, y = _split(Minv, u, r)
-        if b + y < 0.0 and y != 0.0:    # as mixer.yaw_then_lift: no yaw share, no limit from it
-            beta = min(beta, max(b, 0.0) / -y)
-    low, high = _fill(Minv, u, beta, f)
-    if low < 0.0:
-        lift = min(-low, max(F - high, 0.0))
-        for r in range(4):
-            f[r] += lift
-
-
-@njit
-def torques_first(Minv, u, F, f):
-    """:func:`mavreg.model.mixer.torques_first` of u (4,) into f (4,), Minv row-major (16,)."""
-    low, high = _fill(Minv, u, 1.0, f)
-    if low >= 0.0 and high <= F:
-        return
-    beta = 1.0
-    for r in range(4):          # a rotor out of range with the yaw's help: no yaw
-        b, y = _split(Minv, u, r)
-        if b + y < 0.0 and y != 0.0:
-            beta = min(beta, max(b, 0.0) / -y) if y < 0.0 else 0.0
-        elif b + y > F and y != 0.0:
-            beta = min(beta, max(F - b, 0.0) / y) if y > 0.0 else 0.0
-    low, high = _fill(Minv, u, beta, f)
-    if high - low <= F:
-        shift = low if low < 0.0 else (high - F if high > F else 0.0)
-        for r in range(4):
-            f[r] -= shift
-        return
-    for r in range(4):
-        f[r] = (f[r] - low) * (F / (high - low))
 
 
 @njit
