@@ -19,7 +19,7 @@ import math
 
 from ..accel import njit
 from ..model.drag_kernel import linear_drag_and_force as extra_force
-from ..model.rotation_kernel import log_vee, mm, mtm, mtv, mv, wrap
+from ..model.rotation_kernel import log_vee, matrix_rpy, mm, mtm, mtv, mv, wrap
 
 __all__ = ["compensate", "extra_force"]
 
@@ -69,9 +69,7 @@ def compensate(xbar, R, thrust_n, f0, f1, f2, R_ahead, thrust_ahead_n, g0, g1, g
     """
     v0, v1, v2 = mv(R, xbar[6], xbar[7], xbar[8])
     R2, T = _turned(R, thrust_n, f0, f1, f2, max_turn_rad)
-    theta = -math.asin(min(max(R2[6], -1.0), 1.0))
-    phi = math.atan2(R2[7], R2[8])
-    psi = math.atan2(R2[3], R2[0])
+    phi, theta, psi = matrix_rpy(R2)
     xbar[3] = xbar[3] + wrap(phi - xbar[3])
     xbar[4] = xbar[4] + wrap(theta - xbar[4])
     xbar[5] = xbar[5] + wrap(psi - xbar[5])

@@ -24,7 +24,6 @@ Layouts (plain float arrays, so that nothing is allocated in the loop):
 """
 from __future__ import annotations
 
-import math
 
 import numpy as np
 
@@ -32,7 +31,7 @@ from ..accel import njit
 from ..config.vehicle import G
 from ..model.drag_kernel import drag_ned
 from ..model.mixer_kernel import wrench
-from ..model.rotation_kernel import mm, rodrigues
+from ..model.rotation_kernel import matrix_rpy, mm, rodrigues
 from ..model.rotor_lag_kernel import lag_over4
 
 __all__ = ["integrate", "predict_into", "STATE_SIZE", "PARAM_SIZE", "OUT_SIZE"]
@@ -122,9 +121,7 @@ def predict_into(out, R, x, f0, f1, f2, f3, seg, prm, thrust_scale, fx, fy, fz, 
     steps = integrate(state, seg, prm, thrust_scale, fx, fy, fz, cxy, cz)
     r = state
     out[0], out[1], out[2] = r[9], r[10], r[11]
-    out[3] = math.atan2(r[7], r[8])
-    out[4] = -math.asin(min(max(r[6], -1.0), 1.0))
-    out[5] = math.atan2(r[3], r[0])
+    out[3], out[4], out[5] = matrix_rpy((r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8]))
     vx, vy, vz = r[12], r[13], r[14]
     out[6] = r[0] * vx + r[3] * vy + r[6] * vz
     out[7] = r[1] * vx + r[4] * vy + r[7] * vz

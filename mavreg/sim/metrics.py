@@ -23,21 +23,19 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from ..model.rotation import wrap_angle
+
 __all__ = ["tracking_metrics", "error_series", "SATURATION_RTOL", "rotor_jitter_n", "JITTER_CUTOFF_HZ"]
 
 SATURATION_RTOL = 1e-9
 """A rotor counts as saturated when its force is at least ``(1 - 1e-9) * max thrust``."""
 
 
-def _wrap(a: np.ndarray) -> np.ndarray:
-    return np.arctan2(np.sin(a), np.cos(a))
-
-
 def error_series(w) -> tuple[np.ndarray, np.ndarray]:
     """Transverse error (m) and attitude error (deg) of each sample of ``w`` (N, >=5), as
     defined above (what :func:`tracking_metrics` sums up; the figures draw it)."""
     w = np.asarray(w, dtype=float)
-    return np.hypot(w[:, 0], w[:, 1]), np.degrees(np.linalg.norm(_wrap(w[:, 2:5]), axis=1))
+    return np.hypot(w[:, 0], w[:, 1]), np.degrees(np.linalg.norm(wrap_angle(w[:, 2:5]), axis=1))
 
 
 def _stats(values: np.ndarray) -> Optional[dict]:
