@@ -36,7 +36,7 @@ import numpy as np
 
 from benchmarks.io_helpers import BARREL, REALISTIC_CONTROLLER, REPO, VEHICLE, figure
 from mavreg.config.controller import load_controller
-from mavreg.config.vehicle import load_vehicle
+from mavreg.config.vehicle import G, load_vehicle
 from mavreg.control.forecast import Forecaster
 from mavreg.control.hover import HoverController, HoverParams, plan_ramp
 from mavreg.control.regulator import ManeuverRegulator
@@ -97,7 +97,7 @@ def fly(setup: Setup, phase: str, duration_s: float) -> list:
         x0 = setup.plan.entry_state.copy()
         reg = setup.regulator()
         reg.reset(x0, s_guess=0.0)
-    fc.reset(np.full(4, v.mass_kg * 9.81 / 4))
+    fc.reset(np.full(4, v.mass_kg * G / 4))
 
     def controller(t, x):
         t_s = t - MEASUREMENT_DELAY_S
@@ -126,7 +126,7 @@ def replay(setup: Setup, phase: str, samples: list) -> dict:
     :data:`PARTS`; the controller not flown has no key), over ``samples`` in order."""
     clock = time.perf_counter
     fc = setup.forecaster()
-    fc.reset(np.full(4, setup.vehicle.mass_kg * 9.81 / 4))
+    fc.reset(np.full(4, setup.vehicle.mass_kg * G / 4))
     if phase == "hover":
         ctl, ramp = HoverController(setup.vehicle, HoverParams()), _hover_ramp(samples[0][1])
         ctl.gain(0.0)
