@@ -53,37 +53,106 @@ __all__ = ["regulator_step", "yaw_then_lift", "torques_first", "TABLE_X", "TABLE
            "P_MIX", "N_PARAMS", "ST_S", "ST_HAS_EST", "ST_EST", "ST_GOV", "ST_WIDTH", "OUT_S", "OUT_W",
            "OUT_U", "OUT_ROTORS", "OUT_WIDTH", "COMPENSATION_DT_S"]
 
-TABLE_X, TABLE_U, TABLE_V, TABLE_K = 0, 12, 16, 17
+class _Layout:
+    """Consecutive slots of a float vector, declared once: each call returns the next field's
+    first slot and reserves ``width`` slots; ``width`` is then the vector's size. The module's
+    constants below are plain ints made at import, which numba compiles in as constants, and
+    the packer (:mod:`mavreg.control.fastpath`), this kernel and its warm-up all read them:
+    a new parameter is one line here, one in the packer and its use in the kernel."""
+
+    def __init__(self):
+        self.width = 0
+
+    def __call__(self, width: int = 1) -> int:
+        first = self.width
+        self.width += width
+        return first
+
+
+_table = _Layout()
+TABLE_X = _table(12)
+TABLE_U = _table(4)
+TABLE_V = _table(1)
+TABLE_K = _table(0)
 """Columns of a table row: x (12), u (4), v (1), K row-major (4 x n_K, n_K 11 or 15), then
 in the SO(3) form the row's attitude R_i (9, row-major), d_i = Log(R_i^T R_{i+1}) and the
 Hermite slopes m0_i, m1_i (3 each) of :class:`mavreg.control.attitude_table.NominalAttitudes`
 (the rows are blended up to the end of K only)."""
 ATTITUDE_WIDTH = 18
 """Columns of a row's attitude data (SO(3) form)."""
-(P_LEAD, P_DECAY, P_FMAX, P_WINDOW, P_MARGIN, P_MAX_TURN, P_CXY, P_CZ, P_TORQUES_FIRST,
- P_AUGMENTED, P_END, P_NK, P_SO3) = range(13)
-"""Slots of the parameter vector: lead (s), lag filter decay, rotor limit (N), projection
-window (m) and tube margin, largest compensating turn (rad), the design's drag (c_xy, c_z),
-1.0 for ``torques_first`` (else ``yaw_then_lift``), 1.0 for lag-aware gains, the arc length
-at which the maneuver is finished, n_K, 1.0 for the SO(3) attitude error (else roll-pitch-yaw
-differences)."""
-(P_GOV, P_GOV_COL, P_MASS, P_PARASITIC, P_GOV_ACCEL, P_GOV_TAU, P_GOV_BAND, P_GOV_GAIN,
- P_GOV_MAX_ACCEL, P_GOV_CAPPED, P_GOV_DT, P_GOV_OMEGA, P_GOV_JERK) = range(13, 26)
-"""The speed governor's slots: 1.0 when it is on, its first table column, the mass (kg) and
-parasitic drag of the re-timing force, then (:func:`~mavreg.control.governor_kernel.governed_reference`'s
-``gp``) the recovery acceleration and time constant, the band, the gain, the largest push,
-1.0 when the target is capped somewhere, the fed-forward acceleration's filter step (the
-control period), natural frequency and largest rate."""
-P_MINV, P_MIX = 32, 48
-"""M^{-1} and M (eq 34), row-major, 16 slots each."""
-N_PARAMS = 64
-ST_S, ST_HAS_EST, ST_EST, ST_GOV = 0, 1, 2, 6
-"""The state vector: s, 1.0 when the lag filter holds an estimate, the estimate (4), the
-governor's five slots (:mod:`mavreg.control.governor_kernel`)."""
-ST_WIDTH = 11
-OUT_S, OUT_W, OUT_U, OUT_ROTORS = 0, 1, 12, 16
+
+_prm = _Layout()
+P_LEAD = _prm()
+"""The feedforward's lead (s)."""
+P_DECAY = _prm()
+"""The rotor lag filter's decay per step."""
+P_FMAX = _prm()
+"""The allocation's rotor limit (N)."""
+P_WINDOW = _prm()
+"""The projection's window (m)."""
+P_MARGIN = _prm()
+"""The projection's tube margin."""
+P_MAX_TURN = _prm()
+"""The largest compensating turn (rad)."""
+P_CXY = _prm()
+P_CZ = _prm()
+"""The design's drag (c_xy, c_z), which the disturbance estimate's is compared with."""
+P_TORQUES_FIRST = _prm()
+"""1.0 for ``torques_first`` (else ``yaw_then_lift``)."""
+P_AUGMENTED = _prm()
+"""1.0 for lag-aware gains."""
+P_END = _prm()
+"""The arc length at which the maneuver is finished."""
+P_NK = _prm()
+"""n_K, the gains' columns."""
+P_SO3 = _prm()
+"""1.0 for the SO(3) attitude error (else roll-pitch-yaw differences)."""
+P_GOV = _prm()
+"""1.0 when the speed governor is on."""
+P_GOV_COL = _prm()
+"""Its first table column."""
+P_MASS = _prm()
+P_PARASITIC = _prm()
+"""The mass (kg) and parasitic drag of the re-timing force."""
+P_GOV_ACCEL = _prm()
+"""From here to :data:`P_GOV_JERK`, in this order,
+:func:`~mavreg.control.governor_kernel.governed_reference`'s ``gp``: the recovery
+acceleration and time constant, the band, the gain, the largest push, 1.0 when the target is
+capped somewhere, the fed-forward acceleration's filter step (the control period), natural
+frequency and largest rate."""
+P_GOV_TAU = _prm()
+P_GOV_BAND = _prm()
+P_GOV_GAIN = _prm()
+P_GOV_MAX_ACCEL = _prm()
+P_GOV_CAPPED = _prm()
+P_GOV_DT = _prm()
+P_GOV_OMEGA = _prm()
+P_GOV_JERK = _prm()
+P_MINV = _prm(16)
+"""M^{-1} of eq 34, row-major."""
+P_MIX = _prm(16)
+"""M of eq 34, row-major."""
+N_PARAMS = _prm.width
+
+_st = _Layout()
+ST_S = _st()
+"""The state vector kept between steps: s, """
+ST_HAS_EST = _st()
+"""1.0 when the lag filter holds an estimate,"""
+ST_EST = _st(4)
+"""the estimate (4),"""
+ST_GOV = _st(5)
+"""the governor's five slots (:mod:`mavreg.control.governor_kernel`; a state without a
+governor may end here)."""
+ST_WIDTH = _st.width
+
+_out = _Layout()
+OUT_S = _out()
+OUT_W = _out(11)
+OUT_U = _out(4)
+OUT_ROTORS = _out(4)
 """The output vector: s, w (11), u (4), rotor forces (4)."""
-OUT_WIDTH = 20
+OUT_WIDTH = _out.width
 COMPENSATION_DT_S = 0.02
 """As the regulator's ``_COMPENSATION_DT_S``."""
 

@@ -34,6 +34,7 @@ from ..accel import ACCELERATED
 from ..accel import reason as accel_reason
 from ..config.vehicle import G
 from ..control.fastpath import FastStep
+from ..control.step_kernel import ST_GOV, ST_S
 from ..geometry.projection import Projector
 from ..maneuver.plan import Plan
 from ..model.mixer import Mixer
@@ -147,8 +148,8 @@ def _fly_compiled(plan: Plan, runs: Sequence[BatchRun], steps: int, dt_s: float,
     M = np.ascontiguousarray(mixer.matrix)
     fs = FastStep(plan, mixer.matrix, mixer.inverse, fmax, False, lead_s, 0.0, (cxy, cz), np.pi,
                   projector.window_m, projector.tube_margin)
-    ST = np.zeros((n, 6))
-    ST[:, 0] = S
+    ST = np.zeros((n, ST_GOV))          # no governor: the state ends where its slots begin
+    ST[:, ST_S] = S
     batch_compiled.run(X, ST, status, k_end, xs, cmd, app, (fs.table, fs.s_tab, fs.s_nodes, fs.coef, fs.ends,
                                                              fs.prm), M, (mass, G, cxy, cz, cpar), J, upper,
                        noise, 1.0, float(dt_s), steps, limits)
