@@ -28,7 +28,7 @@ import threading
 from functools import lru_cache, update_wrapper
 from pathlib import Path
 
-__all__ = ["ACCELERATED", "njit", "reason", "materialize"]
+__all__ = ["ACCELERATED", "njit", "reason", "materialize", "use_compiled"]
 
 
 def _find():
@@ -47,7 +47,17 @@ def _find():
 
 
 ACCELERATED, reason = _find()
-"""True when the kernels are compiled by numba."""
+"""True when the kernels are compiled by numba: the one switch between the compiled kernels
+and their numpy references."""
+
+
+def use_compiled(compiled: bool | None, what: str) -> bool:
+    """Whether an object with a compiled and a numpy path takes the compiled one: its
+    ``compiled`` argument (None: :data:`ACCELERATED`). ``compiled=True`` where numba is not in
+    use raises ValueError naming ``what`` (e.g. "hover step")."""
+    if compiled and not ACCELERATED:
+        raise ValueError(f"no compiled {what} here: numba is missing or MAVREG_PURE is set ({reason})")
+    return ACCELERATED if compiled is None else bool(compiled)
 
 
 @lru_cache(maxsize=None)

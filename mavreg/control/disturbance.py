@@ -44,7 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..accel import ACCELERATED
+from ..accel import use_compiled
 from ..config.disturbance import DisturbanceParams
 from ..config.vehicle import VehicleParams
 from ..model.drag import linear_drag_ned_n
@@ -108,9 +108,7 @@ class DisturbanceObserver:
     """
 
     def __init__(self, params: DisturbanceParams, vehicle: VehicleParams, compiled: bool | None = None):
-        if compiled and not ACCELERATED:
-            raise ValueError("no compiled observer here: numba is missing or MAVREG_PURE is set")
-        self.compiled = ACCELERATED if compiled is None else bool(compiled)
+        self.compiled = use_compiled(compiled, "observer")
         self.params = params
         self.mass_kg = float(vehicle.mass_kg)
         self.base_drag = tuple(float(c) for c in vehicle.rotor_drag_n_s_per_m)

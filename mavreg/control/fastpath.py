@@ -28,16 +28,11 @@ from ..geometry.projection_kernel import path_tables
 from . import step_kernel as sk
 from .attitude_table import NominalAttitudes
 
-__all__ = ["FastStep", "GovernorSetup", "plan_table", "step_params", "available", "warm_up", "compile_seconds"]
+__all__ = ["FastStep", "GovernorSetup", "plan_table", "step_params", "warm_up", "compile_seconds"]
 
 compile_seconds: float | None = None
 """Seconds :func:`warm_up` took in this process (compiling the kernel, or loading it from
 numba's cache); None before it ran."""
-
-
-def available() -> bool:
-    """Whether the compiled step can be used (numba present, ``MAVREG_PURE`` unset)."""
-    return ACCELERATED
 
 
 def warm_up() -> float | None:

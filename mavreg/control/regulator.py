@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..accel import use_compiled
 from ..config.regulation import AllocationParams, SpeedGovernorParams
 from ..config.vehicle import VehicleParams
 from ..geometry.projection import Projector
@@ -154,10 +155,8 @@ class ManeuverRegulator:
                            if plan.attitude_error == "so3" else None)
         """The nominal attitude's rows when the gains are on the SO(3) attitude error."""
         self.s = 0.0
-        if compiled and not fastpath.available():
-            raise ValueError("no compiled step here: numba is missing or MAVREG_PURE is set")
-        self._fast = self._compiled_step(speed_governor) if (
-            fastpath.available() if compiled is None else compiled) else None
+        self._compiled = (self._compiled_step(speed_governor) if use_compiled(compiled, "step") else None)
+        """The compiled step (:class:`~mavreg.control.fastpath.FastStep`), or None: the numpy step."""
 
     def _compiled_step(self, speed_governor) -> fastpath.FastStep:
         """The compiled step with this regulator's tables and settings (the kernel compiled
@@ -197,8 +196,8 @@ class ManeuverRegulator:
             i, a = self._locate(self.s)
             rotor_forces_n = self.mixer_inverse @ (self._u[i] + a * (self._u[i + 1] - self._u[i]))
         self._rotors_est = np.asarray(rotor_forces_n, dtype=float).copy()
-        if self._fast is not None:
-            self._fast.reset(self.s, self._rotors_est)
+        if self._compiled is not None:
+            self._compiled.reset(self.s, self._rotors_est)
 
     def _governed(self, s: float, pt, x) -> tuple[GovernedSpeed, float] | None:
         r"""The governed reference at s for state x with its along-track acceleration fed
@@ -254,8 +253,8 @@ class ManeuverRegulator:
         """One control step for state x (12,); ``rotor_forces_n`` (4,): the rotors' forces
         when this command takes over (used only by lag-aware gains); ``disturbance``: the
         airframe's estimated force model, compensated."""
-        if self._fast is not None:
-            s, w, u, rotors, in_tube, finished, v_ref = self._fast.step(x, rotor_forces_n, disturbance)
+        if self._compiled is not None:
+            s, w, u, rotors, in_tube, finished, v_ref = self._compiled.step(x, rotor_forces_n, disturbance)
             self.s = self.projector.s = s
             return RegulatorOutput(s, w, u, rotors, in_tube, finished, v_ref)
         x = np.asarray(x, dtype=float)

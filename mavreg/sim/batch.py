@@ -30,8 +30,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from ..accel import ACCELERATED
-from ..accel import reason as accel_reason
+from ..accel import use_compiled
 from ..config.vehicle import G
 from ..control.fastpath import FastStep
 from ..control.step_kernel import ST_GOV, ST_S
@@ -93,14 +92,12 @@ def fly_batch(plan: Plan, runs: Sequence[BatchRun], *, control_rate_hz: float = 
                          f"{plan.K.shape[1:]} (a lag-aware design)")
     if not runs:
         raise ValueError("a batch needs at least one run")
-    use_compiled = ACCELERATED if compiled is None else bool(compiled)
-    if use_compiled and not ACCELERATED:
-        raise ValueError(f"the compiled batch needs numba ({accel_reason})")
+    compiled_path = use_compiled(compiled, "batch")
     steps = int(round(1.0 / (control_rate_hz * dt_s)))
     if steps < 1 or abs(steps * dt_s * control_rate_hz - 1.0) > 1e-9:
         raise ValueError(f"control rate {control_rate_hz} Hz is not a whole number of "
                          f"{dt_s * 1e3:g} ms physics steps")
-    if not use_compiled:
+    if not compiled_path:
         return [fly_on_design_model(plan, offset_m=run.offset_m, inertia_kg_m2=run.inertia_kg_m2,
                                     rotor_noise_sd_n=run.rotor_noise_sd_n, saturation_n=run.saturation_n,
                                     seed=run.seed, control_rate_hz=control_rate_hz, dt_s=dt_s,

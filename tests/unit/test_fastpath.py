@@ -13,17 +13,17 @@ from pathlib import Path as FilePath
 import numpy as np
 import pytest
 
+from mavreg.accel import ACCELERATED
 from mavreg.config.paths import PARAMS_DIR
 from mavreg.config.controller import load_controller
 from mavreg.config.maneuver import load_maneuver_text
 from mavreg.config.vehicle import load_vehicle
-from mavreg.control import fastpath
 from mavreg.control.compensation_kernel import compensate, extra_force
 from mavreg.control.disturbance import DisturbanceEstimate
 from mavreg.control.disturbance import compensate as reference_compensate
 from mavreg.control.regulator import ManeuverRegulator
-from mavreg.control.step_kernel import torques_first as torques_first_kernel
-from mavreg.control.step_kernel import yaw_then_lift as yaw_then_lift_kernel
+from mavreg.model.mixer_kernel import torques_first as torques_first_kernel
+from mavreg.model.mixer_kernel import yaw_then_lift as yaw_then_lift_kernel
 from mavreg.geometry.build import build_path
 from mavreg.geometry.projection import Projector
 from mavreg.geometry.projection_kernel import POINT_WIDTH, path_tables, project
@@ -38,7 +38,7 @@ ROOT = FilePath(__file__).resolve().parents[2]
 VEHICLE = load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml")
 BARREL = PARAMS_DIR / "maneuvers/barrel_roll.yaml"
 ESTIMATE = DisturbanceEstimate((0.35, 0.12), (0.6, -0.4, 0.3), 0.97)
-compiled_only = pytest.mark.skipif(not fastpath.available(), reason="numba missing or MAVREG_PURE set")
+compiled_only = pytest.mark.skipif(not ACCELERATED, reason="numba missing or MAVREG_PURE set")
 
 CIRCLE = """\
 kind: maneuver
