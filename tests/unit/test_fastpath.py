@@ -205,7 +205,7 @@ def test_compiled_step_gives_the_reference_steps_outputs(flight, name, form, gov
     plans, states, forces = flight
     plan, controller = plans[name, form]
     ref, fast = (_regulator(plan, controller, flag, governed, limit_n) for flag in (False, True))
-    assert fast._fast is not None and ref._fast is None
+    assert fast._compiled is not None and ref._compiled is None
     assert (ref.governor is not None) == (governed or controller.speed_governor.enabled)
     worst, retimed = 0.0, 0
     for xs, fs in zip(states, forces):

@@ -90,7 +90,7 @@ def test_a_tilt_from_the_reference_is_paid_for_in_collective(compiled):
     vehicle sank back onto the ground tilted). A tilt past 60 deg is paid for at most twice."""
     from mavreg.control.hover import hold_ramp
     hc = HoverController(VEHICLE, HoverParams(), compiled=False)
-    hc._fast = compiled
+    hc._compiled = compiled
     ramp = hold_ramp(np.array([0.0, 0.0, -3.0]), 0.0)
     x = np.zeros(12)
     x[2] = -3.0
