@@ -206,80 +206,58 @@ def _retimed(s, xb, R, pt, v, a, s_tab, table, c, prm):
 
 
 @njit
-def regulator_step(x, f_act, has_f, has_dist, dcxy, dcz, fx, fy, fz, table, s_tab, s_nodes, coef,
-                   ends, prm, st, out):
-    """One step for state x (12,); returns ``(s, in_tube, finished, v_ref)``.
-
-    ``f_act`` (4,): the rotor forces handed over (used when ``has_f``); ``dcxy ... fz``: the
-    disturbance estimate's drag and its constant force (used when ``has_dist``). ``st``
-    (:data:`ST_WIDTH`,; 6 without a governor) is the state kept between steps. ``out``
-    (:data:`OUT_WIDTH`,) receives s, w, u and the rotor forces.
-    """
-    p = np.empty(POINT_WIDTH)
-    s, inside, _ = project(x[0], x[1], x[2], st[ST_S], prm[P_WINDOW], prm[P_MARGIN], s_nodes, coef, ends, p)
-    st[ST_S] = s
-    nk = int(prm[P_NK])
-    width = TABLE_K + 4 * nk           # the blended columns; the attitude data follow
-    so3 = prm[P_SO3] > 0.0
-    row = np.empty(width + 16)
-    i, a = _locate(s, s_tab)
-    _blend(table, i, a, 0, width, row)
+def _compensated(s, p, v_ref, a_ff, later, governed, has_dist, dcxy, dcz, fx, fy, fz, table, s_tab, s_nodes,
+                 coef, ends, prm, row, width, so3, Rbar):
+    """Step 4's changes of the nominal in ``row`` (x-bar, u-bar and the thrust, in place): the
+    governed re-timing and the disturbance compensation; returns the changed nominal attitude."""
     xbar = row[TABLE_X:TABLE_X + 12]
     u_here = row[TABLE_U:TABLE_U + 4]
-    K = row[TABLE_K:width]
-    v_ref = row[TABLE_V]
-    Rbar = _nominal_attitude(table, i, a, width) if so3 else rpy_matrix(xbar[3], xbar[4], xbar[5])
-    R_plan = Rbar
-    governed = False
-    a_ff = later = 0.0
-    if prm[P_GOV] > 0.0:
-        n0, n1, n2 = mv(rpy_matrix(x[3], x[4], x[5]), x[6], x[7], x[8])
-        governed, v_gov, a_ff, later = governed_reference(
-            s, p[3] * n0 + p[6] * n1 + p[9] * n2, s_tab, table, int(prm[P_GOV_COL]), TABLE_V, st, ST_GOV,
-            (prm[P_GOV_ACCEL], prm[P_GOV_TAU], prm[P_GOV_BAND], prm[P_GOV_GAIN], prm[P_GOV_MAX_ACCEL],
-             prm[P_GOV_CAPPED], prm[P_GOV_DT], prm[P_GOV_OMEGA], prm[P_GOV_JERK]))
-        if governed:
-            v_ref = v_gov
     ubar = row[width:width + 4]
-    if prm[P_LEAD] > 0.0:
-        i, a = _locate(s + v_ref * prm[P_LEAD], s_tab)
-    _blend(table, i, a, TABLE_U, TABLE_U + 4, ubar)
-    if governed or has_dist:
-        # the turn rate of the changed nominal from the nominal COMPENSATION_DT_S ahead
-        x_ahead = row[width + 4:width + 16]
-        s_ahead = s + max(v_ref, 0.1) * COMPENSATION_DT_S
-        j, b = _locate(s_ahead, s_tab)
-        _blend(table, j, b, TABLE_X, TABLE_X + 12, x_ahead)
-        R_ahead = (_nominal_attitude(table, j, b, width) if so3
-                   else rpy_matrix(x_ahead[3], x_ahead[4], x_ahead[5]))
-        t_ahead = table[j, TABLE_U] + b * (table[j + 1, TABLE_U] - table[j, TABLE_U])
-        thrust = u_here[0]
-        if governed:
-            q = np.empty(POINT_WIDTH)
-            path_point(s_ahead, s_nodes, coef, ends, q)
-            c = int(prm[P_GOV_COL])
-            v_ahead = math.sqrt(max(v_ref * v_ref + 2.0 * a_ff * (s_ahead - s), 0.0))
-            a_ahead = interp(s_ahead, s_tab, table, c + G_PROFILE_ACCEL) + later
-            da = _retimed(s_ahead, x_ahead, R_ahead, q, v_ahead, a_ahead, s_tab, table, c, prm)[1]
-            sigma, d = _retimed(s, xbar, Rbar, p, v_ref, a_ff, s_tab, table, c, prm)
-            t_ahead_g, R_ahead_g = compensate(x_ahead, R_ahead, t_ahead, da[0], da[1], da[2], R_ahead, 0.0,
-                                              0.0, 0.0, 0.0, 0.0, math.pi)
-            thrust, Rbar = compensate(xbar, Rbar, thrust, d[0], d[1], d[2], R_ahead, t_ahead, da[0], da[1],
-                                      da[2], COMPENSATION_DT_S, math.pi)
-            t_ahead, R_ahead = t_ahead_g, R_ahead_g
-            for r in range(1, 4):
-                ubar[r] *= sigma * sigma
-                u_here[r] *= sigma * sigma
-        if has_dist:
-            dcxy -= prm[P_CXY]
-            dcz -= prm[P_CZ]
-            f0, f1, f2 = extra_force(Rbar, *mv(Rbar, xbar[6], xbar[7], xbar[8]), dcxy, dcz, fx, fy, fz)
-            g0, g1, g2 = extra_force(R_ahead, *mv(R_ahead, x_ahead[6], x_ahead[7], x_ahead[8]), dcxy, dcz,
-                                     fx, fy, fz)
-            thrust, Rbar = compensate(xbar, Rbar, thrust, f0, f1, f2, R_ahead, t_ahead, g0, g1, g2,
-                                      COMPENSATION_DT_S, prm[P_MAX_TURN])
-        ubar[0] += thrust - u_here[0]
-        u_here[0] = thrust
+    # the turn rate of the changed nominal from the nominal COMPENSATION_DT_S ahead
+    x_ahead = row[width + 4:width + 16]
+    s_ahead = s + max(v_ref, 0.1) * COMPENSATION_DT_S
+    j, b = _locate(s_ahead, s_tab)
+    _blend(table, j, b, TABLE_X, TABLE_X + 12, x_ahead)
+    R_ahead = (_nominal_attitude(table, j, b, width) if so3
+               else rpy_matrix(x_ahead[3], x_ahead[4], x_ahead[5]))
+    t_ahead = table[j, TABLE_U] + b * (table[j + 1, TABLE_U] - table[j, TABLE_U])
+    thrust = u_here[0]
+    if governed:
+        q = np.empty(POINT_WIDTH)
+        path_point(s_ahead, s_nodes, coef, ends, q)
+        c = int(prm[P_GOV_COL])
+        v_ahead = math.sqrt(max(v_ref * v_ref + 2.0 * a_ff * (s_ahead - s), 0.0))
+        a_ahead = interp(s_ahead, s_tab, table, c + G_PROFILE_ACCEL) + later
+        da = _retimed(s_ahead, x_ahead, R_ahead, q, v_ahead, a_ahead, s_tab, table, c, prm)[1]
+        sigma, d = _retimed(s, xbar, Rbar, p, v_ref, a_ff, s_tab, table, c, prm)
+        t_ahead_g, R_ahead_g = compensate(x_ahead, R_ahead, t_ahead, da[0], da[1], da[2], R_ahead, 0.0,
+                                          0.0, 0.0, 0.0, 0.0, math.pi)
+        thrust, Rbar = compensate(xbar, Rbar, thrust, d[0], d[1], d[2], R_ahead, t_ahead, da[0], da[1],
+                                  da[2], COMPENSATION_DT_S, math.pi)
+        t_ahead, R_ahead = t_ahead_g, R_ahead_g
+        for r in range(1, 4):
+            ubar[r] *= sigma * sigma
+            u_here[r] *= sigma * sigma
+    if has_dist:
+        dcxy -= prm[P_CXY]
+        dcz -= prm[P_CZ]
+        f0, f1, f2 = extra_force(Rbar, *mv(Rbar, xbar[6], xbar[7], xbar[8]), dcxy, dcz, fx, fy, fz)
+        g0, g1, g2 = extra_force(R_ahead, *mv(R_ahead, x_ahead[6], x_ahead[7], x_ahead[8]), dcxy, dcz,
+                                 fx, fy, fz)
+        thrust, Rbar = compensate(xbar, Rbar, thrust, f0, f1, f2, R_ahead, t_ahead, g0, g1, g2,
+                                  COMPENSATION_DT_S, prm[P_MAX_TURN])
+    ubar[0] += thrust - u_here[0]
+    u_here[0] = thrust
+    return Rbar
+
+
+@njit
+def _feedback(x, p, R_plan, Rbar, compensated, row, width, nk, so3, prm, st, f_act, has_f, out):
+    """Steps 5 and 6: w, u and the rotor forces into ``out``, and the lag filter updated."""
+    xbar = row[TABLE_X:TABLE_X + 12]
+    u_here = row[TABLE_U:TABLE_U + 4]
+    ubar = row[width:width + 4]
+    K = row[TABLE_K:width]
     w = out[OUT_W:OUT_W + 11]
     d0, d1, d2 = x[0] - p[0], x[1] - p[1], x[2] - p[2]
     w[0] = d0 * p[4] + d1 * p[7] + d2 * p[10]
@@ -288,7 +266,7 @@ def regulator_step(x, f_act, has_f, has_dist, dcxy, dcz, fx, fy, fz, table, s_ta
         # in the plan's nominal frame, where the gains were designed; with a compensation,
         # the error from the changed nominal: Log(Rbar^T R) - Log(Rbar^T Rbar_changed)
         w[2], w[3], w[4] = log_vee(mtm(R_plan, rpy_matrix(x[3], x[4], x[5])))
-        if governed or has_dist:
+        if compensated:
             c0, c1, c2 = log_vee(mtm(R_plan, Rbar))
             w[2] -= c0
             w[3] -= c1
@@ -332,6 +310,50 @@ def regulator_step(x, f_act, has_f, has_dist, dcxy, dcz, fx, fy, fz, table, s_ta
             base = st[ST_EST + r] if st[ST_HAS_EST] != 0.0 else rotors[r]
             st[ST_EST + r] = lag_toward(base, rotors[r], decay)
         st[ST_HAS_EST] = 1.0
+
+
+@njit
+def regulator_step(x, f_act, has_f, has_dist, dcxy, dcz, fx, fy, fz, table, s_tab, s_nodes, coef,
+                   ends, prm, st, out):
+    """One step for state x (12,); returns ``(s, in_tube, finished, v_ref)``.
+
+    ``f_act`` (4,): the rotor forces handed over (used when ``has_f``); ``dcxy ... fz``: the
+    disturbance estimate's drag and its constant force (used when ``has_dist``). ``st``
+    (:data:`ST_WIDTH`,; 6 without a governor) is the state kept between steps. ``out``
+    (:data:`OUT_WIDTH`,) receives s, w, u and the rotor forces.
+    """
+    p = np.empty(POINT_WIDTH)
+    s, inside, _ = project(x[0], x[1], x[2], st[ST_S], prm[P_WINDOW], prm[P_MARGIN], s_nodes, coef, ends, p)
+    st[ST_S] = s
+    nk = int(prm[P_NK])
+    width = TABLE_K + 4 * nk           # the blended columns; the attitude data follow
+    so3 = prm[P_SO3] > 0.0
+    row = np.empty(width + 16)
+    i, a = _locate(s, s_tab)
+    _blend(table, i, a, 0, width, row)
+    xbar = row[TABLE_X:TABLE_X + 12]
+    v_ref = row[TABLE_V]
+    Rbar = _nominal_attitude(table, i, a, width) if so3 else rpy_matrix(xbar[3], xbar[4], xbar[5])
+    R_plan = Rbar
+    governed = False
+    a_ff = later = 0.0
+    if prm[P_GOV] > 0.0:
+        n0, n1, n2 = mv(rpy_matrix(x[3], x[4], x[5]), x[6], x[7], x[8])
+        governed, v_gov, a_ff, later = governed_reference(
+            s, p[3] * n0 + p[6] * n1 + p[9] * n2, s_tab, table, int(prm[P_GOV_COL]), TABLE_V, st, ST_GOV,
+            (prm[P_GOV_ACCEL], prm[P_GOV_TAU], prm[P_GOV_BAND], prm[P_GOV_GAIN], prm[P_GOV_MAX_ACCEL],
+             prm[P_GOV_CAPPED], prm[P_GOV_DT], prm[P_GOV_OMEGA], prm[P_GOV_JERK]))
+        if governed:
+            v_ref = v_gov
+    ubar = row[width:width + 4]
+    if prm[P_LEAD] > 0.0:
+        i, a = _locate(s + v_ref * prm[P_LEAD], s_tab)
+    _blend(table, i, a, TABLE_U, TABLE_U + 4, ubar)
+    compensated = governed or has_dist
+    if compensated:
+        Rbar = _compensated(s, p, v_ref, a_ff, later, governed, has_dist, dcxy, dcz, fx, fy, fz, table, s_tab,
+                            s_nodes, coef, ends, prm, row, width, so3, Rbar)
+    _feedback(x, p, R_plan, Rbar, compensated, row, width, nk, so3, prm, st, f_act, has_f, out)
     out[OUT_S] = s
     return s, inside, s >= prm[P_END], v_ref
 
