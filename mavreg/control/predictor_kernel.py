@@ -31,6 +31,7 @@ from ..accel import njit
 from ..config.vehicle import G
 from ..model.drag_kernel import drag_ned
 from ..model.mixer_kernel import wrench
+from ..model.quadrotor_kernel import angular_acceleration
 from ..model.rotation_kernel import matrix_rpy, mm, rodrigues
 from ..model.rotor_lag_kernel import lag_over4
 
@@ -70,13 +71,9 @@ def integrate(state, seg, prm, thrust_scale, fx, fy, fz, cxy, cz):
                 m0, m1, m2, m3 = thrust_scale * m0, thrust_scale * m1, thrust_scale * m2, thrust_scale * m3
             # one step of eqs 1-4 with the mean force held
             T, g1, g2, g3 = wrench(l, k, m0, m1, m2, m3)
-            d0x = (g1 + (jy - jz) * wy * wz) / jx
-            d0y = (g2 + (jz - jx) * wx * wz) / jy
-            d0z = (g3 + (jx - jy) * wx * wy) / jz
+            d0x, d0y, d0z = angular_acceleration(jx, jy, jz, wx, wy, wz, g1, g2, g3)
             hx, hy, hz = wx + 0.5 * dt * d0x, wy + 0.5 * dt * d0y, wz + 0.5 * dt * d0z
-            dmx = (g1 + (jy - jz) * hy * hz) / jx
-            dmy = (g2 + (jz - jx) * hx * hz) / jy
-            dmz = (g3 + (jx - jy) * hx * hy) / jz
+            dmx, dmy, dmz = angular_acceleration(jx, jy, jz, hx, hy, hz, g1, g2, g3)
             R1 = mm(R, rodrigues(hx * dt, hy * dt, hz * dt))
             s = T / m
             a0x, a0y, a0z = -s * R[2] + fx / m, -s * R[5] + fy / m, G - s * R[8] + fz / m

@@ -13,7 +13,7 @@ import numpy as np
 from ..accel import njit
 from .drag_kernel import body_drag
 
-__all__ = ["plant_rhs", "plant_rhs_compiled"]
+__all__ = ["plant_rhs", "plant_rhs_compiled", "angular_acceleration"]
 
 
 @njit
@@ -49,3 +49,10 @@ def plant_rhs(x, u0, u1, u2, u3, plant, jx, jy, jz, out):
 
 plant_rhs_compiled = plant_rhs
 """The former name (the kernel is compiled where numba is)."""
+
+
+@njit
+def angular_acceleration(jx, jy, jz, wx, wy, wz, g1, g2, g3):
+    r""":math:`J^{-1}(\gamma - \omega \times J\omega)` of the body rates (eqs 12-14), in the
+    form the state predictor's integration uses (:mod:`mavreg.control.predictor_kernel`)."""
+    return (g1 + (jy - jz) * wy * wz) / jx, (g2 + (jz - jx) * wx * wz) / jy, (g3 + (jx - jy) * wx * wy) / jz

@@ -6,7 +6,7 @@ import pytest
 
 from mavreg.model import drag, drag_kernel
 from mavreg.model.quadrotor import QuadrotorModel
-from mavreg.model.quadrotor_kernel import plant_rhs
+from mavreg.model.quadrotor_kernel import angular_acceleration, plant_rhs
 from mavreg.model.rotation import rpy_to_matrix
 
 R = rpy_to_matrix(0.4, -0.7, 2.1)
@@ -47,3 +47,7 @@ def test_plant_kernel_is_the_design_model(coefficients):
     out = np.empty(12)
     plant_rhs(x, *u, (model.mass_kg, model.g, cxy, cz, cp), *model.inertia_kg_m2, out)
     assert np.allclose(out, model.f(x, u), rtol=0, atol=1e-12)
+
+    w = x[9:12]
+    assert np.allclose(angular_acceleration(*model.inertia_kg_m2, *w, *u[1:]),
+                       model.body_derivatives(np.zeros(3), x[6:9], w, u)[1], rtol=0, atol=1e-12)
