@@ -58,6 +58,27 @@ def _block(mask: np.ndarray, trans: np.ndarray, att: np.ndarray, forces: Optiona
     return out
 
 
+def _segment_masks(s: np.ndarray, segments) -> tuple[dict, dict]:
+    """Per segment name, which samples lie in it and its ``[s_start, s_end]`` (laps merged;
+    see :func:`tracking_metrics`)."""
+    segs = [(str(name), float(a), float(b)) for name, a, b in segments]
+    for name, a, b in segs:
+        if not b > a:
+            raise ValueError(f"segment {name!r}: s_end {b} must exceed s_start {a}")
+    s_last = max((b for _, _, b in segs), default=np.inf)
+    masks: dict[str, np.ndarray] = {}
+    bounds: dict[str, list[float]] = {}
+    for name, a, b in segs:
+        inside = (s >= a) & ((s < b) | ((b == s_last) & (s == b)))
+        if name in masks:
+            masks[name] |= inside
+            bounds[name] = [min(bounds[name][0], a), max(bounds[name][1], b)]
+        else:
+            masks[name] = inside
+            bounds[name] = [a, b]
+    return masks, bounds
+
+
 def tracking_metrics(s, w, segments: Sequence[tuple[str, float, float]],
                      rotor_forces_n=None, max_rotor_thrust_n: Optional[float] = None,
                      dt_s: Optional[float] = None) -> dict:
@@ -124,21 +145,7 @@ def tracking_metrics(s, w, segments: Sequence[tuple[str, float, float]],
     out = {"samples": n}
     out.update(_block(np.ones(n, dtype=bool), trans, att, forces, saturated, dt_s))
 
-    segs = [(str(name), float(a), float(b)) for name, a, b in segments]
-    for name, a, b in segs:
-        if not b > a:
-            raise ValueError(f"segment {name!r}: s_end {b} must exceed s_start {a}")
-    s_last = max((b for _, _, b in segs), default=np.inf)
-    masks: dict[str, np.ndarray] = {}
-    bounds: dict[str, list[float]] = {}
-    for name, a, b in segs:
-        inside = (s >= a) & ((s < b) | ((b == s_last) & (s == b)))
-        if name in masks:
-            masks[name] |= inside
-            bounds[name] = [min(bounds[name][0], a), max(bounds[name][1], b)]
-        else:
-            masks[name] = inside
-            bounds[name] = [a, b]
+    masks, bounds = _segment_masks(s, segments)
     out["segments"] = {}
     for name, mask in masks.items():
         block = _block(mask, trans, att, forces, saturated, dt_s)
