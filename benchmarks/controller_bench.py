@@ -36,6 +36,7 @@ import time
 import numpy as np
 
 from benchmarks.io_helpers import REPO, figure
+from mavreg.config.vehicle import G
 from mavreg.control.hover import HoverController, HoverParams
 from tests.helpers.controller_flight import Setup, fly, hover_ramp
 
@@ -49,7 +50,7 @@ def replay(setup: Setup, phase: str, samples: list) -> dict:
     :data:`PARTS`; the controller not flown has no key), over ``samples`` in order."""
     clock = time.perf_counter
     fc = setup.forecaster()
-    fc.reset(np.full(4, setup.vehicle.mass_kg * 9.81 / 4))
+    fc.reset(np.full(4, setup.vehicle.mass_kg * G / 4))
     if phase == "hover":
         ctl, ramp = HoverController(setup.vehicle, HoverParams()), hover_ramp(samples[0][1])
         ctl.gain(0.0)

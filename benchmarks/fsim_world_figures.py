@@ -23,8 +23,10 @@ from pathlib import Path
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
 
+from mavreg.config.vehicle import G
+
 REPO = Path(__file__).resolve().parents[1]
-HOVER = 0.749 * 9.81 / 4 / 12.0
+HOVER = 0.749 * G / 4 / 12.0
 
 
 def run(duration_s: float, extra: list[str], record: Path) -> dict:

@@ -15,13 +15,14 @@ from pathlib import Path
 import numpy as np
 
 from mavreg.config.paths import PARAMS_DIR
+from mavreg.config.vehicle import G
 
 REPO = Path(__file__).resolve().parents[1]
 BARREL = PARAMS_DIR / "maneuvers/barrel_roll.yaml"
 VEHICLE = PARAMS_DIR / "vehicles/mk_quadro.yaml"
 PAPER_CONTROLLER = PARAMS_DIR / "controller/paper_lqr.yaml"
 REALISTIC_CONTROLLER = PARAMS_DIR / "controller/realistic.yaml"
-HOVER = 0.749 * 9.81 / 4 / 12.0
+HOVER = 0.749 * G / 4 / 12.0
 """Per-rotor hover command of the MK-Quadro, as a fraction of the maximum thrust."""
 
 

@@ -11,8 +11,13 @@ Compiled kernels are cached on disk (``cache=True``: next to the module, or in n
 cache when the package directory is read-only), so only the first run on a machine pays the
 compile time. numba judges a cached kernel fresh by its own file's stamp alone, but a kernel
 compiles in the kernels it calls from other files (the batch simulator the regulator's step,
-the step the projection): every kernel's cache is therefore stamped with all the package's
-kernel files (:func:`_kernel_stamp`), and an edit of any of them recompiles them all.
+the step the projection) and the module constants it reads (gravity): every kernel's cache is
+therefore stamped with the kernels' real sources (:func:`_kernel_stamp`: the files that
+declare a kernel and the package modules they import names from), and an edit of any of them
+recompiles them all; an edit of a module that only calls kernels (``hover.py``) does not.
+numba has no public way to add files to a cached function's stamp, so the stamp is set on
+its cache object (:func:`_dispatcher`, numba's internal layout, checked: where the layout
+differs, numba's own single-file stamp is used).
 
 numba itself is imported at the first call of a kernel, not when a module declares one
 (:func:`materialize`): numba and LLVM hold 65 MB or more and take a few tenths of a second
@@ -23,12 +28,13 @@ from __future__ import annotations
 
 import importlib.util
 import os
+import re
 import sys
 import threading
 from functools import lru_cache, update_wrapper
 from pathlib import Path
 
-__all__ = ["ACCELERATED", "njit", "reason", "materialize"]
+__all__ = ["ACCELERATED", "njit", "reason", "materialize", "use_compiled"]
 
 
 def _find():
@@ -47,16 +53,51 @@ def _find():
 
 
 ACCELERATED, reason = _find()
-"""True when the kernels are compiled by numba."""
+"""True when the kernels are compiled by numba: the one switch between the compiled kernels
+and their numpy references."""
+
+
+def use_compiled(compiled: bool | None, what: str) -> bool:
+    """Whether an object with a compiled and a numpy path takes the compiled one: its
+    ``compiled`` argument (None: :data:`ACCELERATED`). ``compiled=True`` where numba is not in
+    use raises ValueError naming ``what`` (e.g. "hover step")."""
+    if compiled and not ACCELERATED:
+        raise ValueError(f"no compiled {what} here: numba is missing or MAVREG_PURE is set ({reason})")
+    return ACCELERATED if compiled is None else bool(compiled)
+
+
+_DECLARES = re.compile(r"^@njit\b|^\w+ = njit\(", re.MULTILINE)
+_IMPORTS = re.compile(r"^from (\.+)([\w.]*) import", re.MULTILINE)
+
+
+def _kernel_sources(root: Path) -> list[Path]:
+    """The files that declare a kernel, and the package modules they import names from (a
+    constant such as gravity is compiled in too)."""
+    files = set()
+    for f in root.rglob("*.py"):
+        text = f.read_text(encoding="utf-8")
+        if not _DECLARES.search(text):
+            continue
+        files.add(f)
+        for dots, name in _IMPORTS.findall(text):
+            base = f.parent
+            for _ in range(len(dots) - 1):
+                base = base.parent
+            target = base.joinpath(*name.split(".")) if name else base
+            for candidate in (target.with_suffix(".py"), target / "__init__.py"):
+                if candidate.is_file() and root in candidate.parents:
+                    files.add(candidate)
+                    break
+    files.discard(Path(__file__).resolve())
+    return sorted(files)
 
 
 @lru_cache(maxsize=None)
 def _kernel_stamp() -> tuple:
-    """(path, mtime, size) of every module of the package that imports from this one: the
-    files whose kernels a compiled kernel may have compiled in."""
+    """(path, mtime, size) of the kernels' real sources (:func:`_kernel_sources`): the files
+    whose code or constants a compiled kernel may have compiled in."""
     root = Path(__file__).resolve().parent
-    files = sorted(f for f in root.rglob("*.py") if "accel import" in f.read_text(encoding="utf-8"))
-    return tuple((str(f.relative_to(root)), f.stat().st_mtime, f.stat().st_size) for f in files)
+    return tuple((str(f.relative_to(root)), f.stat().st_mtime, f.stat().st_size) for f in _kernel_sources(root))
 
 
 def _dispatcher(numba, func):

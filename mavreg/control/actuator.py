@@ -33,6 +33,7 @@ import numpy as np
 
 from ..model.linearize import complex_step_jacobian
 from ..model.quadrotor import QuadrotorModel
+from ..model.rotor_lag import lag_augment
 from .transverse import NW, FrozenAttitude, transverse_rhs
 
 __all__ = ["NZ", "augmented_rhs", "augmented_jacobians", "lag_augment"]
@@ -65,23 +66,3 @@ def augmented_jacobians(model: QuadrotorModel, tau_s: float, F, k, xbar, ubar, d
     A = complex_step_jacobian(lambda z: augmented_rhs(*args, z, n0, Rbar, fz), z0)
     B = complex_step_jacobian(lambda nu: augmented_rhs(*args, z0, nu, Rbar, fz), n0)
     return A, B
-
-
-def lag_augment(A, B, tau_s: float) -> tuple[np.ndarray, np.ndarray]:
-    r"""A time-domain plant ``x' = A x + B u`` (A (n, n), B (n, m)) driven through the rotor lag:
-    the state ``(x, a)`` with ``a' = (u_c - a)/tau``,
-
-    .. math::
-        A_z = \begin{bmatrix} A & B \\ 0 & -I/\tau \end{bmatrix},\qquad
-        B_z = \begin{bmatrix} 0 \\ I/\tau \end{bmatrix}.
-
-    This is :func:`augmented_jacobians` times the speed where the nominal input does not
-    change (u-bar' = 0: a hover, a steady line), for a plant given in time."""
-    if not tau_s > 0:
-        raise ValueError(f"the rotor time constant must be positive, got {tau_s}")
-    A = np.asarray(A, dtype=float)
-    B = np.asarray(B, dtype=float)
-    n, m = B.shape
-    Az = np.block([[A, B], [np.zeros((m, n)), -np.eye(m) / tau_s]])
-    Bz = np.vstack([np.zeros((n, m)), np.eye(m) / tau_s])
-    return Az, Bz

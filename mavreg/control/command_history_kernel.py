@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 
 from ..accel import njit
+from ..model.rotor_lag_kernel import lag_after4
 
 __all__ = ["advance", "prepare"]
 
@@ -46,11 +47,7 @@ def advance(rot, ct, cc, lo, hi, t_s, delay_s, tau):
         b = min(end, t_s)
         if b > a:
             c0, c1, c2, c3 = cc[lo, 0], cc[lo, 1], cc[lo, 2], cc[lo, 3]
-            if tau <= 0.0:
-                f0, f1, f2, f3 = c0, c1, c2, c3
-            else:
-                e = math.exp(-(b - a) / tau)
-                f0, f1, f2, f3 = c0 + (f0 - c0) * e, c1 + (f1 - c1) * e, c2 + (f2 - c2) * e, c3 + (f3 - c3) * e
+            f0, f1, f2, f3 = lag_after4(f0, f1, f2, f3, c0, c1, c2, c3, b - a, tau)
             t = b
         if end <= t_s and hi - lo > 1:
             lo += 1

@@ -5,7 +5,8 @@ two step for step.
 
 Rotations are 9-tuples, row-major (:mod:`mavreg.model.rotation_kernel`). With the nominal
 attitude R, :math:`b_3 = R e_3`, :math:`v = R \bar v_b` and the extra force
-:math:`d = -\delta c_{xy}(v - (b_3^T v) b_3) - \delta c_z (b_3^T v) b_3 + F`, the thrust
+:math:`d = -\delta c_{xy}(v - (b_3^T v) b_3) - \delta c_z (b_3^T v) b_3 + F`
+(``extra_force``: :func:`mavreg.model.drag_kernel.linear_drag_and_force`), the thrust
 vector :math:`u = \bar T b_3 + d` turns the body z axis by the smallest rotation onto
 :math:`u/|u|` (Rodrigues, capped at ``max_turn_rad``); the angles follow that attitude on
 the nominal's branch, the body velocity is the nominal's NED velocity in the turned frame,
@@ -17,19 +18,10 @@ from __future__ import annotations
 import math
 
 from ..accel import njit
-from ..model.rotation_kernel import log_vee, mm, mtm, mtv, mv, wrap
+from ..model.drag_kernel import linear_drag_and_force as extra_force
+from ..model.rotation_kernel import log_vee, matrix_rpy, mm, mtm, mtv, mv, wrap
 
 __all__ = ["compensate", "extra_force"]
-
-
-@njit
-def extra_force(R, v0, v1, v2, dcxy, dcz, fx, fy, fz):
-    """The force the design model misses at attitude R and NED velocity v (drag excess and
-    constant force; ``dcxy, dcz`` the estimate less the design's drag)."""
-    along = R[2] * v0 + R[5] * v1 + R[8] * v2
-    return (-dcxy * (v0 - along * R[2]) - dcz * along * R[2] + fx,
-            -dcxy * (v1 - along * R[5]) - dcz * along * R[5] + fy,
-            -dcxy * (v2 - along * R[8]) - dcz * along * R[8] + fz)
 
 
 @njit
@@ -77,9 +69,7 @@ def compensate(xbar, R, thrust_n, f0, f1, f2, R_ahead, thrust_ahead_n, g0, g1, g
     """
     v0, v1, v2 = mv(R, xbar[6], xbar[7], xbar[8])
     R2, T = _turned(R, thrust_n, f0, f1, f2, max_turn_rad)
-    theta = -math.asin(min(max(R2[6], -1.0), 1.0))
-    phi = math.atan2(R2[7], R2[8])
-    psi = math.atan2(R2[3], R2[0])
+    phi, theta, psi = matrix_rpy(R2)
     xbar[3] = xbar[3] + wrap(phi - xbar[3])
     xbar[4] = xbar[4] + wrap(theta - xbar[4])
     xbar[5] = xbar[5] + wrap(psi - xbar[5])

@@ -44,9 +44,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..accel import ACCELERATED
+from ..accel import use_compiled
 from ..config.disturbance import DisturbanceParams
 from ..config.vehicle import VehicleParams
+from ..model.drag import linear_drag_ned_n
 from ..model.rotation import matrix_to_rpy, rpy_to_matrix, wrap_angle
 from ..model.so3 import log_so3
 from . import observer_kernel as ok
@@ -68,12 +69,9 @@ class DisturbanceEstimate:
     def extra_force_ned(self, R, v, base_drag_n_s_per_m) -> np.ndarray:
         """The force the design model with drag ``base_drag_n_s_per_m`` misses, at attitude
         ``R`` and velocity ``v`` (NED), excluding the thrust scale (the commands carry it)."""
-        b3 = np.asarray(R)[:, 2]
-        v = np.asarray(v, dtype=float)
-        along = float(b3 @ v)
         dcxy = self.drag_n_s_per_m[0] - base_drag_n_s_per_m[0]
         dcz = self.drag_n_s_per_m[1] - base_drag_n_s_per_m[1]
-        return -dcxy * (v - along * b3) - dcz * along * b3 + np.asarray(self.force_ned_n)
+        return linear_drag_ned_n(np.asarray(R)[:, 2], v, dcxy, dcz) + np.asarray(self.force_ned_n)
 
 
 def regressors(R, v, thrust_n: float) -> np.ndarray:
@@ -110,9 +108,7 @@ class DisturbanceObserver:
     """
 
     def __init__(self, params: DisturbanceParams, vehicle: VehicleParams, compiled: bool | None = None):
-        if compiled and not ACCELERATED:
-            raise ValueError("no compiled observer here: numba is missing or MAVREG_PURE is set")
-        self.compiled = ACCELERATED if compiled is None else bool(compiled)
+        self.compiled = use_compiled(compiled, "observer")
         self.params = params
         self.mass_kg = float(vehicle.mass_kg)
         self.base_drag = tuple(float(c) for c in vehicle.rotor_drag_n_s_per_m)

@@ -28,16 +28,11 @@ from ..geometry.projection_kernel import path_tables
 from . import step_kernel as sk
 from .attitude_table import NominalAttitudes
 
-__all__ = ["FastStep", "GovernorSetup", "plan_table", "available", "warm_up", "compile_seconds"]
+__all__ = ["FastStep", "GovernorSetup", "plan_table", "step_params", "warm_up", "compile_seconds"]
 
 compile_seconds: float | None = None
 """Seconds :func:`warm_up` took in this process (compiling the kernel, or loading it from
 numba's cache); None before it ran."""
-
-
-def available() -> bool:
-    """Whether the compiled step can be used (numba present, ``MAVREG_PURE`` unset)."""
-    return ACCELERATED
 
 
 def warm_up() -> float | None:
@@ -56,11 +51,7 @@ def warm_up() -> float | None:
     ends = np.zeros((2, 18))
     ends[:, 3:12] = np.eye(3).reshape(9)
     ends[1, 0] = 1.0
-    prm = np.zeros(sk.N_PARAMS)
-    prm[sk.P_NK] = 15
-    prm[sk.P_SO3] = 1.0
-    prm[sk.P_MINV:sk.P_MINV + 16] = np.eye(4).reshape(16)
-    prm[sk.P_MIX:sk.P_MIX + 16] = np.eye(4).reshape(16)
+    prm = step_params(np.eye(4), np.eye(4), n_k=15, so3=True)
     table = np.zeros((2, sk.TABLE_K + 60 + sk.ATTITUDE_WIDTH))
     table[:, sk.TABLE_K + 60:sk.TABLE_K + 69] = np.eye(3).reshape(9)
     sk.regulator_step(np.zeros(12), np.zeros(4), True, True, 0.0, 0.0, 0.0, 0.0, 0.0, table,
@@ -68,6 +59,40 @@ def warm_up() -> float | None:
                       np.empty(sk.OUT_WIDTH))
     compile_seconds = time.perf_counter() - t0
     return compile_seconds
+
+
+def step_params(mixer_matrix, mixer_inverse, max_rotor_thrust_n: float = 0.0, torques_first: bool = False,
+                lead_s: float = 0.0, decay: float = 0.0, base_drag_n_s_per_m=(0.0, 0.0),
+                max_compensation_turn_rad: float = 0.0, window_m: float = 0.0, tube_margin: float = 0.0, *,
+                n_k: int = 11, so3: bool = False, end_m: float = 0.0, governor=None) -> np.ndarray:
+    """The step kernel's parameter vector (the slots of :mod:`mavreg.control.step_kernel`):
+    the one packer, used by :class:`FastStep` and by :func:`warm_up`. Arguments as
+    :class:`FastStep`'s; ``n_k`` the gains' columns (15: lag-aware), ``so3`` the SO(3)
+    attitude error, ``end_m`` the arc length at which the maneuver is finished, ``governor``
+    None or ``(first table column, mass_kg, parasitic drag, gp)`` with ``gp`` the nine values
+    from :data:`~mavreg.control.step_kernel.P_GOV_ACCEL` to
+    :data:`~mavreg.control.step_kernel.P_GOV_JERK`."""
+    prm = np.zeros(sk.N_PARAMS)
+    if governor is not None:
+        column, mass_kg, parasitic, gp = governor
+        prm[sk.P_GOV], prm[sk.P_GOV_COL] = 1.0, column
+        prm[sk.P_MASS], prm[sk.P_PARASITIC] = mass_kg, parasitic
+        prm[sk.P_GOV_ACCEL:sk.P_GOV_JERK + 1] = gp
+    prm[sk.P_LEAD] = lead_s
+    prm[sk.P_DECAY] = decay
+    prm[sk.P_FMAX] = max_rotor_thrust_n
+    prm[sk.P_WINDOW] = window_m
+    prm[sk.P_MARGIN] = tube_margin
+    prm[sk.P_MAX_TURN] = max_compensation_turn_rad
+    prm[sk.P_CXY], prm[sk.P_CZ] = (float(c) for c in base_drag_n_s_per_m)
+    prm[sk.P_TORQUES_FIRST] = 1.0 if torques_first else 0.0
+    prm[sk.P_AUGMENTED] = 1.0 if n_k > 11 else 0.0
+    prm[sk.P_END] = end_m
+    prm[sk.P_NK] = n_k
+    prm[sk.P_SO3] = 1.0 if so3 else 0.0
+    prm[sk.P_MINV:sk.P_MINV + 16] = np.asarray(mixer_inverse, dtype=float).reshape(16)
+    prm[sk.P_MIX:sk.P_MIX + 16] = np.asarray(mixer_matrix, dtype=float).reshape(16)
+    return prm
 
 
 def plan_table(plan) -> tuple[np.ndarray, np.ndarray]:
@@ -147,34 +172,20 @@ class FastStep:
                  lead_s: float, decay: float, base_drag_n_s_per_m, max_compensation_turn_rad: float,
                  window_m: float, tube_margin: float, governor: GovernorSetup | None = None):
         self.s_tab, table = plan_table(plan)
-        prm = np.zeros(sk.N_PARAMS)
+        gov = None
         if governor is not None:
             g = governor.params
             columns = _governor_columns(plan, governor.target_m_s)
-            prm[sk.P_GOV], prm[sk.P_GOV_COL] = 1.0, table.shape[1]
-            prm[sk.P_MASS], prm[sk.P_PARASITIC] = governor.mass_kg, governor.parasitic_drag_n_s2_per_m2
-            prm[sk.P_GOV_ACCEL:sk.P_GOV_JERK + 1] = (
+            gov = (table.shape[1], governor.mass_kg, governor.parasitic_drag_n_s2_per_m2, (
                 g.recovery_accel_m_s2, g.recovery_time_constant_s, g.speed_band_m_s, g.speed_gain_per_s,
                 g.max_accel_m_s2, float(np.any(columns[:, 0] < plan.speed_m_s)), governor.filter_dt_s,
-                governor.filter_rate_per_s, governor.max_jerk_m_s3)
+                governor.filter_rate_per_s, governor.max_jerk_m_s3))
             table = np.ascontiguousarray(np.concatenate([table, columns], axis=1))
         self.table = table
         self.s_nodes, self.coef, self.ends = path_tables(plan.path)
-        prm[sk.P_LEAD] = lead_s
-        prm[sk.P_DECAY] = decay
-        prm[sk.P_FMAX] = max_rotor_thrust_n
-        prm[sk.P_WINDOW] = window_m
-        prm[sk.P_MARGIN] = tube_margin
-        prm[sk.P_MAX_TURN] = max_compensation_turn_rad
-        prm[sk.P_CXY], prm[sk.P_CZ] = (float(c) for c in base_drag_n_s_per_m)
-        prm[sk.P_TORQUES_FIRST] = 1.0 if torques_first else 0.0
-        prm[sk.P_AUGMENTED] = 1.0 if plan.K.shape[-1] > 11 else 0.0
-        prm[sk.P_END] = plan.length_m - 1e-6
-        prm[sk.P_NK] = plan.K.shape[-1]
-        prm[sk.P_SO3] = 1.0 if _so3(plan) else 0.0
-        prm[sk.P_MINV:sk.P_MINV + 16] = np.asarray(mixer_inverse, dtype=float).reshape(16)
-        prm[sk.P_MIX:sk.P_MIX + 16] = np.asarray(mixer_matrix, dtype=float).reshape(16)
-        self.prm = prm
+        self.prm = step_params(mixer_matrix, mixer_inverse, max_rotor_thrust_n, torques_first, lead_s, decay,
+                               base_drag_n_s_per_m, max_compensation_turn_rad, window_m, tube_margin,
+                               n_k=plan.K.shape[-1], so3=_so3(plan), end_m=plan.length_m - 1e-6, governor=gov)
         self.state = np.zeros(sk.ST_WIDTH)
         """Kept between steps (:data:`~mavreg.control.step_kernel.ST_S` ...)."""
         self._no_forces = np.zeros(4)

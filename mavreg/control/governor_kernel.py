@@ -1,8 +1,8 @@
 r"""The speed governor and the re-timing of the nominal as scalar kernels that numba compiles
 (:func:`mavreg.accel.njit`): :class:`mavreg.control.governor.SpeedGovernor` (its
 :meth:`~mavreg.control.governor.SpeedGovernor.reference`),
-:func:`~mavreg.control.governor.retiming_force` and the regulator's drag change, step for
-step (docs/governor.md has the maths).
+:func:`~mavreg.control.governor.retiming_force`, step for
+step (the drag change is :func:`mavreg.model.drag_kernel.drag_change`) (docs/governor.md has the maths).
 
 The governor's tables are three columns of the step kernel's table, from column ``c``: the
 target speed :math:`v_t`, its :math:`v_t v_t'` and the profile's :math:`\bar v \bar v'`; the
@@ -19,9 +19,8 @@ import math
 import numpy as np
 
 from ..accel import njit
-from ..model.rotation_kernel import mtv, mv
 
-__all__ = ["interp", "governed_reference", "retiming_force", "drag_change", "G_TARGET", "G_TARGET_ACCEL",
+__all__ = ["interp", "governed_reference", "retiming_force", "G_TARGET", "G_TARGET_ACCEL",
            "G_PROFILE_ACCEL", "GOVERNOR_COLUMNS", "ON_TARGET_M_S"]
 
 G_TARGET, G_TARGET_ACCEL, G_PROFILE_ACCEL = 0, 1, 2
@@ -122,16 +121,6 @@ def governed_reference(s, along, s_tab, table, c, speed_col, st, k, gp):
         return False, v_r, a_g, 0.0
     later = st[k + 3] + st[k + 4] * AHEAD_S
     return True, v_r, a_bar + st[k + 3], later
-
-
-@njit
-def drag_change(R, v0, v1, v2, sigma, cxy, cz, parasitic):
-    """The modelled drag at NED velocity sigma v less the drag at v (attitude R)."""
-    b0, b1, b2 = mtv(R, v0, v1, v2)
-    c0, c1, c2 = mv(R, cxy * b0, cxy * b1, cz * b2)
-    speed = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
-    q = parasitic * speed * (sigma * abs(sigma) - 1.0)
-    return (-(sigma - 1.0) * c0 - q * v0, -(sigma - 1.0) * c1 - q * v1, -(sigma - 1.0) * c2 - q * v2)
 
 
 @njit

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import solve_continuous_are
 
-from ..accel import ACCELERATED
+from ..accel import use_compiled
 from ..config.vehicle import G, VehicleParams
 from ..model.linearize import model_jacobians
 from ..model.mixer import Mixer, yaw_then_lift
@@ -222,12 +222,10 @@ class HoverController:
     compiled: bool | None = None
 
     def __post_init__(self):
-        if self.compiled and not ACCELERATED:
-            raise ValueError("no compiled hover step here: numba is missing or MAVREG_PURE is set")
+        self._compiled = use_compiled(self.compiled, "hover step")
         self.model = QuadrotorModel.from_vehicle(self.vehicle)
-        self.mixer = Mixer(self.vehicle.arm_length_m, self.vehicle.drag_torque_ratio_m)
+        self.mixer = Mixer.from_vehicle(self.vehicle)
         self._gains: dict[float, np.ndarray] = {}
-        self._fast = ACCELERATED if self.compiled is None else bool(self.compiled)
         self._minv = np.ascontiguousarray(self.mixer.inverse, dtype=float).ravel()
         self._ramp = self._ramp_pack = self._ramp_v = self._coeffs = None
 
@@ -292,7 +290,7 @@ class HoverController:
     def step(self, x: np.ndarray, ramp: Ramp, t_s: float, disturbance=None) -> HoverOutput:
         """Control ``u`` for state ``x`` (12,) following ``ramp`` at ramp time ``t_s``, with an
         estimated ``disturbance`` fed forward (see :meth:`reference`)."""
-        if self._fast:
+        if self._compiled:
             return self._step_compiled(x, ramp, t_s, disturbance)
         x_ref, u_ref = self.reference(ramp, t_s, disturbance)
         e = self.error(x, x_ref)

@@ -21,9 +21,9 @@ import math
 
 from ..accel import njit
 from ..config.vehicle import G
+from ..model.drag_kernel import linear_drag_and_force as extra_force
+from ..model.mixer_kernel import yaw_then_lift
 from ..model.rotation_kernel import mtv, mv, rpy_matrix, wrap
-from .compensation_kernel import extra_force
-from .step_kernel import yaw_then_lift
 
 __all__ = ["reference", "feedback", "REF_SIZE", "OUT_SIZE", "MIN_TILT_COS"]
 

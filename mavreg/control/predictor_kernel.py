@@ -24,28 +24,22 @@ Layouts (plain float arrays, so that nothing is allocated in the loop):
 """
 from __future__ import annotations
 
-import math
 
 import numpy as np
 
 from ..accel import njit
 from ..config.vehicle import G
-from ..model.rotation_kernel import mm, rodrigues
+from ..model.drag_kernel import drag_ned
+from ..model.mixer_kernel import wrench
+from ..model.quadrotor_kernel import angular_acceleration
+from ..model.rotation_kernel import matrix_rpy, mm, rodrigues
+from ..model.rotor_lag_kernel import lag_over4
 
 __all__ = ["integrate", "predict_into", "STATE_SIZE", "PARAM_SIZE", "OUT_SIZE"]
 
 STATE_SIZE = 22
 PARAM_SIZE = 11
 OUT_SIZE = 28
-
-
-@njit
-def _drag(R, vx, vy, vz, cxy, cz, cp):
-    """Drag force (NED) at velocity v: -R C R^T v - c_p |v| v, C = diag(c_xy, c_xy, c_z)."""
-    zx, zy, zz = R[2], R[5], R[8]
-    along = (cz - cxy) * (zx * vx + zy * vy + zz * vz)
-    q = cxy + cp * math.sqrt(vx * vx + vy * vy + vz * vz)
-    return -q * vx - along * zx, -q * vy - along * zy, -q * vz - along * zz
 
 
 @njit
@@ -72,35 +66,22 @@ def integrate(state, seg, prm, thrust_scale, fx, fy, fz, cxy, cz):
         while t < start - 1e-12:
             dt = min(max_step, start - t)
             # rotor lag: the forces after dt and their mean over it
-            if tau <= 0.0:
-                f0, f1, f2, f3 = c0, c1, c2, c3
-                m0, m1, m2, m3 = c0, c1, c2, c3
-            else:
-                e = math.exp(-dt / tau)
-                frac = tau / dt * (1.0 - e)
-                m0, m1, m2, m3 = (c0 + (f0 - c0) * frac, c1 + (f1 - c1) * frac,
-                                  c2 + (f2 - c2) * frac, c3 + (f3 - c3) * frac)
-                f0, f1, f2, f3 = c0 + (f0 - c0) * e, c1 + (f1 - c1) * e, c2 + (f2 - c2) * e, c3 + (f3 - c3) * e
+            f0, f1, f2, f3, m0, m1, m2, m3 = lag_over4(f0, f1, f2, f3, c0, c1, c2, c3, dt, tau)
             if thrust_scale != 1.0:
                 m0, m1, m2, m3 = thrust_scale * m0, thrust_scale * m1, thrust_scale * m2, thrust_scale * m3
             # one step of eqs 1-4 with the mean force held
-            T = m0 + m1 + m2 + m3
-            g1, g2, g3 = l * (m3 - m1), l * (m0 - m2), k * (-m0 + m1 - m2 + m3)
-            d0x = (g1 + (jy - jz) * wy * wz) / jx
-            d0y = (g2 + (jz - jx) * wx * wz) / jy
-            d0z = (g3 + (jx - jy) * wx * wy) / jz
+            T, g1, g2, g3 = wrench(l, k, m0, m1, m2, m3)
+            d0x, d0y, d0z = angular_acceleration(jx, jy, jz, wx, wy, wz, g1, g2, g3)
             hx, hy, hz = wx + 0.5 * dt * d0x, wy + 0.5 * dt * d0y, wz + 0.5 * dt * d0z
-            dmx = (g1 + (jy - jz) * hy * hz) / jx
-            dmy = (g2 + (jz - jx) * hx * hz) / jy
-            dmz = (g3 + (jx - jy) * hx * hy) / jz
+            dmx, dmy, dmz = angular_acceleration(jx, jy, jz, hx, hy, hz, g1, g2, g3)
             R1 = mm(R, rodrigues(hx * dt, hy * dt, hz * dt))
             s = T / m
             a0x, a0y, a0z = -s * R[2] + fx / m, -s * R[5] + fy / m, G - s * R[8] + fz / m
             a1x, a1y, a1z = -s * R1[2] + fx / m, -s * R1[5] + fy / m, G - s * R1[8] + fz / m
             if has_drag:       # both at the step's start velocity
-                dx, dy, dz = _drag(R, vx, vy, vz, cxy, cz, cp)
+                dx, dy, dz = drag_ned(R, vx, vy, vz, cxy, cz, cp)
                 a0x, a0y, a0z = a0x + dx / m, a0y + dy / m, a0z + dz / m
-                dx, dy, dz = _drag(R1, vx, vy, vz, cxy, cz, cp)
+                dx, dy, dz = drag_ned(R1, vx, vy, vz, cxy, cz, cp)
                 a1x, a1y, a1z = a1x + dx / m, a1y + dy / m, a1z + dz / m
             q = dt * dt / 6.0
             px, py, pz = (px + dt * vx + q * (2.0 * a0x + a1x), py + dt * vy + q * (2.0 * a0y + a1y),
@@ -137,9 +118,7 @@ def predict_into(out, R, x, f0, f1, f2, f3, seg, prm, thrust_scale, fx, fy, fz, 
     steps = integrate(state, seg, prm, thrust_scale, fx, fy, fz, cxy, cz)
     r = state
     out[0], out[1], out[2] = r[9], r[10], r[11]
-    out[3] = math.atan2(r[7], r[8])
-    out[4] = -math.asin(min(max(r[6], -1.0), 1.0))
-    out[5] = math.atan2(r[3], r[0])
+    out[3], out[4], out[5] = matrix_rpy((r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8]))
     vx, vy, vz = r[12], r[13], r[14]
     out[6] = r[0] * vx + r[3] * vy + r[6] * vz
     out[7] = r[1] * vx + r[4] * vy + r[7] * vz

@@ -41,31 +41,13 @@ import numpy as np
 from ..config.envelope import RecoveryParams
 from ..config.vehicle import G, VehicleParams
 from ..model.mixer import Mixer
+from ..model.mixer import collective_first as allocate
+from ..model.so3 import attitude_error
 
 __all__ = ["RecoveryController", "RecoveryOutput", "attitude_error", "allocate", "tilt_rad",
            "heading_rad"]
 
 _E3 = np.array([0.0, 0.0, 1.0])
-
-
-def attitude_error(R_d: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """theta * n of the rotation ``R_d^T R`` (body frame), theta in [0, pi].
-
-    At theta = pi (exactly opposite) the axis is the eigenvector of ``R_d^T R`` with
-    eigenvalue 1, the one with the largest diagonal term; the error is then never zero.
-    """
-    Re = R_d.T @ R
-    vee = 0.5 * np.array([Re[2, 1] - Re[1, 2], Re[0, 2] - Re[2, 0], Re[1, 0] - Re[0, 1]])
-    s = float(np.linalg.norm(vee))                                  # sin(theta)
-    theta = math.atan2(s, (Re[0, 0] + Re[1, 1] + Re[2, 2] - 1.0) / 2.0)
-    if s > 1e-6:
-        return vee * (theta / s)
-    if theta < 1.0:
-        return vee                       # theta ~ 0: sin(theta) ~ theta
-    B = (Re + np.eye(3)) / 2.0          # = n n^T at theta = pi
-    i = int(np.argmax(np.diag(B)))
-    n = B[:, i] / math.sqrt(max(B[i, i], 1e-12))
-    return theta * n
 
 
 def tilt_rad(R: np.ndarray) -> float:
@@ -78,49 +60,6 @@ def heading_rad(R: np.ndarray) -> float:
     if math.hypot(R[0, 0], R[1, 0]) > 0.3:
         return math.atan2(R[1, 0], R[0, 0])
     return math.atan2(R[1, 1], R[0, 1]) - math.pi / 2.0
-
-
-def allocate(thrust_n: float, torque_n_m, mixer_inverse: np.ndarray, max_rotor_thrust_n: float) -> np.ndarray:
-    """Rotor forces in [0, max] for a wrench, giving up collective thrust first.
-
-    Returns rotor forces f with ``M f = (thrust', torque')``: the torque exactly when some
-    collective makes it feasible (thrust' is then the feasible value nearest ``thrust_n``);
-    otherwise the yaw torque is reduced first, then roll and pitch are scaled together.
-    """
-    a = mixer_inverse[:, 0]
-    B = mixer_inverse[:, 1:]
-    fmax = float(max_rotor_thrust_n)
-
-    def interval(t):
-        b = B @ t
-        return float(np.max(-b / a)), float(np.min((fmax - b) / a)), b
-
-    def feasible(t):
-        lo, hi, _ = interval(t)
-        return lo <= hi
-
-    tau = np.asarray(torque_n_m, dtype=float)
-    if not feasible(tau):
-        roll_pitch = tau * np.array([1.0, 1.0, 0.0])
-        if feasible(roll_pitch):
-            yaw = tau - roll_pitch
-            tau = roll_pitch + _largest_scale(feasible, roll_pitch, yaw) * yaw
-        else:
-            tau = _largest_scale(feasible, np.zeros(3), roll_pitch) * roll_pitch
-    lo, hi, b = interval(tau)
-    return np.clip(a * min(max(thrust_n, lo), hi) + b, 0.0, fmax)
-
-
-def _largest_scale(feasible, base: np.ndarray, direction: np.ndarray) -> float:
-    """Largest k in [0, 1] with ``feasible(base + k direction)`` (``base`` is feasible)."""
-    k_lo, k_hi = 0.0, 1.0
-    for _ in range(30):
-        k = 0.5 * (k_lo + k_hi)
-        if feasible(base + k * direction):
-            k_lo = k
-        else:
-            k_hi = k
-    return k_lo
 
 
 @dataclass(frozen=True)
@@ -154,7 +93,7 @@ class RecoveryController:
     def __init__(self, vehicle: VehicleParams, params: RecoveryParams):
         self.vehicle = vehicle
         self.params = params
-        self.mixer_inverse = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m).inverse
+        self.mixer_inverse = Mixer.from_vehicle(vehicle).inverse
         self.J = np.array(vehicle.inertia_kg_m2, dtype=float)
         wn = np.array([params.attitude_bandwidth_rad_s] * 2 + [params.yaw_bandwidth_rad_s])
         self.k_R = self.J * wn * wn

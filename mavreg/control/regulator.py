@@ -21,11 +21,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..accel import use_compiled
 from ..config.regulation import AllocationParams, SpeedGovernorParams
 from ..config.vehicle import VehicleParams
 from ..geometry.projection import Projector
+from ..model.drag import drag_change_n
 from ..model.mixer import Mixer, torques_first, yaw_then_lift
 from ..model.rotation import rpy_to_matrix
+from ..model.rotor_lag import lag_decay, lag_toward
 from ..model.so3 import attitude_error
 from . import fastpath
 from .attitude_table import NominalAttitudes
@@ -113,7 +116,7 @@ class ManeuverRegulator:
                  allocation: AllocationParams | None = None,
                  speed_governor: SpeedGovernorParams | None = None, compiled: bool | None = None):
         self.plan = plan
-        mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
+        mixer = Mixer.from_vehicle(vehicle)
         alloc = allocation if allocation is not None else AllocationParams(method="per_rotor_clip")
         self._fmax = float(vehicle.max_rotor_thrust_n if alloc.max_rotor_thrust_n is None
                            else alloc.max_rotor_thrust_n)
@@ -121,7 +124,7 @@ class ManeuverRegulator:
         self.mixer_inverse = mixer.inverse
         self._mixer = mixer.matrix
         self._augmented = plan.K.shape[-1] > 11
-        self._decay = (float(np.exp(-control_period_s / plan.rotor_time_constant_s))
+        self._decay = (lag_decay(control_period_s, plan.rotor_time_constant_s)
                        if self._augmented and control_period_s > 0 else 0.0)
         self._rotors_est: np.ndarray | None = None
         self.projector = Projector(plan.path)
@@ -152,10 +155,8 @@ class ManeuverRegulator:
                            if plan.attitude_error == "so3" else None)
         """The nominal attitude's rows when the gains are on the SO(3) attitude error."""
         self.s = 0.0
-        if compiled and not fastpath.available():
-            raise ValueError("no compiled step here: numba is missing or MAVREG_PURE is set")
-        self._fast = self._compiled_step(speed_governor) if (
-            fastpath.available() if compiled is None else compiled) else None
+        self._compiled = (self._compiled_step(speed_governor) if use_compiled(compiled, "step") else None)
+        """The compiled step (:class:`~mavreg.control.fastpath.FastStep`), or None: the numpy step."""
 
     def _compiled_step(self, speed_governor) -> fastpath.FastStep:
         """The compiled step with this regulator's tables and settings (the kernel compiled
@@ -195,8 +196,8 @@ class ManeuverRegulator:
             i, a = self._locate(self.s)
             rotor_forces_n = self.mixer_inverse @ (self._u[i] + a * (self._u[i + 1] - self._u[i]))
         self._rotors_est = np.asarray(rotor_forces_n, dtype=float).copy()
-        if self._fast is not None:
-            self._fast.reset(self.s, self._rotors_est)
+        if self._compiled is not None:
+            self._compiled.reset(self.s, self._rotors_est)
 
     def _governed(self, s: float, pt, x) -> tuple[GovernedSpeed, float] | None:
         r"""The governed reference at s for state x with its along-track acceleration fed
@@ -246,16 +247,14 @@ class ManeuverRegulator:
         cxy, cz = self._base_drag
         if not (cxy or cz or self._parasitic):
             return None
-        C = R @ np.diag((cxy, cxy, cz)) @ R.T
-        speed = float(np.linalg.norm(v_bar_ned))
-        return -(sigma - 1.0) * (C @ v_bar_ned) - self._parasitic * speed * v_bar_ned * (sigma * abs(sigma) - 1.0)
+        return drag_change_n(R, v_bar_ned, sigma, cxy, cz, self._parasitic)
 
     def step(self, x, rotor_forces_n=None, disturbance: DisturbanceEstimate | None = None) -> RegulatorOutput:
         """One control step for state x (12,); ``rotor_forces_n`` (4,): the rotors' forces
         when this command takes over (used only by lag-aware gains); ``disturbance``: the
         airframe's estimated force model, compensated."""
-        if self._fast is not None:
-            s, w, u, rotors, in_tube, finished, v_ref = self._fast.step(x, rotor_forces_n, disturbance)
+        if self._compiled is not None:
+            s, w, u, rotors, in_tube, finished, v_ref = self._compiled.step(x, rotor_forces_n, disturbance)
             self.s = self.projector.s = s
             return RegulatorOutput(s, w, u, rotors, in_tube, finished, v_ref)
         x = np.asarray(x, dtype=float)
@@ -324,5 +323,5 @@ class ManeuverRegulator:
         rotors = self._allocate(self.mixer_inverse, u, self._fmax)
         if self._augmented:
             base = self._rotors_est if self._rotors_est is not None else rotors
-            self._rotors_est = rotors + (base - rotors) * self._decay
+            self._rotors_est = lag_toward(base, rotors, self._decay)
         return RegulatorOutput(s, w, u, rotors, proj.in_tube, s >= self.plan.length_m - 1e-6, v_ref)

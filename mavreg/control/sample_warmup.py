@@ -23,7 +23,7 @@ import numpy as np
 
 from ..accel import ACCELERATED
 from ..config.disturbance import DisturbanceParams
-from ..config.vehicle import VehicleParams
+from ..config.vehicle import G, VehicleParams
 from .forecast import Forecaster
 from .hover import HoverController, HoverParams, hold_ramp, plan_ramp
 
@@ -42,7 +42,7 @@ def warm_up_sample_kernels(vehicle: VehicleParams, control_period_s: float, max_
     t0 = time.perf_counter()
     fc = Forecaster(vehicle, control_period_s, predict=True, max_horizon_s=max_horizon_s, disturbance=disturbance)
     ctl = HoverController(vehicle, hover)
-    hover_n = np.full(4, vehicle.mass_kg * 9.81 / 4.0)
+    hover_n = np.full(4, vehicle.mass_kg * G / 4.0)
     fc.reset(hover_n)
     fc.observing = True
     x = np.zeros(12)

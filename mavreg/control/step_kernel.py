@@ -38,9 +38,12 @@ import numpy as np
 
 from ..accel import njit
 from ..geometry.projection_kernel import POINT_WIDTH, path_point, project
+from ..model.drag_kernel import drag_change
+from ..model.mixer_kernel import torques_first, yaw_then_lift
+from ..model.rotor_lag_kernel import lag_toward
 from ..model.rotation_kernel import log_vee, mm, mtm, mv, rodrigues, rpy_matrix, wrap
 from .compensation_kernel import compensate, extra_force
-from .governor_kernel import G_PROFILE_ACCEL, drag_change, governed_reference, interp, retiming_force
+from .governor_kernel import G_PROFILE_ACCEL, governed_reference, interp, retiming_force
 
 __all__ = ["regulator_step", "yaw_then_lift", "torques_first", "TABLE_X", "TABLE_U", "TABLE_V",
            "TABLE_K", "ATTITUDE_WIDTH", "P_LEAD", "P_DECAY", "P_FMAX", "P_WINDOW", "P_MARGIN",
@@ -50,98 +53,108 @@ __all__ = ["regulator_step", "yaw_then_lift", "torques_first", "TABLE_X", "TABLE
            "P_MIX", "N_PARAMS", "ST_S", "ST_HAS_EST", "ST_EST", "ST_GOV", "ST_WIDTH", "OUT_S", "OUT_W",
            "OUT_U", "OUT_ROTORS", "OUT_WIDTH", "COMPENSATION_DT_S"]
 
-TABLE_X, TABLE_U, TABLE_V, TABLE_K = 0, 12, 16, 17
+class _Layout:
+    """Consecutive slots of a float vector, declared once: each call returns the next field's
+    first slot and reserves ``width`` slots; ``width`` is then the vector's size. The module's
+    constants below are plain ints made at import, which numba compiles in as constants, and
+    the packer (:mod:`mavreg.control.fastpath`), this kernel and its warm-up all read them:
+    a new parameter is one line here, one in the packer and its use in the kernel."""
+
+    def __init__(self):
+        self.width = 0
+
+    def __call__(self, width: int = 1) -> int:
+        first = self.width
+        self.width += width
+        return first
+
+
+_table = _Layout()
+TABLE_X = _table(12)
+TABLE_U = _table(4)
+TABLE_V = _table(1)
+TABLE_K = _table(0)
 """Columns of a table row: x (12), u (4), v (1), K row-major (4 x n_K, n_K 11 or 15), then
 in the SO(3) form the row's attitude R_i (9, row-major), d_i = Log(R_i^T R_{i+1}) and the
 Hermite slopes m0_i, m1_i (3 each) of :class:`mavreg.control.attitude_table.NominalAttitudes`
 (the rows are blended up to the end of K only)."""
 ATTITUDE_WIDTH = 18
 """Columns of a row's attitude data (SO(3) form)."""
-(P_LEAD, P_DECAY, P_FMAX, P_WINDOW, P_MARGIN, P_MAX_TURN, P_CXY, P_CZ, P_TORQUES_FIRST,
- P_AUGMENTED, P_END, P_NK, P_SO3) = range(13)
-"""Slots of the parameter vector: lead (s), lag filter decay, rotor limit (N), projection
-window (m) and tube margin, largest compensating turn (rad), the design's drag (c_xy, c_z),
-1.0 for ``torques_first`` (else ``yaw_then_lift``), 1.0 for lag-aware gains, the arc length
-at which the maneuver is finished, n_K, 1.0 for the SO(3) attitude error (else roll-pitch-yaw
-differences)."""
-(P_GOV, P_GOV_COL, P_MASS, P_PARASITIC, P_GOV_ACCEL, P_GOV_TAU, P_GOV_BAND, P_GOV_GAIN,
- P_GOV_MAX_ACCEL, P_GOV_CAPPED, P_GOV_DT, P_GOV_OMEGA, P_GOV_JERK) = range(13, 26)
-"""The speed governor's slots: 1.0 when it is on, its first table column, the mass (kg) and
-parasitic drag of the re-timing force, then (:func:`~mavreg.control.governor_kernel.governed_reference`'s
-``gp``) the recovery acceleration and time constant, the band, the gain, the largest push,
-1.0 when the target is capped somewhere, the fed-forward acceleration's filter step (the
-control period), natural frequency and largest rate."""
-P_MINV, P_MIX = 32, 48
-"""M^{-1} and M (eq 34), row-major, 16 slots each."""
-N_PARAMS = 64
-ST_S, ST_HAS_EST, ST_EST, ST_GOV = 0, 1, 2, 6
-"""The state vector: s, 1.0 when the lag filter holds an estimate, the estimate (4), the
-governor's five slots (:mod:`mavreg.control.governor_kernel`)."""
-ST_WIDTH = 11
-OUT_S, OUT_W, OUT_U, OUT_ROTORS = 0, 1, 12, 16
+
+_prm = _Layout()
+P_LEAD = _prm()
+"""The feedforward's lead (s)."""
+P_DECAY = _prm()
+"""The rotor lag filter's decay per step."""
+P_FMAX = _prm()
+"""The allocation's rotor limit (N)."""
+P_WINDOW = _prm()
+"""The projection's window (m)."""
+P_MARGIN = _prm()
+"""The projection's tube margin."""
+P_MAX_TURN = _prm()
+"""The largest compensating turn (rad)."""
+P_CXY = _prm()
+P_CZ = _prm()
+"""The design's drag (c_xy, c_z), which the disturbance estimate's is compared with."""
+P_TORQUES_FIRST = _prm()
+"""1.0 for ``torques_first`` (else ``yaw_then_lift``)."""
+P_AUGMENTED = _prm()
+"""1.0 for lag-aware gains."""
+P_END = _prm()
+"""The arc length at which the maneuver is finished."""
+P_NK = _prm()
+"""n_K, the gains' columns."""
+P_SO3 = _prm()
+"""1.0 for the SO(3) attitude error (else roll-pitch-yaw differences)."""
+P_GOV = _prm()
+"""1.0 when the speed governor is on."""
+P_GOV_COL = _prm()
+"""Its first table column."""
+P_MASS = _prm()
+P_PARASITIC = _prm()
+"""The mass (kg) and parasitic drag of the re-timing force."""
+P_GOV_ACCEL = _prm()
+"""From here to :data:`P_GOV_JERK`, in this order,
+:func:`~mavreg.control.governor_kernel.governed_reference`'s ``gp``: the recovery
+acceleration and time constant, the band, the gain, the largest push, 1.0 when the target is
+capped somewhere, the fed-forward acceleration's filter step (the control period), natural
+frequency and largest rate."""
+P_GOV_TAU = _prm()
+P_GOV_BAND = _prm()
+P_GOV_GAIN = _prm()
+P_GOV_MAX_ACCEL = _prm()
+P_GOV_CAPPED = _prm()
+P_GOV_DT = _prm()
+P_GOV_OMEGA = _prm()
+P_GOV_JERK = _prm()
+P_MINV = _prm(16)
+"""M^{-1} of eq 34, row-major."""
+P_MIX = _prm(16)
+"""M of eq 34, row-major."""
+N_PARAMS = _prm.width
+
+_st = _Layout()
+ST_S = _st()
+"""The state vector kept between steps: s, """
+ST_HAS_EST = _st()
+"""1.0 when the lag filter holds an estimate,"""
+ST_EST = _st(4)
+"""the estimate (4),"""
+ST_GOV = _st(5)
+"""the governor's five slots (:mod:`mavreg.control.governor_kernel`; a state without a
+governor may end here)."""
+ST_WIDTH = _st.width
+
+_out = _Layout()
+OUT_S = _out()
+OUT_W = _out(11)
+OUT_U = _out(4)
+OUT_ROTORS = _out(4)
 """The output vector: s, w (11), u (4), rotor forces (4)."""
-OUT_WIDTH = 20
+OUT_WIDTH = _out.width
 COMPENSATION_DT_S = 0.02
 """As the regulator's ``_COMPENSATION_DT_S``."""
-
-
-@njit
-def _split(Minv, u, r):
-    """Rotor r's share of thrust, roll and pitch, and of yaw: ``(b, y)`` of eq 34 inverted."""
-    return Minv[4 * r] * u[0] + Minv[4 * r + 1] * u[1] + Minv[4 * r + 2] * u[2], Minv[4 * r + 3] * u[3]
-
-
-@njit
-def _fill(Minv, u, beta, f):
-    """f = b + beta y per rotor; returns (min f, max f)."""
-    low, high = np.inf, -np.inf
-    for r in range(4):
-        b, y = _split(Minv, u, r)
-        f[r] = b + beta * y
-        low = min(low, f[r])
-        high = max(high, f[r])
-    return low, high
-
-
-@njit
-def yaw_then_lift(Minv, u, F, f):
-    """:func:`mavreg.model.mixer.yaw_then_lift` of u (4,) into f (4,), Minv row-major (16,)."""
-    low, _ = _fill(Minv, u, 1.0, f)
-    if low >= 0.0:
-        return
-    beta = 1.0
-    for r in range(4):
-        b, y = _split(Minv, u, r)
-        if b + y < 0.0 and y != 0.0:    # as mixer.yaw_then_lift: no yaw share, no limit from it
-            beta = min(beta, max(b, 0.0) / -y)
-    low, high = _fill(Minv, u, beta, f)
-    if low < 0.0:
-        lift = min(-low, max(F - high, 0.0))
-        for r in range(4):
-            f[r] += lift
-
-
-@njit
-def torques_first(Minv, u, F, f):
-    """:func:`mavreg.model.mixer.torques_first` of u (4,) into f (4,), Minv row-major (16,)."""
-    low, high = _fill(Minv, u, 1.0, f)
-    if low >= 0.0 and high <= F:
-        return
-    beta = 1.0
-    for r in range(4):          # a rotor out of range with the yaw's help: no yaw
-        b, y = _split(Minv, u, r)
-        if b + y < 0.0 and y != 0.0:
-            beta = min(beta, max(b, 0.0) / -y) if y < 0.0 else 0.0
-        elif b + y > F and y != 0.0:
-            beta = min(beta, max(F - b, 0.0) / y) if y > 0.0 else 0.0
-    low, high = _fill(Minv, u, beta, f)
-    if high - low <= F:
-        shift = low if low < 0.0 else (high - F if high > F else 0.0)
-        for r in range(4):
-            f[r] -= shift
-        return
-    for r in range(4):
-        f[r] = (f[r] - low) * (F / (high - low))
 
 
 @njit
@@ -193,80 +206,58 @@ def _retimed(s, xb, R, pt, v, a, s_tab, table, c, prm):
 
 
 @njit
-def regulator_step(x, f_act, has_f, has_dist, dcxy, dcz, fx, fy, fz, table, s_tab, s_nodes, coef,
-                   ends, prm, st, out):
-    """One step for state x (12,); returns ``(s, in_tube, finished, v_ref)``.
-
-    ``f_act`` (4,): the rotor forces handed over (used when ``has_f``); ``dcxy ... fz``: the
-    disturbance estimate's drag and its constant force (used when ``has_dist``). ``st``
-    (:data:`ST_WIDTH`,; 6 without a governor) is the state kept between steps. ``out``
-    (:data:`OUT_WIDTH`,) receives s, w, u and the rotor forces.
-    """
-    p = np.empty(POINT_WIDTH)
-    s, inside, _ = project(x[0], x[1], x[2], st[ST_S], prm[P_WINDOW], prm[P_MARGIN], s_nodes, coef, ends, p)
-    st[ST_S] = s
-    nk = int(prm[P_NK])
-    width = TABLE_K + 4 * nk           # the blended columns; the attitude data follow
-    so3 = prm[P_SO3] > 0.0
-    row = np.empty(width + 16)
-    i, a = _locate(s, s_tab)
-    _blend(table, i, a, 0, width, row)
+def _compensated(s, p, v_ref, a_ff, later, governed, has_dist, dcxy, dcz, fx, fy, fz, table, s_tab, s_nodes,
+                 coef, ends, prm, row, width, so3, Rbar):
+    """Step 4's changes of the nominal in ``row`` (x-bar, u-bar and the thrust, in place): the
+    governed re-timing and the disturbance compensation; returns the changed nominal attitude."""
     xbar = row[TABLE_X:TABLE_X + 12]
     u_here = row[TABLE_U:TABLE_U + 4]
-    K = row[TABLE_K:width]
-    v_ref = row[TABLE_V]
-    Rbar = _nominal_attitude(table, i, a, width) if so3 else rpy_matrix(xbar[3], xbar[4], xbar[5])
-    R_plan = Rbar
-    governed = False
-    a_ff = later = 0.0
-    if prm[P_GOV] > 0.0:
-        n0, n1, n2 = mv(rpy_matrix(x[3], x[4], x[5]), x[6], x[7], x[8])
-        governed, v_gov, a_ff, later = governed_reference(
-            s, p[3] * n0 + p[6] * n1 + p[9] * n2, s_tab, table, int(prm[P_GOV_COL]), TABLE_V, st, ST_GOV,
-            (prm[P_GOV_ACCEL], prm[P_GOV_TAU], prm[P_GOV_BAND], prm[P_GOV_GAIN], prm[P_GOV_MAX_ACCEL],
-             prm[P_GOV_CAPPED], prm[P_GOV_DT], prm[P_GOV_OMEGA], prm[P_GOV_JERK]))
-        if governed:
-            v_ref = v_gov
     ubar = row[width:width + 4]
-    if prm[P_LEAD] > 0.0:
-        i, a = _locate(s + v_ref * prm[P_LEAD], s_tab)
-    _blend(table, i, a, TABLE_U, TABLE_U + 4, ubar)
-    if governed or has_dist:
-        # the turn rate of the changed nominal from the nominal COMPENSATION_DT_S ahead
-        x_ahead = row[width + 4:width + 16]
-        s_ahead = s + max(v_ref, 0.1) * COMPENSATION_DT_S
-        j, b = _locate(s_ahead, s_tab)
-        _blend(table, j, b, TABLE_X, TABLE_X + 12, x_ahead)
-        R_ahead = (_nominal_attitude(table, j, b, width) if so3
-                   else rpy_matrix(x_ahead[3], x_ahead[4], x_ahead[5]))
-        t_ahead = table[j, TABLE_U] + b * (table[j + 1, TABLE_U] - table[j, TABLE_U])
-        thrust = u_here[0]
-        if governed:
-            q = np.empty(POINT_WIDTH)
-            path_point(s_ahead, s_nodes, coef, ends, q)
-            c = int(prm[P_GOV_COL])
-            v_ahead = math.sqrt(max(v_ref * v_ref + 2.0 * a_ff * (s_ahead - s), 0.0))
-            a_ahead = interp(s_ahead, s_tab, table, c + G_PROFILE_ACCEL) + later
-            da = _retimed(s_ahead, x_ahead, R_ahead, q, v_ahead, a_ahead, s_tab, table, c, prm)[1]
-            sigma, d = _retimed(s, xbar, Rbar, p, v_ref, a_ff, s_tab, table, c, prm)
-            t_ahead_g, R_ahead_g = compensate(x_ahead, R_ahead, t_ahead, da[0], da[1], da[2], R_ahead, 0.0,
-                                              0.0, 0.0, 0.0, 0.0, math.pi)
-            thrust, Rbar = compensate(xbar, Rbar, thrust, d[0], d[1], d[2], R_ahead, t_ahead, da[0], da[1],
-                                      da[2], COMPENSATION_DT_S, math.pi)
-            t_ahead, R_ahead = t_ahead_g, R_ahead_g
-            for r in range(1, 4):
-                ubar[r] *= sigma * sigma
-                u_here[r] *= sigma * sigma
-        if has_dist:
-            dcxy -= prm[P_CXY]
-            dcz -= prm[P_CZ]
-            f0, f1, f2 = extra_force(Rbar, *mv(Rbar, xbar[6], xbar[7], xbar[8]), dcxy, dcz, fx, fy, fz)
-            g0, g1, g2 = extra_force(R_ahead, *mv(R_ahead, x_ahead[6], x_ahead[7], x_ahead[8]), dcxy, dcz,
-                                     fx, fy, fz)
-            thrust, Rbar = compensate(xbar, Rbar, thrust, f0, f1, f2, R_ahead, t_ahead, g0, g1, g2,
-                                      COMPENSATION_DT_S, prm[P_MAX_TURN])
-        ubar[0] += thrust - u_here[0]
-        u_here[0] = thrust
+    # the turn rate of the changed nominal from the nominal COMPENSATION_DT_S ahead
+    x_ahead = row[width + 4:width + 16]
+    s_ahead = s + max(v_ref, 0.1) * COMPENSATION_DT_S
+    j, b = _locate(s_ahead, s_tab)
+    _blend(table, j, b, TABLE_X, TABLE_X + 12, x_ahead)
+    R_ahead = (_nominal_attitude(table, j, b, width) if so3
+               else rpy_matrix(x_ahead[3], x_ahead[4], x_ahead[5]))
+    t_ahead = table[j, TABLE_U] + b * (table[j + 1, TABLE_U] - table[j, TABLE_U])
+    thrust = u_here[0]
+    if governed:
+        q = np.empty(POINT_WIDTH)
+        path_point(s_ahead, s_nodes, coef, ends, q)
+        c = int(prm[P_GOV_COL])
+        v_ahead = math.sqrt(max(v_ref * v_ref + 2.0 * a_ff * (s_ahead - s), 0.0))
+        a_ahead = interp(s_ahead, s_tab, table, c + G_PROFILE_ACCEL) + later
+        da = _retimed(s_ahead, x_ahead, R_ahead, q, v_ahead, a_ahead, s_tab, table, c, prm)[1]
+        sigma, d = _retimed(s, xbar, Rbar, p, v_ref, a_ff, s_tab, table, c, prm)
+        t_ahead_g, R_ahead_g = compensate(x_ahead, R_ahead, t_ahead, da[0], da[1], da[2], R_ahead, 0.0,
+                                          0.0, 0.0, 0.0, 0.0, math.pi)
+        thrust, Rbar = compensate(xbar, Rbar, thrust, d[0], d[1], d[2], R_ahead, t_ahead, da[0], da[1],
+                                  da[2], COMPENSATION_DT_S, math.pi)
+        t_ahead, R_ahead = t_ahead_g, R_ahead_g
+        for r in range(1, 4):
+            ubar[r] *= sigma * sigma
+            u_here[r] *= sigma * sigma
+    if has_dist:
+        dcxy -= prm[P_CXY]
+        dcz -= prm[P_CZ]
+        f0, f1, f2 = extra_force(Rbar, *mv(Rbar, xbar[6], xbar[7], xbar[8]), dcxy, dcz, fx, fy, fz)
+        g0, g1, g2 = extra_force(R_ahead, *mv(R_ahead, x_ahead[6], x_ahead[7], x_ahead[8]), dcxy, dcz,
+                                 fx, fy, fz)
+        thrust, Rbar = compensate(xbar, Rbar, thrust, f0, f1, f2, R_ahead, t_ahead, g0, g1, g2,
+                                  COMPENSATION_DT_S, prm[P_MAX_TURN])
+    ubar[0] += thrust - u_here[0]
+    u_here[0] = thrust
+    return Rbar
+
+
+@njit
+def _feedback(x, p, R_plan, Rbar, compensated, row, width, nk, so3, prm, st, f_act, has_f, out):
+    """Steps 5 and 6: w, u and the rotor forces into ``out``, and the lag filter updated."""
+    xbar = row[TABLE_X:TABLE_X + 12]
+    u_here = row[TABLE_U:TABLE_U + 4]
+    ubar = row[width:width + 4]
+    K = row[TABLE_K:width]
     w = out[OUT_W:OUT_W + 11]
     d0, d1, d2 = x[0] - p[0], x[1] - p[1], x[2] - p[2]
     w[0] = d0 * p[4] + d1 * p[7] + d2 * p[10]
@@ -275,7 +266,7 @@ def regulator_step(x, f_act, has_f, has_dist, dcxy, dcz, fx, fy, fz, table, s_ta
         # in the plan's nominal frame, where the gains were designed; with a compensation,
         # the error from the changed nominal: Log(Rbar^T R) - Log(Rbar^T Rbar_changed)
         w[2], w[3], w[4] = log_vee(mtm(R_plan, rpy_matrix(x[3], x[4], x[5])))
-        if governed or has_dist:
+        if compensated:
             c0, c1, c2 = log_vee(mtm(R_plan, Rbar))
             w[2] -= c0
             w[3] -= c1
@@ -317,8 +308,52 @@ def regulator_step(x, f_act, has_f, has_dist, dcxy, dcz, fx, fy, fz, table, s_ta
         decay = prm[P_DECAY]
         for r in range(4):
             base = st[ST_EST + r] if st[ST_HAS_EST] != 0.0 else rotors[r]
-            st[ST_EST + r] = rotors[r] + (base - rotors[r]) * decay
+            st[ST_EST + r] = lag_toward(base, rotors[r], decay)
         st[ST_HAS_EST] = 1.0
+
+
+@njit
+def regulator_step(x, f_act, has_f, has_dist, dcxy, dcz, fx, fy, fz, table, s_tab, s_nodes, coef,
+                   ends, prm, st, out):
+    """One step for state x (12,); returns ``(s, in_tube, finished, v_ref)``.
+
+    ``f_act`` (4,): the rotor forces handed over (used when ``has_f``); ``dcxy ... fz``: the
+    disturbance estimate's drag and its constant force (used when ``has_dist``). ``st``
+    (:data:`ST_WIDTH`,; 6 without a governor) is the state kept between steps. ``out``
+    (:data:`OUT_WIDTH`,) receives s, w, u and the rotor forces.
+    """
+    p = np.empty(POINT_WIDTH)
+    s, inside, _ = project(x[0], x[1], x[2], st[ST_S], prm[P_WINDOW], prm[P_MARGIN], s_nodes, coef, ends, p)
+    st[ST_S] = s
+    nk = int(prm[P_NK])
+    width = TABLE_K + 4 * nk           # the blended columns; the attitude data follow
+    so3 = prm[P_SO3] > 0.0
+    row = np.empty(width + 16)
+    i, a = _locate(s, s_tab)
+    _blend(table, i, a, 0, width, row)
+    xbar = row[TABLE_X:TABLE_X + 12]
+    v_ref = row[TABLE_V]
+    Rbar = _nominal_attitude(table, i, a, width) if so3 else rpy_matrix(xbar[3], xbar[4], xbar[5])
+    R_plan = Rbar
+    governed = False
+    a_ff = later = 0.0
+    if prm[P_GOV] > 0.0:
+        n0, n1, n2 = mv(rpy_matrix(x[3], x[4], x[5]), x[6], x[7], x[8])
+        governed, v_gov, a_ff, later = governed_reference(
+            s, p[3] * n0 + p[6] * n1 + p[9] * n2, s_tab, table, int(prm[P_GOV_COL]), TABLE_V, st, ST_GOV,
+            (prm[P_GOV_ACCEL], prm[P_GOV_TAU], prm[P_GOV_BAND], prm[P_GOV_GAIN], prm[P_GOV_MAX_ACCEL],
+             prm[P_GOV_CAPPED], prm[P_GOV_DT], prm[P_GOV_OMEGA], prm[P_GOV_JERK]))
+        if governed:
+            v_ref = v_gov
+    ubar = row[width:width + 4]
+    if prm[P_LEAD] > 0.0:
+        i, a = _locate(s + v_ref * prm[P_LEAD], s_tab)
+    _blend(table, i, a, TABLE_U, TABLE_U + 4, ubar)
+    compensated = governed or has_dist
+    if compensated:
+        Rbar = _compensated(s, p, v_ref, a_ff, later, governed, has_dist, dcxy, dcz, fx, fy, fz, table, s_tab,
+                            s_nodes, coef, ends, prm, row, width, so3, Rbar)
+    _feedback(x, p, R_plan, Rbar, compensated, row, width, nk, so3, prm, st, f_act, has_f, out)
     out[OUT_S] = s
     return s, inside, s >= prm[P_END], v_ref
 

@@ -59,7 +59,7 @@ class RateOutput:
         p = vehicle.rate_interface
         if p is None:
             raise ValueError("output: rates needs the vehicle file's rate_interface: section")
-        self._mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m).matrix
+        self._mixer = Mixer.from_vehicle(vehicle).matrix
         self._map = ThrustMap.from_params(vehicle.mass_kg, p)
         self._inertia = np.asarray(vehicle.inertia_kg_m2, dtype=float)
         self._tau = float(p.rate_time_constant_s)

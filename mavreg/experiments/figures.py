@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..model.mixer import Mixer
+from ..model.rotation import wrap_angle
 
 __all__ = ["group1_figures", "group2_figures", "nominal_curves", "save_with_legend_below"]
 
@@ -34,7 +35,7 @@ def nominal_curves(plan, step: int = 20) -> dict:
     s = plan.s[::step]
     x = plan.x[::step]
     u = plan.u[::step]
-    mixer = Mixer(plan.vehicle.arm_length_m, plan.vehicle.drag_torque_ratio_m)
+    mixer = Mixer.from_vehicle(plan.vehicle)
     return {"s": s, "position": x[:, :3], "rpy_deg": np.degrees(x[:, 3:6]), "v_body": x[:, 6:9],
             "u": u, "rotors": u @ mixer.inverse.T}
 
@@ -89,7 +90,7 @@ def _deviations(plan, tr) -> tuple[np.ndarray, np.ndarray]:
     """Roll minus the desired roll at the same s (deg, wrapped) and speed minus the profile's."""
     s = np.clip(tr.s_m, plan.s[0], plan.s[-1])
     droll = tr.rpy_rad[:, 0] - np.interp(s, plan.s, plan.x[:, 3])
-    droll = np.degrees(np.arctan2(np.sin(droll), np.cos(droll)))
+    droll = np.degrees(wrap_angle(droll))
     dv = np.linalg.norm(tr.velocity_body_m_s, axis=1) - np.interp(s, plan.s, plan.speed_m_s)
     return droll, dv
 

@@ -137,4 +137,4 @@ def _fly_tracker(plan, spec, tracker):
                       rotor_noise_sd_n=spec.rotor_noise_sd_n, seed=spec.seed, saturation_n=spec.saturation_n,
                       force_fn=force, done=lambda t, x: state["s"] >= end)
     return simulate(QuadrotorModel.from_vehicle(vehicle),
-                    Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m), controller, opts)
+                    Mixer.from_vehicle(vehicle), controller, opts)

@@ -48,7 +48,7 @@ import yaml
 from ..config.controller import load_controller
 from ..config.maneuver import load_maneuver, maneuver_text_with_laps
 from ..daemon.lifeline import wrap_command
-from ..sim.truth import quats_to_matrices
+from ..model.rotation import quats_to_matrices
 from .record import Flight
 
 __all__ = ["SitlFiles", "prepare_sitl_files", "fly_sitl", "EXPERIMENT_ENVELOPE", "FLIGHT_FILES",

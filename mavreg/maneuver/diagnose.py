@@ -19,6 +19,8 @@ from typing import Callable
 
 import numpy as np
 
+from ..config.vehicle import G
+
 __all__ = ["EULER_LIMIT_DEG", "euler_singularity", "explain_divergence"]
 
 EULER_LIMIT_DEG = 89.0
@@ -71,9 +73,9 @@ def explain_divergence(s_fail: float, s, pitch_rad, speed_m_s, rotor_forces_n,
                       "speed or widen the curve")
     kappa = np.asarray(curvature_1_m)[near]
     vv = np.asarray(speed_m_s)[near]
-    if np.max(kappa * vv ** 2) > 4 * 9.81:
+    if np.max(kappa * vv ** 2) > 4 * G:
         i = int(np.argmax(kappa * vv ** 2))
-        causes.append(f"the curve asks {kappa[i] * vv[i] ** 2 / 9.81:.1f} g of centripetal "
+        causes.append(f"the curve asks {kappa[i] * vv[i] ** 2 / G:.1f} g of centripetal "
                       f"acceleration (radius {1 / max(kappa[i], 1e-9):.2f} m at {vv[i]:.1f} m/s): "
                       "widen the curve or slow down")
     if not causes:

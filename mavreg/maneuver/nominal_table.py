@@ -57,7 +57,7 @@ def plan_attitudes(plan) -> np.ndarray:
 
 def rotor_forces_n(plan) -> np.ndarray:
     """Nominal rotor forces (N, 4) of the plan's input (eq 34 inverted, no saturation)."""
-    mixer = Mixer(plan.vehicle.arm_length_m, plan.vehicle.drag_torque_ratio_m)
+    mixer = Mixer.from_vehicle(plan.vehicle)
     return plan.u @ mixer.inverse.T
 
 

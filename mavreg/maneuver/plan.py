@@ -274,7 +274,7 @@ def _stage(spec: ManeuverSpec, vehicle: VehicleParams, controller: ControllerPar
            clock: _Stopwatch) -> _Stage:
     """The path, the grid, the nominal and its feasibility."""
     model = QuadrotorModel.from_vehicle(vehicle)
-    mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
+    mixer = Mixer.from_vehicle(vehicle)
     path = build_path(spec)
     speed, yaw = build_profiles(spec, path)
     s = _with_midpoints(_time_grid(path, speed, controller.riccati_step_s))

@@ -12,7 +12,7 @@ math and the methods; docs/robustness.md, *Margins*, the choices and the figures
   alone, and the plant still lags by the vehicle's ``rotor_time_constant_s``.
 - **Hover.** The hover LQR is designed without the lag
   (:meth:`~mavreg.control.hover.HoverController.design_loop`); the plant is that model through
-  the lag (:func:`~mavreg.control.actuator.lag_augment`).
+  the lag (:func:`~mavreg.model.rotor_lag.lag_augment`).
 
 Frozen-time: each row's loop is analysed as if the maneuver stood still there. That is exact
 for a hover and a steady line, and an approximation where the gains and the nominal change on
@@ -31,7 +31,8 @@ import numpy as np
 
 from ..blas import one_blas_thread
 from ..config.vehicle import VehicleParams
-from ..control.actuator import augmented_jacobians, lag_augment
+from ..control.actuator import augmented_jacobians
+from ..model.rotor_lag import lag_augment
 from ..control.hover import HoverController, HoverParams
 from ..control.margins import (LoopMargins, ScheduleMargins, lag_model_loop, loop_margins, node_margins,
                                rotor_loop, schedule_margins)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["mixer_matrix", "Mixer", "lift_to_zero", "yaw_then_lift", "torques_first"]
+__all__ = ["mixer_matrix", "Mixer", "lift_to_zero", "yaw_then_lift", "torques_first", "collective_first"]
 
 
 def mixer_matrix(arm_length_m: float, drag_torque_ratio_m: float) -> np.ndarray:
@@ -29,6 +29,11 @@ class Mixer:
     def __init__(self, arm_length_m: float, drag_torque_ratio_m: float):
         self.matrix = mixer_matrix(arm_length_m, drag_torque_ratio_m)
         self.inverse = np.linalg.inv(self.matrix)
+
+    @classmethod
+    def from_vehicle(cls, vehicle) -> "Mixer":
+        """The mixer of a vehicle file's airframe (``arm_length_m``, ``drag_torque_ratio_m``)."""
+        return cls(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
 
     def to_wrench(self, rotor_forces_n) -> np.ndarray:
         """(f, g1, g2, g3) produced by rotor forces (f1..f4)."""
@@ -134,3 +139,47 @@ def torques_first(mixer_inverse, u, max_rotor_thrust_n: float) -> np.ndarray:
     if high - low <= F:
         return f - low if low < 0.0 else (f - (high - F) if high > F else f)
     return (f - low) * (F / (high - low))
+
+
+def collective_first(thrust_n: float, torque_n_m, mixer_inverse, max_rotor_thrust_n: float) -> np.ndarray:
+    """Rotor forces in [0, max] for a wrench, giving up collective thrust first (the
+    recovery's policy, :mod:`mavreg.control.recovery`: the attitude is what must be kept).
+
+    Returns rotor forces f with ``M f = (thrust', torque')``: the torque exactly when some
+    collective makes it feasible (thrust' is then the feasible value nearest ``thrust_n``);
+    otherwise the yaw torque is reduced first, then roll and pitch are scaled together.
+    """
+    a = mixer_inverse[:, 0]
+    B = mixer_inverse[:, 1:]
+    fmax = float(max_rotor_thrust_n)
+
+    def interval(t):
+        b = B @ t
+        return float(np.max(-b / a)), float(np.min((fmax - b) / a)), b
+
+    def feasible(t):
+        lo, hi, _ = interval(t)
+        return lo <= hi
+
+    tau = np.asarray(torque_n_m, dtype=float)
+    if not feasible(tau):
+        roll_pitch = tau * np.array([1.0, 1.0, 0.0])
+        if feasible(roll_pitch):
+            yaw = tau - roll_pitch
+            tau = roll_pitch + _largest_scale(feasible, roll_pitch, yaw) * yaw
+        else:
+            tau = _largest_scale(feasible, np.zeros(3), roll_pitch) * roll_pitch
+    lo, hi, b = interval(tau)
+    return np.clip(a * min(max(thrust_n, lo), hi) + b, 0.0, fmax)
+
+
+def _largest_scale(feasible, base: np.ndarray, direction: np.ndarray) -> float:
+    """Largest k in [0, 1] with ``feasible(base + k direction)`` (``base`` is feasible)."""
+    k_lo, k_hi = 0.0, 1.0
+    for _ in range(30):
+        k = 0.5 * (k_lo + k_hi)
+        if feasible(base + k * direction):
+            k_lo = k
+        else:
+            k_hi = k
+    return k_lo

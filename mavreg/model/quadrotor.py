@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config.vehicle import G, VehicleParams
+from .drag import body_drag_n
 from .rotation import euler_rates_matrix, rpy_to_matrix
 
 __all__ = ["QuadrotorModel", "NX", "NU"]
@@ -87,8 +88,7 @@ class QuadrotorModel:
         ])
         if self.has_drag:
             cxy, cz = self.rotor_drag_n_s_per_m
-            quad = self.parasitic_drag_n_s2_per_m2 * np.sqrt(v1 * v1 + v2 * v2 + v3 * v3)
-            vdot = vdot - np.array([(cxy + quad) * v1, (cxy + quad) * v2, (cz + quad) * v3]) / m
+            vdot = vdot + body_drag_n(v, cxy, cz, self.parasitic_drag_n_s2_per_m2) / m
         wdot = np.array([
             q * r * (jy - jz) / jx + g1 / jx,
             p * r * (jz - jx) / jy + g2 / jy,

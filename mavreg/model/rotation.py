@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["rpy_to_matrix", "matrix_to_rpy", "rpy_to_quat", "quat_to_matrix", "quat_to_rpy",
-           "matrices_to_quats", "wrap_angle", "euler_rates_matrix"]
+           "quats_to_matrices", "matrices_to_quats", "wrap_angle", "euler_rates_matrix"]
 
 
 def rpy_to_matrix(phi, theta, psi) -> np.ndarray:
@@ -49,14 +49,21 @@ def rpy_to_quat(phi, theta, psi) -> np.ndarray:
     ])
 
 
+def quats_to_matrices(q) -> np.ndarray:
+    """(N, 3, 3) rotation matrices of quaternions (N, 4), scalar first (normalized here)."""
+    q = np.asarray(q, dtype=float)
+    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    w, x, y, z = q.T
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=1),
+    ], axis=1)
+
+
 def quat_to_matrix(q) -> np.ndarray:
-    """Rotation matrix of a unit quaternion (w, x, y, z)."""
-    w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
+    """Rotation matrix of a quaternion (w, x, y, z) (normalized here)."""
+    return quats_to_matrices(np.asarray(q, dtype=float).reshape(1, 4))[0]
 
 
 def matrices_to_quats(R) -> np.ndarray:
@@ -99,7 +106,8 @@ def quat_to_rpy(q) -> np.ndarray:
 
 
 def wrap_angle(a):
-    """Wrap angles to (-pi, pi]."""
+    """Wrap angles to (-pi, pi]: the one wrap of mavreg (the kernels' is
+    :func:`mavreg.model.rotation_kernel.wrap`, the same formula)."""
     return np.pi - np.mod(np.pi - a, 2 * np.pi)
 
 

@@ -2,7 +2,7 @@ r"""Rotations as 9-tuples (row-major) for the compiled kernels (:func:`mavreg.ac
 nothing is allocated, and numba keeps them in registers.
 
 The same maths as :func:`mavreg.model.rotation.rpy_to_matrix` (:math:`R = R_z(\psi) R_y(\theta)
-R_x(\phi)`), :func:`~mavreg.model.rotation.wrap_angle`, :func:`mavreg.model.so3.log_so3` (the
+R_x(\phi)`), :func:`~mavreg.model.rotation.matrix_to_rpy`, :func:`~mavreg.model.rotation.wrap_angle`, :func:`mavreg.model.so3.log_so3` (the
 series below 1e-4 rad, the axis from the symmetric part near pi) and
 :func:`mavreg.control.attitude_table.rodrigues` (Exp of a rotation vector, the series below
 1e-4 rad), operation for operation where it matters for rounding.
@@ -13,7 +13,7 @@ import math
 
 from ..accel import njit
 
-__all__ = ["rpy_matrix", "mv", "mtv", "mm", "mtm", "wrap", "log_vee", "rodrigues"]
+__all__ = ["rpy_matrix", "matrix_rpy", "mv", "mtv", "mm", "mtm", "wrap", "log_vee", "rodrigues"]
 
 
 @njit
@@ -25,6 +25,13 @@ def rpy_matrix(phi, theta, psi):
     return (cp * ct, -sp * cf + cp * st * sf, sp * sf + cp * st * cf,
             sp * ct, cp * cf + sp * st * sf, -cp * sf + sp * st * cf,
             -st, ct * sf, ct * cf)
+
+
+@njit
+def matrix_rpy(R):
+    """Roll, pitch, yaw of R (:func:`mavreg.model.rotation.matrix_to_rpy`), pitch in
+    [-pi/2, pi/2]."""
+    return (math.atan2(R[7], R[8]), -math.asin(min(max(R[6], -1.0), 1.0)), math.atan2(R[3], R[0]))
 
 
 @njit

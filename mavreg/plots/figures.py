@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..config.vehicle import G
+
 from ..maneuver.nominal_table import nominal_table, nominal_time_s, rotor_forces_n
 from .panels import (ERROR_FLOOR_CM, clip_spike, ERROR_FLOOR_DEG, error_panel, mark_failure_s, mark_segments, new_figure,
                      no_data, save, title_lines)
@@ -98,7 +100,7 @@ def build_plan_figure(plan, note: str = "", violations=None):
     speed.plot(s, _thin(table["speed_m_s"]), color="tab:blue", lw=1.0)
     speed.set_ylabel("speed (m/s)")
     thrust.plot(s, _thin(table["thrust_n"]), color="tab:blue", lw=1.0, label="collective thrust")
-    weight = plan.vehicle.mass_kg * 9.80665
+    weight = plan.vehicle.mass_kg * G
     thrust.axhline(weight, color="k", ls=":", lw=0.8, label=f"weight {weight:.2f} N")
     thrust.set_ylabel("thrust (N)")
     _rotor_panel(rotors, s, _thin(table["rotor_forces_n"]), plan, "")

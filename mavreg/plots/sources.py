@@ -113,7 +113,8 @@ def _maneuver_window(ctrl) -> tuple[np.ndarray, float, float] | None:
 
 
 def _truth_in(plan, record, t0: float, t1: float) -> dict:
-    from ..sim.truth import quats_to_matrices, true_error_series
+    from ..model.rotation import quats_to_matrices
+    from ..sim.truth import true_error_series
     sel = np.flatnonzero((record["t_s"] >= t0) & (record["t_s"] <= t1))
     sel = sel[::max(1, sel.size // MAX_TRUTH_SAMPLES)]
     quats = record.get("quaternion_wxyz")

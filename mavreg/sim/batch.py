@@ -10,17 +10,15 @@ rotor noise drawn once per control call from the run's seed, and the same exit r
 nominal duration plus ``extra_time_s``). The runs differ by their :class:`BatchRun`: start
 offset, plant inertia, rotor noise, saturation, seed.
 
-Two paths, the same maths, each run's :class:`~mavreg.sim.closed_loop.SimResult` agreeing
-with the sequential one to rounding (``tests/unit/test_batch_sim.py``: 1e-9):
-
-- compiled (numba, :mod:`mavreg.sim.batch_compiled`): each run a scalar loop in time, the
-  regulator's step the project's compiled kernel
-  (:func:`mavreg.control.step_kernel.regulator_step`), RK4 on plain floats;
-- numpy (:mod:`mavreg.sim.batch_numpy`, without numba or with ``MAVREG_PURE=1``): one loop
-  over time advances all N runs with array operations: the Newton projection of every run
-  at once (runs that have converged wait for the others), the tables interpolated by one
-  gather of rows, the allocation with per-run masks, the plant's derivative on (12, N)
-  arrays; a run that ends is frozen and recorded up to its end.
+Compiled (numba, :mod:`mavreg.sim.batch_compiled`), each run is a scalar loop in time, the
+regulator's step the project's compiled kernel
+(:func:`mavreg.control.step_kernel.regulator_step`), RK4 on plain floats, and each run's
+:class:`~mavreg.sim.closed_loop.SimResult` agrees with the sequential one to rounding
+(``tests/unit/test_batch_sim.py``: 1e-9). Without numba (or with ``MAVREG_PURE=1``, or
+``compiled=False``) the runs are flown one after another by the sequential simulator
+(:func:`~mavreg.sim.maneuver_run.fly_on_design_model`), the reference itself (the numpy
+copy of the whole loop across runs that stood here once is retired: it was a third copy of
+the regulator's step and the plant).
 
 Scope: the paper's design (gains (4, 11)), ideal rotors (no lag), no delays, no external
 force: what the paper's Section 4 flies on the design model (``mavreg experiment --via sim``).
@@ -32,18 +30,18 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from ..accel import ACCELERATED
-from ..accel import reason as accel_reason
+from ..accel import use_compiled
 from ..config.vehicle import G
-from ..control.fastpath import FastStep, plan_table
+from ..control.fastpath import FastStep
+from ..control.step_kernel import ST_GOV, ST_S
 from ..geometry.projection import Projector
-from ..geometry.projection_kernel import path_tables
 from ..maneuver.plan import Plan
 from ..model.mixer import Mixer
 from ..model.quadrotor import NX
-from . import batch_numpy
-from .batch_numpy import BAD_COMMAND, COMPLETED, DIVERGED, RUNNING
+from . import batch_compiled
+from .batch_compiled import BAD_COMMAND, COMPLETED, DIVERGED, RUNNING
 from .closed_loop import SimOptions, SimResult, SimStatus, _divergence
+from .maneuver_run import fly_on_design_model
 
 __all__ = ["BatchRun", "fly_batch"]
 
@@ -79,9 +77,8 @@ def fly_batch(plan: Plan, runs: Sequence[BatchRun], *, control_rate_hz: float = 
         whole number of physics steps ``dt_s``; each run stops at the nominal duration plus
         ``extra_time_s``.
     compiled : bool, optional
-        The compiled path (:mod:`~mavreg.sim.batch_compiled`) or the numpy one
-        (:mod:`~mavreg.sim.batch_numpy`); default: compiled when numba is in use
-        (:data:`mavreg.accel.ACCELERATED`).
+        The compiled path (:mod:`~mavreg.sim.batch_compiled`) or the sequential simulator
+        run by run; default: compiled when numba is in use (:data:`mavreg.accel.ACCELERATED`).
 
     Raises
     ------
@@ -95,15 +92,24 @@ def fly_batch(plan: Plan, runs: Sequence[BatchRun], *, control_rate_hz: float = 
                          f"{plan.K.shape[1:]} (a lag-aware design)")
     if not runs:
         raise ValueError("a batch needs at least one run")
-    use_compiled = ACCELERATED if compiled is None else bool(compiled)
-    if use_compiled and not ACCELERATED:
-        raise ValueError(f"the compiled batch needs numba ({accel_reason})")
+    compiled_path = use_compiled(compiled, "batch")
     steps = int(round(1.0 / (control_rate_hz * dt_s)))
     if steps < 1 or abs(steps * dt_s * control_rate_hz - 1.0) > 1e-9:
         raise ValueError(f"control rate {control_rate_hz} Hz is not a whole number of "
                          f"{dt_s * 1e3:g} ms physics steps")
+    if not compiled_path:
+        return [fly_on_design_model(plan, offset_m=run.offset_m, inertia_kg_m2=run.inertia_kg_m2,
+                                    rotor_noise_sd_n=run.rotor_noise_sd_n, saturation_n=run.saturation_n,
+                                    seed=run.seed, control_rate_hz=control_rate_hz, dt_s=dt_s,
+                                    extra_time_s=extra_time_s, true_metrics=False).result for run in runs]
+    return _fly_compiled(plan, runs, steps, dt_s, extra_time_s)
+
+
+def _fly_compiled(plan: Plan, runs: Sequence[BatchRun], steps: int, dt_s: float,
+                  extra_time_s: float) -> list[SimResult]:
+    """:func:`fly_batch` on the compiled path (``steps`` physics steps per control call)."""
     vehicle = plan.vehicle
-    mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
+    mixer = Mixer.from_vehicle(vehicle)
     projector = Projector(plan.path)
     x0s, options = [], []
     for run in runs:
@@ -137,24 +143,13 @@ def fly_batch(plan: Plan, runs: Sequence[BatchRun], *, control_rate_hz: float = 
     lead_s, fmax = steps * dt_s / 2, float(vehicle.max_rotor_thrust_n)
     limits = (opt.max_speed_m_s, opt.max_rate_rad_s, opt.max_position_m, opt.min_cos_pitch)
     M = np.ascontiguousarray(mixer.matrix)
-    if use_compiled:
-        from . import batch_compiled
-        fs = FastStep(plan, mixer.matrix, mixer.inverse, fmax, False, lead_s, 0.0, (cxy, cz), np.pi,
-                      projector.window_m, projector.tube_margin)
-        ST = np.zeros((n, 6))
-        ST[:, 0] = S
-        batch_compiled.run(X, ST, status, k_end, xs, cmd, app, (fs.table, fs.s_tab, fs.s_nodes, fs.coef, fs.ends,
-                                                                 fs.prm), M, (mass, G, cxy, cz, cpar), J, upper,
-                           noise, 1.0, float(dt_s), steps, limits)
-    else:
-        s_nodes, coef, ends = path_tables(plan.path)
-        s_tab, T = plan_table(plan)
-        with np.errstate(all="ignore"):     # the allocation's ratios where a rotor has no yaw share
-            batch_numpy.run(np.ascontiguousarray(X.T), S, status, k_end, xs, cmd, app,
-                            (s_nodes, coef, float(plan.length_m), ends, projector.window_m),
-                            (s_tab, T, np.diff(T, axis=0), lead_s), np.ascontiguousarray(mixer.inverse), M, fmax,
-                            (mass, G, cxy, cz, cpar), np.ascontiguousarray(J.T), upper, noise, 1.0,
-                            float(dt_s), steps, limits)
+    fs = FastStep(plan, mixer.matrix, mixer.inverse, fmax, False, lead_s, 0.0, (cxy, cz), np.pi,
+                  projector.window_m, projector.tube_margin)
+    ST = np.zeros((n, ST_GOV))          # no governor: the state ends where its slots begin
+    ST[:, ST_S] = S
+    batch_compiled.run(X, ST, status, k_end, xs, cmd, app, (fs.table, fs.s_tab, fs.s_nodes, fs.coef, fs.ends,
+                                                             fs.prm), M, (mass, G, cxy, cz, cpar), J, upper,
+                       noise, 1.0, float(dt_s), steps, limits)
     ts = np.arange(n_steps + 1) * dt_s
     return [_result(ts, xs[r], cmd[r], app[r], int(status[r]), int(k_end[r]), steps, o)
             for r, o in enumerate(options)]

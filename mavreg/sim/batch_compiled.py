@@ -1,18 +1,18 @@
 r"""The batch closed loop compiled: each run a scalar loop in time, the runs one after another.
 
-What :mod:`mavreg.sim.batch_numpy` does with array operations across runs, numba compiles
-here as plain loops (:func:`mavreg.accel.njit`), which is several times faster than numba's
-array expressions and compiles in seconds instead of tens of seconds. Per run and control
+What the sequential simulator does (:func:`mavreg.sim.maneuver_run.fly_on_design_model`),
+numba compiles here as plain loops (:func:`mavreg.accel.njit`), which is several times faster
+than numba's array expressions and compiles in seconds instead of tens of seconds. Per run and control
 call, the regulator's step is the project's compiled one,
 :func:`mavreg.control.step_kernel.regulator_step` (the same kernel the regulator's compiled
 path runs), and between calls the plant of eqs 6-17
-(:func:`mavreg.sim.batch_plant.plant_rhs`, the run's inertia)
+(:func:`mavreg.model.quadrotor_kernel.plant_rhs`, the run's inertia)
 is stepped by classical RK4, exactly as :func:`mavreg.sim.closed_loop.simulate` steps it:
 the command held, clipped to :math:`[0, f_{sat}]`, the control call's noise added and
 clipped again, :math:`u = M f` times the thrust scale.
 
 Only useful compiled: run as plain Python (``MAVREG_PURE=1``) it would be the sequential
-simulator again, so :func:`mavreg.sim.batch.fly_batch` takes the numpy path then.
+simulator again, so :func:`mavreg.sim.batch.fly_batch` runs the sequential simulator then.
 """
 from __future__ import annotations
 
@@ -20,15 +20,18 @@ import numpy as np
 
 from ..accel import njit
 from ..control import step_kernel as sk
-from .batch_numpy import BAD_COMMAND, COMPLETED, DIVERGED, RUNNING, TIMEOUT
-from .batch_plant import plant_rhs_compiled as plant_rhs
+from ..model.quadrotor_kernel import plant_rhs
 
-__all__ = ["run"]
+__all__ = ["run", "RUNNING", "COMPLETED", "DIVERGED", "BAD_COMMAND", "TIMEOUT"]
+
+RUNNING, COMPLETED, DIVERGED, BAD_COMMAND, TIMEOUT = 0, 1, 2, 3, 4
+"""A run still flying; done (s reached the end); diverged (state); the controller returned
+non-finite rotor forces; the maximum duration was reached."""
 
 
 @njit
 def _diverged(x, limits):
-    """Whether x is non-finite or beyond ``limits`` (see :func:`batch_numpy.diverged`)."""
+    """Whether x is non-finite or beyond ``limits`` (:func:`mavreg.sim.closed_loop._divergence`'s bounds)."""
     max_speed, max_rate, max_pos, min_cos = limits
     for j in range(12):
         if not np.isfinite(x[j]):
@@ -119,7 +122,7 @@ def run(X, ST, status, k_end, xs, cmd, app, step, M, plant, J, upper, noise, thr
     :class:`mavreg.control.fastpath.FastStep`; ``xs`` (N, K+1, 12), ``cmd`` and ``app``
     (N, K+1, 4) receive the records, ``status`` and ``k_end`` how and where each run ended.
     ``plant`` = (mass, g, c_xy, c_z, c_parasitic), J (N, 3), ``upper`` (N,) the saturation,
-    ``noise`` (C, 4, N) as in :func:`batch_numpy.run`."""
+    ``noise`` (C, 4, N): the rotor noise of each control call (:func:`mavreg.sim.batch._noise`)."""
     for r in range(X.shape[0]):
         if status[r] == RUNNING:
             _fly(r, X[r].copy(), ST[r].copy(), status, k_end, xs, cmd, app, step, M, plant, J, upper, noise,

@@ -40,6 +40,7 @@ import numpy as np
 from ..model.mixer import Mixer
 from ..model.quadrotor import NX, QuadrotorModel
 from ..model.rotation import matrix_to_rpy, rpy_to_matrix
+from ..model.rotor_lag import lag_decay, lag_toward, mean_fraction
 from ..model.so3 import hat
 
 __all__ = ["SimOptions", "SimResult", "SimStatus", "simulate", "window_force"]
@@ -236,6 +237,65 @@ class _So3Step:
         return out
 
 
+class _RpyStep:
+    """One classical RK4 step of the design model with roll-pitch-yaw integrated, an external
+    force over mass ``F`` (m/s^2, NED) held over the step."""
+
+    def __init__(self, plant: QuadrotorModel):
+        self.f = plant.f
+
+    def _deriv(self, x: np.ndarray, u: np.ndarray, F: Optional[np.ndarray]) -> np.ndarray:
+        dx = self.f(x, u)
+        if F is not None:
+            dx[6:9] += rpy_to_matrix(x[3], x[4], x[5]).T @ F
+        return dx
+
+    def __call__(self, x: np.ndarray, u: np.ndarray, F, dt: float) -> np.ndarray:
+        k1 = self._deriv(x, u, F)
+        k2 = self._deriv(x + 0.5 * dt * k1, u, F)
+        k3 = self._deriv(x + 0.5 * dt * k2, u, F)
+        k4 = self._deriv(x + dt * k3, u, F)
+        return x + (dt / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
+
+
+class _RotorLine:
+    """A command's way to the rotors: the transport delay, the clip to [0, saturation], the
+    rotor lag (:mod:`mavreg.model.rotor_lag`, its mean over each physics step applied) and
+    the noise (drawn per control call or per physics step)."""
+
+    def __init__(self, opt: SimOptions, rng: np.random.Generator):
+        dt = opt.dt_s
+        self.cmd_lag = int(round(opt.command_delay_s / dt))
+        self.pending: list = []          # (physics step it acts from, command)
+        self.decay = lag_decay(dt, opt.rotor_time_constant_s)
+        self.mean_frac = mean_fraction(dt, opt.rotor_time_constant_s, self.decay)
+        self.lagged = self.acting = None  # (before the first command: as if it had always acted)
+        self.noise = np.zeros(4)
+        self.upper = np.inf if opt.saturation_n is None else float(opt.saturation_n)
+        self.sd = float(opt.rotor_noise_sd_n)
+        self.per_physics = opt.noise_redraw == "physics"
+        self.rng = rng
+
+    def command(self, i: int, command: np.ndarray) -> None:
+        """A control call's command at physics step i."""
+        self.pending.append((i + self.cmd_lag, command))
+        if self.acting is None:
+            self.acting = np.clip(command, 0.0, self.upper)
+            self.lagged = self.acting.copy()
+        if self.sd > 0.0 and not self.per_physics:
+            self.noise = self.rng.normal(0.0, self.sd, 4)
+
+    def applied(self, i: int) -> np.ndarray:
+        """The rotor forces applied over physics step i."""
+        while self.pending and self.pending[0][0] <= i:
+            self.acting = np.clip(self.pending.pop(0)[1], 0.0, self.upper)
+        mean = lag_toward(self.lagged, self.acting, self.mean_frac)
+        self.lagged = lag_toward(self.lagged, self.acting, self.decay)
+        if self.sd > 0.0 and self.per_physics:
+            self.noise = self.rng.normal(0.0, self.sd, 4)
+        return np.clip(mean + self.noise, 0.0, self.upper)
+
+
 def simulate(model: QuadrotorModel, mixer: Mixer, controller: Controller,
              options: SimOptions = SimOptions(), *,
              rng: Optional[np.random.Generator] = None) -> SimResult:
@@ -267,41 +327,16 @@ def simulate(model: QuadrotorModel, mixer: Mixer, controller: Controller,
     dt = opt.dt_s
     n_steps = int(np.ceil(opt.max_duration_s / dt - 1e-9))
     ts = np.arange(n_steps + 1) * dt
-    xs = np.empty((n_steps + 1, NX))
-    cmd = np.empty((n_steps + 1, 4))
-    app = np.empty((n_steps + 1, 4))
-    upper = np.inf if opt.saturation_n is None else float(opt.saturation_n)
-    sd = float(opt.rotor_noise_sd_n)
-    inv_mass = 1.0 / plant.mass_kg
-    f = plant.f
-    force_fn = opt.force_fn
-    per_physics = opt.noise_redraw == "physics"
+    xs, cmd, app = np.empty((n_steps + 1, NX)), np.empty((n_steps + 1, 4)), np.empty((n_steps + 1, 4))
+    inv_mass, force_fn = 1.0 / plant.mass_kg, opt.force_fn
     period = int(opt.control_period_steps)
-
-    def deriv(x: np.ndarray, u: np.ndarray, F: Optional[np.ndarray]) -> np.ndarray:
-        # F: external force over mass (m/s^2, NED), held over the step
-        dx = f(x, u)
-        if F is not None:
-            dx[6:9] += rpy_to_matrix(x[3], x[4], x[5]).T @ F
-        return dx
-
-    so3 = opt.attitude == "so3"
-    if so3:
-        step = _So3Step(plant)
-
+    step = _So3Step(plant) if opt.attitude == "so3" else _RpyStep(plant)
+    rotors = _RotorLine(opt, rng)
     x = np.array(opt.initial_state, dtype=float)
     xs[0] = x
     meas_lag = int(round(opt.measurement_delay_s / dt))
-    cmd_lag = int(round(opt.command_delay_s / dt))
-    pending: list = []                  # (physics step it acts from, command)
-    decay = 0.0 if opt.rotor_time_constant_s <= 0 else float(np.exp(-dt / opt.rotor_time_constant_s))
-    mean_frac = 0.0 if decay == 0.0 else opt.rotor_time_constant_s / dt * (1.0 - decay)
-    lagged = acting = None              # (before the first command: as if it had always acted)
-    command = np.zeros(4)
-    noise = np.zeros(4)
-    applied = np.zeros(4)
-    calls = 0
-    last_filled = False            # row k's forces already written (controller failure)
+    command, applied = np.zeros(4), np.zeros(4)
+    calls, last_filled = 0, False          # last_filled: row k's forces already written (controller failure)
     status, reason, k = SimStatus.TIMEOUT, f"max duration {opt.max_duration_s:g} s reached", n_steps
     why = _divergence(x, opt)
     if why is not None:
@@ -320,31 +355,12 @@ def simulate(model: QuadrotorModel, mixer: Mixer, controller: Controller,
                     status, reason, k = (SimStatus.DIVERGED, "controller returned non-finite "
                                          f"rotor forces at t = {t:.6g} s", i)
                     break
-                pending.append((i + cmd_lag, command))
-                if acting is None:
-                    acting = np.clip(command, 0.0, upper)
-                    lagged = acting.copy()
-                if sd > 0.0 and not per_physics:
-                    noise = rng.normal(0.0, sd, 4)
-            while pending and pending[0][0] <= i:
-                acting = np.clip(pending.pop(0)[1], 0.0, upper)
-            mean = acting + (lagged - acting) * mean_frac
-            lagged = acting + (lagged - acting) * decay
-            if sd > 0.0 and per_physics:
-                noise = rng.normal(0.0, sd, 4)
-            applied = np.clip(mean + noise, 0.0, upper)
-            cmd[i] = command
-            app[i] = applied
+                rotors.command(i, command)
+            applied = rotors.applied(i)
+            cmd[i], app[i] = command, applied
             u = M @ (applied * opt.thrust_scale)
             F = None if force_fn is None else np.asarray(force_fn(t, x), dtype=float) * inv_mass
-            if so3:
-                x = step(x, u, F, dt)
-            else:
-                k1 = deriv(x, u, F)
-                k2 = deriv(x + 0.5 * dt * k1, u, F)
-                k3 = deriv(x + 0.5 * dt * k2, u, F)
-                k4 = deriv(x + dt * k3, u, F)
-                x = x + (dt / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
+            x = step(x, u, F, dt)
             xs[i + 1] = x
             why = _divergence(x, opt)
             if why is not None:

@@ -112,7 +112,7 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
                       done=lambda t, x: reg.s >= plan.length_m - 1e-6,
                       attitude="so3" if plan.attitude_error == "so3" else "rpy")
     result = simulate(QuadrotorModel.from_vehicle(vehicle),
-                      Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m), controller, opts)
+                      Mixer.from_vehicle(vehicle), controller, opts)
     return _run(plan, result, (log_s, log_w, log_tube), (steps, dt_s, control_rate_hz),
                 saturation_n or vehicle.max_rotor_thrust_n, true_metrics)
 

@@ -23,21 +23,19 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from ..model.rotation import wrap_angle
+
 __all__ = ["tracking_metrics", "error_series", "SATURATION_RTOL", "rotor_jitter_n", "JITTER_CUTOFF_HZ"]
 
 SATURATION_RTOL = 1e-9
 """A rotor counts as saturated when its force is at least ``(1 - 1e-9) * max thrust``."""
 
 
-def _wrap(a: np.ndarray) -> np.ndarray:
-    return np.arctan2(np.sin(a), np.cos(a))
-
-
 def error_series(w) -> tuple[np.ndarray, np.ndarray]:
     """Transverse error (m) and attitude error (deg) of each sample of ``w`` (N, >=5), as
     defined above (what :func:`tracking_metrics` sums up; the figures draw it)."""
     w = np.asarray(w, dtype=float)
-    return np.hypot(w[:, 0], w[:, 1]), np.degrees(np.linalg.norm(_wrap(w[:, 2:5]), axis=1))
+    return np.hypot(w[:, 0], w[:, 1]), np.degrees(np.linalg.norm(wrap_angle(w[:, 2:5]), axis=1))
 
 
 def _stats(values: np.ndarray) -> Optional[dict]:
@@ -58,6 +56,27 @@ def _block(mask: np.ndarray, trans: np.ndarray, att: np.ndarray, forces: Optiona
         out["saturated_samples"] = n_sat
         out["saturated_s"] = float(n_sat * dt_s)
     return out
+
+
+def _segment_masks(s: np.ndarray, segments) -> tuple[dict, dict]:
+    """Per segment name, which samples lie in it and its ``[s_start, s_end]`` (laps merged;
+    see :func:`tracking_metrics`)."""
+    segs = [(str(name), float(a), float(b)) for name, a, b in segments]
+    for name, a, b in segs:
+        if not b > a:
+            raise ValueError(f"segment {name!r}: s_end {b} must exceed s_start {a}")
+    s_last = max((b for _, _, b in segs), default=np.inf)
+    masks: dict[str, np.ndarray] = {}
+    bounds: dict[str, list[float]] = {}
+    for name, a, b in segs:
+        inside = (s >= a) & ((s < b) | ((b == s_last) & (s == b)))
+        if name in masks:
+            masks[name] |= inside
+            bounds[name] = [min(bounds[name][0], a), max(bounds[name][1], b)]
+        else:
+            masks[name] = inside
+            bounds[name] = [a, b]
+    return masks, bounds
 
 
 def tracking_metrics(s, w, segments: Sequence[tuple[str, float, float]],
@@ -126,21 +145,7 @@ def tracking_metrics(s, w, segments: Sequence[tuple[str, float, float]],
     out = {"samples": n}
     out.update(_block(np.ones(n, dtype=bool), trans, att, forces, saturated, dt_s))
 
-    segs = [(str(name), float(a), float(b)) for name, a, b in segments]
-    for name, a, b in segs:
-        if not b > a:
-            raise ValueError(f"segment {name!r}: s_end {b} must exceed s_start {a}")
-    s_last = max((b for _, _, b in segs), default=np.inf)
-    masks: dict[str, np.ndarray] = {}
-    bounds: dict[str, list[float]] = {}
-    for name, a, b in segs:
-        inside = (s >= a) & ((s < b) | ((b == s_last) & (s == b)))
-        if name in masks:
-            masks[name] |= inside
-            bounds[name] = [min(bounds[name][0], a), max(bounds[name][1], b)]
-        else:
-            masks[name] = inside
-            bounds[name] = [a, b]
+    masks, bounds = _segment_masks(s, segments)
     out["segments"] = {}
     for name, mask in masks.items():
         block = _block(mask, trans, att, forces, saturated, dt_s)

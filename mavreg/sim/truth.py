@@ -13,20 +13,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry.projection import Projector
+from ..model.rotation import quats_to_matrices
 
 __all__ = ["true_errors", "true_error_series", "quats_to_matrices"]
-
-
-def quats_to_matrices(q) -> np.ndarray:
-    """(N, 3, 3) rotation matrices of unit quaternions (N, 4), scalar first."""
-    q = np.asarray(q, dtype=float)
-    q = q / np.linalg.norm(q, axis=1, keepdims=True)
-    w, x, y, z = q.T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=1),
-    ], axis=1)
 
 
 def _stats(e: np.ndarray, key: str) -> dict:

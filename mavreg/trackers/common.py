@@ -36,7 +36,7 @@ class Allocator:
     """The regulator's allocation for a vehicle: ``rotors(u)`` for a wrench u (4,)."""
 
     def __init__(self, vehicle: VehicleParams):
-        self.mixer_inverse = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m).inverse
+        self.mixer_inverse = Mixer.from_vehicle(vehicle).inverse
         self.max_rotor_thrust_n = float(vehicle.max_rotor_thrust_n)
 
     def rotors(self, u) -> np.ndarray:

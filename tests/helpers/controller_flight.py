@@ -93,7 +93,7 @@ def fly(setup: Setup, phase: str, duration_s: float) -> list:
                       measurement_delay_s=MEASUREMENT_DELAY_S, command_delay_s=COMMAND_DELAY_S,
                       force_fn=lambda t, x: np.asarray(SIDE_FORCE_N), attitude="so3",
                       done=None if phase == "hover" else (lambda t, x: reg.s >= setup.plan.length_m - 1e-6))
-    res = simulate(QuadrotorModel.from_vehicle(v), Mixer(v.arm_length_m, v.drag_torque_ratio_m), controller, opts)
+    res = simulate(QuadrotorModel.from_vehicle(v), Mixer.from_vehicle(v), controller, opts)
     if res.status.value == "diverged":
         raise RuntimeError(f"the {phase} flight diverged: {res.reason}")
     return samples

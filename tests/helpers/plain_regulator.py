@@ -62,7 +62,7 @@ class PlainRegulator:
         self._path = path
         self._x, self._u, self._K = _table(plan.s, plan.x), _table(plan.s, plan.u), _table(plan.s, plan.K)
         self._v = _table(plan.s, plan.speed_m_s)
-        self._Minv = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m).inverse
+        self._Minv = Mixer.from_vehicle(vehicle).inverse
         self._fmax = float(vehicle.max_rotor_thrust_n)
         tau = vehicle.rotor_time_constant_s if rotor_time_constant_s is None else rotor_time_constant_s
         self._lead_s = control_period_s / 2 + tau

@@ -112,7 +112,7 @@ class SimVehicle:
         self.controls = np.zeros(4)
         self.stream_since = None
         self.last_target_ms = None
-        self.mixer = Mixer(VEHICLE.arm_length_m, VEHICLE.drag_torque_ratio_m)
+        self.mixer = Mixer.from_vehicle(VEHICLE)
         self.params = dict(self.PARAMS if params is None else params)
 
     def heartbeat(self):

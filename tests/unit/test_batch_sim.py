@@ -26,8 +26,8 @@ from mavreg.sim.batch import BatchRun, fly_batch
 from mavreg.sim.closed_loop import SimOptions, simulate
 from mavreg.sim.maneuver_run import fly_on_design_model
 
-PATHS = [pytest.param(True, id="compiled", marks=pytest.mark.skipif(not ACCELERATED, reason="numba not in use")),
-         pytest.param(False, id="numpy")]
+PATHS = [pytest.param(True, id="compiled", marks=pytest.mark.skipif(not ACCELERATED, reason="numba not in use"))]
+"""The compiled batch against the sequential simulator (its pure path is that simulator)."""
 VEHICLE = load_vehicle(DEFAULT_VEHICLE)
 PAPER = load_controller(PAPER_CONTROLLER)
 BARREL = maneuver_file("barrel_roll")
@@ -99,7 +99,7 @@ def test_runs_that_end_at_different_times_noise_saturation_and_a_failed_start_ag
     for run, bat in zip(runs[:4], batch):
         assert_agree(sequential(plan, run, 1.0), bat)
     x0 = plan.entry_state + np.r_[2e4, np.zeros(11)]
-    ref = simulate(QuadrotorModel.from_vehicle(VEHICLE), Mixer(VEHICLE.arm_length_m, VEHICLE.drag_torque_ratio_m),
+    ref = simulate(QuadrotorModel.from_vehicle(VEHICLE), Mixer.from_vehicle(VEHICLE),
                    lambda t, x: np.zeros(4), SimOptions(initial_state=x0))
     assert ref.status.value == "diverged" and ref.reason.startswith("initial state: position")
     assert_agree(ref, batch[4])
@@ -115,7 +115,7 @@ def test_a_controller_that_returns_nan_ends_the_run_as_simulate_ends_it(compiled
     broken = dataclasses.replace(plan, K=K)
     runs = [BatchRun((0.1, 0.0, 0.0)), BatchRun((0.0, 0.2, 0.0), (0.02, 0.02, 0.03))]
     batch = fly_batch(broken, runs, extra_time_s=1.0, compiled=compiled)
-    model, mixer = QuadrotorModel.from_vehicle(VEHICLE), Mixer(VEHICLE.arm_length_m, VEHICLE.drag_torque_ratio_m)
+    model, mixer = QuadrotorModel.from_vehicle(VEHICLE), Mixer.from_vehicle(VEHICLE)
     for run, bat in zip(runs, batch):
         reg = ManeuverRegulator(broken, VEHICLE, control_period_s=1e-3, rotor_time_constant_s=0.0)
         x0 = broken.entry_state + np.r_[run.offset_m, np.zeros(9)]
@@ -148,8 +148,17 @@ def test_lag_aware_gains_and_odd_control_rates_are_refused(barrel):
     with pytest.raises(ValueError, match="paper's design"):
         fly_batch(plan_file(BARREL, VEHICLE, lagged), [BatchRun()])
     if not ACCELERATED:
-        with pytest.raises(ValueError, match="needs numba"):
+        with pytest.raises(ValueError, match="no compiled batch"):
             fly_batch(barrel, [BatchRun()], compiled=True)
+
+
+def test_the_pure_path_is_the_sequential_simulator(barrel):
+    """compiled=False (and no numba, or MAVREG_PURE=1) flies each run by the sequential
+    simulator: the same records exactly."""
+    run = BatchRun((0.1, -0.1, 0.05), (0.02, 0.015, 0.03), 0.1, 9.0, 5)
+    extra = 0.3 - barrel.duration_s
+    bat = fly_batch(barrel, [run], extra_time_s=extra, compiled=False)[0]
+    assert_agree(sequential(barrel, run, extra), bat, tol=0.0)
 
 
 @pytest.mark.slow

@@ -12,17 +12,17 @@ import math
 import numpy as np
 import pytest
 
+from mavreg.accel import ACCELERATED
 from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER, controller_file, maneuver_file
 from mavreg.config.controller import load_controller
 from mavreg.config.maneuver import load_maneuver_text
 from mavreg.config.vehicle import load_vehicle
-from mavreg.control import fastpath
 from mavreg.control.compensation_kernel import compensate, extra_force
 from mavreg.control.disturbance import DisturbanceEstimate
 from mavreg.control.disturbance import compensate as reference_compensate
 from mavreg.control.regulator import ManeuverRegulator
-from mavreg.control.step_kernel import torques_first as torques_first_kernel
-from mavreg.control.step_kernel import yaw_then_lift as yaw_then_lift_kernel
+from mavreg.model.mixer_kernel import torques_first as torques_first_kernel
+from mavreg.model.mixer_kernel import yaw_then_lift as yaw_then_lift_kernel
 from mavreg.geometry.build import build_path
 from mavreg.geometry.projection import Projector
 from mavreg.geometry.projection_kernel import POINT_WIDTH, path_tables, project
@@ -36,7 +36,7 @@ from mavreg.sim.batch import BatchRun, fly_batch
 VEHICLE = load_vehicle(DEFAULT_VEHICLE)
 BARREL = maneuver_file("barrel_roll")
 ESTIMATE = DisturbanceEstimate((0.35, 0.12), (0.6, -0.4, 0.3), 0.97)
-compiled_only = pytest.mark.skipif(not fastpath.available(), reason="numba missing or MAVREG_PURE set")
+compiled_only = pytest.mark.skipif(not ACCELERATED, reason="numba missing or MAVREG_PURE set")
 
 CIRCLE = """\
 kind: maneuver
@@ -91,7 +91,7 @@ def test_projection_kernel_gives_the_projectors_answers(which):
 
 
 def test_allocation_kernels_are_the_mixers_allocations():
-    Minv = Mixer(VEHICLE.arm_length_m, VEHICLE.drag_torque_ratio_m).inverse
+    Minv = Mixer.from_vehicle(VEHICLE).inverse
     rng = np.random.default_rng(2)
     # from inside the limits to beyond both ends, with torques up to the spread of the limit
     u = np.column_stack([rng.uniform(-5.0, 60.0, 4000), rng.uniform(-4.0, 4.0, 4000),
@@ -203,7 +203,7 @@ def test_compiled_step_gives_the_reference_steps_outputs(flight, name, form, gov
     plans, states, forces = flight
     plan, controller = plans[name, form]
     ref, fast = (_regulator(plan, controller, flag, governed, limit_n) for flag in (False, True))
-    assert fast._fast is not None and ref._fast is None
+    assert fast._compiled is not None and ref._compiled is None
     assert (ref.governor is not None) == (governed or controller.speed_governor.enabled)
     worst, retimed = 0.0, 0
     for xs, fs in zip(states, forces):

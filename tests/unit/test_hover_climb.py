@@ -44,7 +44,7 @@ def _climb_rate_rms(error_fn, seed=0):
     hc = HoverController(VEHICLE, HoverParams(), compiled=False)
     hc.error = error_fn
     model = QuadrotorModel.from_vehicle(VEHICLE)
-    mixer = Mixer(VEHICLE.arm_length_m, VEHICLE.drag_torque_ratio_m)
+    mixer = Mixer.from_vehicle(VEHICLE)
     ramp = plan_ramp(np.zeros(3), np.zeros(3), 0.0, np.array([0.0, 0.0, -25.0]), np.zeros(3), 0.0,
                      HoverParams())
     rng = np.random.default_rng(seed)
@@ -87,7 +87,7 @@ def test_a_tilt_from_the_reference_is_paid_for_in_collective(compiled):
     vehicle sank back onto the ground tilted). A tilt past 60 deg is paid for at most twice."""
     from mavreg.control.hover import hold_ramp
     hc = HoverController(VEHICLE, HoverParams(), compiled=False)
-    hc._fast = compiled
+    hc._compiled = compiled
     ramp = hold_ramp(np.array([0.0, 0.0, -3.0]), 0.0)
     x = np.zeros(12)
     x[2] = -3.0

@@ -26,7 +26,7 @@ VEHICLE = params.vehicle()
 def _pair():
     ref = HoverController(VEHICLE, HoverParams(), compiled=False)
     fast = HoverController(VEHICLE, HoverParams(), compiled=False)
-    fast._fast = True             # compiled where numba is, else the kernels as plain Python
+    fast._compiled = True             # compiled where numba is, else the kernels as plain Python
     return ref, fast
 
 
@@ -86,7 +86,7 @@ def test_a_closed_loop_hover_agrees_state_by_state():
 
 
 def test_compiled_is_the_default_where_numba_is():
-    assert HoverController(VEHICLE)._fast == ACCELERATED
+    assert HoverController(VEHICLE)._compiled == ACCELERATED
     if not ACCELERATED:
         with pytest.raises(ValueError):
             HoverController(VEHICLE, compiled=True)

@@ -10,7 +10,7 @@ import pytest
 from mavreg.config.paths import DEFAULT_VEHICLE, REAL_CONTROLLER, maneuver_file
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
-from mavreg.control.actuator import lag_augment
+from mavreg.model.rotor_lag import lag_augment
 from mavreg.control.hover import HoverController, HoverParams, hold_ramp
 from mavreg.control.margins import (delay_margins, gain_margins, lag_model_loop, loop_margins, node_margins,
                                     rotor_loop, schedule_margins, spectral_abscissa)
@@ -123,7 +123,7 @@ def _hover_flight(vehicle, delay_s=0.0, gain=1.0, duration_s=8.0):
     lag; ``gain`` scales the feedback part of the rotor commands, ``delay_s`` delays them.
     Returns (status, peak |position error| over the first and over the last second)."""
     ctl = HoverController(vehicle, HoverParams())
-    mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
+    mixer = Mixer.from_vehicle(vehicle)
     ramp = hold_ramp(np.zeros(3), 0.0)
     _, u_ref = ctl.reference(ramp, 0.0)
 

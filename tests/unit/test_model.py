@@ -102,7 +102,7 @@ def test_rotation_convention_body_to_ned():
 
 @given(st.lists(st.floats(-20.0, 20.0, allow_nan=False), min_size=4, max_size=4))
 def test_mixer_round_trip(rotors):
-    mix = Mixer(VEHICLE.arm_length_m, VEHICLE.drag_torque_ratio_m)
+    mix = Mixer.from_vehicle(VEHICLE)
     rotors = np.array(rotors)
     np.testing.assert_allclose(mix.to_rotors(mix.to_wrench(rotors)), rotors, atol=1e-9)
     u = mix.to_wrench(rotors)
@@ -110,7 +110,7 @@ def test_mixer_round_trip(rotors):
 
 
 def test_hover_rotor_forces_are_a_quarter_of_mg_each():
-    mix = Mixer(VEHICLE.arm_length_m, VEHICLE.drag_torque_ratio_m)
+    mix = Mixer.from_vehicle(VEHICLE)
     np.testing.assert_allclose(mix.to_rotors(MODEL.hover_input()),
                                np.full(4, VEHICLE.mass_kg * G / 4), rtol=1e-12)
 

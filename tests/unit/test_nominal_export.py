@@ -32,7 +32,7 @@ def _against_plan(plan, table) -> None:
     assert np.allclose(table["body_rates_rad_s"], plan.x[:, 9:12], **tol)
     assert np.allclose(table["thrust_n"], plan.u[:, 0], **tol)
     assert np.allclose(table["torque_body_nm"], plan.u[:, 1:4], **tol)
-    mixer = Mixer(plan.vehicle.arm_length_m, plan.vehicle.drag_torque_ratio_m)
+    mixer = Mixer.from_vehicle(plan.vehicle)
     assert np.allclose(np.asarray(table["rotor_forces_n"]) @ mixer.matrix.T, plan.u, **tol)
     assert np.allclose(table["speed_m_s"], plan.speed_m_s, **tol)
     assert np.allclose(np.linalg.norm(table["velocity_ned_m_s"], axis=1), plan.speed_m_s, rtol=1e-8, atol=1e-9)

@@ -36,7 +36,7 @@ def _open_loop(delay_s: float, tau_s: float, duration_s: float = 0.6):
                       max_duration_s=duration_s, rotor_time_constant_s=tau_s,
                       command_delay_s=delay_s)
     run = simulate(QuadrotorModel.from_vehicle(VEHICLE),
-                   Mixer(VEHICLE.arm_length_m, VEHICLE.drag_torque_ratio_m), controller, opts)
+                   Mixer.from_vehicle(VEHICLE), controller, opts)
     return run, calls
 
 

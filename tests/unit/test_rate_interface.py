@@ -82,7 +82,7 @@ def test_rate_command_with_delay_predicted_matches_rigid_body():
 
 def test_rate_output_realizes_the_wrench(vehicle):
     out = RateOutput(vehicle, 1, 1)
-    mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
+    mixer = Mixer.from_vehicle(vehicle)
     wrench = np.array([9.0, 0.02, -0.01, 0.005])
     x = np.zeros(12)
     x[9:12] = (0.5, -0.3, 0.2)
@@ -98,7 +98,7 @@ def test_rate_output_realizes_the_wrench(vehicle):
 
 def test_rate_output_clips_rates_and_idles(vehicle):
     out = RateOutput(vehicle, 1, 1)
-    mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
+    mixer = Mixer.from_vehicle(vehicle)
     rates, _ = out.command(mixer.inverse @ np.array([9.0, 50.0, -50.0, 50.0]), np.zeros(12))
     np.testing.assert_allclose(np.abs(rates), (10.0, 10.0, 5.0))
     rates, thrust = out.command(np.zeros(4), np.r_[np.zeros(9), 1.0, 2.0, 3.0])
@@ -127,7 +127,7 @@ def test_rate_output_lags_the_torque_as_the_rotors_would(vehicle):
     """The torque realized follows a step of the commanded one with the vehicle's rotor lag:
     63 % after one time constant (vehicle time), the collective at once."""
     out = RateOutput(vehicle, 1, 1)
-    mixer = Mixer(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)
+    mixer = Mixer.from_vehicle(vehicle)
     tau, J, tau_w = vehicle.rotor_time_constant_s, np.asarray(vehicle.inertia_kg_m2), 0.03
     out.command(mixer.inverse @ np.array([8.0, 0.0, 0.0, 0.0]), np.zeros(12), 1.0)
     step = mixer.inverse @ np.array([8.0, 0.02, 0.0, 0.0])

@@ -22,7 +22,7 @@ from mavreg.model.mixer import Mixer
 from mavreg.model.rotation import quat_to_matrix, rpy_to_matrix
 
 VEHICLE = load_vehicle(DEFAULT_VEHICLE)
-MIXER = Mixer(VEHICLE.arm_length_m, VEHICLE.drag_torque_ratio_m)
+MIXER = Mixer.from_vehicle(VEHICLE)
 FMAX = VEHICLE.max_rotor_thrust_n
 
 

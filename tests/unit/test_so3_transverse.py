@@ -19,7 +19,7 @@ from mavreg.sim.closed_loop import SimOptions, SimStatus, simulate
 
 VEHICLE = load_vehicle(DEFAULT_VEHICLE)
 MODEL = QuadrotorModel.from_vehicle(VEHICLE)
-MIXER = Mixer(VEHICLE.arm_length_m, VEHICLE.drag_torque_ratio_m)
+MIXER = Mixer.from_vehicle(VEHICLE)
 
 LOOP = """
 kind: maneuver

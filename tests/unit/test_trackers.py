@@ -59,7 +59,7 @@ def _fly(timed, tracker, t0: float, duration_s: float, x0=None):
     v = timed.plan.vehicle
     x0 = timed.reference(t0).x if x0 is None else x0
     opts = SimOptions(initial_state=tuple(x0), dt_s=0.001, max_duration_s=duration_s)
-    res = simulate(QuadrotorModel.from_vehicle(v), Mixer(v.arm_length_m, v.drag_torque_ratio_m),
+    res = simulate(QuadrotorModel.from_vehicle(v), Mixer.from_vehicle(v),
                    lambda t, x: tracker.step(t0 + t, x).rotor_forces_n, opts)
     ref = np.array([timed.reference(t0 + t).x for t in res.t])
     pos = np.linalg.norm(res.x[:, :3] - ref[:, :3], axis=1)

@@ -1,21 +1,22 @@
-r"""The design model's derivative for the batch simulator, on one state or on a batch of them.
+r"""The design model's derivative as a compiled kernel (:func:`mavreg.accel.njit`).
 
 :func:`plant_rhs` is :meth:`mavreg.model.quadrotor.QuadrotorModel.f` (eqs 6-17, with the
-optional drag) written out, the same operations in the same order, for one run's inertia:
-given x (12,) and floats it fills ``out`` (12,); given x (12, N), the inputs and the inertia
-as (N,) arrays, it fills ``out`` (12, N) (each line is then a numpy expression across runs).
-:mod:`mavreg.sim.batch_numpy` calls it so; :mod:`mavreg.sim.batch_compiled` calls
-:data:`plant_rhs_compiled`, the same function compiled by numba (:func:`mavreg.accel.njit`).
+optional drag of :mod:`mavreg.model.drag_kernel`) written out on scalars, the same operations
+in the same order, for one run's inertia: given x (12,) and floats it fills ``out`` (12,).
+The batch simulator (:mod:`mavreg.sim.batch_compiled`) steps it by RK4;
+``tests/unit/test_quadrotor_kernel.py`` holds it to the numpy reference.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ..accel import njit
+from .drag_kernel import body_drag
 
-__all__ = ["plant_rhs", "plant_rhs_compiled"]
+__all__ = ["plant_rhs", "plant_rhs_compiled", "angular_acceleration"]
 
 
+@njit
 def plant_rhs(x, u0, u1, u2, u3, plant, jx, jy, jz, out):
     r"""dx/dt into ``out`` for state x and input :math:`u = (f, \gamma_1, \gamma_2, \gamma_3)`;
     ``plant`` = (mass, g, c_xy, c_z, c_parasitic); jx, jy, jz: the run's inertia."""
@@ -37,13 +38,21 @@ def plant_rhs(x, u0, u1, u2, u3, plant, jx, jy, jz, out):
     out[7] = -r * v1 + p * v3 + g * sf * ct
     out[8] = q * v1 - p * v2 + g * ct * cf - u0 / m
     if cxy != 0.0 or cz != 0.0 or cpar != 0.0:
-        quad = cpar * np.sqrt(v1 * v1 + v2 * v2 + v3 * v3)
-        out[6] = out[6] - (cxy + quad) * v1 / m
-        out[7] = out[7] - (cxy + quad) * v2 / m
-        out[8] = out[8] - (cz + quad) * v3 / m
+        d1, d2, d3 = body_drag(v1, v2, v3, cxy, cz, cpar)
+        out[6] = out[6] + d1 / m
+        out[7] = out[7] + d2 / m
+        out[8] = out[8] + d3 / m
     out[9] = q * r * (jy - jz) / jx + u1 / jx
     out[10] = p * r * (jz - jx) / jy + u2 / jy
     out[11] = p * q * (jx - jy) / jz + u3 / jz
 
 
-plant_rhs_compiled = njit(plant_rhs)
+plant_rhs_compiled = plant_rhs
+"""The former name (the kernel is compiled where numba is)."""
+
+
+@njit
+def angular_acceleration(jx, jy, jz, wx, wy, wz, g1, g2, g3):
+    r""":math:`J^{-1}(\gamma - \omega \times J\omega)` of the body rates (eqs 12-14), in the
+    form the state predictor's integration uses (:mod:`mavreg.control.predictor_kernel`)."""
+    return (g1 + (jy - jz) * wy * wz) / jx, (g2 + (jz - jx) * wx * wz) / jy, (g3 + (jx - jy) * wx * wy) / jz
