@@ -271,7 +271,7 @@ class Daemon:
         st["link_delay_ms"] = None if est is None else {
             "sample_to_actuation": est.delay_s * 1e3, "jitter": est.jitter_s * 1e3,
             "round_trip_wall": est.round_trip_s * 1e3, "replies": est.samples,
-            "used_for_prediction": self.supervisor.link_delay_s() * 1e3
+            "used_for_prediction": self.supervisor.delay.total_s() * 1e3
             if self.supervisor.forecaster.predict else None}
         fc = self.supervisor.forecaster
         est = fc.disturbance

@@ -82,7 +82,7 @@ class FlightPhases:
             if bad is not None:                            # as the hold's gate would, before take-off
                 self._refuse(bad, out, Phase.PREFLIGHT)
                 return
-            if self.fixed_delay_s is None and self.timesync.estimate() is None:
+            if not self.delay.known:
                 waited = t - self._stream_start_t
                 if waited < self.params.timesync_wait_s:
                     return                                 # TIMESYNC requests go out with the stream
@@ -288,7 +288,7 @@ class FlightPhases:
         covered = None
         if self.forecaster.predict:
             cap = self.forecaster.predictor.max_horizon_s
-            covered = min(self.link_delay_s(), cap) - self.vehicle_latency_s()
+            covered = min(self.delay.total_s(), cap) - self.delay.vehicle_s
         return MarginCheck(*margin, covered, self.forecaster.period_s)
 
     def _start_exit_hold(self, sample, out) -> None:

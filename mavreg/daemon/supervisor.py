@@ -44,6 +44,7 @@ from .flight import FlightPhases
 from .gate import HealthGate, nominal_points
 from .monitor import EnvelopeMonitor
 from .output import command_output
+from .delays import ActuationDelay
 from .preflight import AutopilotSetup
 from .phases import (AIRBORNE, PHASE_CODES, Counters, Event, Failure, LogRecord, Output, Phase,
                      SupervisorParams)
@@ -87,17 +88,16 @@ class Supervisor(FlightPhases, SafetyActions):
         self.params = params
         self.timesync = TimesyncEstimator()
         self.forecaster = forecaster if forecaster is not None else Forecaster(vehicle, 0.002, predict=False)
-        self.fixed_delay_s = fixed_delay_s
         self._forecast = None
-        if link_health is None:
-            link_health = self._measured_link
         self.envelope = envelope if envelope is not None else EnvelopeParams()
         self.hover = HoverController(vehicle, params.hover)
         self.recovery = RecoveryController(vehicle, self.envelope.recovery)
         self.monitor = EnvelopeMonitor(self.envelope, vehicle.mass_kg, vehicle.max_rotor_thrust_n)
-        self.gate = HealthGate(self.envelope, vehicle.mass_kg, vehicle.max_rotor_thrust_n, link_health)
         self.assembler = StateAssembler(params.euler_pitch_limit_rad)
         self.output = command_output(vehicle, params.vehicle_system_id, params.vehicle_component_id)
+        self.delay = ActuationDelay(self.timesync, vehicle, self.output.kind, fixed_delay_s)
+        self.gate = HealthGate(self.envelope, vehicle.mass_kg, vehicle.max_rotor_thrust_n,
+                               link_health if link_health is not None else self.delay.measured_link)
         self.autopilot = AutopilotSetup(params.vehicle_system_id, params.vehicle_component_id,
                                         params.telemetry_rate_hz, params.parameter_timeout_s)
         self.regulator_factory = regulator_factory
@@ -260,7 +260,7 @@ class Supervisor(FlightPhases, SafetyActions):
         elapsed = now_s - self._last_sample_now
         if elapsed < 1.5 * self.forecaster.period_s:
             return out
-        fc = self.forecaster.ahead(last.time_s, last.x, last.rotation, elapsed, self.link_delay_s())
+        fc = self.forecaster.ahead(last.time_s, last.x, last.rotation, elapsed, self.delay.total_s())
         if fc is None:
             return out
         virtual = dataclasses.replace(last, time_boot_ms=last.time_boot_ms + int(round(elapsed * 1e3)))
@@ -372,32 +372,12 @@ class Supervisor(FlightPhases, SafetyActions):
         self._send_rotors(rotors, now_s, out)
         out.log = record
 
-    def _measured_link(self) -> tuple[float, float] | None:
-        est = self.timesync.estimate()
-        return None if est is None else (est.delay_s, est.jitter_s)
-
-    def link_delay_s(self) -> float:
-        """Sample-to-actuation delay the prediction uses: the configured one, else the TIMESYNC
-        median (0 before the first reply), plus :meth:`vehicle_latency_s`."""
-        if self.fixed_delay_s is not None:
-            d = self.fixed_delay_s
-        else:
-            est = self.timesync.estimate()
-            d = 0.0 if est is None else est.delay_s
-        return d + self.vehicle_latency_s()
-
-    def vehicle_latency_s(self) -> float:
-        """The delays TIMESYNC cannot see, from the vehicle file: its estimate's age
-        (``estimate_latency_s``) and, with ``output: rates``, the autopilot rate loop's delay."""
-        rates = self.vehicle.rate_interface if self.output.kind == "rates" else None
-        return self.vehicle.estimate_latency_s + (0.0 if rates is None else rates.rate_delay_s)
-
     def _controller_state(self, sample: StateSample) -> np.ndarray:
         """The state every controller acts on: the sample predicted to the instant the answer
         takes over (:class:`~mavreg.control.forecast.Forecaster`; the sample itself when
         prediction is off)."""
         self._forecast = self.forecaster.update(sample.time_s, sample.x, sample.rotation,
-                                                self.link_delay_s())
+                                                self.delay.total_s())
         return self._forecast.x
 
     def _send_rotors(self, rotor_forces_n: np.ndarray, now_s: float, out: Output,

@@ -336,7 +336,7 @@ def test_a_vehicle_that_never_answers_timesync_is_refused_take_off_in_one_line()
 def test_a_configured_delay_flies_a_vehicle_without_timesync():
     """The same vehicle with fixed_delay_s set: nothing to wait for, the flight is flown."""
     sup = make_supervisor(FakePlan())
-    sup.fixed_delay_s = 0.004
+    sup.delay.fixed_delay_s = 0.004
     veh = SimVehicle(answer_timesync=False)
     run(sup, veh, 60.0)
     assert sup.succeeded, sup.failure
