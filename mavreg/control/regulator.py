@@ -31,6 +31,7 @@ from ..model.rotation import rpy_to_matrix
 from ..model.rotor_lag import lag_decay, lag_toward
 from ..model.so3 import attitude_error
 from . import fastpath
+from .actuator import lag_loop_factor
 from .attitude_table import NominalAttitudes
 from .disturbance import DisturbanceEstimate, compensate
 from .governor import GovernedSpeed, SpeedGovernor, along_track_speed, retiming_force, thrust_speed_cap
@@ -126,6 +127,9 @@ class ManeuverRegulator:
         self._augmented = plan.K.shape[-1] > 11
         self._decay = (lag_decay(control_period_s, plan.rotor_time_constant_s)
                        if self._augmented and control_period_s > 0 else 0.0)
+        self.lag_loop_factor = lag_loop_factor(plan.K, self._decay) if self._decay > 0 else 0.0
+        """The one-period gain of the feedback on the achieved wrench (at 1 or more the gains
+        oscillate between commands: :func:`~mavreg.control.actuator.lag_loop_factor`)."""
         self._rotors_est: np.ndarray | None = None
         self.projector = Projector(plan.path)
         self._s = plan.s

@@ -17,7 +17,7 @@ from ..model.rotation import rpy_to_matrix
 from ..model.rotation_kernel import rpy_matrix
 from . import flightpath as fp
 from . import messages as mm
-from .gate import GateVerdict, MarginCheck, delay_margin_of, plan_outside_envelope
+from .gate import GateVerdict, MarginCheck, delay_margin_of, plan_outside_envelope, sampling_verdict
 from .monitor import Tracking
 from .phases import LogRecord, Phase
 
@@ -73,7 +73,8 @@ class FlightPhases:
             return
         st = self.vehicle_status
         if not st.armed:
-            bad = plan_outside_envelope(self._pending[0][2], sample.x[:3], self.envelope)
+            plan, regulator, points = self._pending[0]
+            bad = plan_outside_envelope(points, sample.x[:3], self.envelope) or sampling_verdict(plan, regulator)
             if bad is None:                                # the autopilot's parameters, its telemetry
                 bad = self.autopilot.ready(t, out.messages)
                 if bad is None:

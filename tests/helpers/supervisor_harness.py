@@ -39,6 +39,7 @@ class FakePlan:
     speed: float = 1.0
     start: tuple = (1.0, 0.5, -2.0)
     attitude_error: str = "rpy"
+    rotor_time_constant_s: float = 0.02
 
     @property
     def segments(self):

@@ -176,3 +176,14 @@ def test_plant_through_the_rate_loop_linearizes_as_the_design_model(vehicle):
          - rate_response_rhs(x[9:12], rate_command(x[9:12], u[1:] - h * e[1:], J, 2 * tau), tau)) / (2 * h)
         for e in np.eye(4)])
     assert np.abs(B_wrong - B[9:12]).max() > 0.5 * np.abs(B[9:12]).max()
+
+
+def test_lag_loop_factor_is_the_achieved_wrench_gain_over_one_period():
+    """rho(K_a) (1 - e^{-T/tau}) on gains with a known spectral radius; 0 without the lag."""
+    from mavreg.control.actuator import lag_loop_factor
+    from mavreg.model.rotor_lag import lag_decay
+    K = np.zeros((3, 4, 15))
+    K[1, :, 11:] = np.diag([0.5, 3.0, -4.0, 1.0])
+    decay = lag_decay(0.005, 0.02)
+    assert lag_loop_factor(K, decay) == pytest.approx(4.0 * (1 - np.exp(-0.25)))
+    assert lag_loop_factor(np.ones((3, 4, 11)), decay) == 0.0

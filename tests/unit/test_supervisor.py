@@ -141,3 +141,19 @@ def test_harness_vehicle_sits_still_when_disarmed():
     for _ in range(10):
         veh.physics()
     assert np.all(veh.x == 0.0)
+
+
+def test_gains_that_oscillate_between_commands_are_refused_before_take_off():
+    """A regulator whose feedback on the achieved wrench answers more than its share of each
+    command within one control period (lag_loop_factor above the gate's bound) does not take
+    off; one line says why and what to change."""
+    from mavreg.daemon.gate import MAX_LAG_LOOP_FACTOR
+    from tests.helpers.supervisor_harness import FakeRegulator
+    plan = FakePlan()
+    reg = FakeRegulator(plan)
+    reg.lag_loop_factor = MAX_LAG_LOOP_FACTOR + 0.5
+    sup = make_supervisor(plan, regulator=reg)
+    veh = SimVehicle()
+    run(sup, veh, 3.0)
+    assert not veh.armed and sup.failure.bound == "gate_control_period"
+    assert "rotor_time_constant_s" in sup.failure.detail and len(sup.failure.line().splitlines()) == 1
