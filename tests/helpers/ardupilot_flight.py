@@ -105,5 +105,5 @@ def true_errors_from_tlog(out: Path, maneuver: Path, origin) -> dict | None:
     sel = (t >= begin[0]) & (t <= end)
     plan = plan_file(maneuver, load_vehicle(VEHICLE), load_controller(CONTROLLER))
     result = true_errors(plan, pos[sel], rot[sel], vel[sel])
-    result["lowest_altitude_m"] = float(-pos[:, 2].min()) if len(pos) else math.nan
+    result["lowest_altitude_m"] = float((-pos[:, 2]).min()) if len(pos) else math.nan
     return result

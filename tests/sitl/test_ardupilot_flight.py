@@ -1,0 +1,31 @@
+"""mavreg flies a stock ArduCopter (its SITL) through body rates and thrust only: take-off,
+the barrel roll, landing and disarm, judged by the SITL's own ground truth (SIM_STATE).
+
+Slow (about 2 minutes in real time: EKF start, take-off, maneuver, landing) and skipped
+where the ArduCopter SITL is absent (tests/helpers/ardupilot_sitl.py says where it is
+looked for). ``python -m scripts.ardupilot.fly --flights 5`` flies the campaign the docs quote.
+"""
+from __future__ import annotations
+
+import pytest
+
+from mavreg.config.paths import maneuver_file
+from tests.helpers.ardupilot_flight import fly_on_ardupilot
+from tests.helpers.ardupilot_sitl import require_ardupilot
+
+LOOP_MAX_M = 0.15
+"""The loop's true error bound of this test: docs/autopilots.md has the measured figures."""
+
+
+@pytest.mark.slow
+def test_barrel_roll_on_a_stock_arducopter(tmp_path):
+    require_ardupilot()
+    s = fly_on_ardupilot(maneuver_file("barrel_roll"), tmp_path / "flight")
+    assert s["result"] == "ok", s["reason"]
+    assert s["exit_code"] == 0
+    truth = s["ardupilot_truth"]
+    assert truth is not None and truth["samples"] > 1000         # the maneuver was judged on SIM_STATE
+    assert truth["segments"]["loop"]["max_m"] <= LOOP_MAX_M, truth["segments"]["loop"]
+    assert s["touchdown_speed_m_s"] is not None and s["touchdown_speed_m_s"] < 1.0
+    assert truth["lowest_altitude_m"] > -0.2                     # never below the ground it took off from
+    assert not any(e["kind"] == "motors_stopped" for e in s["events"])
