@@ -44,7 +44,7 @@ import yaml
 
 from .bounded_yaml import Refusal, compose_bounded
 
-__all__ = ["ConfigError", "load_file", "load_text", "replace_value", "MAX_FILE_BYTES", "MAX_STRING_CHARS",
+__all__ = ["ConfigError", "load_file", "load_text", "MAX_FILE_BYTES", "MAX_STRING_CHARS",
            "EXCERPT_CHARS"]
 
 MAX_FILE_BYTES = 1 << 20
@@ -395,18 +395,3 @@ def _regular_size(f) -> int:
     """The size of a regular file (0 for a device or a pipe, which are read up to the limit)."""
     st = os.fstat(f.fileno())
     return st.st_size if stat.S_ISREG(st.st_mode) else 0
-
-
-def replace_value(text: str, keys: tuple[str, ...], value: Any) -> str:
-    """``text``, YAML that :func:`load_text` accepted, with the value at the key path ``keys``
-    replaced, as YAML text (its comments are not kept).
-
-    For an override of one value of a file that travels as text (``--laps`` on a maneuver
-    the daemon's planner reads); load the result again to validate it.
-    """
-    doc = yaml.safe_load(text)
-    node = doc
-    for key in keys[:-1]:
-        node = node[key]
-    node[keys[-1]] = value
-    return yaml.safe_dump(doc, sort_keys=False, allow_unicode=True)

@@ -16,7 +16,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .envelope import MAX_GEOFENCE_M
-from .loader import load_file, load_text, replace_value
+import yaml
+
+from .loader import load_file, load_text
 
 __all__ = ["ManeuverSpec", "SegmentSpec", "load_maneuver", "load_maneuver_text", "maneuver_text_with_laps", "MAX_EXTENT_M",
            "MAX_SPEED_M_S", "MAX_TURN_DEG", "MIN_LENGTH_M", "MIN_SPEED_M_S"]
@@ -221,3 +223,18 @@ def maneuver_text_with_laps(text: str, count: int, source: str = "<upload>") -> 
     out = replace_value(text, ("laps", "count"), int(count))
     load_maneuver_text(out, source)
     return out
+
+
+def replace_value(text: str, keys: tuple[str, ...], value: object) -> str:
+    """``text``, YAML that :func:`~mavreg.config.loader.load_text` accepted, with the value at the key path ``keys``
+    replaced, as YAML text (its comments are not kept).
+
+    For an override of one value of a file that travels as text (``--laps`` on a maneuver
+    the daemon's planner reads); load the result again to validate it.
+    """
+    doc = yaml.safe_load(text)
+    node = doc
+    for key in keys[:-1]:
+        node = node[key]
+    node[keys[-1]] = value
+    return yaml.safe_dump(doc, sort_keys=False, allow_unicode=True)
