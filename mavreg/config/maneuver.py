@@ -15,9 +15,9 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .envelope import MAX_GEOFENCE_M
 import yaml
 
+from .envelope import MAX_GEOFENCE_M
 from .loader import load_file, load_text
 
 __all__ = ["ManeuverSpec", "SegmentSpec", "load_maneuver", "load_maneuver_text", "maneuver_text_with_laps", "MAX_EXTENT_M",
