@@ -153,7 +153,8 @@ def resolve_delay(spec, link_delay_s, estimate_latency_s):
                f"{1e3 * estimate_latency_s:.1f} ms")
 
 
-def _fmt(e, scale=1.0, digits=3) -> tuple[str, str]:
+def format_estimate(e, scale=1.0, digits=3) -> tuple[str, str]:
+    """(value, 95 % interval) of an Estimate as text (or "not identified" and why)."""
     if e.value is None:
         return "not identified", e.why
     f = f"{{:.{digits}f}}"
@@ -177,7 +178,7 @@ def format_result(r, vehicle, flight: str, delay_source: str) -> str:
               f"{1e3 * vehicle.rotor_time_constant_s:g}"),
              ("delay (ms)", r.delay_s, 1e3, 1, "")]
     for name, e, scale, digits, file_value in rows:
-        value, interval = _fmt(e, scale, digits)
+        value, interval = format_estimate(e, scale, digits)
         if e.why == "given":
             lines.append(f"{name:<28}{value:>15}   (not fitted: {delay_source})")
         elif e.value is None:

@@ -3,6 +3,8 @@ vehicle file's values (docs/identify.md, *Rate mode*). :mod:`mavreg.cli.identify
 command; it comes here when the flight's commands are SET_ATTITUDE_TARGET."""
 from __future__ import annotations
 
+from .identify_cmd import format_estimate as _fmt
+
 __all__ = ["fit", "format_result", "vehicle_values"]
 
 
@@ -18,13 +20,6 @@ def fit(args, vehicle, series):
     options = FitOptions(delay_s=delay, parasitic=args.parasitic, replicates=args.replicates, seed=args.seed)
     link_part = 0.0 if link is None else link + vehicle.estimate_latency_s
     return identify_rates(series, vehicle.mass_kg, options, link_delay_part_s=link_part), source
-
-
-def _fmt(e, scale=1.0, digits=3) -> tuple[str, str]:
-    if e.value is None:
-        return "not identified", e.why
-    f = f"{{:.{digits}f}}"
-    return f.format(e.value * scale), f"{f.format(e.low * scale)} .. {f.format(e.high * scale)}"
 
 
 def format_result(r, vehicle, flight: str, delay_source: str) -> str:
