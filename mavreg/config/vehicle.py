@@ -68,6 +68,13 @@ class RateInterfaceParams:
     max_body_rate_rad_s: tuple[float, ...] = field(
         default=(12.0, 12.0, 6.0), metadata={"length": 3, "min_exclusive": 0.0})
     """Largest roll, pitch and yaw rate commanded (the autopilot's own limits or lower)."""
+    attitude_gain_rad_s: tuple[float, ...] = field(
+        default=(0.0, 0.0, 0.0), metadata={"length": 3, "min": 0.0, "max": 50.0})
+    """Roll, pitch, yaw gain of an attitude loop the autopilot closes on the integral of the
+    commanded rates (ArduCopter: its rate target is the command plus ``ATC_ANG_*_P`` times the
+    error from the attitude that integral leads to; PX4's body-rate set-points have none: 0).
+    mavreg keeps the same integral and subtracts that term, so the rate the autopilot aims
+    for is the one mavreg wants (:class:`mavreg.model.rate_interface.AttitudeLoopCompensation`)."""
 
 
 @dataclass(frozen=True)

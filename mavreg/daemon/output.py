@@ -23,7 +23,7 @@ import numpy as np
 
 from ..config.vehicle import VehicleParams
 from ..model.mixer import Mixer
-from ..model.rate_interface import ThrustMap, rate_command
+from ..model.rate_interface import AttitudeLoopCompensation, ThrustMap, rate_command
 from . import messages as mm
 
 __all__ = ["RotorOutput", "RateOutput", "command_output"]
@@ -68,6 +68,8 @@ class RateOutput:
         self._lag_s = float(vehicle.rotor_time_constant_s)
         self._torque = np.zeros(3)
         self._t_s: float | None = None
+        self._attitude_loop = AttitudeLoopCompensation(p.attitude_gain_rad_s)
+        self._period_s = 0.0
 
     def _lagged_torque(self, t_s: float | None, torque: np.ndarray) -> np.ndarray:
         """The torque the lag has reached at ``t_s``: unchanged when no time has passed, the
@@ -86,10 +88,16 @@ class RateOutput:
         rest), the torque lagged up to vehicle time ``t_s`` (None: not lagged)."""
         wrench = self._mixer @ np.asarray(rotor_forces_n, dtype=float)
         omega = np.zeros(3) if x is None else np.asarray(x[9:12], dtype=float)
+        if t_s is not None and self._t_s is not None and t_s > self._t_s:
+            self._period_s = t_s - self._t_s
         rates = rate_command(omega, self._lagged_torque(t_s, wrench[1:]), self._inertia, self._tau)
+        rates = np.clip(rates, -self._max_rate, self._max_rate)
         if wrench[0] <= 0.0:
-            rates = np.zeros(3)            # motors idle: ask for no rotation
-        return np.clip(rates, -self._max_rate, self._max_rate), self._map.normalized(float(wrench[0]))
+            self._attitude_loop.reset()    # motors idle: ask for no rotation
+            return np.zeros(3), self._map.normalized(float(wrench[0]))
+        if self._attitude_loop.active:
+            rates = self._attitude_loop.rates(rates, omega, self._period_s, self._max_rate)
+        return rates, self._map.normalized(float(wrench[0]))
 
     def message(self, now_s: float, t_s: float, rotor_forces_n: np.ndarray, x: np.ndarray | None):
         rates, thrust = self.command(rotor_forces_n, x, t_s)

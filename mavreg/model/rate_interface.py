@@ -27,7 +27,7 @@ import numpy as np
 
 from ..config.vehicle import G, RateInterfaceParams
 
-__all__ = ["ThrustMap", "rate_command", "rate_response_rhs"]
+__all__ = ["ThrustMap", "rate_command", "rate_response_rhs", "AttitudeLoopCompensation"]
 
 
 class ThrustMap:
@@ -90,3 +90,42 @@ def rate_command(omega, torque_n_m, inertia_kg_m2, time_constant_s: float) -> np
 def rate_response_rhs(omega, omega_cmd, time_constant_s: float):
     r""":math:`\dot\omega = (\omega_c - \omega)/\tau`: the rate loop's model (delay excluded)."""
     return (np.asarray(omega_cmd) - np.asarray(omega)) / time_constant_s
+
+
+class AttitudeLoopCompensation:
+    r"""Rates to send to an autopilot that adds an attitude loop on the integral of its rate
+    commands, so that the rate it aims for is the one wanted.
+
+    ArduCopter's rate target for body rates :math:`\omega_s` is
+    :math:`\omega_s + K e`, with :math:`\dot e = \omega_s - \omega` (small angles: the
+    attitude the integral of the commands leads to, less the attitude flown). Keeping the same
+    :math:`e` and sending :math:`\omega_s = \omega^* - K e` makes that target
+    :math:`\omega^*`. :math:`e` is clipped to ``max_error_rad`` per axis and restarts at 0
+    with :meth:`reset` (the autopilot resets its target on the ground).
+
+    Parameters
+    ----------
+    gain_rad_s : (3,) array_like
+        K per body axis (0: no such loop; nothing is changed).
+    max_error_rad : float
+    """
+
+    def __init__(self, gain_rad_s, max_error_rad: float = 0.3):
+        self.gain = np.asarray(gain_rad_s, dtype=float)
+        self.max_error_rad = float(max_error_rad)
+        self.error = np.zeros(3)
+
+    @property
+    def active(self) -> bool:
+        return bool(np.any(self.gain > 0.0))
+
+    def reset(self) -> None:
+        self.error = np.zeros(3)
+
+    def rates(self, wanted, omega, dt_s: float, limit=np.inf) -> np.ndarray:
+        """The rates to send (within +-``limit``) for ``wanted`` (3,), the body rates now
+        ``omega`` (3,), and the time ``dt_s`` this command will be held."""
+        send = np.clip(np.asarray(wanted, dtype=float) - self.gain * self.error, -limit, limit)
+        step = dt_s * (send - np.asarray(omega, dtype=float))
+        self.error = np.clip(self.error + step, -self.max_error_rad, self.max_error_rad)
+        return send

@@ -187,3 +187,34 @@ def test_lag_loop_factor_is_the_achieved_wrench_gain_over_one_period():
     decay = lag_decay(0.005, 0.02)
     assert lag_loop_factor(K, decay) == pytest.approx(4.0 * (1 - np.exp(-0.25)))
     assert lag_loop_factor(np.ones((3, 4, 11)), decay) == 0.0
+
+
+def test_an_autopilots_attitude_loop_on_the_command_integral_is_cancelled():
+    """An ArduCopter-like rate loop aims for the command plus K times the integral of (command
+    - rate). Fed through the compensation, a rate step is followed as the first-order model
+    says; fed directly, it overshoots (negative control)."""
+    from mavreg.model.rate_interface import AttitudeLoopCompensation
+    tau, K, dt = 0.011, np.array([15.0, 15.0, 10.0]), 0.005
+    steps = int(round(0.4 / dt))
+    t = dt * np.arange(1, steps + 1)
+    model = 1.0 - np.exp(-t / tau)
+
+    def fly(compensate: bool) -> np.ndarray:
+        comp = AttitudeLoopCompensation(K if compensate else np.zeros(3))
+        w, e, out = np.zeros(3), np.zeros(3), []
+        for _ in range(steps):
+            send = comp.rates(np.ones(3), w, dt) if compensate else np.ones(3)
+            for _ in range(10):                         # its loop, 10x faster than the commands
+                target = send + K * e                   # its rate target
+                e = e + dt / 10 * (send - w)
+                w = w + dt / 10 * (target - w) / tau
+            out.append(w[0])
+        return np.array(out)
+
+    assert np.abs(fly(True) - model).max() < 0.08
+    assert fly(False).max() > 1.08 and np.abs(fly(False) - model).max() > 0.1   # without it: overshoot
+    comp = AttitudeLoopCompensation(K)
+    comp.rates(np.ones(3), np.zeros(3), 1.0)
+    assert np.all(np.abs(comp.error) <= comp.max_error_rad)
+    comp.reset()
+    assert not np.any(comp.error)
