@@ -193,6 +193,8 @@ def test_invalid_upload_mid_flight_is_rejected_and_changes_nothing(tmp_path, ide
     assert dist < 1e-3
 
 
+# Slow (15 s): the peer filter and the fuzzing targets test foreign traffic in the default suite.
+@pytest.mark.slow
 def test_foreign_system_actuator_traffic_changes_nothing(tmp_path, ideal_flight):
     from pymavlink.dialects.v20 import common as mavlink2
     import socket as pysocket

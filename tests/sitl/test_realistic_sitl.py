@@ -104,6 +104,9 @@ def test_barrel_roll_on_a_realistic_vehicle(tmp_path, realistic_plan):
     assert abs(table["OFFBOARD"][1] * total_s - offboard_s) <= 0.5
 
 
+# Slow (20 s): the gate and margin unit tests and scripts/compare_outputs.py (+20 and +40 ms of
+# command delay, both outputs) cover a long link; this is the 50 ms end-to-end check.
+@pytest.mark.slow
 def test_a_50_ms_link_is_flown_on_prediction(tmp_path, realistic_plan):
     f = _fly(tmp_path, "--emulator-arg=--telemetry-delay-ms=35", "--emulator-arg=--command-delay-ms=15")
     assert f["code"] == 0 and f["summary"]["result"] == "ok", "\n".join(f["lines"][-20:])

@@ -54,6 +54,8 @@ def test_results_do_not_depend_on_jobs(group1):
     assert [o.metrics for o in inline] == [o.metrics for o in camp.outcomes]    # exact, float for float
 
 
+# Slow (17 s): the group-2 runs are flown by the batch agreement test; this writes the campaign.
+@pytest.mark.slow
 def test_group2_campaign_is_stable_and_saturates_only_with_a_limit(tmp_path):
     exp = paper_group2(0, laps=1, saturations_n=(None, 7.0))
     camp = run_campaign(exp, "sim", 1, tmp_path, "test command", progress=None)
