@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..config.defaults import MAX_PREDICTION_S
 from ..config.disturbance import DisturbanceParams
 from ..config.vehicle import VehicleParams
 from .disturbance import DisturbanceEstimate, DisturbanceObserver
@@ -59,7 +60,7 @@ class Forecaster:
     """
 
     def __init__(self, vehicle: VehicleParams, control_period_s: float, predict: bool = True,
-                 max_horizon_s: float = 0.1, disturbance: DisturbanceParams | None = None):
+                 max_horizon_s: float = MAX_PREDICTION_S, disturbance: DisturbanceParams | None = None):
         self.vehicle = vehicle
         self.predict = bool(predict)
         self.period_s = float(control_period_s)

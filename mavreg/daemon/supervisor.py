@@ -34,6 +34,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..config.defaults import CONTROL_RATE_HZ
 from ..config.envelope import EnvelopeParams
 from ..config.vehicle import VehicleParams
 from ..control.forecast import Forecaster
@@ -87,7 +88,7 @@ class Supervisor(FlightPhases, SafetyActions):
         self.vehicle = vehicle
         self.params = params
         self.timesync = TimesyncEstimator()
-        self.forecaster = forecaster if forecaster is not None else Forecaster(vehicle, 0.002, predict=False)
+        self.forecaster = forecaster if forecaster is not None else Forecaster(vehicle, 1.0 / CONTROL_RATE_HZ, predict=False)
         self._forecast = None
         self.envelope = envelope if envelope is not None else EnvelopeParams()
         self.hover = HoverController(vehicle, params.hover)

@@ -16,11 +16,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import lfilter, savgol_coeffs
 
-from ..sim.truth import quats_to_matrices
+from ..config.vehicle import G
+from ..model.rotation import quats_to_matrices
 
 __all__ = ["FlightSeries", "IdentifyError", "Regressors", "lagged_integrals", "rotor_channels", "G"]
 
-G = 9.81
 
 
 class IdentifyError(ValueError):
