@@ -118,7 +118,9 @@ def test_a_50_ms_link_is_flown_on_prediction(tmp_path, realistic_plan):
 
 
 @pytest.mark.parametrize("preset, flag, check", [
-    ("thrust90", None, lambda est: abs(est["thrust_scale"] - 0.9) <= 0.02),
+    # 22 s: the observer's thrust scale is also recovered in test_disturbance.py and flown by the
+    # robustness campaign's thrust cell; run before releases
+    pytest.param("thrust90", None, lambda est: abs(est["thrust_scale"] - 0.9) <= 0.02, marks=pytest.mark.slow),
     # from the east: the air moves west at 3 m/s, a drag of about 1 N west
     # 18 s more for the suite: the wind's estimate is also flown by the robustness campaign's
     # wind cell; run before releases (README)
