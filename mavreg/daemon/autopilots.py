@@ -197,10 +197,12 @@ class Dialect:
                                                0, float(msg_id), 1e6 / hz, 0, 0, 0, 0, 0)
                 for msg_id, hz in wanted]
 
-    def param_requests(self, target_system: int, target_component: int) -> list:
-        """PARAM_REQUEST_READ by name (index -1) for every checked parameter."""
-        return [M.MAVLink_param_request_read_message(target_system, target_component, r.name.encode(), -1)
-                for r in self.rules]
+    def param_requests(self, target_system: int, target_component: int, names=None) -> list:
+        """PARAM_REQUEST_READ by name (index -1) for every checked parameter, or for ``names``
+        of them (those not answered yet)."""
+        wanted = [r.name for r in self.rules if names is None or r.name in names]
+        return [M.MAVLink_param_request_read_message(target_system, target_component, n.encode(), -1)
+                for n in wanted]
 
     def param_checker(self) -> ParamChecker:
         """A fresh checker for this dialect's rules (the caller bounds the wait)."""

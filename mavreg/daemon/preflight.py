@@ -95,15 +95,7 @@ class AutopilotSetup:
                                f"{', '.join(verdict.missing)} within {self.timeout_s:g} s: mavreg checks "
                                "them before arming (docs/autopilots.md)")
         if t_s - self._sent_t >= self.retry_s or t_s < self._sent_t:
-            missing = set(verdict.missing)
-            messages.extend(m for m in self.dialect.param_requests(*self.target)
-                            if _name(m.param_id) in missing)
+            messages.extend(self.dialect.param_requests(*self.target, verdict.missing))
             self._sent_t = t_s
         return None
 
-
-def _name(param_id) -> str:
-    """A parameter id as text (pymavlink gives str or NUL-padded bytes)."""
-    if isinstance(param_id, (bytes, bytearray)):
-        param_id = bytes(param_id).decode("ascii", "replace")
-    return str(param_id).split("\0", 1)[0]
