@@ -153,6 +153,23 @@ def resolve_delay(spec, link_delay_s, estimate_latency_s):
                f"{1e3 * estimate_latency_s:.1f} ms")
 
 
+def estimate_lines(rows, delay_source: str, widths: tuple[int, int] = (28, 15)) -> list[str]:
+    """The table lines of ``rows`` (name, Estimate, scale, digits, the vehicle file's value):
+    value, 95 % interval and file value; a given value says where it came from, one not
+    identified says why. ``widths``: of the name and value columns."""
+    nw, vw = widths
+    lines = []
+    for name, e, scale, digits, file_value in rows:
+        value, interval = format_estimate(e, scale, digits)
+        if e.why == "given":
+            lines.append(f"{name:<{nw}}{value:>{vw}}   (not fitted: {delay_source})")
+        elif e.value is None:
+            lines.append(f"{name:<{nw}}{value:>{vw}}   {interval}")
+        else:
+            lines.append(f"{name:<{nw}}{value:>{vw}}   {interval:<22}{file_value:>12}")
+    return lines
+
+
 def format_estimate(e, scale=1.0, digits=3) -> tuple[str, str]:
     """(value, 95 % interval) of an Estimate as text (or "not identified" and why)."""
     if e.value is None:
@@ -177,14 +194,7 @@ def format_result(r, vehicle, flight: str, delay_source: str) -> str:
              ("rotor time constant (ms)", r.rotor_time_constant_s, 1e3, 1,
               f"{1e3 * vehicle.rotor_time_constant_s:g}"),
              ("delay (ms)", r.delay_s, 1e3, 1, "")]
-    for name, e, scale, digits, file_value in rows:
-        value, interval = format_estimate(e, scale, digits)
-        if e.why == "given":
-            lines.append(f"{name:<28}{value:>15}   (not fitted: {delay_source})")
-        elif e.value is None:
-            lines.append(f"{name:<28}{value:>15}   {interval}")
-        else:
-            lines.append(f"{name:<28}{value:>15}   {interval:<22}{file_value:>12}")
+    lines += estimate_lines(rows, delay_source)
     lines.append(f"fit: residual RMS {r.residual_rms_m_s2:.3f} m/s2, R2 {r.r_squared:.4f}; "
                  f"RMS body speed x y z {' '.join(f'{v:.2f}' for v in r.rms_body_speed_m_s)} m/s")
     if r.link_delay_s is not None:

@@ -3,7 +3,7 @@ vehicle file's values (docs/identify.md, *Rate mode*). :mod:`mavreg.cli.identify
 command; it comes here when the flight's commands are SET_ATTITUDE_TARGET."""
 from __future__ import annotations
 
-from .identify_cmd import format_estimate as _fmt
+from .identify_cmd import estimate_lines
 
 __all__ = ["fit", "format_result", "vehicle_values"]
 
@@ -43,14 +43,7 @@ def format_result(r, vehicle, flight: str, delay_source: str) -> str:
     rows += [(f"drag c_{a} (N s/m)", e, 1.0, 3, f"{cxy if a != 'z' else cz:g}")
              for a, e in zip("xyz", r.drag_n_s_per_m)]
     rows += [("parasitic c_p (N s2/m2)", r.parasitic_n_s2_per_m2, 1.0, 4, f"{vehicle.parasitic_drag_n_s2_per_m2:g}")]
-    for name, e, scale, digits, file_value in rows:
-        value, interval = _fmt(e, scale, digits)
-        if e.why and e.value is not None:
-            lines.append(f"{name:<30}{value:>13}   (not fitted: {delay_source})")
-        elif e.value is None:
-            lines.append(f"{name:<30}{value:>13}   {interval}")
-        else:
-            lines.append(f"{name:<30}{value:>13}   {interval:<22}{file_value:>12}")
+    lines += estimate_lines(rows, delay_source, (30, 13))
     lines.append(f"fit: residual RMS {r.residual_rms_m_s2:.3f} m/s2, R2 {r.r_squared:.4f}; "
                  f"RMS body speed x y z {' '.join(f'{v:.2f}' for v in r.rms_body_speed_m_s)} m/s")
     lines += _rate_table(r, ri)
