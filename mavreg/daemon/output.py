@@ -17,13 +17,13 @@ the autopilot in between (docs/autopilots.md).
 """
 from __future__ import annotations
 
-import math
 
 import numpy as np
 
 from ..config.vehicle import VehicleParams
 from ..model.mixer import Mixer
 from ..model.rate_interface import AttitudeLoopCompensation, ThrustMap, rate_command
+from ..model.rotor_lag import lag_decay, lag_toward
 from . import messages as mm
 
 __all__ = ["RotorOutput", "RateOutput", "command_output"]
@@ -77,8 +77,7 @@ class RateOutput:
         if self._lag_s <= 0.0 or t_s is None or self._t_s is None or t_s < self._t_s:
             self._torque = torque.copy()
         elif t_s > self._t_s:
-            decay = math.exp(-(t_s - self._t_s) / self._lag_s)
-            self._torque = torque + (self._torque - torque) * decay
+            self._torque = lag_toward(self._torque, torque, lag_decay(t_s - self._t_s, self._lag_s))
         self._t_s = t_s
         return self._torque
 
