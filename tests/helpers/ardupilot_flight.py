@@ -66,7 +66,7 @@ def _truth_samples(tlog: Path, origin):
     """(vehicle time s, NED position, rotation, NED velocity) of every SIM_STATE in the tlog."""
     from pymavlink import mavutil
 
-    from mavreg.sim.truth import quats_to_matrices
+    from mavreg.model.rotation import quats_to_matrices
     log = mavutil.mavlink_connection(str(tlog), dialect="common")
     t_vehicle, rows = math.nan, []
     while (m := log.recv_match()) is not None:
