@@ -20,28 +20,19 @@ integrated *backward* from a terminal condition. Three entry points:
 * :func:`periodic_riccati` -- the periodic solution ``P(s) = P(s + L)`` of a maneuver that
   repeats (laps), by repeated backward sweeps over one period.
 
-Step size
----------
-Linearised about the solution, an error ``dP`` obeys (in reversed s, ``tau = -s``)
-``dP_tau = A_c^T dP + dP A_c`` with the closed-loop matrix ``A_c = A - B K``: a Lyapunov
-operator with eigenvalues ``mu_ij = lambda_i + lambda_j`` (``lambda`` the eigenvalues of
-``A_c``, all in the open left half-plane for an LQR closed loop). RK4 is stable on the
-mode ``mu`` iff ``|R(h mu)| <= 1`` with ``R(z) = 1 + z + z^2/2 + z^3/6 + z^4/24``; that
-region crosses the negative real axis at 2.785 and contains the whole half-disc of radius
-2.6 in the left half-plane. :func:`max_stable_step` therefore returns
-``safety * 2.5 / max |lambda_i + lambda_j|`` (``<= 2 |lambda_max|``), and
-:func:`sweep_backward` checks the step against it at every node after the sweep.
+Step size: the RK4 sweep's stability limit and the check of a grid against it live in
+:mod:`mavreg.control.riccati_step` (re-exported here).
 
 All functions are pure numpy/scipy: numbers in, numbers out.
 """
 from __future__ import annotations
 
-import warnings
 
 import numpy as np
 import scipy.linalg
 
 from .riccati_kernel import rk4_sweep
+from .riccati_step import RK4_STABILITY_RADIUS, check_step, max_stable_step
 
 __all__ = [
     "RK4_STABILITY_RADIUS",
@@ -54,10 +45,8 @@ __all__ = [
     "periodic_riccati",
 ]
 
-RK4_STABILITY_RADIUS = 2.5
-"""Radius of a left half-disc inside RK4's absolute stability region (true minimum ~2.6)."""
-
 _BLOWUP_FACTOR = 1e12
+
 
 class SweepDivergence(ValueError):
     """The backward sweep became non-finite or blew up at grid node ``node``, ``offset_m``
@@ -67,10 +56,6 @@ class SweepDivergence(ValueError):
         super().__init__(message)
         self.node = node
         self.offset_m = offset_m
-
-
-MAX_CHECKED_NODES = 1024
-"""Most nodes whose closed-loop eigenvalues :func:`check_step` computes."""
 
 
 def _validate_weights(Q, R, n: int, m: int) -> tuple[np.ndarray, np.ndarray]:
@@ -166,82 +151,6 @@ def riccati_rhs(A: np.ndarray, S: np.ndarray, Q: np.ndarray, P: np.ndarray) -> n
     Stacks ``(N, n, n)`` give a stack."""
     AtP = np.swapaxes(A, -1, -2) @ P
     return AtP + np.swapaxes(AtP, -1, -2) - P @ S @ P + Q
-
-
-def max_stable_step(A, B, K, safety: float = 0.5) -> float:
-    r"""Largest s step that keeps the RK4 Riccati sweep stable, times ``safety``.
-
-    .. math::
-        h_{max} = \mathrm{safety} \cdot \frac{2.5}{\max_{ij} |\lambda_i + \lambda_j|},
-        \qquad \lambda = \mathrm{eig}(A - B K),
-
-    ``A``, ``B``, ``K`` may be single matrices or stacks ``(N, n, n)``, ``(N, n, m)``,
-    ``(N, m, n)``; the minimum over the stack is returned. ``safety = 1`` is the stability
-    edge; the default 0.5 keeps ``h |lambda_max| <= 0.625`` where RK4 is also accurate.
-    Returns ``inf`` for a zero closed-loop matrix. Note that the transient of a sweep
-    started far from the steady solution (e.g. ``P_terminal = 0``) passes through gains
-    whose closed loop can be faster than the steady one; the post-sweep
-    :func:`check_step` looks at every node.
-    """
-    h_abs = _stable_step_per_node(A, B, K)
-    return float(safety * h_abs.min())
-
-
-def _stable_step_per_node(A, B, K) -> np.ndarray:
-    A = np.asarray(A, dtype=float)
-    Acl = A - np.asarray(B, dtype=float) @ np.asarray(K, dtype=float)
-    if Acl.ndim == 2:
-        Acl = Acl[None]
-    lam = np.linalg.eigvals(Acl)                          # (N, n)
-    mu = np.abs(lam[:, :, None] + lam[:, None, :]).max(axis=(1, 2))
-    with np.errstate(divide="ignore"):
-        return np.where(mu > 0.0, RK4_STABILITY_RADIUS / np.where(mu > 0.0, mu, 1.0), np.inf)
-
-
-def check_step(A_nodes, B_nodes, K_nodes, h: float, safety: float = 0.5,
-               mode: str = "raise") -> None:
-    """Check the step ``h`` against :func:`max_stable_step` at every node, or at most
-    ``MAX_CHECKED_NODES`` nodes evenly spread (the first and last among them).
-
-    The eigenvalues of the closed loop cost more than the sweep itself; a long plan (10,000
-    nodes a few milliseconds of flight apart) is checked every few nodes, which the gains do
-    not outrun: they change on the time scale of the maneuver, not of one step.
-
-    Beyond the stability edge (``safety = 1``) the sweep is meaningless: raise
-    ``ValueError`` in ``mode="raise"``, warn in ``mode="warn"``. Between ``safety`` and the
-    edge it is stable but inaccurate on the fastest closed-loop modes: warn
-    (``RuntimeWarning``) in both modes. ``mode="off"`` does nothing.
-    """
-    if mode == "off":
-        return
-    if mode not in ("raise", "warn"):
-        raise ValueError(f"mode must be 'raise', 'warn' or 'off', not {mode!r}")
-    n_nodes = len(K_nodes)
-    pick = np.unique(np.linspace(0, n_nodes - 1, min(n_nodes, MAX_CHECKED_NODES)).round().astype(int))
-    h_edge = _stable_step_per_node(np.asarray(A_nodes)[pick], np.asarray(B_nodes)[pick],
-                                   np.asarray(K_nodes)[pick])
-    steps = _node_steps(h, n_nodes)[pick]
-    i = int(np.argmax(steps / h_edge))
-    worst = int(pick[i])
-    h, edge = float(steps[i]), float(h_edge[i])
-    if h > edge:
-        msg = (f"RK4 Riccati step h = {h:.4g} exceeds the stability limit {edge:.4g} "
-               f"at node {worst}; use a step below "
-               f"{safety * edge:.4g}")
-        if mode == "raise":
-            raise ValueError(msg)
-        warnings.warn(msg, RuntimeWarning, stacklevel=3)
-    elif h > safety * edge:
-        warnings.warn(
-            f"RK4 Riccati step h = {h:.4g} is above {safety} of the stability limit "
-            f"{edge:.4g} at node {worst}: the fastest "
-            "closed-loop modes are resolved poorly", RuntimeWarning, stacklevel=3)
-
-
-def _node_steps(h, n_nodes: int) -> np.ndarray:
-    """Step lengths seen by each node: the larger of the intervals on either side."""
-    steps = np.broadcast_to(np.asarray(h, dtype=float), (n_nodes - 1,))
-    return np.maximum(np.concatenate([steps[:1], steps]), np.concatenate([steps, steps[-1:]]))
 
 
 def _validate_grid(A_nodes, B_nodes, A_mid, B_mid, h):
