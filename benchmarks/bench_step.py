@@ -27,7 +27,7 @@ from mavreg.config.vehicle import load_vehicle
 from mavreg.control import fastpath
 from mavreg.control.disturbance import DisturbanceEstimate
 from mavreg.control.regulator import ManeuverRegulator
-from mavreg.maneuver.plan import plan_file
+from mavreg.planning.plan_io import plan_file
 from mavreg.sim.maneuver_run import fly_on_design_model
 
 ROOT = Path(__file__).resolve().parents[1]

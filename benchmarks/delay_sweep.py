@@ -40,7 +40,7 @@ def _split(delay_ms: float) -> tuple[float, float]:
 def sim_row(delay_ms: float, predict: bool, seed: int = 1) -> str:
     from mavreg.config.controller import load_controller
     from mavreg.config.vehicle import load_vehicle
-    from mavreg.maneuver.plan import plan_file
+    from mavreg.planning.plan_io import plan_file
     from mavreg.sim.estimate_noise import EstimateNoise
     from mavreg.sim.maneuver_run import fly_on_design_model
     vehicle = load_vehicle(VEHICLE)

@@ -33,7 +33,7 @@ from benchmarks.io_helpers import BARREL, PAPER_CONTROLLER, VEHICLE, figure
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
 from mavreg.experiments.definitions import paper_group1, paper_group2
-from mavreg.maneuver.plan import plan_file
+from mavreg.planning.plan_io import plan_file
 from mavreg.sim.batch import BatchRun, fly_batch
 from mavreg.sim.maneuver_run import fly_on_design_model
 

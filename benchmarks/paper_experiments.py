@@ -17,7 +17,7 @@ import numpy as np
 from mavreg.config.paths import PARAMS_DIR
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
-from mavreg.maneuver.plan import plan_file
+from mavreg.planning.plan_io import plan_file
 from mavreg.sim.maneuver_run import fly_on_design_model
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -25,7 +25,7 @@ from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
 from mavreg.control.regulator import ManeuverRegulator
 from mavreg.experiments.definitions import paper_group1
-from mavreg.maneuver.plan import plan_file
+from mavreg.planning.plan_io import plan_file
 from mavreg.sim.batch import BatchRun, fly_batch
 
 __all__ = ["run_step", "closed_loop_states", "time_steps"]

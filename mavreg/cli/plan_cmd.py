@@ -60,8 +60,8 @@ def run(args) -> int:
     vehicle, controller = load_model_params(args)
     spec = load_maneuver_arg(args)            # the files first: the planner's imports are heavy
     from ..control.hover import HoverParams
-    from ..maneuver.cache import default_cache
-    from ..maneuver.plan import plan_cached
+    from ..planning.cache import default_cache
+    from ..planning.plan_io import plan_cached
     from ..maneuver.plan_margins import with_margins
     plan = with_margins(plan_cached(spec, vehicle, controller, strict=False, cache=default_cache()),
                         HoverParams.from_controller(controller))
@@ -78,7 +78,7 @@ def run(args) -> int:
 def _write_outputs(args, plan, summary: dict) -> None:
     """--export and --plot (the figure's title carries the verdict)."""
     if args.export is not None:
-        from ..maneuver.nominal_table import write_nominal
+        from ..planning.nominal_files import write_nominal
         write_nominal(plan, args.export)
     if args.plot is not None:
         from ..plots import plot_plan

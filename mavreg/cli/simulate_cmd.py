@@ -79,8 +79,8 @@ def run(args) -> int:
     vehicle, controller = load_model_params(args)
     spec = load_maneuver_arg(args)            # the files first: the planner's imports are heavy
     from ..config.regulation import told_rotor_limit
-    from ..maneuver.cache import default_cache
-    from ..maneuver.plan import plan_cached
+    from ..planning.cache import default_cache
+    from ..planning.plan_io import plan_cached
     from ..sim.maneuver_run import fly_on_design_model
     plan = plan_cached(spec, vehicle, controller, cache=default_cache())
     print(f"{plan.name}: planned, {plan.length_m:.1f} m in {plan.duration_s:.1f} s; simulating",

@@ -159,7 +159,7 @@ def plan_in_worker(yaml_text: str, source: str, vehicle: VehicleParams, controll
 
 
 def _plan_checked(yaml_text, source, vehicle, controller, bounds) -> PlanResult:
-    from ..maneuver.plan import plan_text
+    from ..planning.plan_io import plan_text
     from ..control.hover import HoverParams
     from ..maneuver.plan_margins import with_margins
     plan = with_margins(plan_text(yaml_text, source, vehicle, controller), HoverParams.from_controller(controller))

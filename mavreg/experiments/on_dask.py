@@ -7,7 +7,7 @@ is an optional dependency (``pip install 'mavreg[dask]'``); without it ``--dask`
 error.
 
 What the workers need: the same mavreg (checked: the digest of its Python sources,
-:func:`mavreg.maneuver.cache.code_digest`) and the experiment's files at the same paths with
+:func:`mavreg.planning.cache.code_digest`) and the experiment's files at the same paths with
 the same contents (checked: SHA-256 of the maneuver, vehicle and controller files), which a
 shared checkout or the same container image gives. A ``sitl`` run also writes its flight into
 ``--out``, which the workers must see at the same path (a shared filesystem), and runs the
@@ -40,7 +40,7 @@ def worker_probe(files: list[str], out_dir: str | None) -> dict:
     """What a worker has: mavreg's code digest, each file's SHA-256 (None: unreadable), and
     whether ``out_dir`` is a writable directory there (None: not asked). The digest is read
     afresh (not the process's first, cached reading): the sources as they are now."""
-    from ..maneuver.cache import code_digest
+    from ..planning.cache import code_digest
     from ..provenance import file_sha256
     return {"code": code_digest.__wrapped__(), "files": {f: file_sha256(f) for f in files},
             "out_dir": None if out_dir is None else (os.path.isdir(out_dir) and os.access(out_dir, os.W_OK))}

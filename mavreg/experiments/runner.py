@@ -71,7 +71,7 @@ def plan_for(maneuver_path: Path, vehicle_path: Path, controller_path: Path, lap
     """The plan of a maneuver file flown ``laps`` times (cached per process)."""
     from ..config.controller import load_controller
     from ..config.vehicle import load_vehicle
-    from ..maneuver.plan import plan_file
+    from ..planning.plan_io import plan_file
     return plan_file(maneuver_path, load_vehicle(vehicle_path), load_controller(controller_path), laps=laps)
 
 

@@ -5,25 +5,20 @@ One row per node of the plan's grid (the nodes the gains are scheduled on): nomi
 velocity, attitude (the quaternion of the nominal rotation, body FRD to NED, and its
 roll-pitch-yaw in degrees), body rates, collective thrust and torques, and the four rotor
 forces (front, right, back, left) that produce them. Every name carries its unit. Nothing
-here recomputes the nominal: it rearranges the plan's arrays.
+here recomputes the nominal: it rearranges the plan's arrays. The files are written and read
+by :mod:`mavreg.planning.nominal_files`.
 """
 from __future__ import annotations
 
-import json
-from pathlib import Path
-
 import numpy as np
 
-from ..errors import UsageError
 from ..model.mixer import Mixer
 from ..model.rotation import matrices_to_quats, matrix_to_rpy, rpy_to_matrix
 
-__all__ = ["nominal_table", "nominal_time_s", "plan_attitudes", "rotor_forces_n", "write_nominal",
-           "read_nominal_csv", "CSV_COLUMNS", "EXPORT_SUFFIXES"]
+__all__ = ["nominal_table", "nominal_time_s", "plan_attitudes", "rotor_forces_n", "COLUMN_GROUPS",
+           "CSV_COLUMNS"]
 
-EXPORT_SUFFIXES = (".csv", ".json")
-
-_GROUPS = (
+COLUMN_GROUPS = (
     ("t_s", ("t_s",)),
     ("s_m", ("s_m",)),
     ("position_ned_m", ("north_m", "east_m", "down_m")),
@@ -38,7 +33,7 @@ _GROUPS = (
 )
 """(JSON key, CSV columns) of each quantity, in order."""
 
-CSV_COLUMNS = tuple(c for _, cols in _GROUPS for c in cols)
+CSV_COLUMNS = tuple(c for _, cols in COLUMN_GROUPS for c in cols)
 
 
 def nominal_time_s(plan) -> np.ndarray:
@@ -62,7 +57,7 @@ def rotor_forces_n(plan) -> np.ndarray:
 
 
 def nominal_table(plan) -> dict[str, np.ndarray]:
-    """The nominal on the plan's grid, keyed by the JSON names of ``_GROUPS`` (units in keys)."""
+    """The nominal on the plan's grid, keyed by the JSON names of ``COLUMN_GROUPS`` (units in keys)."""
     R = plan_attitudes(plan)
     v_body = plan.x[:, 6:9]
     return {
@@ -78,45 +73,3 @@ def nominal_table(plan) -> dict[str, np.ndarray]:
         "torque_body_nm": plan.u[:, 1:4],
         "rotor_forces_n": rotor_forces_n(plan),
     }
-
-
-def check_export_path(path) -> Path:
-    """The export file's path, or a one-line ``UsageError`` for a suffix it cannot write."""
-    path = Path(path)
-    if path.suffix.lower() not in EXPORT_SUFFIXES:
-        raise UsageError(f"--export {path}: the file name must end in .csv or .json")
-    return path
-
-
-def write_nominal(plan, path) -> Path:
-    """Write the nominal table as CSV (a header of unit-named columns) or JSON (by suffix)."""
-    path = check_export_path(path)
-    table = nominal_table(plan)
-    if path.suffix.lower() == ".csv":
-        cols = np.column_stack([np.asarray(table[k], dtype=float).reshape(len(plan.s), -1)
-                                for k, _ in _GROUPS])
-        with open(path, "w", encoding="utf-8", newline="") as fh:
-            fh.write(",".join(CSV_COLUMNS) + "\n")
-            np.savetxt(fh, cols, delimiter=",", fmt="%.12g")
-    else:
-        doc = {"maneuver": plan.name, "length_m": plan.length_m, "duration_s": plan.duration_s,
-               "frame": "NED (north, east, down); body FRD; quaternion wxyz, body to NED; "
-                        "rotors 1-4 front, right, back, left",
-               "segments": [{"name": n, "s_start_m": a, "s_end_m": b} for n, a, b in plan.segments],
-               "rows": int(len(plan.s)),
-               **{k: np.asarray(v, dtype=float).tolist() for k, v in table.items()}}
-        path.write_text(json.dumps(doc, separators=(",", ":")), encoding="utf-8")
-    return path
-
-
-def read_nominal_csv(path) -> dict[str, np.ndarray]:
-    """A CSV written by :func:`write_nominal`, back as the JSON-keyed table."""
-    with open(path, encoding="utf-8") as fh:
-        header = fh.readline().strip().split(",")
-        data = np.loadtxt(fh, delimiter=",", ndmin=2)
-    col = {name: data[:, i] for i, name in enumerate(header)}
-    out = {}
-    for key, names in _GROUPS:
-        block = np.column_stack([col[n] for n in names])
-        out[key] = block[:, 0] if len(names) == 1 else block
-    return out

@@ -39,7 +39,8 @@ from ..control.margins import (LoopMargins, ScheduleMargins, lag_model_loop, loo
 from ..control.transverse import transverse_jacobians
 from ..model.mixer import mixer_matrix
 from ..model.quadrotor import QuadrotorModel
-from .plan import Plan, _du_ds
+from .gain_schedule import du_ds
+from .plan import Plan
 
 __all__ = ["MAX_NODES", "PlanMargins", "maneuver_loops", "maneuver_margins", "hover_margins",
            "plan_margins", "with_margins"]
@@ -88,7 +89,7 @@ def maneuver_loops(plan: Plan, rows) -> tuple[np.ndarray, np.ndarray, np.ndarray
     Rbar = plan.R[rows] if plan.attitude_error == "so3" else None
     x, u, dx, v = plan.x[rows], plan.u[rows], plan.dx[rows], plan.speed_m_s[rows]
     if tau > 0:
-        du = _du_ds(plan.u, plan.s, False)[rows]
+        du = du_ds(plan.u, plan.s, False)[rows]
         Az, Bz = augmented_jacobians(model, tau, F, k, x, u, dx, du, v, Rbar=Rbar)
     else:
         Az, Bz = transverse_jacobians(model, F, k, x, u, dx, Rbar=Rbar)

@@ -88,7 +88,7 @@ def true_errors_from_tlog(out: Path, maneuver: Path, origin) -> dict | None:
     """True errors of the maneuver's window against its plan (None: no maneuver, no truth)."""
     from mavreg.config.controller import load_controller
     from mavreg.config.vehicle import load_vehicle
-    from mavreg.maneuver.plan import plan_file
+    from mavreg.planning.plan_io import plan_file
     from mavreg.sim.truth import true_errors
     summary = json.loads((Path(out) / "summary.json").read_text())
     events = summary.get("events") or []

@@ -45,5 +45,5 @@ def barrel_roll_plan(controller_name: str = "paper_lqr", laps: int | None = None
                      vehicle_name: str = "mk_quadro"):
     """The barrel roll planned for ``vehicle_name`` with the controller file ``controller_name``
     (``laps`` laps; None: the file's)."""
-    from mavreg.maneuver.plan import plan_file
+    from mavreg.planning.plan_io import plan_file
     return plan_file(BARREL_ROLL, vehicle(vehicle_name), controller(controller_name), laps=laps)

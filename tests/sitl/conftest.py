@@ -12,7 +12,7 @@ from sitl_helpers import BARREL, CONTROLLER, VEHICLE, VEHICLE_IDEAL, load_record
 def barrel_plan():
     from mavreg.config.controller import load_controller
     from mavreg.config.vehicle import load_vehicle
-    from mavreg.maneuver.plan import plan_file
+    from mavreg.planning.plan_io import plan_file
     return plan_file(BARREL, load_vehicle(VEHICLE), load_controller(CONTROLLER))
 
 

@@ -72,7 +72,7 @@ def true_errors(f: dict, maneuver: Path) -> dict:
     from mavreg.config.controller import load_controller
     from mavreg.config.vehicle import load_vehicle
     from mavreg.daemon.report import ground_truth_errors
-    from mavreg.maneuver.plan import plan_file
+    from mavreg.planning.plan_io import plan_file
     if maneuver not in _PLANS:
         _PLANS[maneuver] = plan_file(maneuver, load_vehicle(DEFAULT_VEHICLE),
                                      load_controller(REAL_CONTROLLER))

@@ -58,7 +58,7 @@ def test_the_calibrated_vehicle_flies_the_drag_forward(calibration):
     from mavreg.config.controller import load_controller
     from mavreg.config.vehicle import load_vehicle
     from mavreg.daemon.report import ground_truth_errors
-    from mavreg.maneuver.plan import plan_file
+    from mavreg.planning.plan_io import plan_file
     from sitl_helpers import load_record
     _, vehicle, tmp = calibration
     out = tmp / "calibrated_flight"

@@ -17,7 +17,7 @@ from mavreg.config.paths import DEFAULT_VEHICLE, REAL_CONTROLLER
 from mavreg.config.vehicle import load_vehicle
 from mavreg.daemon.report import ground_truth_errors
 from mavreg.daemon.ctrllog import load_control_log
-from mavreg.maneuver.plan import plan_file
+from mavreg.planning.plan_io import plan_file
 from sitl_helpers import load_record, mavreg
 from tests.helpers.repo import ROOT
 

@@ -61,7 +61,7 @@ def _estimate(f) -> dict:
 def realistic_plan():
     from mavreg.config.controller import load_controller
     from mavreg.config.vehicle import load_vehicle
-    from mavreg.maneuver.plan import plan_file
+    from mavreg.planning.plan_io import plan_file
     return plan_file(BARREL, load_vehicle(DEFAULT_VEHICLE),
                      load_controller(REAL_CONTROLLER))
 

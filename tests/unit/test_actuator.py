@@ -9,7 +9,10 @@ from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
 from mavreg.control.actuator import NZ, augmented_jacobians, augmented_rhs
 from mavreg.control.riccati import care
-from mavreg.maneuver.plan import _du_ds, _nominal, build_profiles, plan_file
+from mavreg.maneuver.gain_schedule import du_ds as _du_ds
+from mavreg.maneuver.nominal_grid import nominal_on_grid as _nominal
+from mavreg.maneuver.plan import build_profiles
+from mavreg.planning.plan_io import plan_file
 from mavreg.config.maneuver import load_maneuver
 from mavreg.geometry.build import build_path
 from mavreg.model.quadrotor import QuadrotorModel

@@ -19,7 +19,8 @@ from mavreg.config.maneuver import load_maneuver_text
 from mavreg.config.vehicle import load_vehicle
 from mavreg.control.regulator import ManeuverRegulator
 from mavreg.experiments.definitions import paper_group1
-from mavreg.maneuver.plan import plan_file, plan_spec
+from mavreg.maneuver.plan import plan_spec
+from mavreg.planning.plan_io import plan_file
 from mavreg.model.mixer import Mixer
 from mavreg.model.quadrotor import QuadrotorModel
 from mavreg.sim.batch import BatchRun, fly_batch

@@ -28,15 +28,15 @@ def test_the_planner_runs_on_one_blas_thread(monkeypatch):
     from mavreg.config.controller import load_controller
     from mavreg.config.maneuver import load_maneuver
     from mavreg.config.vehicle import load_vehicle
-    from mavreg.maneuver import plan as planmod
+    from mavreg.maneuver import gain_schedule, plan as planmod
     seen = []
-    real = planmod._gains_on_grid
+    real = gain_schedule.gains_on_grid
 
     def spy(*args, **kwargs):
         seen.append(_blas_threads())
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(planmod, "_gains_on_grid", spy)
+    monkeypatch.setattr(gain_schedule, "gains_on_grid", spy)
     planmod.plan_spec(load_maneuver(maneuver_file("slalom")), load_vehicle(DEFAULT_VEHICLE),
                       load_controller(PAPER_CONTROLLER))
     assert seen and all(s <= {1} for s in seen)

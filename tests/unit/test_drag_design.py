@@ -12,7 +12,7 @@ from mavreg.config.maneuver import load_maneuver
 from mavreg.config.vehicle import load_vehicle
 from mavreg.maneuver import plan as plan_mod
 from mavreg.maneuver.flatness import nominal_from_flat
-from mavreg.maneuver.plan import plan_file
+from mavreg.planning.plan_io import plan_file
 from mavreg.model.quadrotor import QuadrotorModel
 
 BASE = load_vehicle(DEFAULT_VEHICLE)

@@ -26,7 +26,7 @@ from mavreg.model.mixer_kernel import yaw_then_lift as yaw_then_lift_kernel
 from mavreg.geometry.build import build_path
 from mavreg.geometry.projection import Projector
 from mavreg.geometry.projection_kernel import POINT_WIDTH, path_tables, project
-from mavreg.maneuver.plan import plan_file
+from mavreg.planning.plan_io import plan_file
 from mavreg.model.mixer import Mixer, torques_first, yaw_then_lift
 from mavreg.model.rotation import rpy_to_matrix
 from mavreg.model.rotation_kernel import log_vee

@@ -13,7 +13,7 @@ from mavreg.config.regulation import AllocationParams, SpeedGovernorParams
 from mavreg.config.vehicle import load_vehicle
 from mavreg.control.governor import SpeedGovernor, retiming_force, thrust_speed_cap
 from mavreg.geometry.projection import Projector
-from mavreg.maneuver.plan import plan_file
+from mavreg.planning.plan_io import plan_file
 from mavreg.model.rotation import rpy_to_matrix
 from mavreg.sim.maneuver_run import fly_on_design_model
 

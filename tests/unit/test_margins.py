@@ -16,7 +16,7 @@ from mavreg.control.margins import (delay_margins, gain_margins, lag_model_loop,
                                     rotor_loop, schedule_margins, spectral_abscissa)
 from mavreg.daemon.gate import HealthGate, MarginCheck, delay_margin_of, unmodelled_delay_s
 from mavreg.config.envelope import EnvelopeParams
-from mavreg.maneuver.plan import plan_file
+from mavreg.planning.plan_io import plan_file
 from mavreg.maneuver.plan_margins import SLOW_RAD_S, hover_margins, maneuver_loops, with_margins
 from mavreg.model.mixer import Mixer, mixer_matrix
 from mavreg.model.quadrotor import QuadrotorModel

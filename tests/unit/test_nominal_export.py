@@ -11,8 +11,9 @@ from mavreg.config.paths import DEFAULT_VEHICLE, DESIGN_CONTROLLER
 from mavreg.cli.main import main
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
-from mavreg.maneuver.nominal_table import CSV_COLUMNS, nominal_table, read_nominal_csv, write_nominal
-from mavreg.maneuver.plan import plan_text
+from mavreg.maneuver.nominal_table import CSV_COLUMNS, nominal_table
+from mavreg.planning.nominal_files import read_nominal_csv, write_nominal
+from mavreg.planning.plan_io import plan_text
 from mavreg.model.mixer import Mixer
 from mavreg.model.rotation import quat_to_matrix
 

@@ -15,8 +15,9 @@ from mavreg.config.vehicle import load_vehicle
 from mavreg.errors import UsageError
 from mavreg.geometry.build import build_path
 from mavreg.maneuver import plan as pm
+from mavreg.maneuver import nominal_grid as ng
 from mavreg.maneuver.budget import MAX_PLAN_BYTES, PlanBudgetError, check_budget, estimate
-from mavreg.maneuver.cache import PlanCache
+from mavreg.planning.cache import PlanCache
 from mavreg.maneuver.feasibility import check_feasibility
 
 BARREL_TEXT = maneuver_file("barrel_roll").read_text()
@@ -33,7 +34,7 @@ def test_the_estimate_matches_the_grid_the_planner_builds(name):
     est = estimate(spec, CONTROLLER.riccati_step_s)
     path = build_path(spec)
     speed, _ = pm.build_profiles(spec, path)
-    grid = pm._with_midpoints(pm._time_grid(path, speed, CONTROLLER.riccati_step_s))
+    grid = ng.with_midpoints(ng.time_grid(path, speed, CONTROLLER.riccati_step_s))
     assert est.length_m == pytest.approx(path.length_m, rel=0.02)
     assert est.path_nodes == pytest.approx(len(path.s_nodes), rel=0.02)
     assert est.grid_nodes == pytest.approx(len(grid), rel=0.01)
@@ -119,7 +120,7 @@ def test_the_cache_keeps_its_byte_cap(tmp_path):
 
 
 def test_the_cache_cap_from_the_environment(monkeypatch, tmp_path):
-    from mavreg.maneuver.cache import MAX_BYTES, default_cache
+    from mavreg.planning.cache import MAX_BYTES, default_cache
     monkeypatch.setenv("MAVREG_PLAN_CACHE", str(tmp_path))
     monkeypatch.delenv("MAVREG_PLAN_CACHE_MAX_MB", raising=False)
     assert default_cache().max_bytes == MAX_BYTES

@@ -16,8 +16,8 @@ from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER, maneuver_file
 from mavreg.config.controller import load_controller
 from mavreg.config.maneuver import load_maneuver
 from mavreg.config.vehicle import load_vehicle
-from mavreg.maneuver.cache import PlanCache
-from mavreg.maneuver.plan import plan_cached
+from mavreg.planning.cache import PlanCache
+from mavreg.planning.plan_io import plan_cached
 from mavreg.maneuver.plan_entry import PlanEntry, decode_table, encode_table
 
 

@@ -16,7 +16,14 @@ from mavreg.config.controller import load_controller
 from mavreg.config.maneuver import load_maneuver
 from mavreg.config.vehicle import load_vehicle
 from mavreg.maneuver import plan as pm
-from mavreg.maneuver.cache import PlanCache
+from mavreg.model.quadrotor import QuadrotorModel
+from mavreg.geometry.build import build_path
+from mavreg.control.riccati import care
+from mavreg.control.actuator import augmented_jacobians
+from mavreg.maneuver import nominal_grid as ng
+from mavreg.maneuver import gain_schedule as gs
+from mavreg.planning import plan_io as pio
+from mavreg.planning.cache import PlanCache
 
 BARREL = maneuver_file("barrel_roll")
 REALISTIC = REAL_CONTROLLER
@@ -48,43 +55,43 @@ def test_hermite_midpoints_match_the_sweep_through_them():
     """P at the midpoints from the Hermite interpolant equals, to O(h^4), the RK4 sweep that
     steps through the midpoints as nodes."""
     controller = load_controller(PAPER_CONTROLLER)
-    model = pm.QuadrotorModel.from_vehicle(VEHICLE)
-    path = pm.build_path(SPEC)
+    model = QuadrotorModel.from_vehicle(VEHICLE)
+    path = build_path(SPEC)
     speed, yaw = pm.build_profiles(SPEC, path)
-    s = pm._with_midpoints(pm._time_grid(path, speed, controller.riccati_step_s))
-    A, B = pm._linearization(model, 0.0, pm._nominal(model, path, speed, yaw, s, "fixed"), s)
-    Q, R = pm._weights(controller, 0.0)
-    P_T, _ = pm.care(A[-1], B[-1], Q, R)
-    P, K = pm._gains_on_grid(A, B, s, Q, R, P_T)
-    s2 = pm._with_midpoints(s)      # every point of s a node, with midpoints of its own
-    A2, B2 = pm._linearization(model, 0.0, pm._nominal(model, path, speed, yaw, s2, "fixed"), s2)
-    P2, _ = pm._gains_on_grid(A2, B2, s2, Q, R, P_T)
+    s = ng.with_midpoints(ng.time_grid(path, speed, controller.riccati_step_s))
+    A, B = gs.linearization(model, 0.0, ng.nominal_on_grid(model, path, speed, yaw, s, "fixed"), s)
+    Q, R = gs.weights(controller, 0.0)
+    P_T, _ = care(A[-1], B[-1], Q, R)
+    P, K = gs.gains_on_grid(A, B, s, Q, R, P_T)
+    s2 = ng.with_midpoints(s)      # every point of s a node, with midpoints of its own
+    A2, B2 = gs.linearization(model, 0.0, ng.nominal_on_grid(model, path, speed, yaw, s2, "fixed"), s2)
+    P2, _ = gs.gains_on_grid(A2, B2, s2, Q, R, P_T)
     assert np.abs(P[1::2] - P2[2::4]).max() < 1e-5 * np.abs(P).max()
 
 
 def test_merged_linearization_equals_every_row():
     controller = load_controller(REALISTIC)
-    model = pm.QuadrotorModel.from_vehicle(VEHICLE)
-    path = pm.build_path(SPEC)
+    model = QuadrotorModel.from_vehicle(VEHICLE)
+    path = build_path(SPEC)
     speed, yaw = pm.build_profiles(SPEC, path)
-    s = pm._with_midpoints(pm._time_grid(path, speed, controller.riccati_step_s))
-    nominal = pm._nominal(model, path, speed, yaw, s, "fixed")
+    s = ng.with_midpoints(ng.time_grid(path, speed, controller.riccati_step_s))
+    nominal = ng.nominal_on_grid(model, path, speed, yaw, s, "fixed")
     tau = VEHICLE.rotor_time_constant_s
-    A, B = pm._linearization(model, tau, nominal, s)
+    A, B = gs.linearization(model, tau, nominal, s)
     F, k, x, u, dx, v, _ = nominal
     sel = np.arange(0, len(s), 97)
-    A_all, B_all = pm.augmented_jacobians(model, tau, F[sel], k[sel], x[sel], u[sel], dx[sel],
-                                          pm._du_ds(u, s, False)[sel], v[sel])
+    A_all, B_all = augmented_jacobians(model, tau, F[sel], k[sel], x[sel], u[sel], dx[sel],
+                                          gs.du_ds(u, s, False)[sel], v[sel])
     assert np.abs(A[sel] - A_all).max() < 1e-9 * np.abs(A_all).max()
     assert np.abs(B[sel] - B_all).max() < 1e-9 * np.abs(B_all).max()
-    first, run = pm._first_of_runs(np.concatenate([x[:, 3:], u], axis=1))
+    first, run = gs.first_of_runs(np.concatenate([x[:, 3:], u], axis=1))
     assert len(first) < 0.8 * len(s)      # the slow ends and the run-up are merged
 
 
 def test_compiled_sweep_agrees_with_plain_python():
     """The numba sweep and the plain-Python one (MAVREG_PURE=1, a fresh process) give the
     same gains to round-off."""
-    code = ("import numpy as np, sys; from mavreg.maneuver.plan import plan_file; "
+    code = ("import numpy as np, sys; from mavreg.planning.plan_io import plan_file; "
             "from mavreg.config.vehicle import load_vehicle; from mavreg.config.controller import load_controller; "
             f"p = plan_file({str(BARREL)!r}, load_vehicle({str(DEFAULT_VEHICLE)!r}), "
             f"load_controller({str(REALISTIC)!r}), use_cache=False); np.save(sys.argv[1], p.K)")
@@ -100,29 +107,29 @@ def test_compiled_sweep_agrees_with_plain_python():
 def test_cache_returns_the_same_plan_and_keys_on_contents(tmp_path):
     cache = PlanCache(tmp_path)
     controller = load_controller(PAPER_CONTROLLER)
-    first = pm.plan_cached(SPEC, VEHICLE, controller, cache=cache)
-    again = pm.plan_cached(SPEC, VEHICLE, controller, cache=cache)
+    first = pio.plan_cached(SPEC, VEHICLE, controller, cache=cache)
+    again = pio.plan_cached(SPEC, VEHICLE, controller, cache=cache)
     assert (cache.hits, cache.misses) == (1, 1)
     assert not first.from_cache and again.from_cache          # what `mavreg plan` reports
     assert (first.summary()["from_cache"], again.summary()["from_cache"]) == (False, True)
     assert np.array_equal(first.K, again.K) and np.array_equal(first.x, again.x)
     # another controller, another entry
     other = dataclasses.replace(controller, q_position=(500.0, 500.0))
-    changed = pm.plan_cached(SPEC, VEHICLE, other, cache=cache)
+    changed = pio.plan_cached(SPEC, VEHICLE, other, cache=cache)
     assert cache.misses == 2 and not np.array_equal(changed.K, first.K)
     # a corrupt entry is planned again
     for entry in tmp_path.glob("*.plan.pickle"):
         entry.write_bytes(b"not a pickle")
-    pm.plan_cached(SPEC, VEHICLE, controller, cache=cache)
+    pio.plan_cached(SPEC, VEHICLE, controller, cache=cache)
     assert cache.misses == 3
 
 
 def test_cache_off_and_unwritable(tmp_path, monkeypatch):
-    from mavreg.maneuver.cache import default_cache
+    from mavreg.planning.cache import default_cache
     monkeypatch.setenv("MAVREG_PLAN_CACHE", "off")
     assert default_cache() is None
     blocker = tmp_path / "file"
     blocker.write_text("x")
     cache = PlanCache(blocker / "sub")       # cannot be made: planning still works
-    plan = pm.plan_cached(SPEC, VEHICLE, load_controller(PAPER_CONTROLLER), cache=cache)
+    plan = pio.plan_cached(SPEC, VEHICLE, load_controller(PAPER_CONTROLLER), cache=cache)
     assert plan.K.shape[0] == len(plan.s) and cache.misses == 1

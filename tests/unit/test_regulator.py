@@ -9,7 +9,7 @@ from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER, maneuver_file
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
 from mavreg.control.transverse import transverse_jacobians
-from mavreg.maneuver.plan import plan_file, plan_text
+from mavreg.planning.plan_io import plan_file, plan_text
 from mavreg.model.quadrotor import QuadrotorModel
 from mavreg.sim.maneuver_run import fly_on_design_model
 
