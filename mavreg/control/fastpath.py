@@ -13,11 +13,11 @@ The compiled path is used when numba is available and ``MAVREG_PURE`` is not set
 reference that the tests hold this one to (``tests/unit/test_fastpath.py``: rotor forces
 within 1e-9 N over closed-loop states).
 :func:`warm_up` compiles (or loads from numba's on-disk cache) the kernel when the
-regulator is built, so that no compilation falls inside a control loop.
+regulator is built, so that no compilation falls inside a control loop. Nothing here reads a
+clock: a caller that wants the warm-up timed times the call (``benchmarks/bench_step.py``).
 """
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,23 +28,24 @@ from ..geometry.projection_kernel import path_tables
 from . import step_kernel as sk
 from .attitude_table import NominalAttitudes
 
-__all__ = ["FastStep", "GovernorSetup", "plan_table", "step_params", "warm_up", "compile_seconds"]
+__all__ = ["FastStep", "GovernorSetup", "plan_table", "step_params", "warm_up"]
 
-compile_seconds: float | None = None
-"""Seconds :func:`warm_up` took in this process (compiling the kernel, or loading it from
-numba's cache); None before it ran."""
+_warm = False
+"""Whether :func:`warm_up` has run the kernel in this process."""
 
 
-def warm_up() -> float | None:
+def warm_up() -> bool:
     """Compile the kernel (or load it from numba's on-disk cache) once per process, by
-    running it on a two-node straight path; returns the seconds the first call took
-    (:data:`compile_seconds`), None without numba. Types, not values, select what numba
+    running it on a two-node straight path; True when the compiled step is in use (and now
+    compiled), False without numba (nothing to compile). Types, not values, select what numba
     compiles, so this one call covers every step: the regulator calls it when it is built
-    (the daemon builds it before the maneuver), so that no compilation falls in the loop."""
-    global compile_seconds
-    if not ACCELERATED or compile_seconds is not None:
-        return compile_seconds
-    t0 = time.perf_counter()
+    (the daemon builds it before the maneuver), so that no compilation falls in the loop.
+    The caller times the call if it wants the compile time: no clock is read here."""
+    global _warm
+    if not ACCELERATED:
+        return False
+    if _warm:
+        return True
     coef = np.zeros((1, 4, 18))
     coef[0, 0, 3:12] = np.eye(3).reshape(9)
     coef[0, 1, 0] = 1.0
@@ -57,8 +58,8 @@ def warm_up() -> float | None:
     sk.regulator_step(np.zeros(12), np.zeros(4), True, True, 0.0, 0.0, 0.0, 0.0, 0.0, table,
                       np.array([0.0, 1.0]), np.array([0.0, 1.0]), coef, ends, prm, np.zeros(sk.ST_WIDTH),
                       np.empty(sk.OUT_WIDTH))
-    compile_seconds = time.perf_counter() - t0
-    return compile_seconds
+    _warm = True
+    return True
 
 
 def step_params(mixer_matrix, mixer_inverse, max_rotor_thrust_n: float = 0.0, torques_first: bool = False,

@@ -39,11 +39,11 @@ setup = flight.Setup()
 before = compiled()
 c = setup.controller
 fastpath.warm_up()      # as the daemon: its regulator factory compiles the step before the link
-seconds = warm_up_sample_kernels(setup.vehicle, 1.0 / flight.RATE_HZ, c.max_prediction_s, c.disturbance, HoverParams())
+ran = warm_up_sample_kernels(setup.vehicle, 1.0 / flight.RATE_HZ, c.max_prediction_s, c.disturbance, HoverParams())
 warm = compiled()
 flight.fly(setup, "hover", 1.0)
 flight.fly(setup, "maneuver", 1.0)
-print(json.dumps({"before": before, "warm": warm, "flown": compiled(), "seconds": seconds}))
+print(json.dumps({"before": before, "warm": warm, "flown": compiled(), "ran": ran}))
 """
 
 
@@ -52,7 +52,7 @@ def test_the_warm_up_compiles_every_kernel_the_flights_call():
     out = subprocess.run([sys.executable, "-c", _CHILD], cwd=REPO, capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr[-2000:]
     r = json.loads(out.stdout.strip().splitlines()[-1])
-    assert r["seconds"] is not None
+    assert r["ran"] is True
     assert not any(r["before"].values())
     for name in ("predictor_kernel.predict_into", "command_history_kernel.prepare", "command_history_kernel.advance",
                  "observer_kernel.update", "hover_kernel.reference", "hover_kernel.feedback"):
