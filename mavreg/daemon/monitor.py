@@ -201,6 +201,13 @@ class EnvelopeMonitor:
                               f"measured thrust {measured:.1f} N against {commanded:.1f} N commanded for "
                               f"{lasted:.2f} s" + (" at the ground" if near_ground else ""), near_ground)
         # 3. where the vehicle may be
+        return self._check_envelope(t_s, phase, s_m, px, py, alt, omega)
+
+    def _check_envelope(self, t_s: float, phase: str, s_m: float, px: float, py: float, alt: float,
+                        omega) -> Violation | None:
+        """Where the vehicle may be and how fast it may turn: body rate, altitude floor,
+        geofence (the last checks of :meth:`check_state`, in its order)."""
+        prm = self.p
         w = math.sqrt(float(omega[0]) ** 2 + float(omega[1]) ** 2 + float(omega[2]) ** 2)
         w_max = prm.recovery.max_body_rate_rad_s if phase == Phase.RECOVER else prm.max_body_rate_rad_s
         self._peak("body_rate", w, w_max, phase, t_s)
