@@ -14,86 +14,29 @@ import dataclasses
 import signal
 import sys
 import time
-from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Callable
 
 from ..blas import one_blas_thread
-from ..config.controller import ControllerParams, load_controller
-from ..config.defaults import CONTROL_RATE_HZ, MAX_PREDICTION_S
-from ..config.disturbance import DisturbanceParams
-from ..config.envelope import EnvelopeParams
-from ..config.regulation import AllocationParams, SpeedGovernorParams
+from ..config.controller import load_controller
+from ..config.defaults import MAX_PREDICTION_S
 from ..control.forecast import Forecaster
 from ..config.vehicle import VehicleParams
-from ..control import fastpath
-from ..control.regulator import ManeuverRegulator
 from ..control.sample_warmup import warm_up_sample_kernels
 from ..errors import EXIT_FAILED, UserError
 from .ctrllog import ControlLog
+from .daemon_config import DaemonConfig, regulator_factory
+from .daemon_status import latency_summary, status_report
 from .endpoint import EndpointServer
-from .gcs import GcsParams
 from .gcs_link import GcsLink
 from .link import FastLink, MavlinkLink, open_link
-from .planner_pool import PlannerBounds, PlannerDied, PlannerPool
-from .supervisor import Output, Phase, Supervisor, SupervisorParams
+from .planner_pool import PlannerDied, PlannerPool
+from .supervisor import Output, Phase, Supervisor
 from .tlog import TlogWriter, VehicleClock
 
-
-def regulator_factory(vehicle: VehicleParams, control_rate_hz: float,
-                      disturbance: DisturbanceParams | None = None,
-                      allocation: AllocationParams | None = None,
-                      speed_governor: SpeedGovernorParams | None = None) -> Callable:
-    """plan -> ManeuverRegulator at the vehicle's control rate (for its feedforward lead), its
-    disturbance compensation bounded by ``disturbance``, its allocation and speed governor
-    ``allocation`` and ``speed_governor`` (the controller file's sections; None: the paper's).
-    The regulator's compiled step is compiled (or loaded from numba's cache) here, so that a
-    maneuver uploaded in flight does not stall the loop for it."""
-    if not control_rate_hz > 0:
-        raise ValueError(f"control rate must be positive, got {control_rate_hz} Hz")
-    d = disturbance if disturbance is not None else DisturbanceParams()
-    fastpath.warm_up()      # the compiled step now, before the link: a later upload builds at once
-
-    def make(plan) -> ManeuverRegulator:
-        return ManeuverRegulator(plan, vehicle, control_period_s=1.0 / control_rate_hz,
-                                 max_compensation_turn_rad=d.max_compensation_turn_rad,
-                                 allocation=allocation, speed_governor=speed_governor)
-    return make
-
-__all__ = ["DaemonConfig", "Daemon"]
+__all__ = ["DaemonConfig", "Daemon", "regulator_factory"]
 
 TICK_S = 0.02
 HEARTBEAT_S = 1.0
-
-
-@dataclass(frozen=True)
-class DaemonConfig:
-    vehicle_url: str
-    vehicle_path: Path
-    controller_path: Path
-    socket_path: Path | None
-    tlog_path: Path | None
-    supervisor: SupervisorParams
-    envelope: EnvelopeParams = field(default_factory=EnvelopeParams)
-    """The controller file's ``envelope:`` section (``fly`` and ``serve`` load it)."""
-    controller: ControllerParams | None = None
-    """The controller file: its prediction settings (``predict_delay``, ``fixed_delay_s``,
-    ``max_prediction_s``). None: no prediction."""
-    control_rate_hz: float = CONTROL_RATE_HZ
-    """The vehicle's telemetry (control) rate: the prediction's integration step."""
-    gcs_urls: tuple[str, ...] = ()
-    """Ground stations to forward the flight to (``--gcs``; :mod:`mavreg.daemon.gcs`)."""
-    gcs: GcsParams = field(default_factory=GcsParams)
-    tlog_clock: str = "wall"
-    """The ``.tlog``'s timestamps: ``wall`` (a vehicle in real time) or ``vehicle`` (a
-    lockstep simulator: the start's wall time plus the vehicle time elapsed,
-    :class:`mavreg.daemon.tlog.VehicleClock`)."""
-    planner: PlannerBounds = field(default_factory=PlannerBounds)
-    """What one upload may cost the planner worker (memory, CPU, wall clock)."""
-
-    def __post_init__(self):
-        if self.tlog_clock not in ("wall", "vehicle"):
-            raise ValueError(f"tlog clock {self.tlog_clock!r}: expected 'wall' or 'vehicle'")
 
 
 class Daemon:
@@ -252,43 +195,12 @@ class Daemon:
         return {"ok": True, "status": self.status()}
 
     def status(self) -> dict:
-        st = self.supervisor.status()
-        if self.link is not None:
-            st["link"] = dict(self.link.counters.__dict__)
-        sg = self.signing
-        st["signing"] = None if sg is None else {"accepted": sg.accepted, **sg.drops,
-                                                 "state_file": str(sg.path)}
-        st["uploads"] = dict(self.uploads)
-        if self.gcs is not None:
-            st["gcs"] = self.gcs.status()
-        st["latency_ms"] = self.latency_summary()
-        st["planning"] = 0 if self.pool is None else self.pool.busy
-        st["loop"] = {"max_tick_gap_ms": self.max_tick_gap_s * 1e3, "max_tick_gap_phase": self.max_tick_gap_phase,
-                      "max_tick_cpu_ms": self.max_tick_cpu_s * 1e3,
-                      "tick_ms": TICK_S * 1e3,
-                      "endpoint_refused": 0 if self.endpoint is None else self.endpoint.refused}
-        est = self.supervisor.timesync.estimate()
-        st["link_delay_ms"] = None if est is None else {
-            "sample_to_actuation": est.delay_s * 1e3, "jitter": est.jitter_s * 1e3,
-            "round_trip_wall": est.round_trip_s * 1e3, "replies": est.samples,
-            "used_for_prediction": self.supervisor.delay.total_s() * 1e3
-            if self.supervisor.forecaster.predict else None}
-        fc = self.supervisor.forecaster
-        est = fc.disturbance
-        st["disturbance"] = None if est is None else {
-            "drag_n_s_per_m": list(est.drag_n_s_per_m), "force_ned_n": list(est.force_ned_n),
-            "thrust_scale": est.thrust_scale, "updates": fc.observer.updates,
-            "rejected": fc.observer.rejected}
-        return st
+        """The endpoint's ``status`` answer (:func:`~mavreg.daemon.daemon_status.status_report`)."""
+        return status_report(self, TICK_S)
 
     def latency_summary(self, maneuver_only: bool = False) -> dict:
         """Median and 99th percentile (ms) from datagram receipt to the command sent."""
-        src = self.maneuver_latency_ns if maneuver_only else self.latency_ns
-        if not src:
-            return {}
-        lat = sorted(src)
-        n = len(lat)
-        return {"median": lat[n // 2] / 1e6, "p99": lat[min(n - 1, int(0.99 * n))] / 1e6, "samples": n}
+        return latency_summary(self.maneuver_latency_ns if maneuver_only else self.latency_ns)
 
     def request_stop(self) -> None:
         """Signal handler: first land (if airborne), then stop at once."""
