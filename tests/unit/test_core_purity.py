@@ -88,3 +88,34 @@ def test_the_scan_passes_pure_code_and_finds_the_io_where_it_now_lives():
     planning = sorted((ROOT / "mavreg" / "planning").glob("*.py"))
     hits = {f.name: impurities(f.read_text(encoding="utf-8"), f.name) for f in planning}
     assert hits["cache.py"] and hits["nominal_files.py"] and hits["plan_io.py"], hits
+
+
+LINE = """\
+kind: maneuver
+version: 1
+name: line
+start: {position_m: [0, 0, -3], heading_deg: 0}
+segments:
+  - name: straight
+    line: {length_m: 10.0}
+speed: {initial_m_s: 3.0}
+"""
+
+
+def test_the_planner_times_its_stages_on_the_callers_clock_only():
+    """A clock that ticks one second per read: the stages take exactly one tick each, which no
+    wall clock would give; without a clock, timings are refused rather than read elsewhere."""
+    from mavreg.config.controller import load_controller
+    from mavreg.config.maneuver import load_maneuver_text
+    from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER
+    from mavreg.config.vehicle import load_vehicle
+    from mavreg.maneuver.plan import plan_spec
+    spec, vehicle, controller = (load_maneuver_text(LINE, "line.yaml"), load_vehicle(DEFAULT_VEHICLE),
+                                 load_controller(PAPER_CONTROLLER))
+    reads = iter(range(100))
+    timings: dict = {}
+    plan_spec(spec, vehicle, controller, timings=timings, clock=lambda: float(next(reads)))
+    assert timings == {"path": 1.0, "nominal": 1.0, "linearization": 1.0, "riccati": 1.0, "total": 4.0}
+    with pytest.raises(ValueError, match="need a clock"):
+        plan_spec(spec, vehicle, controller, timings={})
+    assert plan_spec(spec, vehicle, controller).K.shape[1:] == (4, 11)      # no timings: no clock needed
