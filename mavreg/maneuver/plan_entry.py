@@ -6,7 +6,7 @@ Hermite table, and the gains). All but the gains come from the path and the flat
 which take a few tens of milliseconds to compute again and come out the same to the last
 bit (the same code on the same inputs); the gains are what the Riccati sweep costs. So an
 entry keeps the gains and the few words that go with them (:class:`PlanEntry`), and
-:func:`~mavreg.maneuver.plan.plan_cached` rebuilds the rest.
+:func:`~mavreg.maneuver.plan.plan_from_entry` rebuilds the rest (for :func:`~mavreg.planning.plan_io.plan_cached`).
 
 The gains are stored without loss: the bits of each float64 column, read as integers,
 differenced three times along s (the table is smooth, so the differences are small

@@ -9,8 +9,8 @@ from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
 from mavreg.control.actuator import NZ, augmented_jacobians, augmented_rhs
 from mavreg.control.riccati import care
-from mavreg.maneuver.gain_schedule import du_ds as _du_ds
-from mavreg.maneuver.nominal_grid import nominal_on_grid as _nominal
+from mavreg.maneuver.gain_schedule import du_ds
+from mavreg.maneuver.nominal_grid import nominal_on_grid
 from mavreg.maneuver.plan import build_profiles
 from mavreg.planning.plan_io import plan_file
 from mavreg.config.maneuver import load_maneuver
@@ -28,8 +28,8 @@ def roll():
     path = build_path(spec)
     speed, yaw = build_profiles(spec, path)
     s = np.linspace(0.5, path.length_m - 0.5, 400)
-    F, k, x, u, dx, v, _ = _nominal(MODEL, path, speed, yaw, s, "fixed")
-    du = _du_ds(u, s, periodic=False)
+    F, k, x, u, dx, v, _ = nominal_on_grid(MODEL, path, speed, yaw, s, "fixed")
+    du = du_ds(u, s, periodic=False)
     return F, k, x, u, dx, du, v
 
 
@@ -78,8 +78,8 @@ def test_steady_line_gain_is_the_augmented_care_and_lag_aware_plan_flies():
     path = build_path(spec)
     speed, yaw = build_profiles(spec, path)
     s = plan.s[-3:]
-    Fn, kn, xn, un, dxn, vn, _ = _nominal(MODEL, path, speed, yaw, s, "fixed")
-    dun = _du_ds(un, s, periodic=False)
+    Fn, kn, xn, un, dxn, vn, _ = nominal_on_grid(MODEL, path, speed, yaw, s, "fixed")
+    dun = du_ds(un, s, periodic=False)
     A, B = augmented_jacobians(MODEL, TAU, Fn, kn, xn, un, dxn, dun, vn)
     Q = np.diag(np.concatenate([ctl.q, ctl.q_wrench]))
     _, K = care(A[-1], B[-1], Q, np.diag(ctl.r))
