@@ -47,6 +47,10 @@ def regulator_factory(vehicle: VehicleParams, control_rate_hz: float,
 
 @dataclass(frozen=True)
 class DaemonConfig:
+    """A daemon's settings: the vehicle's URL, the parameter files (the loaded controller in
+    ``controller``), the control endpoint's socket, the ``.tlog`` and its clock, the supervisor's
+    and the envelope's parameters, the ground stations and the planner worker's bounds."""
+
     vehicle_url: str
     vehicle_path: Path
     controller_path: Path
