@@ -205,8 +205,7 @@ class Daemon:
     def request_stop(self) -> None:
         """Signal handler: first land (if airborne), then stop at once."""
         self._signals += 1
-        airborne = self.supervisor.phase in (Phase.TAKEOFF, Phase.HOLD, Phase.RUN_IN, Phase.MANEUVER)
-        if self._signals == 1 and airborne:
+        if self._signals == 1 and self.supervisor.airborne:
             self.log("signal: landing at the next safe point (signal again to stop at once; "
                      "the vehicle's failsafe then lands)")
             self._emit(self.supervisor.request_land(self.clock_s()))

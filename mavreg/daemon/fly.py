@@ -41,7 +41,7 @@ from .lifeline import wrap_command
 from .link import io_impl
 from .signing import Signing
 from .report import controller_metrics, format_summary, ground_truth_errors, plot_flight
-from .phases import Failure
+from .records import Outcome
 from .planner_pool import PlannerBounds
 from .supervisor import Phase, SupervisorParams
 
@@ -261,7 +261,7 @@ def _provenance(opts: FlyOptions) -> dict:
 _EMULATOR_EXIT = {1: "internal error", 3: "crash", 4: "non-finite state", 5: "speed or body rate limit"}
 
 
-def outcome(sup, emulator_code: int | None, timeout_s: float) -> Failure | None:
+def outcome(sup, emulator_code: int | None, timeout_s: float) -> Outcome | None:
     """None for a flight flown within its envelope and landed; else the cause.
 
     The supervisor's first violated bound wins; otherwise the emulator's exit (a crash the
@@ -273,14 +273,14 @@ def outcome(sup, emulator_code: int | None, timeout_s: float) -> Failure | None:
     t = sup.last_sample.time_s if sup.last_sample is not None else nan
     if emulator_code not in (None, 0):
         why = _EMULATOR_EXIT.get(emulator_code, "unknown")
-        return Failure("emulator_exit", sup.phase, t, nan, float(emulator_code), 0.0, "code",
+        return Outcome("emulator_exit", sup.phase, t, nan, float(emulator_code), 0.0, "code",
                        f"the emulator stopped: {why} (exit {emulator_code})", "none")
     if not sup.finished:
-        return Failure("timeout", sup.phase, t, nan, timeout_s, timeout_s, "s",
+        return Outcome("timeout", sup.phase, t, nan, timeout_s, timeout_s, "s",
                        f"the flight did not end within --timeout-s {timeout_s:g}",
                        "command stream stopped (vehicle failsafe)")
     if not sup.succeeded:
-        return Failure("not_flown", sup.phase, t, nan, nan, nan, "",
+        return Outcome("not_flown", sup.phase, t, nan, nan, nan, "",
                        sup.reason or f"ended in phase {sup.phase} without flying the maneuver", "none")
     return None
 

@@ -16,7 +16,9 @@ before symptoms, so the reason names what is wrong):
   the loops about to fly (the maneuver's and the hover's, :mod:`mavreg.maneuver.plan_margins`),
   when both are known.
 
-A failing check is a :class:`GateVerdict` with the bound, the value and the limit.
+A failing check is a :class:`GateVerdict` with the bound, the value and the limit; once the
+supervisor acts on it, it becomes a :class:`~mavreg.daemon.records.BoundViolation`
+(:meth:`GateVerdict.at`).
 """
 from __future__ import annotations
 
@@ -29,6 +31,7 @@ import numpy as np
 
 from ..config.envelope import EnvelopeParams
 from ..config.vehicle import G
+from .records import BoundViolation
 
 __all__ = ["GateVerdict", "HealthGate", "nominal_points", "plan_outside_envelope", "MarginCheck",
            "delay_margin_of", "unmodelled_delay_s", "JITTER_SIGMAS", "sampling_verdict"]
@@ -40,12 +43,20 @@ many jitter SDs of it."""
 
 @dataclass(frozen=True)
 class GateVerdict:
+    """A check's answer before a maneuver (or a take-off): a pass (``ok``), or the bound that
+    fails, its value and limit. Not yet a :class:`~mavreg.daemon.records.BoundViolation`: it
+    has no phase or time until the supervisor refuses on it (:meth:`at`)."""
+
     ok: bool
     bound: str = ""
     value: float = math.nan
     limit: float = math.nan
     unit: str = ""
     detail: str = ""
+
+    def at(self, phase: str, t_s: float) -> BoundViolation:
+        """The violation this failing verdict is, in ``phase`` at vehicle time ``t_s``."""
+        return BoundViolation(self.bound, phase, t_s, math.nan, self.value, self.limit, self.unit, self.detail)
 
 
 PASS = GateVerdict(True)

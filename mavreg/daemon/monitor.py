@@ -10,7 +10,7 @@ The supervisor calls it on every complete state sample, in this order:
    along s, and the share of clipped rotor commands;
 3. :meth:`EnvelopeMonitor.record_command` with every rotor command sent.
 
-Each check returns a :class:`Violation` (or None): which bound, where (phase, s, t), the
+Each check returns a :class:`~mavreg.daemon.records.BoundViolation` (or None): which bound, where (phase, s, t), the
 value, the limit, and whether the vehicle has hit something (``impact``: stop the motors).
 Bounds come from :class:`mavreg.config.envelope.EnvelopeParams`; docs/safety.md lists them.
 Altitudes and the geofence are relative to the take-off point (:meth:`set_origin`).
@@ -26,12 +26,12 @@ from dataclasses import dataclass
 
 from ..config.envelope import EnvelopeParams
 from ..config.vehicle import G
-from .phases import Phase
+from .phases import AIRBORNE, Phase
+from .records import BoundViolation
 from .series import Series
 
-__all__ = ["Violation", "Tracking", "EnvelopeMonitor"]
+__all__ = ["Tracking", "EnvelopeMonitor"]
 
-_FLYING = (Phase.TAKEOFF, Phase.HOLD, Phase.RUN_IN, Phase.MANEUVER, Phase.LAND, Phase.RECOVER)
 _FLOOR = (Phase.HOLD, Phase.RUN_IN, Phase.MANEUVER)
 _KEYS: dict = {}       # phase -> the peak names of its tracking bounds
 PEAK_UNITS = {"impact_descent": "m/s", "impact_speed": "m/s", "impact_accel": "m/s^2", "position_jump": "m",
@@ -40,30 +40,6 @@ PEAK_UNITS = {"impact_descent": "m/s", "impact_speed": "m/s", "impact_accel": "m
               "saturation": "share"}
 """The unit of each peak's value and limit (``status.envelope_peaks`` in summary.json), by
 the bound's name before its phase suffix (``attitude_error.maneuver``)."""
-
-
-@dataclass(frozen=True)
-class Violation:
-    """A bound exceeded: where, by how much (SI values; ``unit`` names the unit)."""
-
-    bound: str
-    phase: str
-    t_s: float
-    s_m: float
-    """Arc length in the maneuver, NaN elsewhere."""
-    value: float
-    limit: float
-    unit: str
-    detail: str
-    impact: bool = False
-    """The vehicle has hit something: the motors must stop, whatever the phase."""
-
-    def describe(self) -> str:
-        """One line: bound, where, value against limit (angles in degrees)."""
-        scale, unit = (180.0 / math.pi, "deg") if self.unit == "rad" else (1.0, self.unit)
-        where = f"{self.phase}" + ("" if math.isnan(self.s_m) else f" at s={self.s_m:.2f} m")
-        return (f"{self.bound} in {where}, t={self.t_s:.3f} s: {self.value * scale:.3g} {unit} "
-                f"(limit {self.limit * scale:.3g} {unit}); {self.detail}")
 
 
 @dataclass(frozen=True)
@@ -102,7 +78,7 @@ class EnvelopeMonitor:
         self._stall_since: float | None = None
         self._out_of_tube_since: float | None = None
         self._mismatch_since: float | None = None
-        self._bounds = {ph: params.bounds(ph) for ph in _FLYING}
+        self._bounds = {ph: params.bounds(ph) for ph in AIRBORNE}
         self.peaks: dict[str, dict] = {}
         """Per bound, the closest the flight came to it: value / limit (limit / value for
         lower bounds), with the value, the limit, the phase and the time. Over 1 fires."""
@@ -136,7 +112,7 @@ class EnvelopeMonitor:
 
     # ------------------------------------------------------------------ telemetry
     def check_state(self, t_s: float, phase: str, s_m: float, p, v, R, omega,
-                    disturbance=None) -> Violation | None:
+                    disturbance=None) -> BoundViolation | None:
         """Telemetry-only bounds of a sample (NED position and velocity, body-to-NED R, body rates).
 
         ``disturbance`` is the observer's estimate
@@ -150,7 +126,7 @@ class EnvelopeMonitor:
         prev = states.newest() if len(states) else None
         states.add(t_s, (px, py, pz), (vx, vy, vz))
         states.drop_older(t_s, 0.5)
-        if phase not in _FLYING:
+        if phase not in AIRBORNE:
             return None
 
         speed = math.sqrt(vx * vx + vy * vy + vz * vz)
@@ -235,8 +211,8 @@ class EnvelopeMonitor:
         return None
 
     @staticmethod
-    def _fail(phase, t_s, s_m, bound, value, limit, unit, detail, impact=False) -> Violation:
-        return Violation(bound, phase, t_s, s_m, float(value), float(limit), unit, detail, impact)
+    def _fail(phase, t_s, s_m, bound, value, limit, unit, detail, impact=False) -> BoundViolation:
+        return BoundViolation(bound, phase, t_s, s_m, float(value), float(limit), unit, detail, impact=impact)
 
     def _acceleration(self, t_s: float, window_s: float):
         """NED acceleration from the newest velocity and the newest one at least ``window_s``
@@ -302,7 +278,7 @@ class EnvelopeMonitor:
         return (measured, commanded, lasted) if lasted >= prm.thrust_mismatch_s else None
 
     # ------------------------------------------------------------------ control
-    def check_tracking(self, t_s: float, phase: str, tr: Tracking) -> Violation | None:
+    def check_tracking(self, t_s: float, phase: str, tr: Tracking) -> BoundViolation | None:
         """The phase's tracking bounds, the tube, progress along s, the saturation share."""
         b = self._bounds[phase] if phase in self._bounds else self.p.bounds(phase)
         if b is None:
@@ -310,7 +286,7 @@ class EnvelopeMonitor:
         s_m = tr.s_m
 
         def fail(bound, value, limit, unit, detail):
-            return Violation(bound, phase, t_s, s_m, float(value), float(limit), unit, detail)
+            return BoundViolation(bound, phase, t_s, s_m, float(value), float(limit), unit, detail)
 
         what = "distance from the path" if phase == Phase.MANEUVER else "distance from the reference"
         keys = _KEYS.get(phase)

@@ -1,7 +1,7 @@
 """What leaves the daemon as a command: rotor forces, or body rates and thrust (sans-I/O).
 
 The controllers all compute rotor forces on the paper's model; the supervisor clips them and
-records them (:meth:`mavreg.daemon.supervisor.Supervisor._send_rotors`). This module turns
+records them (:meth:`mavreg.daemon.flight.Flight.send_rotors`). This module turns
 that command into the one message the vehicle takes, by the vehicle file's ``output``:
 
 - ``rotors``: SET_ACTUATOR_CONTROL_TARGET, each rotor's force over its limit;

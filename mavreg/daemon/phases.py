@@ -1,6 +1,10 @@
-"""The supervisor's vocabulary: phases, parameters, events, log records, outcome (no logic)."""
+"""The supervisor's vocabulary: phases, parameters, events, log records, counters (no logic).
+
+The bound-violation and outcome records are in :mod:`mavreg.daemon.records`.
+"""
 from __future__ import annotations
 
+import enum
 import math
 from dataclasses import dataclass, field
 
@@ -9,11 +13,18 @@ import numpy as np
 from ..config.defaults import STALE_TIMEOUT_S
 from ..control.hover import HoverParams
 
-__all__ = ["Phase", "PHASE_CODES", "SupervisorParams", "Event", "LogRecord", "Output", "Counters",
-           "Failure"]
+__all__ = ["Phase", "PHASE_CODES", "AIRBORNE", "FREE_FLIGHT", "SupervisorParams", "Event", "LogRecord",
+           "Output", "Counters"]
 
 
-class Phase:
+class Phase(str, enum.Enum):
+    """The flight's phases. A member is its name as a string (``Phase.HOLD == "hold"``, and so
+    in f-strings, events, JSON and the control log); new phases go at the end (their log code
+    is their position, :data:`PHASE_CODES`)."""
+
+    __str__ = str.__str__
+    __format__ = str.__format__
+
     PREFLIGHT = "preflight"
     TAKEOFF = "takeoff"
     HOLD = "hold"
@@ -28,13 +39,16 @@ class Phase:
     """Motors stopped: forced disarm repeated until the vehicle reports disarmed; no stream."""
 
 
-PHASE_CODES = {p: i for i, p in enumerate(
-    [Phase.PREFLIGHT, Phase.TAKEOFF, Phase.HOLD, Phase.RUN_IN, Phase.MANEUVER, Phase.LAND,
-     Phase.DISARMED, Phase.ABORTED, Phase.RECOVER, Phase.TERMINATE])}
+PHASE_CODES = {p: i for i, p in enumerate(Phase)}
 """Integer codes of the phases in the controller log (new phases appended: old logs keep theirs)."""
 
-AIRBORNE = (Phase.TAKEOFF, Phase.HOLD, Phase.RUN_IN, Phase.MANEUVER, Phase.LAND, Phase.RECOVER)
-"""Phases in which the daemon streams rotor commands to an armed vehicle in OFFBOARD."""
+AIRBORNE = frozenset({Phase.TAKEOFF, Phase.HOLD, Phase.RUN_IN, Phase.MANEUVER, Phase.LAND, Phase.RECOVER})
+"""Phases in which the daemon streams rotor commands to an armed vehicle in OFFBOARD: the one
+set every part asks (the per-sample pipeline, the envelope monitor, the gap and link checks,
+the daemon's signal handler through :attr:`Supervisor.airborne`)."""
+
+FREE_FLIGHT = frozenset({Phase.HOLD, Phase.RUN_IN, Phase.MANEUVER})
+"""Airborne phases clear of the ground: the disturbance observer learns throughout them."""
 
 
 @dataclass(frozen=True)
@@ -166,34 +180,3 @@ class Counters:
     """TIMESYNC replies that answered no request of ours, or implied an implausible delay."""
     unsupported_heartbeats: int = 0
     """HEARTBEATs of an autopilot mavreg does not speak to (:mod:`mavreg.daemon.preflight`)."""
-
-
-@dataclass(frozen=True)
-class Failure:
-    """Why a flight failed: the first bound violated, where, by how much, and what was done."""
-
-    bound: str
-    phase: str
-    t_s: float
-    s_m: float
-    value: float
-    limit: float
-    unit: str
-    detail: str
-    action: str
-
-    def as_dict(self) -> dict:
-        def num(x):
-            return None if isinstance(x, float) and not math.isfinite(x) else x
-        return {"bound": self.bound, "phase": self.phase, "s_m": num(self.s_m), "t_s": num(self.t_s),
-                "value": num(self.value), "limit": num(self.limit), "unit": self.unit,
-                "detail": self.detail, "action": self.action}
-
-    def line(self) -> str:
-        """The cause in one line."""
-        scale, unit = (180.0 / math.pi, "deg") if self.unit == "rad" else (1.0, self.unit)
-        where = self.phase + ("" if math.isnan(self.s_m) else f" at s={self.s_m:.2f} m")
-        t = "" if math.isnan(self.t_s) else f", t={self.t_s:.3f} s"
-        amount = ("" if math.isnan(self.value) else
-                  f": {self.value * scale:.3g} {unit} (limit {self.limit * scale:.3g} {unit})")
-        return f"{self.bound} in {where}{t}{amount}; {self.detail}; action: {self.action}"

@@ -21,7 +21,7 @@ def _fly(gap_s: float, fill: bool):
     for _ in range(int(30.0 * RATE)):
         now = veh.t_ms / 1000.0
         in_gap = gap_at is not None and now < gap_at + gap_s
-        if gap_at is None and sup.phase == Phase.MANEUVER and sup._s > 1.0:
+        if gap_at is None and sup.phase == Phase.MANEUVER and sup.ctx.s_m > 1.0:
             gap_at, in_gap = now, True
         msgs = [veh.heartbeat()] if (veh.t_ms % 1000 == 0 or veh.heartbeat_due) else []
         veh.heartbeat_due = False

@@ -84,7 +84,7 @@ def _outage_flight(lockstep: bool, lockstep_clock: bool, outage_s: float = 0.5):
     outage_at, now, events, answered = None, 0.0, [], []
     for _ in range(int(25.0 * 250)):
         t = veh.t_ms / 1000.0
-        if outage_at is None and sup.phase == Phase.MANEUVER and sup._s > 1.0:
+        if outage_at is None and sup.phase == Phase.MANEUVER and sup.ctx.s_m > 1.0:
             outage_at = t
             p = FaultParams(outages=((t, outage_s),))
             up, down = FaultLine(p, "up"), FaultLine(p, "down")

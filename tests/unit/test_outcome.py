@@ -6,7 +6,8 @@ import math
 from types import SimpleNamespace
 
 from mavreg.daemon.fly import outcome
-from mavreg.daemon.phases import Failure, Phase
+from mavreg.daemon.phases import Phase
+from mavreg.daemon.records import Outcome
 
 
 def _sup(phase=Phase.DISARMED, failure=None, succeeded=True, finished=True, t=42.0, reason=""):
@@ -20,7 +21,7 @@ def test_ok_only_when_the_supervisor_succeeded_and_the_emulator_exited_cleanly()
 
 
 def test_the_supervisors_first_bound_wins():
-    f = Failure("impact", Phase.MANEUVER, 26.3, 12.5, 22.6, 1.5, "m/s", "descending at 22.6 m/s",
+    f = Outcome("impact", Phase.MANEUVER, 26.3, 12.5, 22.6, 1.5, "m/s", "descending at 22.6 m/s",
                 "motors stopped (forced disarm)")
     got = outcome(_sup(failure=f, succeeded=False), 3, 300.0)
     assert got is f

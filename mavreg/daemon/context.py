@@ -1,0 +1,159 @@
+"""What the supervisor's parts share: the flight's state and the flight's parts (no logic).
+
+- :class:`FlightContext`: the mutable state of one flight, read and written by the phase
+  handlers (:mod:`mavreg.daemon.handlers`, :mod:`mavreg.daemon.hover_phases`), the safety
+  policy (:mod:`mavreg.daemon.safety`) and the supervisor (:mod:`mavreg.daemon.supervisor`)
+  through :class:`mavreg.daemon.flight.Flight`.
+- :class:`FlightParts`: the collaborators each flight is built of (controllers, monitor,
+  gate, timing, output), made once by :meth:`FlightParts.build`.
+
+Two clocks, named by domain in every field: ``*_vehicle_s`` is the vehicle's time
+(``time_boot_ms`` of its samples: spool-up, ramps, holds, command retries; a lockstep emulator
+flies the same flight at any speed); ``*_wall_s`` is the injected monotonic clock of the
+daemon (link health, the forced-disarm retries).
+"""
+from __future__ import annotations
+
+import collections
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+from ..config.defaults import CONTROL_RATE_HZ
+from ..config.envelope import EnvelopeParams
+from ..config.vehicle import VehicleParams
+from ..control.forecast import Forecast, Forecaster
+from ..control.hover import HoverController
+from ..control.recovery import RecoveryController
+from .delays import ActuationDelay
+from .gate import HealthGate
+from .messages import VehicleStatus
+from .monitor import EnvelopeMonitor
+from .output import RateOutput, RotorOutput, command_output
+from .phases import Counters, Phase, SupervisorParams
+from .preflight import AutopilotSetup
+from .records import Outcome
+from .state import StateAssembler, StateSample
+from .timesync import TimesyncEstimator
+
+__all__ = ["FlightContext", "FlightParts"]
+
+
+@dataclass
+class FlightContext:
+    """The state of one flight that the supervisor's parts share."""
+
+    phase: Phase = Phase.PREFLIGHT
+    reason: str = ""
+    """Why the flight ended early (aborted, refused), in one line."""
+    failure: Outcome | None = None
+    """The first bound violated, with every action taken since (None: none yet)."""
+    vehicle_status: VehicleStatus | None = None
+    last_sample: StateSample | None = None
+    forecast: Forecast | None = None
+    """The last sample predicted across the delay: the state the controllers act on."""
+
+    # the daemon's injected (wall, monotonic) clock
+    now_wall_s: float = 0.0
+    """The injected clock at the message, tick or gap being handled."""
+    last_sample_wall_s: float | None = None
+    last_tick_wall_s: float | None = None
+    terminate_start_wall_s: float = 0.0
+    disarm_sent_wall_s: float = -math.inf
+
+    # the vehicle's clock
+    stream_start_vehicle_s: float | None = None
+    """The first sample's time: the idle stream began."""
+    last_command_vehicle_s: float = -math.inf
+    """When the last ARM / DO_SET_MODE / DISARM went out (retries)."""
+    phase_start_vehicle_s: float = 0.0
+    ramp_start_vehicle_s: float = 0.0
+    spool_down_start_vehicle_s: float | None = None
+    """Touchdown: the rotors spool down from here (None: not touched down)."""
+    settled_since_vehicle_s: float | None = None
+    """The recovery has been level, slow and at its altitude since (None: not settled)."""
+    gate_wait_start_vehicle_s: float | None = None
+    """The health gate first failed in this hold (None: it has not)."""
+
+    # the maneuvers
+    pending: list = field(default_factory=list)
+    """(plan, regulator, nominal points) queued, not yet flown."""
+    active: tuple | None = None
+    """(plan, regulator) in run-in or maneuver."""
+    maneuvers_done: list = field(default_factory=list)
+    s_m: float = math.nan
+    """Arc length in the maneuver (NaN elsewhere)."""
+    ramps: list = field(default_factory=list)
+    """The hover references still to fly (take-off, hold, run-in, landing), the first one current."""
+    ground_z_m: float = 0.0
+    """NED down of the take-off point."""
+
+    # the landing
+    land_requested: bool = False
+    land_mode_requested: bool = False
+    descent: collections.deque = field(default_factory=collections.deque)
+    """(vehicle time s, down velocity m/s) of the last 0.3 s before touchdown."""
+    touchdown_speed_m_s: float | None = None
+
+    # the safety actions
+    recoveries: int = 0
+    recovery_landing: bool = False
+    """The recovery controller is landing the vehicle (phase LAND)."""
+    noted_bounds: set = field(default_factory=set)
+    """Bounds already announced while the recovery controller flies."""
+    actions: list = field(default_factory=list)
+    """Every safety action taken, in order (the outcome's ``action``)."""
+    statustext_id: int = 0
+
+    @property
+    def vehicle_now_s(self) -> float:
+        """The vehicle's time of the last sample (NaN before the first)."""
+        return self.last_sample.time_s if self.last_sample is not None else math.nan
+
+
+@dataclass(frozen=True)
+class FlightParts:
+    """The collaborators of one flight (see :class:`mavreg.daemon.supervisor.Supervisor` for
+    the parameters)."""
+
+    vehicle: VehicleParams
+    params: SupervisorParams
+    envelope: EnvelopeParams
+    regulator_factory: Callable
+    timesync: TimesyncEstimator
+    forecaster: Forecaster
+    hover: HoverController
+    recovery: RecoveryController
+    monitor: EnvelopeMonitor
+    assembler: StateAssembler
+    output: RotorOutput | RateOutput
+    delay: ActuationDelay
+    gate: HealthGate
+    autopilot: AutopilotSetup
+    counters: Counters
+
+    @classmethod
+    def build(cls, vehicle: VehicleParams, params: SupervisorParams, regulator_factory,
+              envelope: EnvelopeParams | None = None,
+              link_health: Callable[[], tuple[float, float] | None] | None = None,
+              forecaster: Forecaster | None = None, fixed_delay_s: float | None = None) -> FlightParts:
+        """The parts of a flight with these parameters (defaults as the supervisor's)."""
+        timesync = TimesyncEstimator()
+        if forecaster is None:
+            forecaster = Forecaster(vehicle, 1.0 / CONTROL_RATE_HZ, predict=False)
+        envelope = envelope if envelope is not None else EnvelopeParams()
+        output = command_output(vehicle, params.vehicle_system_id, params.vehicle_component_id)
+        delay = ActuationDelay(timesync, vehicle, output.kind, fixed_delay_s)
+        return cls(
+            vehicle=vehicle, params=params, envelope=envelope, regulator_factory=regulator_factory,
+            timesync=timesync, forecaster=forecaster,
+            hover=HoverController(vehicle, params.hover),
+            recovery=RecoveryController(vehicle, envelope.recovery),
+            monitor=EnvelopeMonitor(envelope, vehicle.mass_kg, vehicle.max_rotor_thrust_n),
+            assembler=StateAssembler(params.euler_pitch_limit_rad),
+            output=output, delay=delay,
+            gate=HealthGate(envelope, vehicle.mass_kg, vehicle.max_rotor_thrust_n,
+                            link_health if link_health is not None else delay.measured_link),
+            autopilot=AutopilotSetup(params.vehicle_system_id, params.vehicle_component_id,
+                                     params.telemetry_rate_hz, params.parameter_timeout_s),
+            counters=Counters())

@@ -1,0 +1,83 @@
+"""The supervisor's parts: every phase has its handler, the table is what flies, one airborne
+set (the signal handler's too), and the violation and outcome records."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from mavreg.daemon.app import Daemon, DaemonConfig
+from mavreg.daemon.gate import GateVerdict
+from mavreg.daemon.handlers import HANDLERS
+from mavreg.daemon.hover_phases import Hold
+from mavreg.daemon.phases import AIRBORNE, PHASE_CODES, Phase, SupervisorParams
+from mavreg.daemon.records import BoundViolation, Outcome
+from tests.helpers.supervisor_harness import VEHICLE, FakePlan, FakeRegulator, SimVehicle, make_supervisor, run
+
+
+def test_every_phase_has_one_handler_of_its_kind_and_keeps_its_log_code():
+    assert set(HANDLERS) == set(Phase)
+    for phase, cls in HANDLERS.items():
+        kind = "control" if phase in AIRBORNE else "on_sample"
+        assert callable(getattr(cls, kind, None)), (phase, cls)
+    # old control logs decode with the same codes (new phases go at the end)
+    assert [p.value for p in sorted(PHASE_CODES, key=PHASE_CODES.get)] == [
+        "preflight", "takeoff", "hold", "run_in", "maneuver", "land", "disarmed", "aborted", "recover", "terminate"]
+    assert f"[{Phase.RUN_IN}]" == "[run_in]" and Phase.HOLD == "hold"
+
+
+def test_the_table_is_what_flies():
+    """A hold handler swapped in the supervisor's table is the one that answers the hold."""
+    calls = []
+
+    class CountingHold(Hold):
+        def control(self, sample, x, out):
+            calls.append(sample.time_s)
+            return super().control(sample, x, out)
+
+    sup = make_supervisor(FakePlan())
+    sup.handlers[Phase.HOLD] = CountingHold(sup.flight, sup.safety)
+    events, _, _ = run(sup, SimVehicle(), 60.0)
+    holds = [e.time_s for e in events if e.kind == "phase" and e.phase == Phase.HOLD]
+    assert sup.succeeded and len(holds) == 2
+    assert calls and min(calls) >= holds[0]                  # only in the hold, every sample of it
+
+
+def _daemon_in(phase_reached) -> tuple:
+    cfg = DaemonConfig("udpout:127.0.0.1:1", Path("v"), Path("c"), None, None, SupervisorParams())
+    lines = []
+    d = Daemon(cfg, VEHICLE, lambda p: FakeRegulator(p), log=lines.append)
+    sup = d.supervisor
+    sup.offer_plan(FakePlan(), 0.0)
+    veh = SimVehicle()
+    for _ in range(600):
+        run(sup, veh, 0.1)
+        if phase_reached(sup):
+            return d, veh, lines
+    raise AssertionError(f"never reached: {sup.phase}")
+
+
+def test_a_signal_while_landing_lets_the_landing_finish():
+    """Ctrl-C in the landing (an airborne phase): the daemon keeps flying it down (it used to
+    stop the stream at once, leaving the vehicle to its failsafe mid-descent); a second
+    signal still stops at once."""
+    d, veh, lines = _daemon_in(lambda s: s.phase == Phase.LAND and -s.last_sample.x[2] > 0.5)
+    d.request_stop()
+    assert not d._stop.is_set() and "landing at the next safe point" in lines[-1]
+    run(d.supervisor, veh, 30.0)
+    assert d.supervisor.phase == Phase.DISARMED and not veh.armed and abs(veh.x[2]) < 1e-9
+    d.request_stop()
+    assert d._stop.is_set()
+
+
+def test_violation_and_outcome_read_as_one_line():
+    v = BoundViolation("position_error", Phase.MANEUVER, 12.5, 3.25, 0.62, 0.5, "m", "distance from the path")
+    assert v.describe() == ("position_error in maneuver at s=3.25 m, t=12.500 s: 0.62 m (limit 0.5 m); "
+                            "distance from the path")
+    o = Outcome.of(v, "recovery, then landing")
+    assert o.line() == v.describe() + "; action: recovery, then landing"
+    assert o.as_dict()["bound"] == "position_error" and "impact" not in o.as_dict()
+    # a gate's failing verdict placed in the flight; unknown time and amount are left out
+    g = GateVerdict(False, "gate_autopilot", detail="HEARTBEAT of an autopilot not spoken to").at(Phase.PREFLIGHT,
+                                                                                                 math.nan)
+    assert g.describe() == "gate_autopilot in preflight; HEARTBEAT of an autopilot not spoken to"
+    assert not g.impact and math.isnan(g.s_m)
