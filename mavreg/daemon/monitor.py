@@ -180,7 +180,7 @@ class EnvelopeMonitor:
         return self._check_envelope(t_s, phase, s_m, px, py, alt, omega)
 
     def _check_envelope(self, t_s: float, phase: str, s_m: float, px: float, py: float, alt: float,
-                        omega) -> Violation | None:
+                        omega) -> BoundViolation | None:
         """Where the vehicle may be and how fast it may turn: body rate, altitude floor,
         geofence (the last checks of :meth:`check_state`, in its order)."""
         prm = self.p
