@@ -5,7 +5,8 @@ estimator got wrong, along the maneuver's arc length.
     python -m scripts.ardupilot.decompose FLIGHT_DIR [--bins 40]
 
 FLIGHT_DIR is one flight of ``scripts.ardupilot.fly --out`` (its ``flight.tlog``, which holds the
-EKF origin the daemon asked for, and ``summary.json``). Over the maneuver's window it projects on the plan
+EKF origin the daemon asked for, ``summary.json``, and the harness's ``truth_origin.json`` when it is
+there: the local frame's origin, which with motion capture is not the EKF origin). Over the maneuver's window it projects on the plan
 
 - (a) the EKF's position (``LOCAL_POSITION_NED``, what mavreg regulates on),
 - (c) the true position (``SIM_STATE`` about the EKF origin),
@@ -23,6 +24,7 @@ import json
 import math
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -85,6 +87,8 @@ def decompose(flight: Path, bins: int = 40) -> dict:
     maneuver = Path(summary.get("maneuver_file") or REPO / "mavreg/params/maneuvers/barrel_roll.yaml")
     plan = plan_file(maneuver, load_vehicle(VEHICLE), load_controller(CONTROLLER))
     t_est, p_est, origin = _estimates(flight / "flight.tlog")
+    if (flight / "truth_origin.json").is_file():    # the harness's: the local frame's origin
+        origin = SimpleNamespace(**json.loads((flight / "truth_origin.json").read_text()))
     t_true, p_true, _, _ = _truth_samples(flight / "flight.tlog", origin)
     sel_e = (t_est >= begin) & (t_est <= end)
     sel_t = (t_true >= begin) & (t_true <= end)
