@@ -121,7 +121,8 @@ def run(args) -> int:
         delay, source = resolve_delay(args.delay, series.link_delay_s, vehicle.estimate_latency_s)
         result = identify(series, vehicle.mass_kg, vehicle.max_rotor_thrust_n,
                           FitOptions(delay_s=delay, parasitic=args.parasitic, replicates=args.replicates,
-                                     seed=args.seed))
+                                     seed=args.seed,
+                                     rotor_drag_thrust_exponent=vehicle.rotor_drag_thrust_exponent))
     written = None
     if args.write_vehicle is not None:
         written = write_vehicle(Path(args.vehicle_params), Path(args.write_vehicle), result)

@@ -17,7 +17,8 @@ def fit(args, vehicle, series):
     from .identify_cmd import resolve_delay
     link = series.link_delay_s
     delay, source = resolve_delay(args.delay, link, vehicle.estimate_latency_s)
-    options = FitOptions(delay_s=delay, parasitic=args.parasitic, replicates=args.replicates, seed=args.seed)
+    options = FitOptions(delay_s=delay, parasitic=args.parasitic, replicates=args.replicates, seed=args.seed,
+                         rotor_drag_thrust_exponent=vehicle.rotor_drag_thrust_exponent)
     link_part = 0.0 if link is None else link + vehicle.estimate_latency_s
     return identify_rates(series, vehicle.mass_kg, options, link_delay_part_s=link_part), source
 
@@ -81,7 +82,7 @@ def _rate_table(r, ri) -> list[str]:
 
 def vehicle_values(result, vehicle) -> dict:
     """The vehicle file's keys for the rates output: ``output``, the ``rate_interface:``
-    section, the collective's lag as ``rotor_time_constant_s``, thrust_scale 1 and the drag."""
+    section (the file's ``max_body_rate_rad_s`` and ``attitude_gain_rad_s`` kept), the collective's lag as ``rotor_time_constant_s``, thrust_scale 1 and the drag."""
     from ..config.vehicle import RateInterfaceParams
     from .identify_cmd import drag_values
     old = vehicle.rate_interface or RateInterfaceParams(hover_thrust=0.5)
@@ -92,7 +93,8 @@ def vehicle_values(result, vehicle) -> dict:
                "thrust_expo": round(min(max(result.thrust_expo.value, 0.0), 1.0), 4),
                "rate_time_constant_s": round(min(max(tau, 0.001), 0.5), 4),
                "rate_delay_s": round(min(max(d, 0.0), 0.2), 4),
-               "max_body_rate_rad_s": list(old.max_body_rate_rad_s)}
+               "max_body_rate_rad_s": list(old.max_body_rate_rad_s),
+               "attitude_gain_rad_s": list(old.attitude_gain_rad_s)}
     out = {"output": "rates", "rate_interface": section, "thrust_scale": 1.0}
     if result.collective_time_constant_s.value is not None:
         out["rotor_time_constant_s"] = round(result.collective_time_constant_s.value, 4)

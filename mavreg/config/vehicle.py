@@ -98,6 +98,10 @@ class VehicleParams:
     axis (force = -C v_body). Known drag is fed forward by the nominal (0: the paper's model)."""
     parasitic_drag_n_s2_per_m2: float = field(default=0.0, metadata={"min": 0.0})
     """Quadratic parasitic drag: force = -c |v| v."""
+    rotor_drag_thrust_exponent: float = field(default=0.0, metadata={"min": 0.0, "max": 2.0})
+    """e in c_xy(T) = c_xy (T / (m g))^e: the rotor-plane drag grows with the collective thrust
+    (0.5: momentum drag, which grows as the rotors' induced velocity; mavreg.model.drag). c_xy
+    is then the coefficient in hover. 0 (default): a constant c_xy."""
     thrust_scale: float = field(default=1.0, metadata={"min": 0.5, "max": 1.5})
     """Thrust the rotors actually give per unit commanded (a calibration: ``mavreg identify``);
     the daemon divides its rotor commands by it."""

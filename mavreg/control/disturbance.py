@@ -46,8 +46,8 @@ import numpy as np
 
 from ..accel import use_compiled
 from ..config.disturbance import DisturbanceParams
-from ..config.vehicle import VehicleParams
-from ..model.drag import linear_drag_ned_n
+from ..config.vehicle import G, VehicleParams
+from ..model.drag import linear_drag_ned_n, rotor_plane_scale
 from ..model.rotation import matrix_to_rpy, rpy_to_matrix, wrap_angle
 from ..model.so3 import log_so3
 from . import observer_kernel as ok
@@ -74,14 +74,16 @@ class DisturbanceEstimate:
         return linear_drag_ned_n(np.asarray(R)[:, 2], v, dcxy, dcz) + np.asarray(self.force_ned_n)
 
 
-def regressors(R, v, thrust_n: float) -> np.ndarray:
+def regressors(R, v, thrust_n: float, xy_scale: float = 1.0) -> np.ndarray:
     """:math:`\\Phi` (3, 6): the force (NED) per unit of (c_xy, c_z, F_n, F_e, F_d, k), at
-    attitude ``R``, velocity ``v`` and commanded thrust ``thrust_n``."""
+    attitude ``R``, velocity ``v`` and commanded thrust ``thrust_n``; ``xy_scale`` the
+    rotor-plane drag's factor at that thrust (:func:`mavreg.model.drag.rotor_plane_scale`:
+    c_xy is then the coefficient in hover)."""
     b3 = np.asarray(R, dtype=float)[:, 2]
     v = np.asarray(v, dtype=float)
     along = float(b3 @ v)
     phi = np.empty((3, 6))
-    phi[:, 0] = -(v - along * b3)
+    phi[:, 0] = -xy_scale * (v - along * b3)
     phi[:, 1] = -along * b3
     phi[:, 2:5] = np.eye(3)
     phi[:, 5] = -thrust_n * b3
@@ -112,6 +114,7 @@ class DisturbanceObserver:
         self.params = params
         self.mass_kg = float(vehicle.mass_kg)
         self.base_drag = tuple(float(c) for c in vehicle.rotor_drag_n_s_per_m)
+        self._drag_scale = (float(vehicle.mass_kg) * G, float(vehicle.rotor_drag_thrust_exponent))
         self._theta0 = np.array([*self.base_drag, 0.0, 0.0, 0.0, float(vehicle.thrust_scale)])
         p = params
         sd = np.array([p.drag_sd_n_s_per_m] * 2 + [p.force_sd_n] * 2 + [p.vertical_force_sd_n]
@@ -171,13 +174,15 @@ class DisturbanceObserver:
         thrust ``thrust_n`` over the interval), predicted with the current estimate."""
         if not (0.0 < dt_s <= self.params.max_sample_gap_s):
             return
+        xy_scale = float(rotor_plane_scale(thrust_n, *self._drag_scale))
         if self.compiled:
             y0, y1, y2 = innovation_m_s
             v0, v1, v2 = v
             status = ok.update(self._kf, self.P, float(dt_s), self.mass_kg, self._r,
                                self.params.drag_learning_min_speed_m_s,
                                self.params.thrust_scale_learning_max_axial_speed_m_s, np.asarray(R, dtype=float),
-                               float(v0), float(v1), float(v2), float(thrust_n), float(y0), float(y1), float(y2))
+                               float(v0), float(v1), float(v2), float(thrust_n), float(y0), float(y1), float(y2),
+                               xy_scale)
             if status == ok.REJECTED:
                 self.rejected += 1
             elif status == ok.UPDATED:
@@ -188,7 +193,7 @@ class DisturbanceObserver:
         if not np.all(np.isfinite(y)):
             return
         self.P += np.diag(self._q_per_s * dt_s)
-        H = (dt_s / self.mass_kg) * regressors(R, v, thrust_n)          # (3, 6)
+        H = (dt_s / self.mass_kg) * regressors(R, v, thrust_n, xy_scale)  # (3, 6)
         p = self.params
         if float(np.linalg.norm(v)) < p.drag_learning_min_speed_m_s:
             H[:, 0:2] = 0.0                  # drag unobservable (and biased) at low speed

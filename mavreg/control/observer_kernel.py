@@ -65,11 +65,12 @@ def _cholesky_solve3(l00, l10, l20, l11, l21, l22, c0, c1, c2):
 
 
 @njit
-def update(kf, P, dt, mass, r, min_speed, max_axial_speed, R, vx, vy, vz, thrust, y0, y1, y2):
+def update(kf, P, dt, mass, r, min_speed, max_axial_speed, R, vx, vy, vz, thrust, y0, y1, y2, xy_scale):
     """One measurement (see the module docstring): attitude ``R`` (3, 3), velocity
     ``(vx, vy, vz)`` NED and commanded thrust ``thrust`` over the interval ``dt``, innovation
     ``(y0, y1, y2)``. The drag columns are 0 below the speed ``min_speed``, the thrust scale's
-    above the axial speed ``max_axial_speed``. Returns :data:`SKIPPED` (a non-finite innovation), :data:`REJECTED`
+    above the axial speed ``max_axial_speed``; ``xy_scale`` multiplies the rotor-plane drag's
+    column (its thrust dependence, :func:`mavreg.model.drag_kernel.rotor_plane_scale`). Returns :data:`SKIPPED` (a non-finite innovation), :data:`REJECTED`
     (the gate) or :data:`UPDATED`."""
     if not (math.isfinite(y0) and math.isfinite(y1) and math.isfinite(y2)):
         return SKIPPED
@@ -85,7 +86,7 @@ def update(kf, P, dt, mass, r, min_speed, max_axial_speed, R, vx, vy, vz, thrust
     learn_scale = abs(along) <= max_axial_speed
     for a in range(3):
         if learn_drag:
-            H[a, 0] = -(v[a] - along * b[a]) * g
+            H[a, 0] = -(v[a] - along * b[a]) * g * xy_scale
             H[a, 1] = -along * b[a] * g
         H[a, 2 + a] = g
         if learn_scale:

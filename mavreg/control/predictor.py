@@ -81,10 +81,11 @@ class StatePredictor:
         self.tau = float(vehicle.rotor_time_constant_s)
         self.cxy, self.cz = (float(c) for c in vehicle.rotor_drag_n_s_per_m)
         self.cp = float(vehicle.parasitic_drag_n_s2_per_m2)
+        self.drag_exponent = float(vehicle.rotor_drag_thrust_exponent)
         self.max_step_s = float(max_step_s)
         self.max_horizon_s = float(max_horizon_s)
         self._prm = np.array([self.mass_kg, self.jx, self.jy, self.jz, self.l, self.k, self.tau,
-                              self.cxy, self.cz, self.cp, self.max_step_s])
+                              self.cxy, self.cz, self.cp, self.max_step_s, self.drag_exponent])
         assert self._prm.size == PARAM_SIZE
         # The commands not yet fully acted, rows lo:hi (command_history_kernel): the time of
         # the sample each answered, and the four rotor commands; room for twice the most kept.

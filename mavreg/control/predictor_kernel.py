@@ -16,8 +16,9 @@ Layouts (plain float arrays, so that nothing is allocated in the loop):
   lagged rotor forces f (4);
 - ``seg`` (K + 2, 5): row 0 the command in force at the sample, ``(t_s, c1..c4)``; rows 1..K
   the commands that start in the horizon, ``(start_s, c1..c4)``; row K + 1 ``(t_end, ...)``;
-- ``prm`` (11,): mass, jx, jy, jz, arm length l, drag-torque ratio k, rotor time constant
-  tau, c_xy, c_z (the linear body drag), c_p (parasitic), the longest step;
+- ``prm`` (12,): mass, jx, jy, jz, arm length l, drag-torque ratio k, rotor time constant
+  tau, c_xy, c_z (the linear body drag), c_p (parasitic), the longest step, the rotor-plane
+  drag's thrust exponent e (c_xy at the step's thrust T is c_xy (T / m g)^e);
 - ``out`` (:data:`OUT_SIZE`,) of :func:`predict_into`: the predicted design-model state x
   (12: p, roll pitch yaw, v body, w body), R row-major (9), the rotor forces times the
   thrust scale (4), v NED (3).
@@ -29,7 +30,7 @@ import numpy as np
 
 from ..accel import njit
 from ..config.vehicle import G
-from ..model.drag_kernel import drag_ned
+from ..model.drag_kernel import drag_ned, rotor_plane_scale
 from ..model.mixer_kernel import wrench
 from ..model.quadrotor_kernel import angular_acceleration
 from ..model.rotation_kernel import matrix_rpy, mm, rodrigues
@@ -38,7 +39,7 @@ from ..model.rotor_lag_kernel import lag_over4
 __all__ = ["integrate", "predict_into", "STATE_SIZE", "PARAM_SIZE", "OUT_SIZE"]
 
 STATE_SIZE = 22
-PARAM_SIZE = 11
+PARAM_SIZE = 12
 OUT_SIZE = 28
 
 
@@ -50,7 +51,7 @@ def integrate(state, seg, prm, thrust_scale, fx, fy, fz, cxy, cz):
     (NED, N); ``cxy``, ``cz``: the linear body drag in use (N s/m). Returns the number of
     steps taken."""
     m, jx, jy, jz, l, k, tau = prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6]
-    cp, max_step = prm[9], prm[10]
+    cp, max_step, drag_exponent = prm[9], prm[10], prm[11]
     has_drag = cxy != 0.0 or cz != 0.0 or cp != 0.0
     R = (state[0], state[1], state[2], state[3], state[4], state[5], state[6], state[7], state[8])
     px, py, pz = state[9], state[10], state[11]
@@ -79,9 +80,10 @@ def integrate(state, seg, prm, thrust_scale, fx, fy, fz, cxy, cz):
             a0x, a0y, a0z = -s * R[2] + fx / m, -s * R[5] + fy / m, G - s * R[8] + fz / m
             a1x, a1y, a1z = -s * R1[2] + fx / m, -s * R1[5] + fy / m, G - s * R1[8] + fz / m
             if has_drag:       # both at the step's start velocity
-                dx, dy, dz = drag_ned(R, vx, vy, vz, cxy, cz, cp)
+                cxy_t = cxy * rotor_plane_scale(T, m * G, drag_exponent)
+                dx, dy, dz = drag_ned(R, vx, vy, vz, cxy_t, cz, cp)
                 a0x, a0y, a0z = a0x + dx / m, a0y + dy / m, a0z + dz / m
-                dx, dy, dz = drag_ned(R1, vx, vy, vz, cxy, cz, cp)
+                dx, dy, dz = drag_ned(R1, vx, vy, vz, cxy_t, cz, cp)
                 a1x, a1y, a1z = a1x + dx / m, a1y + dy / m, a1z + dz / m
             q = dt * dt / 6.0
             px, py, pz = (px + dt * vx + q * (2.0 * a0x + a1x), py + dt * vy + q * (2.0 * a0y + a1y),

@@ -96,6 +96,10 @@ class FitOptions:
     """Rates output: the longest rate-loop time constant searched."""
     rate_delay_max_s: float = 0.1
     """Rates output: the longest sample-to-rate-response delay searched."""
+    rotor_drag_thrust_exponent: float = 0.0
+    """e of the rotor-plane drag c_xy (T / m g)^e (the vehicle file's): the body x and y drag
+    columns are scaled by it, T taken as the mass times the measured specific force, so that
+    c_x, c_y come out as the coefficients in hover. 0: a constant coefficient."""
 
 
 @dataclass(frozen=True)

@@ -7,16 +7,18 @@ is integrated over every sample interval and filtered with the kernel :math:`E` 
 Savitzky-Golay derivative of the velocity (see :mod:`mavreg.identify.fit`). The thrust columns
 (one per command channel: the rotor sum, or the rates output's t and t^2) depend on
 :math:`(\tau, D)` and are rebuilt on demand (:meth:`Regressors.thrust_columns`); the drag
-columns are built once.
+columns are built once (with a thrust-dependent rotor-plane drag, ``FitOptions.rotor_drag_thrust_exponent``,
+the body x and y columns carry its factor at the measured specific force).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import lfilter, savgol_coeffs
+from scipy.signal import lfilter, savgol_coeffs, savgol_filter
 
 from ..config.vehicle import G
+from ..model.drag import rotor_plane_scale
 from ..model.rotation import quats_to_matrices
 
 __all__ = ["FlightSeries", "IdentifyError", "Regressors", "lagged_integrals", "rotor_channels", "G"]
@@ -126,6 +128,11 @@ class Regressors:
         self.vbody_rows = vb[self.rows]
         self.y = self._deriv(v) - np.array([0.0, 0.0, G])
         cols = [-R[:, :, k] * vb[:, k:k + 1] / mass_kg for k in range(3)]
+        e = float(getattr(o, "rotor_drag_thrust_exponent", 0.0))
+        if e:                        # c_x, c_y at the thrust flown: T / m from the specific force
+            acc = savgol_filter(v, W, o.polyorder, deriv=1, delta=h, axis=0)
+            scale = rotor_plane_scale(np.linalg.norm(acc - np.array([0.0, 0.0, G]), axis=1), G, e)[:, None]
+            cols[0], cols[1] = cols[0] * scale, cols[1] * scale
         cols.append(-np.linalg.norm(v, axis=1)[:, None] * v / mass_kg)
         self.fixed = np.stack([self._filtered(h / 2 * (c[:-1] + c[1:])) for c in cols], axis=-1)
 

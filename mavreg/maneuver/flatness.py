@@ -30,12 +30,16 @@ second part lies along the thrust axis, so
     f = |t| - (c_z - c_{xy})\,(z_b\cdot\dot c),
 
 and the jets of :math:`t` carry the drag's derivatives (acceleration, jerk). The nominal then
-feeds the known drag forward instead of leaving the feedback to fight it.
+feeds the known drag forward instead of leaving the feedback to fight it. A rotor-plane
+coefficient that grows with the thrust, :math:`c_{xy}(f) = c_{xy}(f/mg)^e`
+(``rotor_drag_thrust_exponent``), keeps the map explicit given f; f and c_xy are found
+together by a fixed point on their jets (:func:`_thrust_dependent_drag`).
 """
 from __future__ import annotations
 
 import numpy as np
 
+from ..model.drag import rotor_plane_scale_jet
 from ..model.quadrotor import QuadrotorModel
 from ..model.rotation import matrix_to_rpy
 
@@ -165,6 +169,51 @@ def _nose_reference(mode, yaw_jet, zb, vel, acc, jerk):
     return tuple(np.stack([ci, si, zero], axis=1) for ci, si in zip(c, s))
 
 
+def _with_drag(T, V, cxy_per_m, cp_per_m):
+    """The jet of t / m less the drag's: ``cxy_per_m`` a number or a scalar jet (c_xy / m)."""
+    n = _jnorm(V)
+    vel, acc, jerk = V
+    Vq = (n[0][:, None] * vel, n[1][:, None] * vel + n[0][:, None] * acc,
+          n[2][:, None] * vel + 2 * n[1][:, None] * acc + n[0][:, None] * jerk)
+    CV = _jscale(cxy_per_m, V) if isinstance(cxy_per_m, tuple) else tuple(cxy_per_m * Vi for Vi in V)
+    return tuple(Ti - Ci - cp_per_m * Qi for Ti, Ci, Qi in zip(T, CV, Vq))
+
+
+_DRAG_ITERATIONS = 6
+"""Passes of the fixed point thrust -> c_xy(thrust) -> thrust. Each pass shrinks the change by
+about e c_xy |v| / f (a few per cent in a loop at 8 m/s), so six are at rounding."""
+
+
+def _thrust_dependent_drag(model: QuadrotorModel, T0, vel, acc, jerk):
+    r"""The jet of t / m with a rotor-plane drag :math:`c_{xy}(f)` that depends on the thrust
+    f it helps to set (:func:`mavreg.model.drag.rotor_plane_scale`), by fixed point on the
+    jets: f, its derivatives, then c_xy's and t's; also the samples' c_xy (N,)."""
+    m = model.mass_kg
+    cxy, cz = model.rotor_drag_n_s_per_m
+    cp = model.parasitic_drag_n_s2_per_m2
+    V = (vel, acc, jerk)
+    one = np.ones(len(vel))
+    c = (cxy * one, 0.0 * one, 0.0 * one)
+    for _ in range(_DRAG_ITERATIONS):
+        T = _with_drag(T0, V, tuple(ci / m for ci in c), cp / m)
+        tn = _jnorm(T)
+        if np.min(tn[0]) < 1e-6:
+            break                      # free fall: flat_nominal says where
+        along = _jdot(_jnormalize(T), V)
+        cz_minus_c = tuple((cz if k == 0 else 0.0) - ck for k, ck in enumerate(c))
+        f = tuple(m * tk - pk for tk, pk in zip(tn, _jmul(cz_minus_c, along)))
+        if np.min(f[0]) <= 0.0:
+            break
+        c = tuple(cxy * sk for sk in rotor_plane_scale_jet(f, model.hover_thrust_n,
+                                                            model.rotor_drag_thrust_exponent))
+    return _with_drag(T0, V, tuple(ci / m for ci in c), cp / m), c[0]
+
+
+def _jmul(a, b):
+    """Scalar jet a times scalar jet b."""
+    return (a[0] * b[0], a[1] * b[0] + a[0] * b[1], a[2] * b[0] + 2 * a[1] * b[1] + a[0] * b[2])
+
+
 def flat_nominal(model: QuadrotorModel, F, k, dk, ddk, c, v4, yaw4, mode: str = "fixed"):
     r"""Nominal states (N,12), inputs (N,4) and attitudes R (N,3,3) at path samples.
 
@@ -186,12 +235,10 @@ def flat_nominal(model: QuadrotorModel, F, k, dk, ddk, c, v4, yaw4, mode: str = 
     T = (g * np.array([0.0, 0.0, 1.0]) - acc, -jerk, -snap)
     cxy, cz = model.rotor_drag_n_s_per_m
     cp = model.parasitic_drag_n_s2_per_m2
-    if cxy or cp:          # t / m = g e3 - a - (c_xy / m) v - (c_p / m) |v| v, as jets
-        V = (vel, acc, jerk)
-        n = _jnorm(V)
-        Vq = (n[0][:, None] * vel, n[1][:, None] * vel + n[0][:, None] * acc,
-              n[2][:, None] * vel + 2 * n[1][:, None] * acc + n[0][:, None] * jerk)
-        T = tuple(Ti - (cxy / m) * Vi - (cp / m) * Qi for Ti, Vi, Qi in zip(T, V, Vq))
+    if model.rotor_drag_thrust_exponent and cxy:
+        T, cxy_now = _thrust_dependent_drag(model, T, vel, acc, jerk)
+    elif cxy or cp:          # t / m = g e3 - a - (c_xy / m) v - (c_p / m) |v| v, as jets
+        T = _with_drag(T, (vel, acc, jerk), cxy / m, cp / m)
     tn = np.linalg.norm(T[0], axis=1)
     if np.min(tn) < 1e-6:
         raise FlatnessError("the thrust vanishes (free fall), so the attitude is undefined",
@@ -220,6 +267,8 @@ def flat_nominal(model: QuadrotorModel, F, k, dk, ddk, c, v4, yaw4, mode: str = 
     domega = _vee(Rt @ ddR)  # vee of the skew part of R^T R'' = omega-dot
     J = np.array(model.inertia_kg_m2)
     torque = J * domega + np.cross(omega, J * omega)
+    if model.rotor_drag_thrust_exponent and cxy:
+        cxy = cxy_now
     thrust = m * tn - (cz - cxy) * _dot(zb[0], vel)
     rpy = matrix_to_rpy(R)
     rpy = np.unwrap(rpy, axis=0)

@@ -7,7 +7,16 @@ import math
 from ..accel import njit
 from .rotation_kernel import mtv, mv
 
-__all__ = ["body_drag", "drag_ned", "linear_drag_and_force", "drag_change"]
+__all__ = ["body_drag", "drag_ned", "linear_drag_and_force", "drag_change", "rotor_plane_scale"]
+
+
+@njit
+def rotor_plane_scale(thrust, hover_thrust, exponent):
+    """:func:`mavreg.model.drag.rotor_plane_scale` of a float: (T / T_h)^e, 1.0 for e = 0."""
+    if exponent == 0.0:
+        return 1.0
+    ratio = thrust / hover_thrust
+    return ratio ** exponent if ratio > 0.0 else 0.0
 
 
 @njit

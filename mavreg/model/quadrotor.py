@@ -20,7 +20,9 @@ feels aerodynamic drag, which the paper's model leaves out:
 
 linear rotor drag in the body frame (the same in the rotor plane, as for a symmetric
 quadrotor) and quadratic parasitic drag, both on the velocity relative to the ground (the
-design knows no wind). Zero coefficients give the paper's model exactly.
+design knows no wind). Zero coefficients give the paper's model exactly. With
+``rotor_drag_thrust_exponent`` e > 0 the rotor-plane coefficient is :math:`c_{xy}(f/(mg))^e`
+at the collective thrust f (:func:`mavreg.model.drag.rotor_plane_scale`).
 """
 from __future__ import annotations
 
@@ -29,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config.vehicle import G, VehicleParams
-from .drag import body_drag_n
+from .drag import body_drag_n, rotor_plane_scale
 from .rotation import euler_rates_matrix, rpy_to_matrix
 
 __all__ = ["QuadrotorModel", "NX", "NU"]
@@ -48,11 +50,19 @@ class QuadrotorModel:
     rotor_drag_n_s_per_m: tuple[float, float] = (0.0, 0.0)
     """Linear body-frame drag (c_xy in the rotor plane, c_z along the thrust axis)."""
     parasitic_drag_n_s2_per_m2: float = 0.0
+    rotor_drag_thrust_exponent: float = 0.0
+    """e of c_xy (f / (m g))^e (0: a constant c_xy)."""
 
     @classmethod
     def from_vehicle(cls, vehicle: VehicleParams) -> "QuadrotorModel":
         return cls(vehicle.mass_kg, tuple(vehicle.inertia_kg_m2), G,
-                   tuple(vehicle.rotor_drag_n_s_per_m), vehicle.parasitic_drag_n_s2_per_m2)
+                   tuple(vehicle.rotor_drag_n_s_per_m), vehicle.parasitic_drag_n_s2_per_m2,
+                   vehicle.rotor_drag_thrust_exponent)
+
+    @property
+    def hover_thrust_n(self) -> float:
+        """m g: the thrust at which the rotor-plane drag is c_xy."""
+        return self.mass_kg * self.g
 
     @property
     def has_drag(self) -> bool:
@@ -88,6 +98,7 @@ class QuadrotorModel:
         ])
         if self.has_drag:
             cxy, cz = self.rotor_drag_n_s_per_m
+            cxy = cxy * rotor_plane_scale(thrust, m * g, self.rotor_drag_thrust_exponent)
             vdot = vdot + body_drag_n(v, cxy, cz, self.parasitic_drag_n_s2_per_m2) / m
         wdot = np.array([
             q * r * (jy - jz) / jx + g1 / jx,

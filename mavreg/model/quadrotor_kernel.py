@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..accel import njit
-from .drag_kernel import body_drag
+from .drag_kernel import body_drag, rotor_plane_scale
 
 __all__ = ["plant_rhs", "plant_rhs_compiled", "angular_acceleration"]
 
@@ -19,8 +19,9 @@ __all__ = ["plant_rhs", "plant_rhs_compiled", "angular_acceleration"]
 @njit
 def plant_rhs(x, u0, u1, u2, u3, plant, jx, jy, jz, out):
     r"""dx/dt into ``out`` for state x and input :math:`u = (f, \gamma_1, \gamma_2, \gamma_3)`;
-    ``plant`` = (mass, g, c_xy, c_z, c_parasitic); jx, jy, jz: the run's inertia."""
-    m, g, cxy, cz, cpar = plant
+    ``plant`` = (mass, g, c_xy, c_z, c_parasitic, e), e the rotor-plane drag's thrust exponent
+    (:func:`mavreg.model.drag_kernel.rotor_plane_scale`); jx, jy, jz: the run's inertia."""
+    m, g, cxy, cz, cpar, e = plant
     phi, theta, psi = x[3], x[4], x[5]
     v1, v2, v3 = x[6], x[7], x[8]
     p, q, r = x[9], x[10], x[11]
@@ -38,7 +39,7 @@ def plant_rhs(x, u0, u1, u2, u3, plant, jx, jy, jz, out):
     out[7] = -r * v1 + p * v3 + g * sf * ct
     out[8] = q * v1 - p * v2 + g * ct * cf - u0 / m
     if cxy != 0.0 or cz != 0.0 or cpar != 0.0:
-        d1, d2, d3 = body_drag(v1, v2, v3, cxy, cz, cpar)
+        d1, d2, d3 = body_drag(v1, v2, v3, cxy * rotor_plane_scale(u0, m * g, e), cz, cpar)
         out[6] = out[6] + d1 / m
         out[7] = out[7] + d2 / m
         out[8] = out[8] + d3 / m

@@ -148,7 +148,7 @@ def _fly_compiled(plan: Plan, runs: Sequence[BatchRun], steps: int, dt_s: float,
     ST = np.zeros((n, ST_GOV))          # no governor: the state ends where its slots begin
     ST[:, ST_S] = S
     batch_compiled.run(X, ST, status, k_end, xs, cmd, app, (fs.table, fs.s_tab, fs.s_nodes, fs.coef, fs.ends,
-                                                             fs.prm), M, (mass, G, cxy, cz, cpar), J, upper,
+                                                             fs.prm), M, (mass, G, cxy, cz, cpar, float(vehicle.rotor_drag_thrust_exponent)), J, upper,
                        noise, 1.0, float(dt_s), steps, limits)
     ts = np.arange(n_steps + 1) * dt_s
     return [_result(ts, xs[r], cmd[r], app[r], int(status[r]), int(k_end[r]), steps, o)

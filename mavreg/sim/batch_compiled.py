@@ -121,7 +121,7 @@ def run(X, ST, status, k_end, xs, cmd, app, step, M, plant, J, upper, noise, thr
     kernel's state per run (s first), ``step`` = (table, s_tab, s_nodes, coef, ends, prm) of
     :class:`mavreg.control.fastpath.FastStep`; ``xs`` (N, K+1, 12), ``cmd`` and ``app``
     (N, K+1, 4) receive the records, ``status`` and ``k_end`` how and where each run ended.
-    ``plant`` = (mass, g, c_xy, c_z, c_parasitic), J (N, 3), ``upper`` (N,) the saturation,
+    ``plant`` = (mass, g, c_xy, c_z, c_parasitic, the drag's thrust exponent), J (N, 3), ``upper`` (N,) the saturation,
     ``noise`` (C, 4, N): the rotor noise of each control call (:func:`mavreg.sim.batch._noise`)."""
     for r in range(X.shape[0]):
         if status[r] == RUNNING:

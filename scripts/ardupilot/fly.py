@@ -2,7 +2,7 @@
 """Fly a maneuver with mavreg on the stock ArduCopter SITL N times, through body rates and
 thrust, and print the true path error of each flight (the SITL's SIM_STATE) and a summary.
 
-    python scripts/ardupilot/fly.py [--flights 5] [--maneuver FILE] [--out DIR]
+    python -m scripts.ardupilot.fly [--flights 5] [--maneuver FILE] [--out DIR] [--param NAME=VALUE ...]
 
 Needs the SITL (``MAVREG_ARDUPILOT_DIR``; tests/helpers/ardupilot_sitl.py). Real time: about
 2 minutes a flight (EKF start, take-off, maneuver, landing). docs/autopilots.md quotes it.
@@ -26,13 +26,28 @@ def main(argv=None) -> int:
     p.add_argument("--maneuver", default=str(REPO / "mavreg/params/maneuvers/barrel_roll.yaml"))
     p.add_argument("--out", default=None, help="keep the flights here (default: a temporary directory)")
     p.add_argument("--control-rate-hz", type=float, default=200.0)
+    p.add_argument("--vehicle", default=None, help="another vehicle file (default: the harness's, "
+                   "mavreg/params/vehicles/ardupilot_freestyle.yaml)")
+    p.add_argument("--position-source", choices=("gps", "mocap"), default="gps",
+                   help="where ArduCopter's EKF3 takes its position from (default: %(default)s)")
+    p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                   help="an ArduPilot parameter set before each flight (repeatable; an experiment's)")
     args = p.parse_args(argv)
+    params = {}
+    for item in args.param:
+        name, _, value = item.partition("=")
+        try:
+            params[name.strip()] = float(value)
+        except ValueError:
+            p.error(f"--param {item!r}: want NAME=VALUE with a number")
     root = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="mavreg-ardupilot-"))
     ok = 0
     print("| flight | result | loop max (cm) | all max (cm) | all RMS (cm) | touchdown (m/s) |")
     print("|---|---|---|---|---|---|")
     for k in range(1, args.flights + 1):
-        s = fly_on_ardupilot(Path(args.maneuver), root / f"flight{k}", args.control_rate_hz)
+        s = fly_on_ardupilot(Path(args.maneuver), root / f"flight{k}", args.control_rate_hz, params=params,
+                             extra_args=() if args.vehicle is None else ("--vehicle-params", args.vehicle),
+                             position_source=args.position_source)
         gt = s.get("ardupilot_truth") or {}
         loop = (gt.get("segments") or {}).get("loop") or {}
         cm = (lambda v: f"{100 * v:.1f}" if isinstance(v, float) else "n/a")   # noqa: E731

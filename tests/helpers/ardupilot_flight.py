@@ -16,10 +16,11 @@ import math
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
-from .ardupilot_sitl import M, ArduPilotSitl
+from .ardupilot_sitl import HOME, M, ArduPilotSitl
 
 __all__ = ["fly_on_ardupilot", "true_errors_from_tlog", "PILOT_PARAMS", "VEHICLE", "CONTROLLER"]
 
@@ -32,13 +33,20 @@ EARTH_RADIUS_M = 6378137.0
 
 
 def fly_on_ardupilot(maneuver: Path, out: Path, control_rate_hz: float = 200.0, timeout_s: float = 240.0,
-                     extra_args: tuple = (), frame: str = "freestyle") -> dict:
-    """Fly ``maneuver`` with mavreg on a fresh SITL; summary.json plus ``ardupilot_truth``."""
+                     extra_args: tuple = (), frame: str = "freestyle", params: dict | None = None,
+                     position_source: str = "gps") -> dict:
+    """Fly ``maneuver`` with mavreg on a fresh SITL; summary.json plus ``ardupilot_truth``.
+    ``params``: parameters set before the flight on top of :data:`PILOT_PARAMS` (an experiment's);
+    ``position_source``: the EKF's, ``gps`` or ``mocap`` (:class:`ArduPilotSitl`)."""
     out = Path(out)
-    with ArduPilotSitl(frame=frame, params=PILOT_PARAMS) as sitl:
+    with ArduPilotSitl(frame=frame, params={**PILOT_PARAMS, **(params or {})},
+                       position_source=position_source) as sitl:
         sitl.set_rate(M.MAVLINK_MSG_ID_SIM_STATE, 50.0)
         sitl.command_long(M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN)
         origin = sitl.wait_for(lambda m: m.get_type() == "GPS_GLOBAL_ORIGIN", 10.0, "GPS_GLOBAL_ORIGIN")
+        if position_source == "mocap":        # the EKF's local frame is the Vicon's, about HOME
+            origin = SimpleNamespace(latitude=round(HOME[0] * 1e7), longitude=round(HOME[1] * 1e7),
+                                     altitude=round(HOME[2] * 1e3))
         port = sitl.port
         sitl.conn.close()                 # the daemon takes the port; the SITL keeps sending there
         sitl.conn = None
@@ -49,6 +57,8 @@ def fly_on_ardupilot(maneuver: Path, out: Path, control_rate_hz: float = 200.0, 
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s + 60)
     out.mkdir(parents=True, exist_ok=True)
     (out / "fly.log").write_text(proc.stdout + proc.stderr)
+    (out / "truth_origin.json").write_text(json.dumps(     # the local frame's origin (decompose)
+        {k: getattr(origin, k) for k in ("latitude", "longitude", "altitude")}))
     summary = json.loads((out / "summary.json").read_text())
     summary["exit_code"] = proc.returncode
     summary["ardupilot_truth"] = true_errors_from_tlog(out, maneuver, origin)

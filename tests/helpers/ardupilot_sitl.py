@@ -18,6 +18,7 @@ the SITL by its PID (SIGTERM, then SIGKILL) on leaving the ``with`` block, also 
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import socket
 import subprocess
@@ -31,7 +32,7 @@ os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil  # noqa: E402  (MAVLINK20 must be set first)
 
 __all__ = ["ardupilot_dir", "ArduPilotSitl", "SitlError", "require_ardupilot", "arducopter_sitl_fixture",
-           "TEST_PARAMS"]
+           "TEST_PARAMS", "POSITION_SOURCES", "HOME"]
 
 REPO = Path(__file__).resolve().parents[2]
 ENV_VAR = "MAVREG_ARDUPILOT_DIR"
@@ -40,6 +41,13 @@ PREARM_BIT = M.MAV_SYS_STATUS_PREARM_CHECK
 START_ATTEMPTS = 6
 """start.sh's exit races with the SITL's start (see ``ArduPilotSitl._launch``): about 1 in 4
 starts die at once; six attempts all fail about once in 4000."""
+POSITION_SOURCES = ("gps", "mocap")
+"""Where ArduCopter's EKF3 takes its position from: its simulated GPS (5 Hz, the frame's
+defaults), or the SITL's simulated Vicon (ExternalNav, :data:`MOCAP_DEFAULTS`)."""
+MOCAP_DEFAULTS = Path(__file__).with_name("ardupilot_mocap.parm")
+HOME = (-35.363261, 149.165230, 584.0)
+"""start.sh's default home (lat, lon deg, alt m): with ``mocap`` the EKF's local frame is the
+simulated Vicon's, whose origin is this point (the GPS sets the EKF origin about 9 cm higher)."""
 
 
 class SitlError(RuntimeError):
@@ -127,11 +135,18 @@ class ArduPilotSitl:
         Bound on each wait (heartbeat, each parameter, readiness).
     directory : Path
         The SITL directory; :func:`ardupilot_dir` by default.
+    position_source : str
+        ``gps`` (start.sh as it is) or ``mocap``: the binary started as start.sh starts it, with
+        the simulated Vicon on SERIAL5 and :data:`MOCAP_DEFAULTS` after the frame's defaults.
     """
 
     def __init__(self, frame: str = "freestyle", params: dict | None = None,
                  rates_hz: dict | None = None, wait_ready: bool = True, timeout_s: float = 90.0,
-                 directory: Path | None = None):
+                 directory: Path | None = None, position_source: str = "gps"):
+        if position_source not in POSITION_SOURCES:
+            raise ValueError(f"position_source must be one of {POSITION_SOURCES}, not {position_source!r}")
+        self.position_source = position_source
+        self._proc: subprocess.Popen | None = None
         self.frame = frame
         self.params = dict(params or {})
         self.rates_hz = dict(rates_hz or {})
@@ -212,19 +227,48 @@ class ArduPilotSitl:
         env = dict(os.environ, FRAME=self.frame, MAVLINK=f"udpclient:127.0.0.1:{self.port}",
                    MAVLINK2=f"udpclient:127.0.0.1:{free_udp_port()}", WORKDIR=self.workdir.name,
                    INSTANCE=str(free_instance()))
-        out = subprocess.run([str(self.directory / "start.sh")], env=env, capture_output=True,
-                             text=True, timeout=30)
-        if out.returncode != 0 or not out.stdout.strip().isdigit():
-            raise SitlError(f"start.sh failed ({out.returncode}): {out.stderr.strip()[-200:]}")
-        self.pid = int(out.stdout.strip())
+        if self.position_source == "mocap":
+            self._start_with_mocap(env)
+        else:
+            out = subprocess.run([str(self.directory / "start.sh")], env=env, capture_output=True,
+                                 text=True, timeout=30)
+            if out.returncode != 0 or not out.stdout.strip().isdigit():
+                raise SitlError(f"start.sh failed ({out.returncode}): {out.stderr.strip()[-200:]}")
+            self.pid = int(out.stdout.strip())
         return self.wait_for(lambda m: m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1,
                              self.timeout_s, "first HEARTBEAT")
+
+    def _start_with_mocap(self, env: dict) -> None:
+        """Start the binary as start.sh does (its frame, defaults and serial ports), plus the
+        simulated Vicon on SERIAL5 and :data:`MOCAP_DEFAULTS` after the frame's defaults: start.sh
+        takes no extra defaults, and VISO_TYPE only takes effect at boot. Our own child, so it
+        does not share start.sh's early exit."""
+        d, work, instance = self.directory, Path(env["WORKDIR"]), int(env["INSTANCE"])
+        defaults = {"freestyle": ["copter.parm", "copter-X.parm", "freestyle.param"], "quad": ["copter.parm"]}
+        if self.frame not in defaults:
+            raise SitlError(f"frame must be one of {sorted(defaults)}, not {self.frame!r}")
+        model = "quad"
+        if self.frame == "freestyle":
+            shutil.copy(d / "freestyle.json", work / "freestyle.json")   # the SITL reads it in its directory
+            model = "X:freestyle.json"
+        files = ",".join([str(d / f) for f in defaults[self.frame]] + [str(MOCAP_DEFAULTS)])
+        cmd = [str(d / "arducopter"), "--model", model, "--speedup", "1", f"-I{instance}",
+               "--home", ",".join(repr(v) for v in HOME) + ",0", "--defaults", files, "--wipe",
+               "--serial0", env["MAVLINK"], "--serial1", env["MAVLINK2"],
+               "--serial2", f"udpclient:127.0.0.1:{14701 + 10 * instance}", "--serial5", "sim:vicon:"]
+        with open(work / "arducopter.out", "wb") as log:
+            self._proc = subprocess.Popen(cmd, cwd=work, stdout=log, stderr=subprocess.STDOUT,
+                                          stdin=subprocess.DEVNULL)
+        self.pid = self._proc.pid
 
     def stop(self) -> None:
         """SIGTERM the SITL by its PID, SIGKILL after 10 s; close the link; remove its files."""
         if self.pid is not None:
             _terminate(self.pid)
             self.pid = None
+        if self._proc is not None:
+            self._proc.wait(timeout=5)          # our child (mocap): reap it
+            self._proc = None
         if self.conn is not None:
             self.conn.close()
             self.conn = None

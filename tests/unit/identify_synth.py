@@ -4,7 +4,8 @@ The attitude follows smooth roll, pitch and yaw sinusoids (speeds of several m/s
 and y, and some along z); the summed rotor command holds the weight with a slow sinusoid, a
 3 Hz square wave (which excites the rotor lag) and per-sample noise, all scaled by ``excite``. The commands act ``delay_s``
 after their sample, through a first-order lag of ``tau_s``, scaled by ``thrust_scale``; the
-drag is body-frame linear (and optionally quadratic). Velocity is integrated by Heun's method
+drag is body-frame linear (and optionally quadratic; its rotor-plane part optionally grows as
+(thrust / m g)^e, ``drag_thrust_exponent``). Velocity is integrated by Heun's method
 at a quarter of the sample period; the telemetry velocity carries Gauss-Markov noise.
 """
 from __future__ import annotations
@@ -23,7 +24,7 @@ G = 9.81
 
 def synthetic_flight(duration_s=20.0, h=0.002, thrust_scale=1.07, drag=(0.25, 0.35, 0.15),
                      parasitic=0.0, tau_s=0.03, delay_s=0.0135, noise_sd=0.02, noise_tc_s=0.2,
-                     seed=1, tilt_rad=0.35, excite=1.0) -> FlightSeries:
+                     seed=1, tilt_rad=0.35, excite=1.0, drag_thrust_exponent=0.0) -> FlightSeries:
     rng = np.random.default_rng(seed)
     sub = 4
     hf = h / sub
@@ -56,7 +57,8 @@ def synthetic_flight(duration_s=20.0, h=0.002, thrust_scale=1.07, drag=(0.25, 0.
     def accel(i, vi):
         Ri = R[i]
         vb = Ri.T @ vi
-        fb = np.array([-cx * vb[0], -cy * vb[1], -cz * vb[2] - thrust[i]])
+        k = (max(thrust[i], 0.0) / (MASS_KG * G)) ** drag_thrust_exponent   # rotor-plane drag's growth
+        fb = np.array([-k * cx * vb[0], -k * cy * vb[1], -cz * vb[2] - thrust[i]])
         return (Ri @ fb - parasitic * np.linalg.norm(vi) * vi) / MASS_KG + np.array([0.0, 0.0, G])
 
     for i in range(nf - 1):

@@ -45,7 +45,7 @@ def test_plant_kernel_is_the_design_model(coefficients):
     x = np.array([1.0, -2.0, -3.0, 0.3, -0.5, 1.9, 4.0, -1.0, 0.7, 0.8, -0.6, 0.2])
     u = np.array([8.1, 0.05, -0.03, 0.01])
     out = np.empty(12)
-    plant_rhs(x, *u, (model.mass_kg, model.g, cxy, cz, cp), *model.inertia_kg_m2, out)
+    plant_rhs(x, *u, (model.mass_kg, model.g, cxy, cz, cp, 0.0), *model.inertia_kg_m2, out)
     assert np.allclose(out, model.f(x, u), rtol=0, atol=1e-12)
 
     w = x[9:12]
