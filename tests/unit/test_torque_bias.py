@@ -1,0 +1,119 @@
+"""The observer's torque part: convergence to a known torque bias in closed loop, its feed-forward
+through the allocation, its bounds, gate and settings."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from mavreg.config.controller import load_controller
+from mavreg.config.disturbance import DisturbanceParams, TorqueBiasParams
+from mavreg.config.loader import ConfigError
+from mavreg.config.paths import REAL_CONTROLLER
+from mavreg.config.vehicle import G
+from mavreg.control.disturbance import DisturbanceEstimate
+from mavreg.control.forecast import Forecaster
+from mavreg.control.hover import HoverController, HoverParams, hold_ramp
+from mavreg.control.predictor import StatePredictor
+from mavreg.control.torque_bias import TorqueBiasObserver, bias_vector_n_m
+from mavreg.model.mixer import Mixer
+from tests.helpers import params
+
+VEHICLE = params.vehicle()
+HOVER_N = VEHICLE.mass_kg * G
+TRUTH = (0.0, 0.0, 0.0, 0.008, -0.006, 0.004)
+"""A centre of mass 8 mm aft-right of the file's... as t1 (m): 0.06, -0.04, 0.03 N m in a hover."""
+
+
+def _observing(enabled: bool) -> DisturbanceParams:
+    return DisturbanceParams(enabled=True, torque_bias=TorqueBiasParams(enabled=enabled))
+
+
+def _hover_flight(disturbance: DisturbanceParams, seconds: float = 4.0, seed: int = 0):
+    """A closed-loop hover of the hover LQR on the design model (the predictor as the truth,
+    with the torque bias ``TRUTH`` and 12 ms of delay), the rates measured with 5 mrad/s of
+    white noise. Returns (forecaster, the last second's largest position and angle errors)."""
+    rng = np.random.default_rng(seed)
+    dt, delay = 0.002, 0.012
+    fc = Forecaster(VEHICLE, dt, predict=True, disturbance=disturbance)
+    truth = StatePredictor(VEHICLE, max_step_s=dt, max_horizon_s=0.1)
+    hover = HoverController(VEHICLE, HoverParams())
+    ramp = hold_ramp(np.array([0.0, 0.0, -10.0]), 0.0)
+    fc.reset((HOVER_N / 4,) * 4)
+    truth.reset((HOVER_N / 4,) * 4)
+    fc.observing = True
+    x = np.zeros(12)
+    x[2] = -10.0
+    R = np.eye(3)
+    worst_m = worst_rad = 0.0
+    n = int(seconds / dt)
+    for k in range(n):
+        t = k * dt
+        seen = x.copy()
+        seen[9:12] += rng.normal(0.0, 0.005, 3)
+        f = fc.update(t, seen, R, delay)
+        cmd = fc.command(t, hover.step(f.x, ramp, t, fc.disturbance).rotor_forces_n)
+        truth.record(t, cmd)
+        p = truth.predict(t, x, R, dt, delay_s=delay, torque_bias=TRUTH)
+        x, R = p.x, p.rotation
+        if k >= n - int(1.0 / dt):
+            worst_m = max(worst_m, float(np.linalg.norm(x[:3] - [0.0, 0.0, -10.0])))
+            worst_rad = max(worst_rad, float(np.abs(x[3:6]).max()))
+    return fc, worst_m, worst_rad
+
+
+def test_the_estimate_converges_to_the_torque_bias_in_closed_loop_and_the_hover_holds_its_point():
+    fc, worst_m, worst_rad = _hover_flight(_observing(True))
+    est = fc.observer.estimate.torque_bias
+    np.testing.assert_allclose(est[3:], TRUTH[3:], atol=0.0008)      # within 10 % of the largest
+    assert est[:3] == (0.0, 0.0, 0.0)                                # the constant part is off by default
+    assert fc.observer.applied.torque_bias == pytest.approx(est, abs=1e-4)   # followed within 4 s
+    assert worst_m < 0.01 and worst_rad < 0.002
+    # negative control: without the torque part the same flight holds a steady offset
+    off, off_m, off_rad = _hover_flight(_observing(False))
+    assert off.observer.torque is None and off.observer.estimate.torque_bias == (0.0,) * 6
+    assert off_m > 5 * worst_m and off_m > 0.03
+
+
+def test_the_rotors_are_asked_for_the_wrench_less_the_bias_and_the_collective_is_untouched():
+    hover = HoverController(VEHICLE, HoverParams())
+    ramp = hold_ramp(np.zeros(3), 0.0)
+    x = np.zeros(12)
+    x[3], x[9] = 0.02, -0.1
+    est = DisturbanceEstimate((0.0, 0.0), (0.0, 0.0, 0.0), 1.0, (0.01, 0.0, -0.02, 0.008, -0.006, 0.004))
+    plain = hover.step(x, ramp, 0.0, DisturbanceEstimate((0.0, 0.0), (0.0, 0.0, 0.0), 1.0))
+    out = hover.step(x, ramp, 0.0, est)
+    np.testing.assert_allclose(out.u, plain.u)                        # the wrench wanted is the same
+    achieved = Mixer.from_vehicle(VEHICLE).to_wrench(out.rotor_forces_n)
+    bias = bias_vector_n_m(est.torque_bias, out.u[0])
+    np.testing.assert_allclose(achieved[1:] + bias, out.u[1:], atol=1e-12)
+    assert achieved[0] == pytest.approx(out.u[0])                     # no thrust the monitor could miss
+
+
+def test_estimate_is_bounded_and_an_outlier_is_refused():
+    obs = TorqueBiasObserver(TorqueBiasParams(enabled=True, max_per_thrust_m=0.01), VEHICLE)
+    for _ in range(3000):
+        obs.update(0.002, HOVER_N, (0.01, 0.0, 0.0))                 # 0.09 N m of roll: 0.012 m
+    assert obs.theta[3] == pytest.approx(0.01)
+    assert obs.theta_applied[3] <= 0.01 + 1e-12
+    before, rejected = obs.theta.copy(), obs.rejected
+    assert not obs.update(0.002, HOVER_N, (3.0, 0.0, 0.0))           # a jump of 3 rad/s in 2 ms
+    assert obs.rejected == rejected + 1 and np.array_equal(obs.theta, before)
+    assert not obs.update(0.002, HOVER_N, (np.nan, 0.0, 0.0))
+
+
+def test_torque_bias_section_of_the_controller_file(tmp_path):
+    assert not DisturbanceParams().torque_bias.enabled
+    bad = tmp_path / "c.yaml"
+    text = REAL_CONTROLLER.read_text()
+    assert "\n  enabled: true" in text
+    bad.write_text(text.replace("\n  enabled: true", "\n  enabled: true\n  torque_bias:\n    enable: true", 1))
+    with pytest.raises(ConfigError, match="enable"):
+        load_controller(bad)
+    good = tmp_path / "g.yaml"
+    good.write_text(text.replace("\n  enabled: true", "\n  enabled: true\n  torque_bias:\n    enabled: true\n"
+                                 "    per_thrust_sd_m: 0.02", 1))
+    tb = load_controller(good).disturbance.torque_bias
+    assert tb.enabled and tb.per_thrust_sd_m == 0.02
+    assert dataclasses.replace(tb, tau_s=5.0).tau_s == 5.0
