@@ -38,6 +38,11 @@ class TorqueBiasParams:
     rate_noise_rad_s: float = field(default=0.01, metadata=_POS)
     """SD of the error of one body-rate sample's change over one period, the measurement
     (a gyro's 0.005 rad/s of white noise per sample, twice)."""
+    learning_max_rate_rad_s: float = field(default=1.0, metadata=_POS)
+    """The bias is learned only while the body rate is under this. Faster, the rate
+    innovations are mostly what the file's inertia and rotor lag get wrong (they scale with
+    the torques commanded and their changes), not a bias: learned through the barrel roll's
+    loop, the estimate followed them and left the run-out 12 cm off the path."""
     max_per_thrust_m: float = field(default=0.03, metadata=_POS)
     """Bound of each :math:`t_1`."""
     max_constant_n_m: float = field(default=0.2, metadata=_POS)

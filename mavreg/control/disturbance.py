@@ -175,11 +175,11 @@ class DisturbanceObserver:
         """The estimate followed at bounded rates (what the compensation uses)."""
         return self._both()[1]
 
-    def update_torque(self, dt_s: float, thrust_n: float, innovation_rad_s) -> None:
+    def update_torque(self, dt_s: float, thrust_n: float, innovation_rad_s, rate_rad_s) -> None:
         """One measurement of the torque part (:meth:`TorqueBiasObserver.update
         <mavreg.control.torque_bias.TorqueBiasObserver.update>`); nothing without it."""
         if self.torque is not None and 0.0 < dt_s <= self.params.max_sample_gap_s:
-            if self.torque.update(dt_s, thrust_n, innovation_rad_s):
+            if self.torque.update(dt_s, thrust_n, innovation_rad_s, rate_rad_s):
                 self._estimates = None
 
     def update(self, dt_s: float, R, v, thrust_n: float, innovation_m_s) -> None:

@@ -12,7 +12,8 @@ exactly what went out:
 With a :class:`~mavreg.control.disturbance.DisturbanceObserver` (``disturbance.enabled`` in the
 controller file), every sample, while :attr:`Forecaster.observing`, is also compared with its
 prediction from the previous one (velocity, and body rates for the torque part); the
-observer's estimate (drag, constant force, thrust scale, torque bias) then enters every prediction and the thrust scale every command, and
+observer's estimate (drag, constant force, thrust scale, torque bias) then enters every
+prediction and the thrust scale every command, and
 :attr:`Forecaster.disturbance` hands it to the regulator's compensation.
 
 Pure: numbers in, numbers out; the caller passes vehicle time and the delay.
@@ -114,7 +115,7 @@ class Forecaster:
         thrust = 0.5 * (sum(f0) + float(p[21] + p[22] + p[23] + p[24]) / model["thrust_scale"])
         self.observer.update(h, R0, R0 @ x0[6:9], thrust, R @ x[6:9] - p[25:28])
         # the torque part: the body rates against theirs, at the physical collective
-        self.observer.update_torque(h, thrust * model["thrust_scale"], x[9:12] - p[9:12])
+        self.observer.update_torque(h, thrust * model["thrust_scale"], x[9:12] - p[9:12], x[9:12])
 
     def update(self, t_s: float, x, rotation, delay_s: float) -> Forecast:
         """A new sample of vehicle time ``t_s``; ``delay_s``: sample-to-actuation delay."""

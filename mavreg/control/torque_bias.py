@@ -48,8 +48,8 @@ from ..accel import njit
 from ..config.disturbance import TorqueBiasParams
 from ..config.vehicle import VehicleParams
 
-__all__ = ["TorqueBiasObserver", "update", "rotor_wrench", "bias_n_m", "bias_vector_n_m", "THETA", "APPLIED", "Q_PER_S", "RATE",
-           "LO", "HI", "ROWS", "GATE_CHI2", "SKIPPED", "REJECTED", "UPDATED"]
+__all__ = ["TorqueBiasObserver", "update", "rotor_wrench", "bias_n_m", "bias_vector_n_m", "THETA", "APPLIED",
+           "Q_PER_S", "RATE", "LO", "HI", "ROWS", "GATE_CHI2", "SKIPPED", "REJECTED", "UPDATED"]
 
 THETA, APPLIED, Q_PER_S, RATE, LO, HI = range(6)
 ROWS = 6
@@ -165,10 +165,14 @@ class TorqueBiasObserver:
         self.theta_applied[:] = 0.0
         self.P[:] = self._P0
 
-    def update(self, dt_s: float, thrust_n: float, innovation_rad_s) -> bool:
-        """One measurement: ``innovation_rad_s`` (3,) = the sample's body rates less their
-        prediction from the previous sample ``dt_s`` earlier, the mean collective over the
-        interval ``thrust_n`` (physical N). Returns whether the estimate changed."""
+    def update(self, dt_s: float, thrust_n: float, innovation_rad_s, rate_rad_s=(0.0, 0.0, 0.0)) -> bool:
+        """One measurement: ``innovation_rad_s`` (3,) = the sample's body rates ``rate_rad_s``
+        less their prediction from the previous sample ``dt_s`` earlier, the mean collective
+        over the interval ``thrust_n`` (physical N). Not learned while the rate is above
+        ``learning_max_rate_rad_s``. Returns whether the estimate changed."""
+        w0, w1, w2 = rate_rad_s
+        if w0 * w0 + w1 * w1 + w2 * w2 > self.params.learning_max_rate_rad_s ** 2:
+            return False
         y0, y1, y2 = innovation_rad_s
         status = update(self._kf, self.P, float(dt_s), self._inv_j, self._r, float(thrust_n), float(y0),
                         float(y1), float(y2))

@@ -279,6 +279,11 @@ class Daemon:
             "drag_n_s_per_m": list(est.drag_n_s_per_m), "force_ned_n": list(est.force_ned_n),
             "thrust_scale": est.thrust_scale, "updates": fc.observer.updates,
             "rejected": fc.observer.rejected}
+        if est is not None and fc.observer.torque is not None:
+            tq = fc.observer.torque
+            st["disturbance"]["torque_bias"] = {"constant_n_m": list(est.torque_bias[:3]),
+                                                "per_thrust_m": list(est.torque_bias[3:]),
+                                                "updates": tq.updates, "rejected": tq.rejected}
         return st
 
     def latency_summary(self, maneuver_only: bool = False) -> dict:

@@ -2,8 +2,6 @@
 through the allocation, its bounds, gate and settings."""
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 
@@ -104,16 +102,16 @@ def test_estimate_is_bounded_and_an_outlier_is_refused():
 
 
 def test_torque_bias_section_of_the_controller_file(tmp_path):
-    assert not DisturbanceParams().torque_bias.enabled
-    bad = tmp_path / "c.yaml"
+    assert not DisturbanceParams().torque_bias.enabled                    # off unless a file says so
+    assert load_controller(REAL_CONTROLLER).disturbance.torque_bias.enabled
     text = REAL_CONTROLLER.read_text()
-    assert "\n  enabled: true" in text
-    bad.write_text(text.replace("\n  enabled: true", "\n  enabled: true\n  torque_bias:\n    enable: true", 1))
+    section = "  torque_bias:\n    enabled: true\n"
+    assert section in text
+    bad = tmp_path / "c.yaml"
+    bad.write_text(text.replace(section, "  torque_bias:\n    enable: true\n"))
     with pytest.raises(ConfigError, match="enable"):
         load_controller(bad)
     good = tmp_path / "g.yaml"
-    good.write_text(text.replace("\n  enabled: true", "\n  enabled: true\n  torque_bias:\n    enabled: true\n"
-                                 "    per_thrust_sd_m: 0.02", 1))
+    good.write_text(text.replace(section, section + "    per_thrust_sd_m: 0.02\n"))
     tb = load_controller(good).disturbance.torque_bias
     assert tb.enabled and tb.per_thrust_sd_m == 0.02
-    assert dataclasses.replace(tb, tau_s=5.0).tau_s == 5.0
