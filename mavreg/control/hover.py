@@ -32,7 +32,7 @@ from ..model.quadrotor import NX, QuadrotorModel
 from ..model.rotation import rpy_to_matrix, wrap_angle
 from ..model.rotation_kernel import wrap
 from . import hover_kernel as hk
-from .torque_bias import bias_vector_n_m
+from .torque_bias import allocated_less_bias
 
 __all__ = ["HoverParams", "HoverController", "HoverOutput", "Ramp", "plan_ramp", "hold_ramp"]
 
@@ -298,12 +298,12 @@ class HoverController:
         x_ref, u_ref = self.reference(ramp, t_s, disturbance)
         e = self.error(x, x_ref)
         u = self.tilt_compensated(u_ref - self.gain(x_ref[5]) @ e, x, x_ref)
-        want = u
+        fmax = self.vehicle.max_rotor_thrust_n
         if disturbance is not None and any(disturbance.torque_bias):    # the rotors give u less the bias
-            want = u.copy()
-            want[1:] -= bias_vector_n_m(disturbance.torque_bias, u[0])
-        return HoverOutput(u=u, rotor_forces_n=yaw_then_lift(self.mixer.inverse, want,
-                                                             self.vehicle.max_rotor_thrust_n), error=e)
+            rotors = allocated_less_bias(yaw_then_lift, self.mixer.inverse, u, fmax, disturbance.torque_bias)
+        else:
+            rotors = yaw_then_lift(self.mixer.inverse, u, fmax)
+        return HoverOutput(u=u, rotor_forces_n=rotors, error=e)
 
     @staticmethod
     def error(x, x_ref) -> np.ndarray:

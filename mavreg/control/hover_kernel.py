@@ -19,14 +19,11 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from ..accel import njit
 from ..config.vehicle import G
 from ..model.drag_kernel import linear_drag_and_force as extra_force
-from ..model.mixer_kernel import yaw_then_lift
 from ..model.rotation_kernel import mtv, mv, rpy_matrix, wrap
-from .torque_bias import rotor_wrench
+from .torque_bias import allocate_less_bias
 
 __all__ = ["reference", "feedback", "REF_SIZE", "OUT_SIZE", "MIN_TILT_COS"]
 
@@ -102,7 +99,7 @@ def feedback(out, x, ref, K, Minv, fmax, tb):
     reference's body frame, :meth:`~mavreg.control.hover.HoverController.error`), the
     collective divided by the cosine of the tilt from the reference
     (:meth:`~mavreg.control.hover.HoverController.tilt_compensated`), and the rotor forces of
-    u less the torque bias ``tb`` (6,) (:func:`~mavreg.control.torque_bias.rotor_wrench`),
+    u less the torque bias ``tb`` (6,) (:func:`~mavreg.control.torque_bias.allocate_less_bias`),
     into ``out``."""
     for i in range(12):
         e = x[i] - ref[i]
@@ -118,6 +115,4 @@ def feedback(out, x, ref, K, Minv, fmax, tb):
             acc += K[r, i] * out[8 + i]
         out[r] = ref[12 + r] - acc
     out[0] /= max(R[2] * Rr[2] + R[5] * Rr[5] + R[8] * Rr[8], MIN_TILT_COS)
-    want = np.empty(4)
-    rotor_wrench(out[0:4], tb, want)
-    yaw_then_lift(Minv, want, fmax, out[4:8])
+    allocate_less_bias(Minv, out[0:4], fmax, tb, False, out[4:8])

@@ -35,7 +35,7 @@ from .actuator import lag_loop_factor
 from .attitude_table import NominalAttitudes
 from .disturbance import DisturbanceEstimate, compensate
 from .governor import GovernedSpeed, SpeedGovernor, along_track_speed, retiming_force, thrust_speed_cap
-from .torque_bias import bias_vector_n_m
+from .torque_bias import allocated_less_bias, bias_vector_n_m
 from .transverse import transverse_coordinates
 
 if TYPE_CHECKING:     # an annotation only: control never imports maneuver at run time
@@ -331,11 +331,10 @@ class ManeuverRegulator:
             u = ubar - K[:, :11] @ w - K[:, 11:] @ (achieved - u_here)
         else:
             u = ubar - K @ w
-        want = u
         if tb is not None:                 # the rotors give the wrench less the bias
-            want = u.copy()
-            want[1:] -= bias_vector_n_m(tb, u[0])
-        rotors = self._allocate(self.mixer_inverse, want, self._fmax)
+            rotors = allocated_less_bias(self._allocate, self.mixer_inverse, u, self._fmax, tb)
+        else:
+            rotors = self._allocate(self.mixer_inverse, u, self._fmax)
         if self._augmented:
             base = self._rotors_est if self._rotors_est is not None else rotors
             self._rotors_est = lag_toward(base, rotors, self._decay)

@@ -46,7 +46,7 @@ from ..model.rotor_lag_kernel import lag_toward
 from ..model.rotation_kernel import log_vee, mm, mtm, mv, rodrigues, rpy_matrix, wrap
 from .compensation_kernel import compensate, extra_force
 from .governor_kernel import G_PROFILE_ACCEL, governed_reference, interp, retiming_force
-from .torque_bias import bias_n_m, rotor_wrench
+from .torque_bias import allocate_less_bias, bias_n_m
 
 __all__ = ["regulator_step", "yaw_then_lift", "torques_first", "TABLE_X", "TABLE_U", "TABLE_V",
            "TABLE_K", "ATTITUDE_WIDTH", "P_LEAD", "P_DECAY", "P_FMAX", "P_WINDOW", "P_MARGIN",
@@ -311,12 +311,7 @@ def _feedback(x, p, R_plan, Rbar, compensated, row, width, nk, so3, prm, st, f_a
                 acc += K[r * nk + 11 + c] * dev[c]
             u[r] -= acc
     rotors = out[OUT_ROTORS:OUT_ROTORS + 4]
-    want = np.empty(4)
-    rotor_wrench(u, tb, want)
-    if prm[P_TORQUES_FIRST] > 0.0:
-        torques_first(minv, want, prm[P_FMAX], rotors)
-    else:
-        yaw_then_lift(minv, want, prm[P_FMAX], rotors)
+    allocate_less_bias(minv, u, prm[P_FMAX], tb, prm[P_TORQUES_FIRST] > 0.0, rotors)
     if augmented:
         decay = prm[P_DECAY]
         for r in range(4):

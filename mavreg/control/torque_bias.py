@@ -31,8 +31,8 @@ compensation uses.
 The compensation
 ----------------
 The estimate is a torque the airframe adds to whatever the rotors give: the regulator and
-the hover controller ask the rotors for their wrench less it (:func:`rotor_wrench`), and
-read the wrench the rotors achieve plus it. The collective is untouched, so nothing that
+the hover controller ask the rotors for their wrench less it, at the collective the
+allocation gives (:func:`allocate_less_bias`), and read the wrench the rotors achieve plus it. The collective is untouched, so nothing that
 compares commanded with measured thrust sees it.
 
 Pure: numbers in, numbers out. The update is one scalar kernel (:func:`update`), compiled
@@ -47,8 +47,9 @@ import numpy as np
 from ..accel import njit
 from ..config.disturbance import TorqueBiasParams
 from ..config.vehicle import VehicleParams
+from ..model.mixer_kernel import torques_first, yaw_then_lift
 
-__all__ = ["TorqueBiasObserver", "update", "rotor_wrench", "bias_n_m", "bias_vector_n_m", "THETA", "APPLIED",
+__all__ = ["TorqueBiasObserver", "update", "rotor_wrench", "allocate_less_bias", "bias_n_m", "bias_vector_n_m", "allocated_less_bias", "THETA", "APPLIED",
            "Q_PER_S", "RATE", "LO", "HI", "ROWS", "GATE_CHI2", "SKIPPED", "REJECTED", "UPDATED"]
 
 THETA, APPLIED, Q_PER_S, RATE, LO, HI = range(6)
@@ -68,12 +69,35 @@ def bias_n_m(tb, thrust_n, axis):
 
 
 @njit
-def rotor_wrench(u, tb, out):
+def rotor_wrench(u, tb, thrust_n, out):
     """``out`` (4,) = the wrench ``u`` (4,) the rotors must give when the airframe adds the
-    torque bias ``tb`` (6,) at the collective ``u[0]``: the torques less the bias."""
+    torque bias ``tb`` (6,) at the collective ``thrust_n``: the torques less the bias."""
     out[0] = u[0]
     for a in range(3):
-        out[1 + a] = u[1 + a] - (tb[a] + tb[3 + a] * u[0])
+        out[1 + a] = u[1 + a] - (tb[a] + tb[3 + a] * thrust_n)
+
+
+@njit
+def allocate_less_bias(minv, u, fmax, tb, torques_first_alloc, f):
+    """Rotor forces ``f`` (4,) for the wrench ``u`` (4,) on an airframe that adds the torque
+    bias ``tb`` (6,): the allocation (:func:`~mavreg.model.mixer_kernel.torques_first`, else
+    :func:`~mavreg.model.mixer_kernel.yaw_then_lift`; ``minv`` row-major) of ``u`` less the
+    bias at the collective the rotors give. That is ``u[0]`` unless the allocation moves the
+    collective (a rotor would pull: all four are lifted; one would pass ``fmax``): then the
+    bias is taken again at the collective allocated (a negative collective asked for at the
+    barrel roll's exit is flown at a positive one)."""
+    want = np.empty(4)
+    thrust = max(u[0], 0.0)
+    for attempt in range(2):
+        rotor_wrench(u, tb, thrust, want)
+        if torques_first_alloc:
+            torques_first(minv, want, fmax, f)
+        else:
+            yaw_then_lift(minv, want, fmax, f)
+        given = f[0] + f[1] + f[2] + f[3]
+        if abs(given - thrust) <= 1e-9 * (1.0 + abs(thrust)):
+            break
+        thrust = given
 
 
 @njit
@@ -125,6 +149,22 @@ def bias_vector_n_m(torque_bias, thrust_n: float) -> np.ndarray:
     (numpy; :func:`bias_n_m` per axis in the kernels)."""
     tb = np.asarray(torque_bias, dtype=float)
     return tb[:3] + tb[3:] * float(thrust_n)
+
+
+def allocated_less_bias(allocate, mixer_inverse, u, max_rotor_thrust_n: float, torque_bias) -> np.ndarray:
+    """:func:`allocate_less_bias` in numpy, with an allocation policy of :mod:`mavreg.model.mixer`
+    (``allocate(mixer_inverse, u, max_rotor_thrust_n)``)."""
+    u = np.asarray(u, dtype=float)
+    want = u.copy()
+    thrust = max(float(u[0]), 0.0)
+    for _ in range(2):
+        want[1:] = u[1:] - bias_vector_n_m(torque_bias, thrust)
+        f = allocate(mixer_inverse, want, max_rotor_thrust_n)
+        given = float(f.sum())
+        if abs(given - thrust) <= 1e-9 * (1.0 + abs(thrust)):
+            break
+        thrust = given
+    return f
 
 
 class TorqueBiasObserver:

@@ -15,23 +15,27 @@ from mavreg.control.forecast import Forecaster
 from mavreg.control.hover import HoverController, HoverParams, hold_ramp
 from mavreg.control.predictor import StatePredictor
 from mavreg.control.torque_bias import TorqueBiasObserver, bias_vector_n_m
+from mavreg.maneuver.plan_margins import hover_margins
 from mavreg.model.mixer import Mixer
 from tests.helpers import params
 
 VEHICLE = params.vehicle()
 HOVER_N = VEHICLE.mass_kg * G
 TRUTH = (0.0, 0.0, 0.0, 0.008, -0.006, 0.004)
-"""A centre of mass 8 mm aft-right of the file's... as t1 (m): 0.06, -0.04, 0.03 N m in a hover."""
+"""The truth's torque bias, all of it proportional to the thrust (t1, m): 0.06, -0.04 and
+0.03 N m in a hover, as a centre of mass 6-8 mm off and rotors 4 % apart would give."""
 
 
 def _observing(enabled: bool) -> DisturbanceParams:
     return DisturbanceParams(enabled=True, torque_bias=TorqueBiasParams(enabled=enabled))
 
 
-def _hover_flight(disturbance: DisturbanceParams, seconds: float = 4.0, seed: int = 0):
+def _hover_flight(disturbance: DisturbanceParams, seconds: float = 4.0, seed: int = 0,
+                  extra_delay_s: float = 0.0):
     """A closed-loop hover of the hover LQR on the design model (the predictor as the truth,
-    with the torque bias ``TRUTH`` and 12 ms of delay), the rates measured with 5 mrad/s of
-    white noise. Returns (forecaster, the last second's largest position and angle errors)."""
+    with the torque bias ``TRUTH`` and 12 ms of delay, predicted, plus ``extra_delay_s`` that
+    the controller is not told), the rates measured with 5 mrad/s of white noise. Returns
+    (forecaster, the last second's largest position and angle errors)."""
     rng = np.random.default_rng(seed)
     dt, delay = 0.002, 0.012
     fc = Forecaster(VEHICLE, dt, predict=True, disturbance=disturbance)
@@ -53,7 +57,7 @@ def _hover_flight(disturbance: DisturbanceParams, seconds: float = 4.0, seed: in
         f = fc.update(t, seen, R, delay)
         cmd = fc.command(t, hover.step(f.x, ramp, t, fc.disturbance).rotor_forces_n)
         truth.record(t, cmd)
-        p = truth.predict(t, x, R, dt, delay_s=delay, torque_bias=TRUTH)
+        p = truth.predict(t, x, R, dt, delay_s=delay + extra_delay_s, torque_bias=TRUTH)
         x, R = p.x, p.rotation
         if k >= n - int(1.0 / dt):
             worst_m = max(worst_m, float(np.linalg.norm(x[:3] - [0.0, 0.0, -10.0])))
@@ -72,6 +76,19 @@ def test_the_estimate_converges_to_the_torque_bias_in_closed_loop_and_the_hover_
     off, off_m, off_rad = _hover_flight(_observing(False))
     assert off.observer.torque is None and off.observer.estimate.torque_bias == (0.0,) * 6
     assert off_m > 5 * worst_m and off_m > 0.03
+
+
+def test_the_hover_keeps_its_delay_margin_with_the_torque_part():
+    """The estimate is fed forward, not fed back (its innovations are the torque the prediction
+    misses, whatever was commanded): with 0.8 x the hover's printed delay margin of delay the
+    controller is not told, the hover holds and the estimate still converges; at 1.3 x it
+    diverges, as it does without the torque part (``test_margins.py``)."""
+    margin_s = hover_margins(VEHICLE)[0].delay_margin_s
+    fc, worst_m, worst_rad = _hover_flight(_observing(True), seconds=5.0, extra_delay_s=0.8 * margin_s)
+    assert worst_m < 0.01 and worst_rad < 0.02
+    np.testing.assert_allclose(fc.observer.estimate.torque_bias[3:], TRUTH[3:], atol=0.0008)
+    _, worst_m, _ = _hover_flight(_observing(True), seconds=5.0, extra_delay_s=1.3 * margin_s)
+    assert worst_m > 1.0
 
 
 def test_the_rotors_are_asked_for_the_wrench_less_the_bias_and_the_collective_is_untouched():
