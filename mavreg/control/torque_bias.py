@@ -60,6 +60,11 @@ the follower's rate bounds, the estimate's bounds."""
 GATE_CHI2 = 36.0
 """As the force part's: 6 sigma (Mahalanobis, here over the three axes)."""
 SKIPPED, REJECTED, UPDATED = 0, 1, 2
+_PASSES = 4
+"""Allocations at most per command (:func:`allocate_less_bias`): where the allocation moves the
+collective, each pass shrinks the bias's error by about t1 dT/dtau (a few per cent on the
+MK-Quadro): at the barrel roll's exit four leave 3e-6 N m of its 0.04 N m."""
+_THRUST_TOL_N = 1e-6
 
 
 @njit
@@ -88,14 +93,14 @@ def allocate_less_bias(minv, u, fmax, tb, torques_first_alloc, f):
     barrel roll's exit is flown at a positive one)."""
     want = np.empty(4)
     thrust = max(u[0], 0.0)
-    for attempt in range(2):
+    for attempt in range(_PASSES):
         rotor_wrench(u, tb, thrust, want)
         if torques_first_alloc:
             torques_first(minv, want, fmax, f)
         else:
             yaw_then_lift(minv, want, fmax, f)
         given = f[0] + f[1] + f[2] + f[3]
-        if abs(given - thrust) <= 1e-9 * (1.0 + abs(thrust)):
+        if abs(given - thrust) <= _THRUST_TOL_N:
             break
         thrust = given
 
@@ -157,11 +162,11 @@ def allocated_less_bias(allocate, mixer_inverse, u, max_rotor_thrust_n: float, t
     u = np.asarray(u, dtype=float)
     want = u.copy()
     thrust = max(float(u[0]), 0.0)
-    for _ in range(2):
+    for _ in range(_PASSES):
         want[1:] = u[1:] - bias_vector_n_m(torque_bias, thrust)
         f = allocate(mixer_inverse, want, max_rotor_thrust_n)
         given = float(f.sum())
-        if abs(given - thrust) <= 1e-9 * (1.0 + abs(thrust)):
+        if abs(given - thrust) <= _THRUST_TOL_N:
             break
         thrust = given
     return f

@@ -14,9 +14,9 @@ from mavreg.control.disturbance import DisturbanceEstimate
 from mavreg.control.forecast import Forecaster
 from mavreg.control.hover import HoverController, HoverParams, hold_ramp
 from mavreg.control.predictor import StatePredictor
-from mavreg.control.torque_bias import TorqueBiasObserver, bias_vector_n_m
+from mavreg.control.torque_bias import TorqueBiasObserver, allocated_less_bias, bias_vector_n_m
 from mavreg.maneuver.plan_margins import hover_margins
-from mavreg.model.mixer import Mixer
+from mavreg.model.mixer import Mixer, torques_first, yaw_then_lift
 from tests.helpers import params
 
 VEHICLE = params.vehicle()
@@ -104,6 +104,23 @@ def test_the_rotors_are_asked_for_the_wrench_less_the_bias_and_the_collective_is
     bias = bias_vector_n_m(est.torque_bias, out.u[0])
     np.testing.assert_allclose(achieved[1:] + bias, out.u[1:], atol=1e-12)
     assert achieved[0] == pytest.approx(out.u[0])                     # no thrust the monitor could miss
+
+
+@pytest.mark.parametrize("policy", [torques_first, yaw_then_lift])
+def test_a_negative_collective_is_compensated_at_the_collective_the_rotors_give(policy):
+    """At the barrel roll's exit the regulator asks for a negative collective with a large roll
+    torque; the allocation lifts all four rotors. The bias is the airframe's at the thrust it
+    then gets, not at the negative one asked for (which would flip its sign)."""
+    mixer = Mixer.from_vehicle(VEHICLE)
+    tb = (0.0, 0.0, 0.0, -0.0055, 0.0008, -0.0002)
+    u = np.array([-2.6, 1.8, 0.1, 0.0])
+    f = allocated_less_bias(policy, mixer.inverse, u, VEHICLE.max_rotor_thrust_n, tb)
+    given = mixer.to_wrench(f)
+    assert given[0] > 5.0                                             # lifted: the roll torque needs 6 N
+    np.testing.assert_allclose(given[1:3] + bias_vector_n_m(tb, given[0])[:2], u[1:3], atol=1e-5)
+    naive = policy(mixer.inverse, np.concatenate([u[:1], u[1:] - bias_vector_n_m(tb, u[0])]),
+                   VEHICLE.max_rotor_thrust_n)
+    assert abs(mixer.to_wrench(naive)[1] + bias_vector_n_m(tb, given[0])[0] - u[1]) > 0.03   # negative control
 
 
 def test_estimate_is_bounded_and_an_outlier_is_refused():
