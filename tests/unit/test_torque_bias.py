@@ -149,3 +149,17 @@ def test_torque_bias_section_of_the_controller_file(tmp_path):
     good.write_text(text.replace(section, section + "    per_thrust_sd_m: 0.02\n"))
     tb = load_controller(good).disturbance.torque_bias
     assert tb.enabled and tb.per_thrust_sd_m == 0.02
+
+
+def test_the_flight_summary_prints_the_torque_estimate():
+    from mavreg.daemon.report import format_summary
+    est = {"drag_n_s_per_m": [0.381, 0.642], "force_ned_n": [-1.1, 0.02, 0.0], "thrust_scale": 0.903,
+           "updates": 27000, "rejected": 3}
+    summary = {"result": "ok", "maneuver": "barrel_roll", "length_m": 40.47, "flight_time_s": 59.0,
+               "status": {"disturbance": {**est, "torque_bias": {
+                   "constant_n_m": [0.0, 0.0, 0.0], "per_thrust_m": [-0.0055, 0.0004, -0.0002],
+                   "updates": 26000, "rejected": 1}}}}
+    text = format_summary(summary)
+    assert ("torque bias as estimated: t1 -5.5 +0.4 -0.2 mm (N m per N of thrust), t0 +0.000 +0.000 +0.000 N m "
+            "(26000 samples, 1 refused)") in text
+    assert "torque bias" not in format_summary({**summary, "status": {"disturbance": est}})
