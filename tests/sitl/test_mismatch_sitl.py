@@ -70,7 +70,7 @@ def _truth_per_thrust_m(rec) -> np.ndarray:
 
 
 def test_the_torque_bias_is_learned_and_the_loop_flown_within_3_cm_on_a_drawn_airframe(tmp_path):
-    """About 20 s (one lockstep flight). Negative control: the next test, the same flight with
+    """About 27 s (one lockstep flight). Negative control: the next test, the same flight with
     the torque part off (slow)."""
     summary, loop_m, rec = _fly_drawn(tmp_path)
     assert summary["result"] == "ok", summary.get("reason")
@@ -82,7 +82,7 @@ def test_the_torque_bias_is_learned_and_the_loop_flown_within_3_cm_on_a_drawn_ai
     assert loop_m <= 0.03
 
 
-@pytest.mark.slow          # 20 s; the negative control of the test above, before each release
+@pytest.mark.slow          # 30 s; the negative control of the test above, before each release
 def test_without_the_torque_part_the_same_airframe_flies_the_loop_off(tmp_path):
     ctl = tmp_path / "no_torque.yaml"
     text = REAL_CONTROLLER.read_text()

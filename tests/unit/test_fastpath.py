@@ -200,8 +200,7 @@ def _regulator(plan, controller, compiled_flag, governed, limit_n):
     ("realistic", "rpy", False, None, None, False), ("realistic", "so3", False, None, None, True),
     ("realistic", "rpy", False, None, ESTIMATE, True), ("realistic", "so3", False, None, ESTIMATE, False),
     ("realistic", "so3", True, None, ESTIMATE, True), ("realistic", "so3", True, 7.0, None, False),
-    ("realistic", "so3", True, 7.0, TORQUE_ESTIMATE, True),
-    ("realistic", "so3", False, None, TORQUE_ESTIMATE, False)])
+    ("realistic", "so3", True, 7.0, TORQUE_ESTIMATE, True)])
 def test_compiled_step_gives_the_reference_steps_outputs(flight, name, form, governed, limit_n, disturbance,
                                                          hand_over):
     plans, states, forces = flight
