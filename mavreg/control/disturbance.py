@@ -51,6 +51,7 @@ from ..model.drag import linear_drag_ned_n, rotor_plane_scale
 from ..model.rotation import matrix_to_rpy, rpy_to_matrix, wrap_angle
 from ..model.so3 import log_so3
 from . import observer_kernel as ok
+from .torque_bias import TorqueBiasObserver
 
 __all__ = ["DisturbanceEstimate", "DisturbanceObserver", "compensated_nominal", "compensate", "regressors"]
 
@@ -65,6 +66,9 @@ class DisturbanceEstimate:
     """Constant external force."""
     thrust_scale: float
     """Thrust per unit commanded."""
+    torque_bias: tuple[float, ...] = (0.0,) * 6
+    """The airframe's torque bias ``(t0 x, y, z (N m), t1 x, y, z (m))``: ``t0 + t1 T`` per body
+    axis at collective ``T`` (:mod:`mavreg.control.torque_bias`; zeros without its estimate)."""
 
     def extra_force_ned(self, R, v, base_drag_n_s_per_m) -> np.ndarray:
         """The force the design model with drag ``base_drag_n_s_per_m`` misses, at attitude
@@ -138,6 +142,8 @@ class DisturbanceObserver:
         self.updates = 0
         self.rejected = 0
         """Measurements refused by the innovation gate."""
+        self.torque = (TorqueBiasObserver(params.torque_bias, vehicle) if params.torque_bias.enabled else None)
+        """The torque part (:mod:`mavreg.control.torque_bias`), or None."""
         self.reset()
 
     def reset(self) -> None:
@@ -145,17 +151,21 @@ class DisturbanceObserver:
         self.theta[:] = self._theta0
         self.theta_applied[:] = self._theta0
         self.P[:] = self._P0
+        if self.torque is not None:
+            self.torque.reset()
         self._estimates = None
 
     @staticmethod
-    def _as_estimate(th) -> DisturbanceEstimate:
+    def _as_estimate(th, torque=None) -> DisturbanceEstimate:
         return DisturbanceEstimate((float(th[0]), float(th[1])), (float(th[2]), float(th[3]), float(th[4])),
-                                   float(th[5]))
+                                   float(th[5]), (0.0,) * 6 if torque is None else tuple(torque.tolist()))
 
     def _both(self) -> tuple[DisturbanceEstimate, DisturbanceEstimate]:
         """(estimate, applied), made once per measurement (read several times a sample)."""
         if self._estimates is None:
-            self._estimates = (self._as_estimate(self.theta), self._as_estimate(self.theta_applied))
+            tq = self.torque
+            self._estimates = (self._as_estimate(self.theta, None if tq is None else tq.theta),
+                               self._as_estimate(self.theta_applied, None if tq is None else tq.theta_applied))
         return self._estimates
 
     @property
@@ -167,6 +177,13 @@ class DisturbanceObserver:
     def applied(self) -> DisturbanceEstimate:
         """The estimate followed at bounded rates (what the compensation uses)."""
         return self._both()[1]
+
+    def update_torque(self, dt_s: float, thrust_n: float, innovation_rad_s, rate_rad_s) -> None:
+        """One measurement of the torque part (:meth:`TorqueBiasObserver.update
+        <mavreg.control.torque_bias.TorqueBiasObserver.update>`); nothing without it."""
+        if self.torque is not None and 0.0 < dt_s <= self.params.max_sample_gap_s:
+            if self.torque.update(dt_s, thrust_n, innovation_rad_s, rate_rad_s):
+                self._estimates = None
 
     def update(self, dt_s: float, R, v, thrust_n: float, innovation_m_s) -> None:
         """One measurement: ``innovation_m_s`` (3,) = the sample's velocity less its prediction

@@ -55,7 +55,7 @@ def warm_up() -> bool:
     prm = step_params(np.eye(4), np.eye(4), n_k=15, so3=True)
     table = np.zeros((2, sk.TABLE_K + 60 + sk.ATTITUDE_WIDTH))
     table[:, sk.TABLE_K + 60:sk.TABLE_K + 69] = np.eye(3).reshape(9)
-    sk.regulator_step(np.zeros(12), np.zeros(4), True, True, 0.0, 0.0, 0.0, 0.0, 0.0, table,
+    sk.regulator_step(np.zeros(12), np.zeros(4), True, True, 0.0, 0.0, 0.0, 0.0, 0.0, np.zeros(6), table,
                       np.array([0.0, 1.0]), np.array([0.0, 1.0]), coef, ends, prm, np.zeros(sk.ST_WIDTH),
                       np.empty(sk.OUT_WIDTH))
     _warm = True
@@ -190,6 +190,7 @@ class FastStep:
         self.state = np.zeros(sk.ST_WIDTH)
         """Kept between steps (:data:`~mavreg.control.step_kernel.ST_S` ...)."""
         self._no_forces = np.zeros(4)
+        self._no_torque = np.zeros(6)
 
     def reset(self, s: float, rotor_forces_n=None) -> None:
         """Continue from arc length s, the lag filter at ``rotor_forces_n`` (None: empty), the
@@ -215,13 +216,14 @@ class FastStep:
         out = np.empty(sk.OUT_WIDTH)
         if disturbance is None:
             s, in_tube, finished, v_ref = sk.regulator_step(
-                x, f, has_f, False, 0.0, 0.0, 0.0, 0.0, 0.0, self.table, self.s_tab, self.s_nodes,
-                self.coef, self.ends, self.prm, self.state, out)
+                x, f, has_f, False, 0.0, 0.0, 0.0, 0.0, 0.0, self._no_torque, self.table, self.s_tab,
+                self.s_nodes, self.coef, self.ends, self.prm, self.state, out)
         else:
             cxy, cz = disturbance.drag_n_s_per_m
             fx, fy, fz = disturbance.force_ned_n
             s, in_tube, finished, v_ref = sk.regulator_step(
-                x, f, has_f, True, float(cxy), float(cz), float(fx), float(fy), float(fz), self.table,
-                self.s_tab, self.s_nodes, self.coef, self.ends, self.prm, self.state, out)
+                x, f, has_f, True, float(cxy), float(cz), float(fx), float(fy), float(fz),
+                np.array(disturbance.torque_bias, dtype=np.float64), self.table, self.s_tab, self.s_nodes,
+                self.coef, self.ends, self.prm, self.state, out)
         return (s, out[sk.OUT_W:sk.OUT_W + 11], out[sk.OUT_U:sk.OUT_U + 4],
                 out[sk.OUT_ROTORS:sk.OUT_ROTORS + 4], in_tube, finished, v_ref)

@@ -11,8 +11,9 @@ exactly what went out:
 
 With a :class:`~mavreg.control.disturbance.DisturbanceObserver` (``disturbance.enabled`` in the
 controller file), every sample, while :attr:`Forecaster.observing`, is also compared with its
-prediction from the previous one; the observer's estimate (drag, constant force, thrust
-scale) then enters every prediction and the thrust scale every command, and
+prediction from the previous one (velocity, and body rates for the torque part); the
+observer's estimate (drag, constant force, thrust scale, torque bias) then enters every
+prediction and the thrust scale every command, and
 :attr:`Forecaster.disturbance` hands it to the regulator's compensation.
 
 Pure: numbers in, numbers out; the caller passes vehicle time and the delay.
@@ -88,8 +89,11 @@ class Forecaster:
         if self.observer is None:
             return {"thrust_scale": float(self.vehicle.thrust_scale)}
         est = self.observer.estimate
-        return {"thrust_scale": est.thrust_scale, "external_force_n": est.force_ned_n,
-                "drag_n_s_per_m": est.drag_n_s_per_m}
+        model = {"thrust_scale": est.thrust_scale, "external_force_n": est.force_ned_n,
+                 "drag_n_s_per_m": est.drag_n_s_per_m}
+        if self.observer.torque is not None:
+            model["torque_bias"] = est.torque_bias
+        return model
 
     def reset(self, rotor_forces_n=(0.0, 0.0, 0.0, 0.0)) -> None:
         """Forget the command history (the rotors are at ``rotor_forces_n``, physical)."""
@@ -110,6 +114,8 @@ class Forecaster:
         p = self.predictor.predict_raw(t0, x0, R0, h, delay_s=delay_s, **model)
         thrust = 0.5 * (sum(f0) + float(p[21] + p[22] + p[23] + p[24]) / model["thrust_scale"])
         self.observer.update(h, R0, R0 @ x0[6:9], thrust, R @ x[6:9] - p[25:28])
+        # the torque part: the body rates against theirs, at the physical collective
+        self.observer.update_torque(h, thrust * model["thrust_scale"], x[9:12] - p[9:12], x[9:12])
 
     def update(self, t_s: float, x, rotation, delay_s: float) -> Forecast:
         """A new sample of vehicle time ``t_s``; ``delay_s``: sample-to-actuation delay."""

@@ -32,6 +32,7 @@ from ..model.quadrotor import NX, QuadrotorModel
 from ..model.rotation import rpy_to_matrix, wrap_angle
 from ..model.rotation_kernel import wrap
 from . import hover_kernel as hk
+from .torque_bias import allocated_less_bias
 
 __all__ = ["HoverParams", "HoverController", "HoverOutput", "Ramp", "plan_ramp", "hold_ramp"]
 
@@ -228,6 +229,7 @@ class HoverController:
         self._gains: dict[float, np.ndarray] = {}
         self._minv = np.ascontiguousarray(self.mixer.inverse, dtype=float).ravel()
         self._ramp = self._ramp_pack = self._ramp_v = self._coeffs = None
+        self._no_torque = np.zeros(6)
 
     def gain(self, yaw_rad: float) -> np.ndarray:
         """K (4, 12) of the LQR linearized at level hover with yaw ``yaw_rad`` (cached per 1e-3 rad)."""
@@ -289,14 +291,19 @@ class HoverController:
 
     def step(self, x: np.ndarray, ramp: Ramp, t_s: float, disturbance=None) -> HoverOutput:
         """Control ``u`` for state ``x`` (12,) following ``ramp`` at ramp time ``t_s``, with an
-        estimated ``disturbance`` fed forward (see :meth:`reference`)."""
+        estimated ``disturbance`` fed forward (see :meth:`reference`; its torque bias is taken
+        from the torques the rotors are asked for, :mod:`mavreg.control.torque_bias`)."""
         if self._compiled:
             return self._step_compiled(x, ramp, t_s, disturbance)
         x_ref, u_ref = self.reference(ramp, t_s, disturbance)
         e = self.error(x, x_ref)
         u = self.tilt_compensated(u_ref - self.gain(x_ref[5]) @ e, x, x_ref)
-        return HoverOutput(u=u, rotor_forces_n=yaw_then_lift(self.mixer.inverse, u, self.vehicle.max_rotor_thrust_n),
-                           error=e)
+        fmax = self.vehicle.max_rotor_thrust_n
+        if disturbance is not None and any(disturbance.torque_bias):    # the rotors give u less the bias
+            rotors = allocated_less_bias(yaw_then_lift, self.mixer.inverse, u, fmax, disturbance.torque_bias)
+        else:
+            rotors = yaw_then_lift(self.mixer.inverse, u, fmax)
+        return HoverOutput(u=u, rotor_forces_n=rotors, error=e)
 
     @staticmethod
     def error(x, x_ref) -> np.ndarray:
@@ -350,6 +357,7 @@ class HoverController:
             hk.reference(ref, self._coeffs, float(t_s), self._ramp_pack, self._ramp_v, True, float(cxy), float(cz),
                          float(fx), float(fy), float(fz), float(self.vehicle.mass_kg))
         out = np.empty(hk.OUT_SIZE)
+        tb = self._no_torque if disturbance is None else np.array(disturbance.torque_bias, dtype=float)
         hk.feedback(out, np.asarray(x, dtype=float), ref, self.gain(ref[5]), self._minv,
-                    float(self.vehicle.max_rotor_thrust_n))
+                    float(self.vehicle.max_rotor_thrust_n), tb)
         return HoverOutput(u=out[0:4], rotor_forces_n=out[4:8], error=out[8:20])

@@ -22,8 +22,8 @@ import math
 from ..accel import njit
 from ..config.vehicle import G
 from ..model.drag_kernel import linear_drag_and_force as extra_force
-from ..model.mixer_kernel import yaw_then_lift
 from ..model.rotation_kernel import mtv, mv, rpy_matrix, wrap
+from .torque_bias import allocate_less_bias
 
 __all__ = ["reference", "feedback", "REF_SIZE", "OUT_SIZE", "MIN_TILT_COS"]
 
@@ -94,11 +94,12 @@ def reference(ref, coeffs, t, ramp, end_v, has_dist, dcxy, dcz, dfx, dfy, dfz, m
 
 
 @njit
-def feedback(out, x, ref, K, Minv, fmax):
+def feedback(out, x, ref, K, Minv, fmax, tb):
     """u = u_ref - K e, e = x - x_ref (angles wrapped; the velocity error taken in the
     reference's body frame, :meth:`~mavreg.control.hover.HoverController.error`), the
     collective divided by the cosine of the tilt from the reference
-    (:meth:`~mavreg.control.hover.HoverController.tilt_compensated`), and the rotor forces,
+    (:meth:`~mavreg.control.hover.HoverController.tilt_compensated`), and the rotor forces of
+    u less the torque bias ``tb`` (6,) (:func:`~mavreg.control.torque_bias.allocate_less_bias`),
     into ``out``."""
     for i in range(12):
         e = x[i] - ref[i]
@@ -114,4 +115,4 @@ def feedback(out, x, ref, K, Minv, fmax):
             acc += K[r, i] * out[8 + i]
         out[r] = ref[12 + r] - acc
     out[0] /= max(R[2] * Rr[2] + R[5] * Rr[5] + R[8] * Rr[8], MIN_TILT_COS)
-    yaw_then_lift(Minv, out[0:4], fmax, out[4:8])
+    allocate_less_bias(Minv, out[0:4], fmax, tb, False, out[4:8])

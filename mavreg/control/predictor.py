@@ -38,6 +38,9 @@ from .predictor_kernel import OUT_SIZE, PARAM_SIZE, predict_into
 
 __all__ = ["StatePredictor", "Prediction"]
 
+_NO_TORQUE = np.zeros(6)
+"""No torque bias (the kernel's ``tb``)."""
+
 _MAX_PENDING = 4096
 """Commands kept before the acted ones are folded into the rotor state (8 s at 500 Hz)."""
 
@@ -158,7 +161,7 @@ class StatePredictor:
 
     def predict(self, t_s: float, x, rotation, horizon_s: float, delay_s: float | None = None,
                 external_force_n=(0.0, 0.0, 0.0), thrust_scale: float = 1.0,
-                drag_n_s_per_m=None) -> Prediction:
+                drag_n_s_per_m=None, torque_bias=None) -> Prediction:
         """The state at ``t_s + horizon_s`` from the sample ``x`` (12,) with body-to-NED
         ``rotation`` (3, 3) at ``t_s``. ``horizon_s`` is capped at ``max_horizon_s``.
 
@@ -167,15 +170,17 @@ class StatePredictor:
         :meth:`Forecaster.ahead <mavreg.control.forecast.Forecaster.ahead>`).
         ``external_force_n`` (NED) is a known external force; ``thrust_scale`` the rotors'
         actual per commanded force (the vehicle file's calibration); ``drag_n_s_per_m`` a
-        linear body drag (c_xy, c_z) in place of the vehicle file's (an estimate of it)."""
+        linear body drag (c_xy, c_z) in place of the vehicle file's (an estimate of it);
+        ``torque_bias`` (6,) a body torque ``t0 + t1 T`` the airframe adds
+        (:mod:`mavreg.control.torque_bias`; None: none)."""
         out = self.predict_raw(t_s, x, rotation, horizon_s, delay_s, external_force_n, thrust_scale,
-                               drag_n_s_per_m)
+                               drag_n_s_per_m, torque_bias)
         H = min(max(float(horizon_s), 0.0), self.max_horizon_s)
         return Prediction(t_s + H, H, out[0:12], out[12:21].reshape(3, 3), out[21:25])
 
     def predict_raw(self, t_s: float, x, rotation, horizon_s: float, delay_s: float | None = None,
                     external_force_n=(0.0, 0.0, 0.0), thrust_scale: float = 1.0,
-                    drag_n_s_per_m=None) -> np.ndarray:
+                    drag_n_s_per_m=None, torque_bias=None) -> np.ndarray:
         """:meth:`predict` as one array (28,): x (12), R row-major (9), the rotor forces (4),
         and the velocity NED (3) (:data:`~mavreg.control.predictor_kernel.OUT_SIZE`)."""
         cxy, cz = (self.cxy, self.cz) if drag_n_s_per_m is None else (float(c) for c in drag_n_s_per_m)
@@ -190,5 +195,5 @@ class StatePredictor:
         out = np.empty(OUT_SIZE)
         predict_into(out, np.asarray(rotation, dtype=float), np.asarray(x, dtype=float), rot[1], rot[2], rot[3],
                      rot[4], self._seg[:n], self._prm, float(thrust_scale), float(fext[0]), float(fext[1]),
-                     float(fext[2]), cxy, cz)
+                     float(fext[2]), cxy, cz, _NO_TORQUE if torque_bias is None else np.asarray(torque_bias, float))
         return out

@@ -35,6 +35,7 @@ from ..model.mixer_kernel import wrench
 from ..model.quadrotor_kernel import angular_acceleration
 from ..model.rotation_kernel import matrix_rpy, mm, rodrigues
 from ..model.rotor_lag_kernel import lag_over4
+from .torque_bias import bias_n_m
 
 __all__ = ["integrate", "predict_into", "STATE_SIZE", "PARAM_SIZE", "OUT_SIZE"]
 
@@ -44,11 +45,12 @@ OUT_SIZE = 28
 
 
 @njit
-def integrate(state, seg, prm, thrust_scale, fx, fy, fz, cxy, cz):
+def integrate(state, seg, prm, thrust_scale, fx, fy, fz, cxy, cz, tb):
     """Step ``state`` (see the module docstring) from ``seg[0, 0]`` to ``seg[-1, 0]``.
 
     ``thrust_scale``: actual force per commanded; ``(fx, fy, fz)``: a known external force
-    (NED, N); ``cxy``, ``cz``: the linear body drag in use (N s/m). Returns the number of
+    (NED, N); ``cxy``, ``cz``: the linear body drag in use (N s/m); ``tb`` (6,): a known body
+    torque bias ``t0 + t1 T`` (:mod:`mavreg.control.torque_bias`). Returns the number of
     steps taken."""
     m, jx, jy, jz, l, k, tau = prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6]
     cp, max_step, drag_exponent = prm[9], prm[10], prm[11]
@@ -72,6 +74,7 @@ def integrate(state, seg, prm, thrust_scale, fx, fy, fz, cxy, cz):
                 m0, m1, m2, m3 = thrust_scale * m0, thrust_scale * m1, thrust_scale * m2, thrust_scale * m3
             # one step of eqs 1-4 with the mean force held
             T, g1, g2, g3 = wrench(l, k, m0, m1, m2, m3)
+            g1, g2, g3 = g1 + bias_n_m(tb, T, 0), g2 + bias_n_m(tb, T, 1), g3 + bias_n_m(tb, T, 2)
             d0x, d0y, d0z = angular_acceleration(jx, jy, jz, wx, wy, wz, g1, g2, g3)
             hx, hy, hz = wx + 0.5 * dt * d0x, wy + 0.5 * dt * d0y, wz + 0.5 * dt * d0z
             dmx, dmy, dmz = angular_acceleration(jx, jy, jz, hx, hy, hz, g1, g2, g3)
@@ -105,7 +108,7 @@ def integrate(state, seg, prm, thrust_scale, fx, fy, fz, cxy, cz):
 
 
 @njit
-def predict_into(out, R, x, f0, f1, f2, f3, seg, prm, thrust_scale, fx, fy, fz, cxy, cz):
+def predict_into(out, R, x, f0, f1, f2, f3, seg, prm, thrust_scale, fx, fy, fz, cxy, cz, tb):
     """From the sample ``x`` (12,) with body-to-NED ``R`` (3, 3) and rotor forces
     ``(f0..f3)`` at ``seg[0, 0]``: :func:`integrate` to ``seg[-1, 0]``, the result into
     ``out`` (see the module docstring). Returns the number of steps taken."""
@@ -117,7 +120,7 @@ def predict_into(out, R, x, f0, f1, f2, f3, seg, prm, thrust_scale, fx, fy, fz, 
         state[12 + a] = R[a, 0] * x[6] + R[a, 1] * x[7] + R[a, 2] * x[8]
     state[15], state[16], state[17] = x[9], x[10], x[11]
     state[18], state[19], state[20], state[21] = f0, f1, f2, f3
-    steps = integrate(state, seg, prm, thrust_scale, fx, fy, fz, cxy, cz)
+    steps = integrate(state, seg, prm, thrust_scale, fx, fy, fz, cxy, cz, tb)
     r = state
     out[0], out[1], out[2] = r[9], r[10], r[11]
     out[3], out[4], out[5] = matrix_rpy((r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8]))

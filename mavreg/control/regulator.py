@@ -35,6 +35,7 @@ from .actuator import lag_loop_factor
 from .attitude_table import NominalAttitudes
 from .disturbance import DisturbanceEstimate, compensate
 from .governor import GovernedSpeed, SpeedGovernor, along_track_speed, retiming_force, thrust_speed_cap
+from .torque_bias import allocated_less_bias, bias_vector_n_m
 from .transverse import transverse_coordinates
 
 if TYPE_CHECKING:     # an annotation only: control never imports maneuver at run time
@@ -109,7 +110,9 @@ class ManeuverRegulator:
     Given a :class:`~mavreg.control.disturbance.DisturbanceEstimate`, the step regulates about
     the nominal compensated for the force the plan's model misses
     (:func:`~mavreg.control.disturbance.compensated_nominal`): the same path and speed, with
-    the thrust turned and scaled to cancel that force.
+    the thrust turned and scaled to cancel that force; and its torque bias
+    (:mod:`mavreg.control.torque_bias`) is taken from the torques the rotors are asked for
+    and added to those they achieve.
     """
 
     def __init__(self, plan: Plan, vehicle: VehicleParams, control_period_s: float = 0.0,
@@ -253,6 +256,30 @@ class ManeuverRegulator:
             return None
         return drag_change_n(R, v_bar_ned, sigma, cxy, cz, self._parasitic)
 
+    def _feedback(self, ubar, u_here, K, w, rotor_forces_n, disturbance):
+        """The wrench ``u`` (the nominal less the gain on the transverse error and, for
+        lag-aware gains, on the achieved wrench's lag) and the rotor forces that give it, less
+        the estimated torque bias."""
+        tb = None if disturbance is None or not any(disturbance.torque_bias) else disturbance.torque_bias
+        if self._augmented:
+            f_act = self._rotors_est if rotor_forces_n is None else np.asarray(rotor_forces_n, float)
+            if f_act is None:
+                f_act = self.mixer_inverse @ u_here
+            achieved = self._mixer @ f_act
+            if tb is not None:             # the airframe adds its torque bias to the rotors'
+                achieved[1:] += bias_vector_n_m(tb, achieved[0])
+            u = ubar - K[:, :11] @ w - K[:, 11:] @ (achieved - u_here)
+        else:
+            u = ubar - K @ w
+        if tb is not None:                 # the rotors give the wrench less the bias
+            rotors = allocated_less_bias(self._allocate, self.mixer_inverse, u, self._fmax, tb)
+        else:
+            rotors = self._allocate(self.mixer_inverse, u, self._fmax)
+        if self._augmented:
+            base = self._rotors_est if self._rotors_est is not None else rotors
+            self._rotors_est = lag_toward(base, rotors, self._decay)
+        return u, rotors
+
     def step(self, x, rotor_forces_n=None, disturbance: DisturbanceEstimate | None = None) -> RegulatorOutput:
         """One control step for state x (12,); ``rotor_forces_n`` (4,): the rotors' forces
         when this command takes over (used only by lag-aware gains); ``disturbance``: the
@@ -317,15 +344,5 @@ class ManeuverRegulator:
             # the error from the changed nominal, in the plan's nominal frame, where the gains
             # were designed: e = Log(Rbar^T R) - Log(Rbar^T Rbar_changed)
             w[2:5] -= attitude_error(Rbar_plan, Rbar)
-        if self._augmented:
-            f_act = self._rotors_est if rotor_forces_n is None else np.asarray(rotor_forces_n, float)
-            if f_act is None:
-                f_act = self.mixer_inverse @ u_here
-            u = ubar - K[:, :11] @ w - K[:, 11:] @ (self._mixer @ f_act - u_here)
-        else:
-            u = ubar - K @ w
-        rotors = self._allocate(self.mixer_inverse, u, self._fmax)
-        if self._augmented:
-            base = self._rotors_est if self._rotors_est is not None else rotors
-            self._rotors_est = lag_toward(base, rotors, self._decay)
+        u, rotors = self._feedback(ubar, u_here, K, w, rotor_forces_n, disturbance)
         return RegulatorOutput(s, w, u, rotors, proj.in_tube, s >= self.plan.length_m - 1e-6, v_ref)

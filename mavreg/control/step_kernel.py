@@ -25,7 +25,9 @@ One step, as the regulator does it:
    (f: the rotor forces handed over, else the regulator's lag filter of its own commands,
    else :math:`M^{-1} \bar u(s)`), or :math:`u = \bar u - K w`;
 6. rotor forces by the configured allocation (:func:`yaw_then_lift` or
-   :func:`torques_first`, :mod:`mavreg.model.mixer`'s, scalar), and the lag filter updated.
+   :func:`torques_first`, :mod:`mavreg.model.mixer`'s, scalar) of u less the estimated torque
+   bias (:mod:`mavreg.control.torque_bias`; the wrench achieved of step 5 includes it), and
+   the lag filter updated.
 
 The tables' layout and the parameter vector's slots are the constants below; the Python side
 (:mod:`mavreg.control.fastpath`) fills them.
@@ -44,6 +46,7 @@ from ..model.rotor_lag_kernel import lag_toward
 from ..model.rotation_kernel import log_vee, mm, mtm, mv, rodrigues, rpy_matrix, wrap
 from .compensation_kernel import compensate, extra_force
 from .governor_kernel import G_PROFILE_ACCEL, governed_reference, interp, retiming_force
+from .torque_bias import allocate_less_bias, bias_n_m
 
 __all__ = ["regulator_step", "yaw_then_lift", "torques_first", "TABLE_X", "TABLE_U", "TABLE_V",
            "TABLE_K", "ATTITUDE_WIDTH", "P_LEAD", "P_DECAY", "P_FMAX", "P_WINDOW", "P_MARGIN",
@@ -252,8 +255,10 @@ def _compensated(s, p, v_ref, a_ff, later, governed, has_dist, dcxy, dcz, fx, fy
 
 
 @njit
-def _feedback(x, p, R_plan, Rbar, compensated, row, width, nk, so3, prm, st, f_act, has_f, out):
-    """Steps 5 and 6: w, u and the rotor forces into ``out``, and the lag filter updated."""
+def _feedback(x, p, R_plan, Rbar, compensated, row, width, nk, so3, prm, st, f_act, has_f, tb, out):
+    """Steps 5 and 6: w, u and the rotor forces into ``out``, and the lag filter updated;
+    ``tb`` (6,) the airframe's torque bias (:mod:`mavreg.control.torque_bias`): added to the
+    wrench the rotors achieve, taken from the one they are asked for."""
     xbar = row[TABLE_X:TABLE_X + 12]
     u_here = row[TABLE_U:TABLE_U + 4]
     ubar = row[width:width + 4]
@@ -292,18 +297,21 @@ def _feedback(x, p, R_plan, Rbar, compensated, row, width, nk, so3, prm, st, f_a
                 fa[r] = (minv[4 * r] * u_here[0] + minv[4 * r + 1] * u_here[1]
                          + minv[4 * r + 2] * u_here[2] + minv[4 * r + 3] * u_here[3])
         mix = prm[P_MIX:P_MIX + 16]
+        dev = np.empty(4)
+        for c in range(4):
+            dev[c] = (mix[4 * c] * fa[0] + mix[4 * c + 1] * fa[1] + mix[4 * c + 2] * fa[2]
+                      + mix[4 * c + 3] * fa[3])
+        for c in range(3):
+            dev[1 + c] += bias_n_m(tb, dev[0], c)
+        for c in range(4):
+            dev[c] -= u_here[c]
         for r in range(4):
             acc = 0.0
             for c in range(4):
-                dev = (mix[4 * c] * fa[0] + mix[4 * c + 1] * fa[1] + mix[4 * c + 2] * fa[2]
-                       + mix[4 * c + 3] * fa[3]) - u_here[c]
-                acc += K[r * nk + 11 + c] * dev
+                acc += K[r * nk + 11 + c] * dev[c]
             u[r] -= acc
     rotors = out[OUT_ROTORS:OUT_ROTORS + 4]
-    if prm[P_TORQUES_FIRST] > 0.0:
-        torques_first(minv, u, prm[P_FMAX], rotors)
-    else:
-        yaw_then_lift(minv, u, prm[P_FMAX], rotors)
+    allocate_less_bias(minv, u, prm[P_FMAX], tb, prm[P_TORQUES_FIRST] > 0.0, rotors)
     if augmented:
         decay = prm[P_DECAY]
         for r in range(4):
@@ -313,12 +321,13 @@ def _feedback(x, p, R_plan, Rbar, compensated, row, width, nk, so3, prm, st, f_a
 
 
 @njit
-def regulator_step(x, f_act, has_f, has_dist, dcxy, dcz, fx, fy, fz, table, s_tab, s_nodes, coef,
+def regulator_step(x, f_act, has_f, has_dist, dcxy, dcz, fx, fy, fz, tb, table, s_tab, s_nodes, coef,
                    ends, prm, st, out):
     """One step for state x (12,); returns ``(s, in_tube, finished, v_ref)``.
 
     ``f_act`` (4,): the rotor forces handed over (used when ``has_f``); ``dcxy ... fz``: the
-    disturbance estimate's drag and its constant force (used when ``has_dist``). ``st``
+    disturbance estimate's drag and its constant force (used when ``has_dist``); ``tb`` (6,):
+    its torque bias (zeros: none, :mod:`mavreg.control.torque_bias`). ``st``
     (:data:`ST_WIDTH`,; 6 without a governor) is the state kept between steps. ``out``
     (:data:`OUT_WIDTH`,) receives s, w, u and the rotor forces.
     """
@@ -353,7 +362,7 @@ def regulator_step(x, f_act, has_f, has_dist, dcxy, dcz, fx, fy, fz, table, s_ta
     if compensated:
         Rbar = _compensated(s, p, v_ref, a_ff, later, governed, has_dist, dcxy, dcz, fx, fy, fz, table, s_tab,
                             s_nodes, coef, ends, prm, row, width, so3, Rbar)
-    _feedback(x, p, R_plan, Rbar, compensated, row, width, nk, so3, prm, st, f_act, has_f, out)
+    _feedback(x, p, R_plan, Rbar, compensated, row, width, nk, so3, prm, st, f_act, has_f, tb, out)
     out[OUT_S] = s
     return s, inside, s >= prm[P_END], v_ref
 

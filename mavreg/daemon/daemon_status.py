@@ -53,4 +53,9 @@ def status_report(daemon, tick_s: float) -> dict:
         "drag_n_s_per_m": list(dist.drag_n_s_per_m), "force_ned_n": list(dist.force_ned_n),
         "thrust_scale": dist.thrust_scale, "updates": fc.observer.updates,
         "rejected": fc.observer.rejected}
+    if dist is not None and fc.observer.torque is not None:
+        tq = fc.observer.torque
+        st["disturbance"]["torque_bias"] = {"constant_n_m": list(dist.torque_bias[:3]),
+                                            "per_thrust_m": list(dist.torque_bias[3:]),
+                                            "updates": tq.updates, "rejected": tq.rejected}
     return st

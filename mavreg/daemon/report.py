@@ -83,6 +83,12 @@ def format_summary(summary: dict) -> str:
                      f"{est['drag_n_s_per_m'][1]:.3f} N s/m; steady force north {f_n:+.2f} N, east "
                      f"{f_e:+.2f} N; thrust scale {est['thrust_scale']:.3f} "
                      f"({est['updates']} samples, {est['rejected']} refused)")
+        tb = est.get("torque_bias")
+        if tb:
+            t0, t1 = tb["constant_n_m"], tb["per_thrust_m"]
+            lines.append(f"torque bias as estimated: t1 {t1[0] * 1e3:+.1f} {t1[1] * 1e3:+.1f} {t1[2] * 1e3:+.1f} "
+                         f"mm (N m per N of thrust), t0 {t0[0]:+.3f} {t0[1]:+.3f} {t0[2]:+.3f} N m "
+                         f"({tb['updates']} samples, {tb['rejected']} refused)")
     lines.extend(_link_line(summary.get("status") or {}))
     cm = summary.get("controller_metrics") or {}
     gt = summary.get("ground_truth") or {}

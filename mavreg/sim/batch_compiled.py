@@ -54,6 +54,7 @@ def _fly(r, x, st, status, k_end, xs, cmd, app, step, M, plant, J, upper, noise,
     jx, jy, jz = J[r, 0], J[r, 1], J[r, 2]
     out = np.empty(sk.OUT_WIDTH)
     none = np.zeros(4)
+    no_torque = np.zeros(6)
     f = np.zeros(4)
     command = np.zeros(4)
     acting = np.zeros(4)
@@ -65,8 +66,8 @@ def _fly(r, x, st, status, k_end, xs, cmd, app, step, M, plant, J, upper, noise,
     calls = 0
     for i in range(n_steps):
         if i % period == 0:
-            s = sk.regulator_step(x, none, False, False, 0.0, 0.0, 0.0, 0.0, 0.0, table, s_tab, s_nodes, coef, ends,
-                                  prm, st, out)[0]
+            s = sk.regulator_step(x, none, False, False, 0.0, 0.0, 0.0, 0.0, 0.0, no_torque, table, s_tab, s_nodes,
+                                  coef, ends, prm, st, out)[0]
             finite = True
             for j in range(4):
                 command[j] = out[sk.OUT_ROTORS + j]

@@ -36,6 +36,8 @@ from mavreg.sim.batch import BatchRun, fly_batch
 VEHICLE = load_vehicle(DEFAULT_VEHICLE)
 BARREL = maneuver_file("barrel_roll")
 ESTIMATE = DisturbanceEstimate((0.35, 0.12), (0.6, -0.4, 0.3), 0.97)
+TORQUE_ESTIMATE = DisturbanceEstimate((0.35, 0.12), (0.6, -0.4, 0.3), 0.97,
+                                      (0.01, -0.02, 0.005, 0.006, -0.004, 0.002))
 compiled_only = pytest.mark.skipif(not ACCELERATED, reason="numba missing or MAVREG_PURE set")
 
 CIRCLE = """\
@@ -197,7 +199,8 @@ def _regulator(plan, controller, compiled_flag, governed, limit_n):
     ("paper_lqr", "rpy", True, 7.0, ESTIMATE, False),
     ("realistic", "rpy", False, None, None, False), ("realistic", "so3", False, None, None, True),
     ("realistic", "rpy", False, None, ESTIMATE, True), ("realistic", "so3", False, None, ESTIMATE, False),
-    ("realistic", "so3", True, None, ESTIMATE, True), ("realistic", "so3", True, 7.0, None, False)])
+    ("realistic", "so3", True, None, ESTIMATE, True), ("realistic", "so3", True, 7.0, None, False),
+    ("realistic", "so3", True, 7.0, TORQUE_ESTIMATE, True)])
 def test_compiled_step_gives_the_reference_steps_outputs(flight, name, form, governed, limit_n, disturbance,
                                                          hand_over):
     plans, states, forces = flight

@@ -51,8 +51,9 @@ def test_random_states_and_ramps_agree_with_the_numpy_step(seed):
     rng = np.random.default_rng(seed)
     ref, fast = _pair()
     ramp = _ramp(rng)
+    torque = (0.0,) * 6 if seed % 2 else (*rng.normal(0, 0.05, 3), *rng.normal(0, 0.01, 3))
     est = None if seed % 3 == 0 else DisturbanceEstimate((rng.uniform(0, 1), rng.uniform(0, 1)),
-                                                         tuple(rng.normal(0, 1.5, 3)), rng.uniform(0.8, 1.2))
+                                                         tuple(rng.normal(0, 1.5, 3)), rng.uniform(0.8, 1.2), torque)
     for t in (-0.2, 0.0, *rng.uniform(0, ramp.duration_s, 5), ramp.duration_s, ramp.duration_s + 1.3):
         x = np.concatenate([ramp.sample(t)[0] + rng.normal(0, 0.3, 3), rng.normal(0, 0.3, 3),
                             rng.normal(0, 1, 3), rng.normal(0, 1, 3)])
