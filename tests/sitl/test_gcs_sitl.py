@@ -71,6 +71,7 @@ def _free_udp_port() -> int:
     return port
 
 
+@pytest.mark.slow          # 15 s: MAVProxy end to end; before each release (the forwarding and its policy: tests/unit/test_gcs*.py)
 def test_mavproxy_sees_the_vehicle_its_modes_and_the_daemons_messages(tmp_path):
     t0 = time.monotonic()
     listener = _Listener()

@@ -79,6 +79,7 @@ def test_the_calibrated_vehicle_flies_the_drag_forward(calibration):
     assert abs(est["thrust_scale"] - THRUST_SCALE) <= 0.02
 
 
+@pytest.mark.slow          # 32 s: a realistic flight and its identification; before each release (identify from one flight stays in the suite: test_rates_sitl; the fits: tests/unit/test_identify_*)
 def test_identify_recovers_drag_thrust_scale_and_rotor_lag(identified):
     d = identified
     ratio = THRUST_SCALE

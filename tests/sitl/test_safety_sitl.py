@@ -124,6 +124,7 @@ def _landed_softly(rec) -> None:
     assert np.linalg.norm(rec["velocity_ned_m_s"][i]) < 1.0
 
 
+@pytest.mark.slow          # 16 s: before each release (the gate's verdicts: tests/unit/test_gate*.py; in flight: the three-times-inertia test below)
 def test_heavier_vehicle_is_refused_at_the_gate_and_lands(tmp_path):
     """40 % heavier than the design: the hold needs 1.4 x the hover thrust; the maneuver is
     refused (WARNING STATUSTEXT), the vehicle lands."""

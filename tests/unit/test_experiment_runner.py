@@ -20,6 +20,7 @@ def group1(tmp_path_factory):
     return camp, out, progress.getvalue()
 
 
+@pytest.mark.slow          # 22 s: the paper's group-1 campaign end to end; before each release (its physics: test_batch_sim, test_gust)
 def test_group1_campaign_converges_and_writes_its_tables_and_figures(group1):
     camp, out, progress = group1
     res = json.loads((out / "results.json").read_text())
