@@ -27,8 +27,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..model import rotation_kernel as rk
-
 __all__ = ["StateSample", "StateAssembler", "StateCounters"]
 
 
@@ -104,7 +102,7 @@ class StateAssembler:
             if not (math.isfinite(n) and math.isfinite(rates[0] + rates[1] + rates[2])) or n < 0.5:
                 self.counters.non_finite += 1
                 return None
-            return self._add_att(int(msg.time_boot_ms), _rows(rk.quat_matrix(w / n, x / n, y / n, z / n)), rates, True)
+            return self._add_att(int(msg.time_boot_ms), _quat_to_matrix(w / n, x / n, y / n, z / n), rates, True)
         if mtype == "ATTITUDE":
             if self.quaternion_seen:
                 self.counters.euler_ignored += 1
@@ -117,7 +115,7 @@ class StateAssembler:
             if abs(pitch) > self.euler_pitch_limit_rad:
                 self.counters.euler_near_vertical += 1
                 return None
-            return self._add_att(int(msg.time_boot_ms), _rows(rk.rpy_matrix(roll, pitch, yaw)), rates, False)
+            return self._add_att(int(msg.time_boot_ms), _rpy_to_matrix(roll, pitch, yaw), rates, False)
         if mtype == "LOCAL_POSITION_NED":
             p = (float(msg.x), float(msg.y), float(msg.z))
             v = (float(msg.vx), float(msg.vy), float(msg.vz))
@@ -162,6 +160,18 @@ class StateAssembler:
         return StateSample(t, x, np.array(R), from_q, p, v, R, rates)
 
 
-def _rows(r) -> tuple:
-    """A row-major 9-tuple as three row tuples."""
-    return r[0:3], r[3:6], r[6:9]
+def _quat_to_matrix(w: float, x: float, y: float, z: float) -> tuple:
+    """Rotation matrix of the unit quaternion (w, x, y, z), rows as tuples."""
+    return ((1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)),
+            (2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)),
+            (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)))
+
+
+def _rpy_to_matrix(phi: float, theta: float, psi: float) -> tuple:
+    """R = Rz(psi) Ry(theta) Rx(phi), rows as tuples."""
+    cf, sf = math.cos(phi), math.sin(phi)
+    ct, st = math.cos(theta), math.sin(theta)
+    cp, sp = math.cos(psi), math.sin(psi)
+    return ((cp * ct, -sp * cf + cp * st * sf, sp * sf + cp * st * cf),
+            (sp * ct, cp * cf + sp * st * sf, -cp * sf + sp * st * cf),
+            (-st, ct * sf, ct * cf))

@@ -13,7 +13,7 @@ import math
 
 from ..accel import njit
 
-__all__ = ["rpy_matrix", "quat_matrix", "matrix_rpy", "mv", "mtv", "mm", "mtm", "wrap", "log_vee", "rodrigues"]
+__all__ = ["rpy_matrix", "matrix_rpy", "mv", "mtv", "mm", "mtm", "wrap", "log_vee", "rodrigues"]
 
 
 @njit
@@ -25,15 +25,6 @@ def rpy_matrix(phi, theta, psi):
     return (cp * ct, -sp * cf + cp * st * sf, sp * sf + cp * st * cf,
             sp * ct, cp * cf + sp * st * sf, -cp * sf + sp * st * cf,
             -st, ct * sf, ct * cf)
-
-
-@njit
-def quat_matrix(w, x, y, z):
-    """The rotation matrix of the unit quaternion (w, x, y, z)
-    (:func:`mavreg.model.rotation.quat_to_matrix`, which also normalizes)."""
-    return (1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-            2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-            2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y))
 
 
 @njit

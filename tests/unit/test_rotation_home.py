@@ -27,16 +27,6 @@ def test_one_quaternion_formula():
                        atol=1e-12)
 
 
-def test_the_kernel_matrices_are_the_reference():
-    """The telemetry's quaternion and roll-pitch-yaw maps (daemon.state) are the kernels'."""
-    q = np.array([0.9, 0.1, -0.3, 0.2])
-    q = q / np.linalg.norm(q)
-    assert np.allclose(np.reshape(rk.quat_matrix(*q), (3, 3)), rot.quat_to_matrix(q), atol=1e-15)
-    assert np.allclose(np.reshape(rk.rpy_matrix(0.2, -0.4, 1.1), (3, 3)), rot.rpy_to_matrix(0.2, -0.4, 1.1),
-                       atol=1e-15)
-    assert not np.allclose(np.reshape(rk.quat_matrix(*q), (3, 3)), rot.quat_to_matrix(q).T)
-
-
 def test_the_wrap_edge_is_minus_pi_open_pi_closed():
     a = np.array([math.pi, -math.pi, 3 * math.pi, 0.5, -7.0])
     w = rot.wrap_angle(a)
