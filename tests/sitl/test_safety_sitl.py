@@ -192,6 +192,7 @@ def test_downward_gust_in_the_maneuver_keeps_the_motors_on_until_the_ground(tmp_
     assert any("recover" in t for t in crit) and any("motors_stopped" in t for t in crit)
 
 
+@pytest.mark.slow          # 8 s; before each release (the impact's detection: tests/unit/test_supervisor_safety.py)
 def test_slammed_into_the_ground_on_take_off_is_an_impact(tmp_path):
     """40 N down for 1 s while climbing through about 0.6 m: the rotors clip fighting it
     (today saturation starts a recovery), the ground comes within 30 ms: the impact bound

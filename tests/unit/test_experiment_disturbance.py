@@ -27,6 +27,7 @@ def _by_controller(camp):
     return {r["controller"]: r for r in camp.results["runs"]}
 
 
+@pytest.mark.slow          # 16 s with the next test (one campaign); before each release (the regulator's side of the gust: test_gust.py, test_governor.py)
 def test_gust_campaign_writes_its_table_and_figures(gust_campaign):
     camp, out = gust_campaign
     res = json.loads((out / "results.json").read_text())
@@ -40,6 +41,7 @@ def test_gust_campaign_writes_its_table_and_figures(gust_campaign):
         assert (out / name).stat().st_size > 10_000 and f"]({name})" in md
 
 
+@pytest.mark.slow          # the campaign above; before each release
 def test_after_the_gust_the_trackers_cut_the_loop_and_the_regulator_does_not_race(gust_campaign):
     camp, _ = gust_campaign
     runs = _by_controller(camp)

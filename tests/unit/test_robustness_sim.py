@@ -79,6 +79,7 @@ def campaign(tmp_path_factory):
     return out, camp, {m["cell"]: m for m in camp.results["runs"]}
 
 
+@pytest.mark.slow          # 34 s with the next test (one campaign); before each release (the same cells fly the defaults over SITL: tests/sitl/test_defaults_sitl.py)
 def test_baseline_gust_and_7n_rotors_reach_the_end(campaign):
     _, camp, by = campaign
     assert set(by) == {"baseline", "gust-run-up", "rotors-7n"}
@@ -99,6 +100,7 @@ def test_baseline_gust_and_7n_rotors_reach_the_end(campaign):
     assert by["rotors-7n"]["loop_max_error_m"] <= 0.40          # measured 9.6 cm
 
 
+@pytest.mark.slow          # the campaign above; before each release
 def test_the_report_lists_the_skipped_cells_and_no_invented_numbers(campaign):
     out, _, _ = campaign
     res = json.loads((out / "results.json").read_text())
