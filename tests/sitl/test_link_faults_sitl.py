@@ -23,7 +23,7 @@ pytestmark = pytest.mark.sitl
 LOSS10 = "loss=0.1,jitter_ms=5"
 
 
-@pytest.mark.slow          # 16 s real time; before each release (loss and jitter injected deterministically: tests/unit/test_link_faults.py)
+@pytest.mark.slow          # 16 s; before each release (loss and jitter injected deterministically: tests/unit/test_link_faults.py)
 def test_barrel_roll_near_through_10_percent_loss_and_jitter(tmp_path):
     f = fly_faulted(tmp_path, LOSS10, NEAR, duration_s=23.0)
     rec = f["record"]
