@@ -40,6 +40,7 @@ def _call(fn, tel):
         raise AssertionError(f"{exc}; vehicle says: {tel.status_text().text!r}") from None
 
 
+@pytest.mark.slow          # 12 s real time; before each release (the messages and commands it needs: test_fsim_px4.py)
 def test_mavsdk_connects_reads_telemetry_takes_off_lands_and_disarms():
     with Emulator("--peer-system-id", "245", "--control-rate-hz", "250") as em:
         sdk = Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION))

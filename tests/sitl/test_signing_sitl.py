@@ -68,6 +68,7 @@ def _fly_under_attack(tmp_path, *fly_args):
     return code, fly, sent[0]
 
 
+@pytest.mark.slow          # 14 s; before each release (signing, forged and replayed frames: tests/unit/test_signing.py, tests/firmware_sim/test_fsim_signing.py)
 def test_signed_flight_ignores_unsigned_and_forged_commands(tmp_path):
     key = tmp_path / "key"
     key.write_text(os.urandom(32).hex())

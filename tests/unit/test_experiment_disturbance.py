@@ -63,6 +63,7 @@ def test_after_the_gust_the_trackers_cut_the_loop_and_the_regulator_does_not_rac
     assert s_end[TVLQR] - s_end[REGULATOR] > 2.0 and s_end[SE3] - s_end[REGULATOR] > 2.0
 
 
+@pytest.mark.slow          # 14 s; before each release
 def test_a_reference_4_m_ahead_makes_the_trackers_race_and_leaves_the_regulator_on_its_path(tmp_path):
     exp = lag(0, leads_m=(4.0,), saturations_n=(None,), max_time_s=2.5)
     camp = run_campaign(exp, "sim", 1, tmp_path, "test command", progress=None)
