@@ -79,7 +79,7 @@ def rotor_wrench(u, tb, thrust_n, out):
     torque bias ``tb`` (6,) at the collective ``thrust_n``: the torques less the bias."""
     out[0] = u[0]
     for a in range(3):
-        out[1 + a] = u[1 + a] - (tb[a] + tb[3 + a] * thrust_n)
+        out[1 + a] = u[1 + a] - bias_n_m(tb, thrust_n, a)
 
 
 @njit
