@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-__all__ = ["DisturbanceParams", "TorqueBiasParams"]
+__all__ = ["DisturbanceParams", "RotorLagParams", "TorqueBiasParams"]
 
 _POS = {"min_exclusive": 0.0}
 
@@ -55,6 +55,39 @@ class TorqueBiasParams:
     """The compensation follows :math:`t_1` at most this fast (the prediction uses the
     estimate as it is): 0.01 m/s is 0.07 N m per second in a hover."""
     max_constant_rate_n_m_per_s: float = field(default=0.07, metadata=_POS)
+
+
+@dataclass(frozen=True)
+class RotorLagParams:
+    r"""The rotor-lag part of the observer (:mod:`mavreg.control.lag_observer`): the rotors'
+    time constant :math:`\tau`, learned in flight from the body rates (``rotor_lag:`` inside
+    ``disturbance:``; docs/robustness.md, "Rotor lag"). The prediction lags the commands by
+    the estimate; the regulator's feedforward leads by its follower. The gains stay those the
+    plan was designed with.
+    """
+
+    enabled: bool = False
+    """Estimate the time constant and predict and lead with it (False: the vehicle file's)."""
+    sd_s: float = field(default=0.02, metadata=_POS)
+    """The file's value is this uncertain (motors of 10 to 50 ms around a file's 20 to 30)."""
+    tau_s: float = field(default=10000.0, metadata=_POS)
+    """The time constant wanders by ``sd_s`` over this time: a build's motors do not change
+    in flight, so the estimate is the average of all it has learned."""
+    rate_noise_rad_s: float = field(default=0.01, metadata=_POS)
+    """SD of the error of one body-rate sample's change over one period (as the torque
+    part's)."""
+    learning_max_rate_rad_s: float = field(default=1.0, metadata=_POS)
+    """Learned only while the body rate is under this (faster, the rate innovations are
+    mostly what the file's inertia gets wrong)."""
+    bounds_s: tuple[float, ...] = field(default=(0.005, 0.1), metadata={"length": 2, "min": 0.0})
+    """The estimate stays within these (s)."""
+    max_rate_s_per_s: float = field(default=0.02, metadata=_POS)
+    """The regulator's lead follows the estimate at most this fast (20 ms per second)."""
+
+    def __post_init__(self):
+        lo, hi = self.bounds_s
+        if not lo < hi:
+            raise ValueError(f"rotor_lag bounds_s {self.bounds_s} must be increasing")
 
 
 @dataclass(frozen=True)
@@ -116,6 +149,8 @@ class DisturbanceParams:
     """Samples further apart than this are not compared (a gap restarts the comparison)."""
     torque_bias: TorqueBiasParams = field(default_factory=TorqueBiasParams)
     """The torque part (:class:`TorqueBiasParams`); off by default."""
+    rotor_lag: RotorLagParams = field(default_factory=RotorLagParams)
+    """The rotor-lag part (:class:`RotorLagParams`); off by default."""
 
     def __post_init__(self):
         lo, hi = self.thrust_scale_bounds

@@ -51,6 +51,7 @@ from ..model.drag import linear_drag_ned_n, rotor_plane_scale
 from ..model.rotation import matrix_to_rpy, rpy_to_matrix, wrap_angle
 from ..model.so3 import log_so3
 from . import observer_kernel as ok
+from .lag_observer import RotorLagObserver
 from .torque_bias import TorqueBiasObserver
 
 __all__ = ["DisturbanceEstimate", "DisturbanceObserver", "compensated_nominal", "compensate", "regressors"]
@@ -69,6 +70,9 @@ class DisturbanceEstimate:
     torque_bias: tuple[float, ...] = (0.0,) * 6
     """The airframe's torque bias ``(t0 x, y, z (N m), t1 x, y, z (m))``: ``t0 + t1 T`` per body
     axis at collective ``T`` (:mod:`mavreg.control.torque_bias`; zeros without its estimate)."""
+    rotor_time_constant_s: float | None = None
+    """The rotors' time constant (:mod:`mavreg.control.lag_observer`; None without its
+    estimate: the vehicle file's)."""
 
     def extra_force_ned(self, R, v, base_drag_n_s_per_m) -> np.ndarray:
         """The force the design model with drag ``base_drag_n_s_per_m`` misses, at attitude
@@ -144,6 +148,8 @@ class DisturbanceObserver:
         """Measurements refused by the innovation gate."""
         self.torque = (TorqueBiasObserver(params.torque_bias, vehicle) if params.torque_bias.enabled else None)
         """The torque part (:mod:`mavreg.control.torque_bias`), or None."""
+        self.lag = RotorLagObserver(params.rotor_lag, vehicle) if params.rotor_lag.enabled else None
+        """The rotor-lag part (:mod:`mavreg.control.lag_observer`), or None."""
         self.reset()
 
     def reset(self) -> None:
@@ -153,19 +159,24 @@ class DisturbanceObserver:
         self.P[:] = self._P0
         if self.torque is not None:
             self.torque.reset()
+        if self.lag is not None:
+            self.lag.reset()
         self._estimates = None
 
     @staticmethod
-    def _as_estimate(th, torque=None) -> DisturbanceEstimate:
+    def _as_estimate(th, torque=None, lag_s: float | None = None) -> DisturbanceEstimate:
         return DisturbanceEstimate((float(th[0]), float(th[1])), (float(th[2]), float(th[3]), float(th[4])),
-                                   float(th[5]), (0.0,) * 6 if torque is None else tuple(torque.tolist()))
+                                   float(th[5]), (0.0,) * 6 if torque is None else tuple(torque.tolist()), lag_s)
 
     def _both(self) -> tuple[DisturbanceEstimate, DisturbanceEstimate]:
         """(estimate, applied), made once per measurement (read several times a sample)."""
         if self._estimates is None:
-            tq = self.torque
-            self._estimates = (self._as_estimate(self.theta, None if tq is None else tq.theta),
-                               self._as_estimate(self.theta_applied, None if tq is None else tq.theta_applied))
+            tq, lag = self.torque, self.lag
+            self._estimates = (
+                self._as_estimate(self.theta, None if tq is None else tq.theta,
+                                  None if lag is None else lag.estimate_s),
+                self._as_estimate(self.theta_applied, None if tq is None else tq.theta_applied,
+                                  None if lag is None else lag.applied_s))
         return self._estimates
 
     @property
@@ -184,6 +195,17 @@ class DisturbanceObserver:
         if self.torque is not None and 0.0 < dt_s <= self.params.max_sample_gap_s:
             if self.torque.update(dt_s, thrust_n, innovation_rad_s, rate_rad_s):
                 self._estimates = None
+
+    def update_lag(self, dt_s: float, torque_change_n_m, innovation_rad_s, rate_rad_s) -> None:
+        """One sample interval of the rotor-lag part (:meth:`RotorLagObserver.update
+        <mavreg.control.lag_observer.RotorLagObserver.update>`; a gap restarts its
+        sensitivity); nothing without it."""
+        if self.lag is None:
+            return
+        if not 0.0 < dt_s <= self.params.max_sample_gap_s:
+            self.lag.restart()
+        elif self.lag.update(dt_s, torque_change_n_m, innovation_rad_s, rate_rad_s):
+            self._estimates = None
 
     def update(self, dt_s: float, R, v, thrust_n: float, innovation_m_s) -> None:
         """One measurement: ``innovation_m_s`` (3,) = the sample's velocity less its prediction

@@ -192,6 +192,10 @@ class FastStep:
         self._no_forces = np.zeros(4)
         self._no_torque = np.zeros(6)
 
+    def set_lead(self, lead_s: float) -> None:
+        """The feedforward's lead from the next step on (an estimated rotor lag's)."""
+        self.prm[sk.P_LEAD] = lead_s
+
     def reset(self, s: float, rotor_forces_n=None) -> None:
         """Continue from arc length s, the lag filter at ``rotor_forces_n`` (None: empty), the
         governor without a governed speed."""

@@ -27,6 +27,7 @@ import numpy as np
 from ..config.defaults import MAX_PREDICTION_S
 from ..config.disturbance import DisturbanceParams
 from ..config.vehicle import VehicleParams
+from ..model.mixer import mixer_matrix
 from .disturbance import DisturbanceEstimate, DisturbanceObserver
 from .predictor import StatePredictor
 
@@ -68,6 +69,8 @@ class Forecaster:
         self.predictor = StatePredictor(vehicle, max_step_s=control_period_s, max_horizon_s=max_horizon_s)
         self.observer = (DisturbanceObserver(disturbance, vehicle)
                          if disturbance is not None and disturbance.enabled else None)
+        self._torque_rows = mixer_matrix(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)[1:4]
+        """The rotor forces' body torques (the mixer's rows 1-3)."""
         self.observing = False
         """Whether samples feed the observer (the supervisor sets it: airborne phases only)."""
         self._previous = None
@@ -107,15 +110,22 @@ class Forecaster:
             return
         t0, x0, R0 = previous
         h = t_s - t0
-        if not 0.0 < h <= self.observer.params.max_sample_gap_s:
+        obs = self.observer
+        if not 0.0 < h <= obs.params.max_sample_gap_s:
+            obs.update_lag(h, None, None, None)         # a gap: the lag's sensitivity restarts
             return
         model = self._model()
         f0 = self.predictor.rotor_forces(t0, delay_s)
         p = self.predictor.predict_raw(t0, x0, R0, h, delay_s=delay_s, **model)
         thrust = 0.5 * (sum(f0) + float(p[21] + p[22] + p[23] + p[24]) / model["thrust_scale"])
-        self.observer.update(h, R0, R0 @ x0[6:9], thrust, R @ x[6:9] - p[25:28])
-        # the torque part: the body rates against theirs, at the physical collective
-        self.observer.update_torque(h, thrust * model["thrust_scale"], x[9:12] - p[9:12], x[9:12])
+        obs.update(h, R0, R0 @ x0[6:9], thrust, R @ x[6:9] - p[25:28])
+        # the torque and lag parts: the body rates against theirs, at the physical collective
+        rate_innovation = x[9:12] - p[9:12]
+        obs.update_torque(h, thrust * model["thrust_scale"], rate_innovation, x[9:12])
+        if obs.lag is not None:
+            dtorque = self._torque_rows @ (p[21:25] - model["thrust_scale"] * np.asarray(f0))
+            obs.update_lag(h, dtorque, rate_innovation, x[9:12])
+            self.predictor.set_rotor_time_constant(obs.lag.estimate_s)
 
     def update(self, t_s: float, x, rotation, delay_s: float) -> Forecast:
         """A new sample of vehicle time ``t_s``; ``delay_s``: sample-to-actuation delay."""

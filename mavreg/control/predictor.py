@@ -100,6 +100,12 @@ class StatePredictor:
         self._fresh = True                   # the filter's time is set by the first call
         self._last_delay_s = 0.0
 
+    def set_rotor_time_constant(self, tau_s: float) -> None:
+        """Lag the commands by ``tau_s`` from now on (an estimate of it,
+        :mod:`mavreg.control.lag_observer`); the rotor state is kept."""
+        self.tau = float(tau_s)
+        self._prm[6] = self.tau
+
     @property
     def pending(self) -> int:
         """Commands kept (not yet fully acted)."""

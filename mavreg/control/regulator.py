@@ -140,7 +140,8 @@ class ManeuverRegulator:
         self._v = plan.speed_m_s
         self._last = len(plan.s) - 2
         tau = vehicle.rotor_time_constant_s if rotor_time_constant_s is None else rotor_time_constant_s
-        self._lead_s = control_period_s / 2 + tau
+        self._half_period_s = control_period_s / 2
+        self._lead_s = self._half_period_s + tau
         self._base_drag = tuple(float(c) for c in vehicle.rotor_drag_n_s_per_m)
         self._parasitic = float(vehicle.parasitic_drag_n_s2_per_m2)
         self._mass = float(vehicle.mass_kg)
@@ -176,6 +177,14 @@ class ManeuverRegulator:
                                  self._allocate is torques_first, self._lead_s, self._decay,
                                  self._base_drag, self._max_turn, self.projector.window_m,
                                  self.projector.tube_margin, gov)
+
+    def _lead_by(self, rotor_time_constant_s: float) -> None:
+        """The feedforward's lead for rotors of time constant ``rotor_time_constant_s``."""
+        lead = self._half_period_s + rotor_time_constant_s
+        if lead != self._lead_s:
+            self._lead_s = lead
+            if self._compiled is not None:
+                self._compiled.set_lead(lead)
 
     def _extra_force(self, xbar, R, disturbance: DisturbanceEstimate) -> np.ndarray:
         """The force the plan's model misses at nominal state ``xbar`` (attitude ``R``)."""
@@ -283,7 +292,10 @@ class ManeuverRegulator:
     def step(self, x, rotor_forces_n=None, disturbance: DisturbanceEstimate | None = None) -> RegulatorOutput:
         """One control step for state x (12,); ``rotor_forces_n`` (4,): the rotors' forces
         when this command takes over (used only by lag-aware gains); ``disturbance``: the
-        airframe's estimated force model, compensated."""
+        airframe's estimated force model, compensated (and, where it has the rotors' time
+        constant, the feedforward led by it)."""
+        if disturbance is not None and disturbance.rotor_time_constant_s is not None:
+            self._lead_by(disturbance.rotor_time_constant_s)
         if self._compiled is not None:
             s, w, u, rotors, in_tube, finished, v_ref = self._compiled.step(x, rotor_forces_n, disturbance)
             self.s = self.projector.s = s

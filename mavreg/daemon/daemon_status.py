@@ -58,4 +58,9 @@ def status_report(daemon, tick_s: float) -> dict:
         st["disturbance"]["torque_bias"] = {"constant_n_m": list(dist.torque_bias[:3]),
                                             "per_thrust_m": list(dist.torque_bias[3:]),
                                             "updates": tq.updates, "rejected": tq.rejected}
+    if dist is not None and fc.observer.lag is not None:
+        lag = fc.observer.lag
+        st["disturbance"]["rotor_lag"] = {"time_constant_s": lag.estimate_s, "applied_s": lag.applied_s,
+                                          "file_s": lag.file_s, "sd_s": float(lag.state[2]) ** 0.5,
+                                          "updates": lag.updates, "rejected": lag.rejected}
     return st

@@ -89,6 +89,11 @@ def format_summary(summary: dict) -> str:
             lines.append(f"torque bias as estimated: t1 {t1[0] * 1e3:+.1f} {t1[1] * 1e3:+.1f} {t1[2] * 1e3:+.1f} "
                          f"mm (N m per N of thrust), t0 {t0[0]:+.3f} {t0[1]:+.3f} {t0[2]:+.3f} N m "
                          f"({tb['updates']} samples, {tb['rejected']} refused)")
+        lag = est.get("rotor_lag")
+        if lag:
+            lines.append(f"rotor time constant as estimated: {lag['time_constant_s'] * 1e3:.1f} ms "
+                         f"(+/- {lag['sd_s'] * 1e3:.1f}; the vehicle file's {lag['file_s'] * 1e3:.1f} ms; "
+                         f"{lag['updates']} samples, {lag['rejected']} refused)")
     lines.extend(_link_line(summary.get("status") or {}))
     cm = summary.get("controller_metrics") or {}
     gt = summary.get("ground_truth") or {}
