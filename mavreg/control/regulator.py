@@ -81,7 +81,8 @@ class ManeuverRegulator:
     rotor_time_constant_s : float, optional
         First-order lag tau of the rotors' thrust (default: the vehicle's estimate,
         ``vehicle.rotor_time_constant_s``). A lagged force follows a slowly varying command
-        about tau late.
+        about tau late. A disturbance estimate that carries the rotors' time constant
+        (:mod:`~mavreg.control.lag_observer`) replaces it from the step it is given on.
     max_compensation_turn_rad : float
         Largest turn of the nominal attitude by the disturbance compensation.
     allocation : AllocationParams, optional

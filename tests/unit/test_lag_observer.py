@@ -13,15 +13,14 @@ from mavreg.config.controller import load_controller
 from mavreg.config.disturbance import DisturbanceParams, RotorLagParams, TorqueBiasParams
 from mavreg.config.loader import ConfigError, load_text
 from mavreg.config.paths import REAL_CONTROLLER
-from mavreg.config.vehicle import G
 from mavreg.control import lag_observer as lo
 from mavreg.control.forecast import Forecaster
-from mavreg.control.hover import HoverController, HoverParams, hold_ramp
+from mavreg.control.hover import hold_ramp
 from mavreg.control.predictor import StatePredictor
 from tests.helpers import params
+from tests.helpers.hover_loop import fly_hover
 
 VEHICLE = params.vehicle()                     # the file: 20 ms rotors
-HOVER_N = VEHICLE.mass_kg * G
 
 
 def _lagged(c, dt, tau, f0=0.0):
@@ -70,33 +69,17 @@ def _observing(enabled: bool) -> DisturbanceParams:
 
 def _hover_flight(true_tau_s: float, disturbance: DisturbanceParams, seconds: float = 6.0, seed: int = 0):
     """A closed-loop hover of the hover LQR on the design model about a hold point that hops
-    around a 0.3 m square every half second (as a position-hold's corrections), the truth's rotors of time
-    constant ``true_tau_s`` (the controller's file says 20 ms), a white torque noise of
-    0.03 N m per axis (the paper's 0.1 N per rotor on 0.3 m arms), 12 ms of predicted delay, the rates measured with 5 mrad/s of white noise.
-    Returns the forecaster."""
-    rng = np.random.default_rng(seed)
-    dt, delay = 0.002, 0.012
+    around a 0.3 m square every half second (as a position-hold's corrections), the truth's
+    rotors of time constant ``true_tau_s`` (the controller's file says 20 ms), a white torque
+    noise of 0.03 N m per axis (the paper's 0.1 N per rotor on 0.3 m arms), 12 ms of predicted
+    delay, the rates measured with 5 mrad/s of white noise. Returns the forecaster."""
+    dt = 0.002
     fc = Forecaster(VEHICLE, dt, predict=True, disturbance=disturbance)
     truth = StatePredictor(dataclasses.replace(VEHICLE, rotor_time_constant_s=true_tau_s), max_step_s=dt,
                            max_horizon_s=0.1)
-    hover = HoverController(VEHICLE, HoverParams())
     ramps = [hold_ramp(np.array([n, e, -10.0]), 0.0) for n, e in ((0.0, 0.0), (0.3, 0.0), (0.3, 0.3), (0.0, 0.3))]
-    fc.reset((HOVER_N / 4,) * 4)
-    truth.reset((HOVER_N / 4,) * 4)
-    fc.observing = True
-    x = np.zeros(12)
-    x[2] = -10.0
-    R = np.eye(3)
-    for k in range(int(seconds / dt)):
-        t = k * dt
-        seen = x.copy()
-        seen[9:12] += rng.normal(0.0, 0.005, 3)
-        f = fc.update(t, seen, R, delay)
-        ramp = ramps[int(t / 0.5) % 4]          # the hold point hops 0.3 m every 0.5 s
-        cmd = fc.command(t, hover.step(f.x, ramp, t, fc.disturbance).rotor_forces_n)
-        truth.record(t, cmd)
-        p = truth.predict(t, x, R, dt, delay_s=delay, torque_bias=(*rng.normal(0.0, 0.03, 3), 0.0, 0.0, 0.0))
-        x, R = p.x, p.rotation
+    fly_hover(fc, truth, lambda t: ramps[int(t / 0.5) % 4], seconds, np.random.default_rng(seed),
+              truth_torque=lambda rng: (*rng.normal(0.0, 0.03, 3), 0.0, 0.0, 0.0), dt_s=dt)
     return fc
 
 

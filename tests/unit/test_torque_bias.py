@@ -18,6 +18,7 @@ from mavreg.control.torque_bias import TorqueBiasObserver, allocated_less_bias, 
 from mavreg.maneuver.plan_margins import hover_margins
 from mavreg.model.mixer import Mixer, torques_first, yaw_then_lift
 from tests.helpers import params
+from tests.helpers.hover_loop import fly_hover
 
 VEHICLE = params.vehicle()
 HOVER_N = VEHICLE.mass_kg * G
@@ -36,33 +37,14 @@ def _hover_flight(disturbance: DisturbanceParams, seconds: float = 4.0, seed: in
     with the torque bias ``TRUTH`` and 12 ms of delay, predicted, plus ``extra_delay_s`` that
     the controller is not told), the rates measured with 5 mrad/s of white noise. Returns
     (forecaster, the last second's largest position and angle errors)."""
-    rng = np.random.default_rng(seed)
-    dt, delay = 0.002, 0.012
+    dt = 0.002
     fc = Forecaster(VEHICLE, dt, predict=True, disturbance=disturbance)
     truth = StatePredictor(VEHICLE, max_step_s=dt, max_horizon_s=0.1)
-    hover = HoverController(VEHICLE, HoverParams())
     ramp = hold_ramp(np.array([0.0, 0.0, -10.0]), 0.0)
-    fc.reset((HOVER_N / 4,) * 4)
-    truth.reset((HOVER_N / 4,) * 4)
-    fc.observing = True
-    x = np.zeros(12)
-    x[2] = -10.0
-    R = np.eye(3)
-    worst_m = worst_rad = 0.0
-    n = int(seconds / dt)
-    for k in range(n):
-        t = k * dt
-        seen = x.copy()
-        seen[9:12] += rng.normal(0.0, 0.005, 3)
-        f = fc.update(t, seen, R, delay)
-        cmd = fc.command(t, hover.step(f.x, ramp, t, fc.disturbance).rotor_forces_n)
-        truth.record(t, cmd)
-        p = truth.predict(t, x, R, dt, delay_s=delay + extra_delay_s, torque_bias=TRUTH)
-        x, R = p.x, p.rotation
-        if k >= n - int(1.0 / dt):
-            worst_m = max(worst_m, float(np.linalg.norm(x[:3] - [0.0, 0.0, -10.0])))
-            worst_rad = max(worst_rad, float(np.abs(x[3:6]).max()))
-    return fc, worst_m, worst_rad
+    x = fly_hover(fc, truth, lambda t: ramp, seconds, np.random.default_rng(seed), extra_delay_s=extra_delay_s,
+                  truth_torque=lambda rng: TRUTH, dt_s=dt)[-int(1.0 / dt):]
+    worst_m = float(np.linalg.norm(x[:, :3] - [0.0, 0.0, -10.0], axis=1).max())
+    return fc, worst_m, float(np.abs(x[:, 3:6]).max())
 
 
 def test_the_estimate_converges_to_the_torque_bias_in_closed_loop_and_the_hover_holds_its_point():
