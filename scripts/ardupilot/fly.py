@@ -16,6 +16,7 @@ import tempfile
 from pathlib import Path
 
 from tests.helpers.ardupilot_flight import fly_on_ardupilot
+from tests.helpers.ardupilot_sitl import POSITION_SOURCES
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -28,8 +29,9 @@ def main(argv=None) -> int:
     p.add_argument("--control-rate-hz", type=float, default=200.0)
     p.add_argument("--vehicle", default=None, help="another vehicle file (default: the harness's, "
                    "mavreg/params/vehicles/ardupilot_freestyle.yaml)")
-    p.add_argument("--position-source", choices=("gps", "mocap"), default="gps",
-                   help="where ArduCopter's EKF3 takes its position from (default: %(default)s)")
+    p.add_argument("--position-source", choices=POSITION_SOURCES, default="gps",
+                   help="where ArduCopter's EKF3 takes its position from: its GPS, the SITL's simulated "
+                   "Vicon, or the harness's motion-capture feed at 100 Hz (default: %(default)s)")
     p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                    help="an ArduPilot parameter set before each flight (repeatable; an experiment's)")
     args = p.parse_args(argv)

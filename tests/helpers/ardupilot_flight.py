@@ -20,7 +20,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from .ardupilot_sitl import HOME, M, ArduPilotSitl
+from .ardupilot_mocap import HOME, ned_m
+from .ardupilot_sitl import M, ArduPilotSitl
 
 __all__ = ["fly_on_ardupilot", "true_errors_from_tlog", "PILOT_PARAMS", "VEHICLE", "CONTROLLER"]
 
@@ -29,7 +30,6 @@ VEHICLE = REPO / "mavreg" / "params" / "vehicles" / "ardupilot_freestyle.yaml"
 CONTROLLER = REPO / "mavreg" / "params" / "controller" / "freestyle.yaml"
 PILOT_PARAMS = {"GUID_OPTIONS": 8, "GUID_TIMEOUT": 0.5, "ATC_ANGLE_BOOST": 0}
 """What docs/autopilots.md tells a pilot to set before flying mavreg."""
-EARTH_RADIUS_M = 6378137.0
 
 
 def fly_on_ardupilot(maneuver: Path, out: Path, control_rate_hz: float = 200.0, timeout_s: float = 240.0,
@@ -37,14 +37,14 @@ def fly_on_ardupilot(maneuver: Path, out: Path, control_rate_hz: float = 200.0, 
                      position_source: str = "gps") -> dict:
     """Fly ``maneuver`` with mavreg on a fresh SITL; summary.json plus ``ardupilot_truth``.
     ``params``: parameters set before the flight on top of :data:`PILOT_PARAMS` (an experiment's);
-    ``position_source``: the EKF's, ``gps`` or ``mocap`` (:class:`ArduPilotSitl`)."""
+    ``position_source``: the EKF's, ``gps``, ``vicon`` or ``mocap`` (:class:`ArduPilotSitl`)."""
     out = Path(out)
     with ArduPilotSitl(frame=frame, params={**PILOT_PARAMS, **(params or {})},
                        position_source=position_source) as sitl:
         sitl.set_rate(M.MAVLINK_MSG_ID_SIM_STATE, 50.0)
         sitl.command_long(M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN)
         origin = sitl.wait_for(lambda m: m.get_type() == "GPS_GLOBAL_ORIGIN", 10.0, "GPS_GLOBAL_ORIGIN")
-        if position_source == "mocap":        # the EKF's local frame is the Vicon's, about HOME
+        if position_source != "gps":          # the EKF's local frame is the vision frame, about HOME
             origin = SimpleNamespace(latitude=round(HOME[0] * 1e7), longitude=round(HOME[1] * 1e7),
                                      altitude=round(HOME[2] * 1e3))
         port = sitl.port
@@ -66,10 +66,9 @@ def fly_on_ardupilot(maneuver: Path, out: Path, control_rate_hz: float = 200.0, 
 
 
 def _ned(lat_deg, lon_deg, alt_m, origin) -> np.ndarray:
-    lat0, lon0, alt0 = origin.latitude * 1e-7, origin.longitude * 1e-7, origin.altitude * 1e-3
-    north = math.radians(lat_deg - lat0) * EARTH_RADIUS_M
-    east = math.radians(lon_deg - lon0) * EARTH_RADIUS_M * math.cos(math.radians(lat0))
-    return np.array([north, east, -(alt_m - alt0)])
+    """NED (m) about a GPS_GLOBAL_ORIGIN-like ``origin`` (1e-7 deg, mm)."""
+    return np.array(ned_m(lat_deg, lon_deg, alt_m,
+                          (origin.latitude * 1e-7, origin.longitude * 1e-7, origin.altitude * 1e-3)))
 
 
 def _truth_samples(tlog: Path, origin):
