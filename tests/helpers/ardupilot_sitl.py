@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import os
 import shutil
-import signal
 import socket
 import subprocess
 import tempfile
@@ -32,6 +31,8 @@ os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil  # noqa: E402  (MAVLINK20 must be set first)
 
 from .ardupilot_mocap import HOME, MocapFeed  # noqa: E402
+from .processes import alive as _alive  # noqa: E402
+from .processes import terminate as _terminate  # noqa: E402
 
 __all__ = ["ardupilot_dir", "ArduPilotSitl", "SitlError", "require_ardupilot", "arducopter_sitl_fixture",
            "TEST_PARAMS", "POSITION_SOURCES", "HOME"]
@@ -390,24 +391,3 @@ class ArduPilotSitl:
             return "(none)"
         return " | ".join(text.strip().splitlines()[-lines:]) or "(none)"
 
-
-def _alive(pid: int) -> bool:
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            return f.read().rsplit(")", 1)[1].split()[0] not in ("Z", "X")
-    except OSError:
-        return False
-
-
-def _terminate(pid: int, grace_s: float = 10.0) -> None:
-    """SIGTERM ``pid``, SIGKILL it if still alive after ``grace_s``."""
-    for sig, wait_s in ((signal.SIGTERM, grace_s), (signal.SIGKILL, 5.0)):
-        try:
-            os.kill(pid, sig)
-        except ProcessLookupError:
-            return
-        deadline = time.monotonic() + wait_s
-        while time.monotonic() < deadline:
-            if not _alive(pid):
-                return
-            time.sleep(0.05)
