@@ -24,7 +24,8 @@ and ``freestyle_mocap.yaml``: 6.6-7.6 cm over 5 flights (docs/autopilots.md), th
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("position_source, loop_max_m", [("gps", LOOP_MAX_M), ("mocap", MOCAP_LOOP_MAX_M)])
+@pytest.mark.parametrize("position_source, loop_max_m", [("gps", LOOP_MAX_M), ("mocap", MOCAP_LOOP_MAX_M)],
+                         ids=["gps", "mocap"])
 def test_barrel_roll_on_a_stock_arducopter(tmp_path, position_source, loop_max_m):
     require_ardupilot()
     s = fly_on_ardupilot(maneuver_file("barrel_roll"), tmp_path / "flight", position_source=position_source)
