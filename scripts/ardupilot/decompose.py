@@ -79,7 +79,7 @@ def decompose(flight: Path, bins: int = 40) -> dict:
     """The three errors of one flight: per segment and per bin of s (max of the norms, m)."""
     from mavreg.config.controller import load_controller
     from mavreg.config.vehicle import load_vehicle
-    from mavreg.maneuver.plan import plan_file
+    from mavreg.planning.plan_io import plan_file
     from tests.helpers.ardupilot_flight import CONTROLLER, VEHICLE, _truth_samples
 
     summary = json.loads((flight / "summary.json").read_text())

@@ -3,6 +3,7 @@
 thrust, and print the true path error of each flight (the SITL's SIM_STATE) and a summary.
 
     python -m scripts.ardupilot.fly [--flights 5] [--maneuver FILE] [--out DIR] [--param NAME=VALUE ...]
+                                    [--position-source gps|vicon|mocap] [--vehicle FILE] [--controller FILE]
 
 Needs the SITL (``MAVREG_ARDUPILOT_DIR``; tests/helpers/ardupilot_sitl.py). Real time: about
 2 minutes a flight (EKF start, take-off, maneuver, landing). docs/autopilots.md quotes it.
@@ -16,6 +17,7 @@ import tempfile
 from pathlib import Path
 
 from tests.helpers.ardupilot_flight import fly_on_ardupilot
+from tests.helpers.ardupilot_sitl import POSITION_SOURCES
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -28,8 +30,11 @@ def main(argv=None) -> int:
     p.add_argument("--control-rate-hz", type=float, default=200.0)
     p.add_argument("--vehicle", default=None, help="another vehicle file (default: the harness's, "
                    "mavreg/params/vehicles/ardupilot_freestyle.yaml)")
-    p.add_argument("--position-source", choices=("gps", "mocap"), default="gps",
-                   help="where ArduCopter's EKF3 takes its position from (default: %(default)s)")
+    p.add_argument("--controller", default=None, help="another controller file (default: the position "
+                   "source's, freestyle.yaml or, for mocap, freestyle_mocap.yaml)")
+    p.add_argument("--position-source", choices=POSITION_SOURCES, default="gps",
+                   help="where ArduCopter's EKF3 takes its position from: its GPS, the SITL's simulated "
+                   "Vicon, or the harness's motion-capture feed at 100 Hz (default: %(default)s)")
     p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                    help="an ArduPilot parameter set before each flight (repeatable; an experiment's)")
     args = p.parse_args(argv)
@@ -44,10 +49,11 @@ def main(argv=None) -> int:
     ok = 0
     print("| flight | result | loop max (cm) | all max (cm) | all RMS (cm) | touchdown (m/s) |")
     print("|---|---|---|---|---|---|")
+    extra = () if args.vehicle is None else ("--vehicle-params", args.vehicle)
     for k in range(1, args.flights + 1):
         s = fly_on_ardupilot(Path(args.maneuver), root / f"flight{k}", args.control_rate_hz, params=params,
-                             extra_args=() if args.vehicle is None else ("--vehicle-params", args.vehicle),
-                             position_source=args.position_source)
+                             extra_args=extra,
+                             position_source=args.position_source, controller=args.controller)
         gt = s.get("ardupilot_truth") or {}
         loop = (gt.get("segments") or {}).get("loop") or {}
         cm = (lambda v: f"{100 * v:.1f}" if isinstance(v, float) else "n/a")   # noqa: E731

@@ -20,38 +20,43 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from .ardupilot_sitl import HOME, M, ArduPilotSitl
+from .ardupilot_mocap import HOME, ned_m
+from .ardupilot_sitl import M, ArduPilotSitl
 
-__all__ = ["fly_on_ardupilot", "true_errors_from_tlog", "PILOT_PARAMS", "VEHICLE", "CONTROLLER"]
+__all__ = ["fly_on_ardupilot", "true_errors_from_tlog", "PILOT_PARAMS", "VEHICLE", "CONTROLLER", "CONTROLLERS"]
 
 REPO = Path(__file__).resolve().parents[2]
 VEHICLE = REPO / "mavreg" / "params" / "vehicles" / "ardupilot_freestyle.yaml"
 CONTROLLER = REPO / "mavreg" / "params" / "controller" / "freestyle.yaml"
+CONTROLLERS = {"gps": CONTROLLER, "vicon": CONTROLLER, "mocap": CONTROLLER.with_name("freestyle_mocap.yaml")}
+"""The controller file each position source flies with by default: the motion-capture feed's
+estimate is good enough for a 20 times stiffer position loop (docs/autopilots.md)."""
 PILOT_PARAMS = {"GUID_OPTIONS": 8, "GUID_TIMEOUT": 0.5, "ATC_ANGLE_BOOST": 0}
 """What docs/autopilots.md tells a pilot to set before flying mavreg."""
-EARTH_RADIUS_M = 6378137.0
 
 
 def fly_on_ardupilot(maneuver: Path, out: Path, control_rate_hz: float = 200.0, timeout_s: float = 240.0,
                      extra_args: tuple = (), frame: str = "freestyle", params: dict | None = None,
-                     position_source: str = "gps") -> dict:
+                     position_source: str = "gps", controller: Path | None = None) -> dict:
     """Fly ``maneuver`` with mavreg on a fresh SITL; summary.json plus ``ardupilot_truth``.
     ``params``: parameters set before the flight on top of :data:`PILOT_PARAMS` (an experiment's);
-    ``position_source``: the EKF's, ``gps`` or ``mocap`` (:class:`ArduPilotSitl`)."""
+    ``position_source``: the EKF's, ``gps``, ``vicon`` or ``mocap`` (:class:`ArduPilotSitl`);
+    ``controller``: the controller file, :data:`CONTROLLERS` of the position source by default."""
     out = Path(out)
+    controller = Path(controller) if controller is not None else CONTROLLERS[position_source]
     with ArduPilotSitl(frame=frame, params={**PILOT_PARAMS, **(params or {})},
                        position_source=position_source) as sitl:
         sitl.set_rate(M.MAVLINK_MSG_ID_SIM_STATE, 50.0)
         sitl.command_long(M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN)
         origin = sitl.wait_for(lambda m: m.get_type() == "GPS_GLOBAL_ORIGIN", 10.0, "GPS_GLOBAL_ORIGIN")
-        if position_source == "mocap":        # the EKF's local frame is the Vicon's, about HOME
+        if position_source != "gps":          # the EKF's local frame is the vision frame, about HOME
             origin = SimpleNamespace(latitude=round(HOME[0] * 1e7), longitude=round(HOME[1] * 1e7),
                                      altitude=round(HOME[2] * 1e3))
         port = sitl.port
         sitl.conn.close()                 # the daemon takes the port; the SITL keeps sending there
         sitl.conn = None
         cmd = [sys.executable, "-m", "mavreg.cli.main", "fly", str(maneuver), "--vehicle", f"udpin:127.0.0.1:{port}",
-               "--vehicle-params", str(VEHICLE), "--controller", str(CONTROLLER),
+               "--vehicle-params", str(VEHICLE), "--controller", str(controller),
                "--control-rate-hz", f"{control_rate_hz:g}", "--out", str(out),
                "--timeout-s", f"{timeout_s:g}", *extra_args]
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s + 60)
@@ -61,15 +66,14 @@ def fly_on_ardupilot(maneuver: Path, out: Path, control_rate_hz: float = 200.0, 
         {k: getattr(origin, k) for k in ("latitude", "longitude", "altitude")}))
     summary = json.loads((out / "summary.json").read_text())
     summary["exit_code"] = proc.returncode
-    summary["ardupilot_truth"] = true_errors_from_tlog(out, maneuver, origin)
+    summary["ardupilot_truth"] = true_errors_from_tlog(out, maneuver, origin, controller)
     return summary
 
 
 def _ned(lat_deg, lon_deg, alt_m, origin) -> np.ndarray:
-    lat0, lon0, alt0 = origin.latitude * 1e-7, origin.longitude * 1e-7, origin.altitude * 1e-3
-    north = math.radians(lat_deg - lat0) * EARTH_RADIUS_M
-    east = math.radians(lon_deg - lon0) * EARTH_RADIUS_M * math.cos(math.radians(lat0))
-    return np.array([north, east, -(alt_m - alt0)])
+    """NED (m) about a GPS_GLOBAL_ORIGIN-like ``origin`` (1e-7 deg, mm)."""
+    return np.array(ned_m(lat_deg, lon_deg, alt_m,
+                          (origin.latitude * 1e-7, origin.longitude * 1e-7, origin.altitude * 1e-3)))
 
 
 def _truth_samples(tlog: Path, origin):
@@ -94,7 +98,7 @@ def _truth_samples(tlog: Path, origin):
         np.array([r[3] for r in rows])
 
 
-def true_errors_from_tlog(out: Path, maneuver: Path, origin) -> dict | None:
+def true_errors_from_tlog(out: Path, maneuver: Path, origin, controller: Path = CONTROLLER) -> dict | None:
     """True errors of the maneuver's window against its plan (None: no maneuver, no truth)."""
     from mavreg.config.controller import load_controller
     from mavreg.config.vehicle import load_vehicle
@@ -113,7 +117,7 @@ def true_errors_from_tlog(out: Path, maneuver: Path, origin) -> dict | None:
     t, pos, rot, vel = truth
     end = after[0] if after else t[-1]
     sel = (t >= begin[0]) & (t <= end)
-    plan = plan_file(maneuver, load_vehicle(VEHICLE), load_controller(CONTROLLER))
+    plan = plan_file(maneuver, load_vehicle(VEHICLE), load_controller(controller))
     result = true_errors(plan, pos[sel], rot[sel], vel[sel])
     result["lowest_altitude_m"] = float((-pos[:, 2]).min()) if len(pos) else math.nan
     return result

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import os
 import shutil
-import signal
 import socket
 import subprocess
 import tempfile
@@ -31,6 +30,10 @@ import pytest
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil  # noqa: E402  (MAVLINK20 must be set first)
 
+from .ardupilot_mocap import HOME, MocapFeed  # noqa: E402
+from .processes import alive as _alive  # noqa: E402
+from .processes import terminate as _terminate  # noqa: E402
+
 __all__ = ["ardupilot_dir", "ArduPilotSitl", "SitlError", "require_ardupilot", "arducopter_sitl_fixture",
            "TEST_PARAMS", "POSITION_SOURCES", "HOME"]
 
@@ -41,13 +44,13 @@ PREARM_BIT = M.MAV_SYS_STATUS_PREARM_CHECK
 START_ATTEMPTS = 6
 """start.sh's exit races with the SITL's start (see ``ArduPilotSitl._launch``): about 1 in 4
 starts die at once; six attempts all fail about once in 4000."""
-POSITION_SOURCES = ("gps", "mocap")
+POSITION_SOURCES = ("gps", "vicon", "mocap")
 """Where ArduCopter's EKF3 takes its position from: its simulated GPS (5 Hz, the frame's
-defaults), or the SITL's simulated Vicon (ExternalNav, :data:`MOCAP_DEFAULTS`)."""
-MOCAP_DEFAULTS = Path(__file__).with_name("ardupilot_mocap.parm")
-HOME = (-35.363261, 149.165230, 584.0)
-"""start.sh's default home (lat, lon deg, alt m): with ``mocap`` the EKF's local frame is the
-simulated Vicon's, whose origin is this point (the GPS sets the EKF origin about 9 cm higher)."""
+defaults), the SITL's simulated Vicon or the harness's motion-capture feed
+(:class:`~tests.helpers.ardupilot_mocap.MocapFeed`), both as ExternalNav (:data:`EXTRA_DEFAULTS`);
+with either, the EKF's local frame is the vision frame, about :data:`HOME`."""
+EXTRA_DEFAULTS = {"vicon": Path(__file__).with_name("ardupilot_vicon.parm"),
+                  "mocap": Path(__file__).with_name("ardupilot_mocap.parm")}
 
 
 class SitlError(RuntimeError):
@@ -136,8 +139,9 @@ class ArduPilotSitl:
     directory : Path
         The SITL directory; :func:`ardupilot_dir` by default.
     position_source : str
-        ``gps`` (start.sh as it is) or ``mocap``: the binary started as start.sh starts it, with
-        the simulated Vicon on SERIAL5 and :data:`MOCAP_DEFAULTS` after the frame's defaults.
+        ``gps`` (start.sh as it is), ``vicon`` or ``mocap``: the binary started as start.sh
+        starts it, with :data:`EXTRA_DEFAULTS` after the frame's defaults, and the simulated Vicon
+        on SERIAL5 (``vicon``) or the motion-capture feed on SERIAL1 (``mocap``).
     """
 
     def __init__(self, frame: str = "freestyle", params: dict | None = None,
@@ -147,6 +151,8 @@ class ArduPilotSitl:
             raise ValueError(f"position_source must be one of {POSITION_SOURCES}, not {position_source!r}")
         self.position_source = position_source
         self._proc: subprocess.Popen | None = None
+        self.feed: MocapFeed | None = None
+        """The motion-capture feed (``mocap``), running from launch to :meth:`stop`."""
         self.frame = frame
         self.params = dict(params or {})
         self.rates_hz = dict(rates_hz or {})
@@ -199,7 +205,6 @@ class ArduPilotSitl:
                     raise
         self.start_attempts = attempt
         self.sysid, self.compid = hb.get_srcSystem(), hb.get_srcComponent()
-        self.sysid, self.compid = hb.get_srcSystem(), hb.get_srcComponent()
         self.conn.target_system, self.conn.target_component = self.sysid, self.compid
         self.recv(0.0)                   # our first HEARTBEAT: ArduPilot sends STATUSTEXT only to active links
         self.set_rate(M.MAVLINK_MSG_ID_SYS_STATUS, 2.0)      # not streamed by default
@@ -224,11 +229,16 @@ class ArduPilotSitl:
         if self.workdir is not None:
             self.workdir.cleanup()
         self.workdir = tempfile.TemporaryDirectory(prefix="mavreg-ardupilot-")
+        port2 = free_udp_port()
         env = dict(os.environ, FRAME=self.frame, MAVLINK=f"udpclient:127.0.0.1:{self.port}",
-                   MAVLINK2=f"udpclient:127.0.0.1:{free_udp_port()}", WORKDIR=self.workdir.name,
+                   MAVLINK2=f"udpclient:127.0.0.1:{port2}", WORKDIR=self.workdir.name,
                    INSTANCE=str(free_instance()))
-        if self.position_source == "mocap":
-            self._start_with_mocap(env)
+        if self.position_source == "mocap" and self.feed is None:
+            self.feed = MocapFeed(port2)
+            self.feed.start()
+            env["MAVLINK2"] = f"udpclient:127.0.0.1:{self.feed.port}"
+        if self.position_source != "gps":
+            self._start_with_defaults(env)
         else:
             out = subprocess.run([str(self.directory / "start.sh")], env=env, capture_output=True,
                                  text=True, timeout=30)
@@ -238,11 +248,11 @@ class ArduPilotSitl:
         return self.wait_for(lambda m: m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1,
                              self.timeout_s, "first HEARTBEAT")
 
-    def _start_with_mocap(self, env: dict) -> None:
-        """Start the binary as start.sh does (its frame, defaults and serial ports), plus the
-        simulated Vicon on SERIAL5 and :data:`MOCAP_DEFAULTS` after the frame's defaults: start.sh
-        takes no extra defaults, and VISO_TYPE only takes effect at boot. Our own child, so it
-        does not share start.sh's early exit."""
+    def _start_with_defaults(self, env: dict) -> None:
+        """Start the binary as start.sh does (its frame, defaults and serial ports), plus
+        :data:`EXTRA_DEFAULTS` after the frame's defaults and, for ``vicon``, the simulated Vicon
+        on SERIAL5: start.sh takes no extra defaults, and VISO_TYPE and SERIALn_BAUD only take
+        effect at boot. Our own child, so it does not share start.sh's early exit."""
         d, work, instance = self.directory, Path(env["WORKDIR"]), int(env["INSTANCE"])
         defaults = {"freestyle": ["copter.parm", "copter-X.parm", "freestyle.param"], "quad": ["copter.parm"]}
         if self.frame not in defaults:
@@ -251,11 +261,13 @@ class ArduPilotSitl:
         if self.frame == "freestyle":
             shutil.copy(d / "freestyle.json", work / "freestyle.json")   # the SITL reads it in its directory
             model = "X:freestyle.json"
-        files = ",".join([str(d / f) for f in defaults[self.frame]] + [str(MOCAP_DEFAULTS)])
+        files = ",".join([str(d / f) for f in defaults[self.frame]] + [str(EXTRA_DEFAULTS[self.position_source])])
         cmd = [str(d / "arducopter"), "--model", model, "--speedup", "1", f"-I{instance}",
                "--home", ",".join(repr(v) for v in HOME) + ",0", "--defaults", files, "--wipe",
                "--serial0", env["MAVLINK"], "--serial1", env["MAVLINK2"],
-               "--serial2", f"udpclient:127.0.0.1:{14701 + 10 * instance}", "--serial5", "sim:vicon:"]
+               "--serial2", f"udpclient:127.0.0.1:{14701 + 10 * instance}"]
+        if self.position_source == "vicon":
+            cmd += ["--serial5", "sim:vicon:"]
         with open(work / "arducopter.out", "wb") as log:
             self._proc = subprocess.Popen(cmd, cwd=work, stdout=log, stderr=subprocess.STDOUT,
                                           stdin=subprocess.DEVNULL)
@@ -269,6 +281,9 @@ class ArduPilotSitl:
         if self._proc is not None:
             self._proc.wait(timeout=5)          # our child (mocap): reap it
             self._proc = None
+        if self.feed is not None:
+            self.feed.stop()
+            self.feed = None
         if self.conn is not None:
             self.conn.close()
             self.conn = None
@@ -376,24 +391,3 @@ class ArduPilotSitl:
             return "(none)"
         return " | ".join(text.strip().splitlines()[-lines:]) or "(none)"
 
-
-def _alive(pid: int) -> bool:
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            return f.read().rsplit(")", 1)[1].split()[0] not in ("Z", "X")
-    except OSError:
-        return False
-
-
-def _terminate(pid: int, grace_s: float = 10.0) -> None:
-    """SIGTERM ``pid``, SIGKILL it if still alive after ``grace_s``."""
-    for sig, wait_s in ((signal.SIGTERM, grace_s), (signal.SIGKILL, 5.0)):
-        try:
-            os.kill(pid, sig)
-        except ProcessLookupError:
-            return
-        deadline = time.monotonic() + wait_s
-        while time.monotonic() < deadline:
-            if not _alive(pid):
-                return
-            time.sleep(0.05)
