@@ -13,7 +13,9 @@ from mavreg.config.controller import load_controller
 from mavreg.config.disturbance import DisturbanceParams, RotorLagParams, TorqueBiasParams
 from mavreg.config.loader import ConfigError, load_text
 from mavreg.config.paths import REAL_CONTROLLER
+from mavreg.config.vehicle import with_output
 from mavreg.control import lag_observer as lo
+from mavreg.control.disturbance import DisturbanceObserver
 from mavreg.control.forecast import Forecaster
 from mavreg.control.hover import hold_ramp
 from mavreg.control.predictor import StatePredictor
@@ -126,3 +128,12 @@ def test_the_shipped_controller_estimates_the_lag_and_the_loader_rejects_bad_set
         load_text("enabled: true\nbounds_s: [0.05, 0.01]\n", RotorLagParams)
     with pytest.raises(ConfigError, match="lag_sd"):
         load_text("enabled: true\nlag_sd: 0.01\n", RotorLagParams)
+
+
+def test_with_rates_to_an_autopilot_the_lag_is_the_files():
+    """Through an autopilot's rate loop the wrench's lag is the output's realization and the
+    identified rate loop (the vehicle file's), not the rotors': no lag part there."""
+    on = _observing(True)
+    assert DisturbanceObserver(on, VEHICLE).lag is not None
+    rates = DisturbanceObserver(on, with_output(VEHICLE, "rates"))
+    assert rates.lag is None and rates.estimate.rotor_time_constant_s is None
