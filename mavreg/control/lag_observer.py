@@ -144,6 +144,11 @@ class RotorLagObserver:
         return float(self.state[TAU])
 
     @property
+    def sd_s(self) -> float:
+        """The estimate's standard deviation (the filter's own)."""
+        return float(self.state[P]) ** 0.5
+
+    @property
     def applied_s(self) -> float:
         """Its follower at a bounded rate (what the regulator's lead uses)."""
         return float(self.state[APPLIED])

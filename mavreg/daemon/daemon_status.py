@@ -61,6 +61,6 @@ def status_report(daemon, tick_s: float) -> dict:
     if dist is not None and fc.observer.lag is not None:
         lag = fc.observer.lag
         st["disturbance"]["rotor_lag"] = {"time_constant_s": lag.estimate_s, "applied_s": lag.applied_s,
-                                          "file_s": lag.file_s, "sd_s": float(lag.state[2]) ** 0.5,
+                                          "file_s": lag.file_s, "sd_s": lag.sd_s,
                                           "updates": lag.updates, "rejected": lag.rejected}
     return st
