@@ -114,7 +114,9 @@ def test_a_50_ms_link_is_flown_on_prediction(tmp_path, realistic_plan):
     loop = truth["segments"]["loop"]
     att = _controller_loop_attitude_deg(f, realistic_plan)
     print(f"\n50 ms round trip: loop true max {100 * loop['max_m']:.2f} cm, regulator attitude {att:.2f} deg")
-    assert loop["max_m"] <= 0.03 and att <= 2.5
+    # 1.5 cm when the world had no drag; with the realistic drag 3.0 cm (3.1 without the
+    # observer's lag part): the 15 ms link's 3 cm plus what the longer prediction costs
+    assert loop["max_m"] <= 0.035 and att <= 2.5
 
 
 @pytest.mark.parametrize("preset, flag, check", [
