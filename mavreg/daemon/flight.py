@@ -18,6 +18,7 @@ from ..model.rotation_kernel import rpy_matrix
 from . import flightpath as fp
 from . import messages as mm
 from .context import FlightContext, FlightParts
+from .excitation import EXCITATION_END
 from .gate import MarginCheck, delay_margin_of
 from .phases import FREE_FLIGHT, Event, LogRecord, Output, Phase
 from .records import BoundViolation, Outcome
@@ -84,6 +85,7 @@ class Flight:
         ctx.rate_excitation = None             # an excitation never outlives its hold
         if ctx.excitation_start_vehicle_s is not None and ctx.excitation_end_vehicle_s is None:
             ctx.excitation_end_vehicle_s = ctx.vehicle_now_s
+            self.announce(out, "excitation", mm.SEVERITY_INFO, f"{EXCITATION_END} cut short: {phase}")
         if phase == Phase.ABORTED and not ctx.reason:
             ctx.reason = detail
         self.event(out, "phase", detail)

@@ -112,3 +112,20 @@ def test_a_pulse_is_clipped_to_the_files_rate_limit():
     forces = np.full(4, vehicle.mass_kg * 9.81 / 4)
     rates, _ = out.command(forces, np.zeros(12), 0.0, excitation=(0, 0.6))
     assert rates[0] == 0.5
+
+
+def test_leaving_the_hold_cuts_the_excitation_short_and_says_so():
+    """A phase change in the middle (a recovery, say) ends the excitation for good, with the
+    end STATUSTEXT that identify closes its window by; no pulse goes out after it."""
+    from mavreg.daemon.phases import Output, Phase
+    sup = Supervisor(with_output(load_vehicle(DEFAULT_VEHICLE), "rates"),
+                     SupervisorParams(excitation=ExcitationParams()), lambda plan: None)
+    ctx, out = sup.ctx, Output()
+    ctx.phase, ctx.excitation_start_vehicle_s, ctx.rate_excitation = Phase.HOLD, 1.0, (0, 0.5)
+    sup.flight.set_phase(out, Phase.RECOVER, "a bound")
+    assert ctx.rate_excitation is None and ctx.excitation_end_vehicle_s is not None
+    ends = [e for e in out.events if e.kind == "excitation"]
+    assert len(ends) == 1 and ends[0].detail.startswith("end: cut short")
+    texts = [m.text for m in out.messages if m.get_type() == "STATUSTEXT"]
+    assert texts and texts[0].startswith(b"mavreg excitation: end:" if isinstance(texts[0], bytes)
+                                         else "mavreg excitation: end:")
