@@ -24,6 +24,7 @@ __all__ = ["PARAMS_DIR", "DEFAULT_VEHICLE", "PAPER_CONTROLLER", "PAPER_GOVERNED_
            "DESIGN_CONTROLLER", "REAL_CONTROLLER", "add_model_arguments", "add_laps_argument",
            "add_entry_offset_argument", "load_model_params", "load_maneuver_arg",
            "add_gcs_arguments", "gcs_config", "add_signing_argument", "add_output_argument",
+           "add_excitation_argument", "excitation_params",
            "add_planner_arguments", "planner_bounds", "Parser", "positive_float", "nonneg_float",
            "finite_float", "positive_int", "nonneg_int", "vehicle_url", "plot_file", "input_file",
            "output_file", "output_dir", "socket_path", "check_output_file", "check_output_dir",
@@ -138,6 +139,29 @@ def add_output_argument(p: argparse.ArgumentParser) -> None:
                    "or 'rates', body rates and a normalized thrust (SET_ATTITUDE_TARGET), which stock "
                    "PX4 and ArduPilot autopilots take; needs the vehicle file's rate_interface: "
                    "section (docs/autopilots.md) (default: the vehicle file's output:, else rotors)")
+
+
+def add_excitation_argument(p: argparse.ArgumentParser) -> None:
+    """``--identify-excitation`` (fly, serve): the identification flight's rate doublets."""
+    p.add_argument("--identify-excitation", action="store_true",
+                   help="an identification flight: in the hold before the first maneuver, rate doublets on "
+                   "roll, pitch and yaw (+-0.5, 0.5, 0.1 rad/s for 0.15, 0.3, 0.15 s, 0 for 0.2 s, 0.6 s to settle, 3 rounds: 12.6 s) "
+                   "that pin the autopilot's rate loop for 'mavreg identify'; needs --output rates "
+                   "(docs/identify.md) (default: off)")
+
+
+def excitation_params(args, output: str):
+    """The ExcitationParams of ``--identify-excitation`` (None: off); UsageError (one line)
+    for an output with no rate loop to excite."""
+    if not getattr(args, "identify_excitation", False):
+        return None
+    from ..daemon.excitation import ExcitationParams, check_output
+    from ..errors import UsageError
+    try:
+        check_output(ExcitationParams(), output)
+    except ValueError as exc:
+        raise UsageError(f"--identify-excitation: {exc}") from None
+    return ExcitationParams()
 
 
 def add_signing_argument(p: argparse.ArgumentParser, bundled_emulator: bool = False) -> None:

@@ -8,8 +8,8 @@ from pathlib import Path
 from ..errors import UsageError
 from ..config.defaults import CONTROL_RATE_HZ, STALE_TIMEOUT_S
 from .common import (REAL_CONTROLLER, add_entry_offset_argument, add_gcs_arguments,
-                     add_laps_argument, add_model_arguments, add_output_argument, add_planner_arguments,
-                     add_signing_argument, check_output_dir, gcs_config, input_file, load_maneuver_arg,
+                     add_laps_argument, add_model_arguments, add_excitation_argument, add_output_argument,
+                     add_planner_arguments, add_signing_argument, check_output_dir, excitation_params, gcs_config, input_file, load_maneuver_arg,
                      output_dir, planner_bounds, positive_float, socket_path, vehicle_url)
 
 MAX_ENTRY_OFFSET_M = 2.0
@@ -122,6 +122,7 @@ def add_arguments(p):
         "the path needs a controller file whose envelope allows it, see mavreg experiment)"
         % MAX_ENTRY_OFFSET_M)
     add_output_argument(p)
+    add_excitation_argument(p)
     add_signing_argument(p, bundled_emulator=True)
     add_gcs_arguments(p)
     add_planner_arguments(p)
@@ -144,7 +145,8 @@ def run(args) -> int:
         raise UsageError(f"--entry-offset must be at most {MAX_ENTRY_OFFSET_M:g} m long, "
                          f"got {' '.join(f'{v:g}' for v in offset)}")
     gcs = gcs_config(args)
-    with_output(load_vehicle(args.vehicle_params), args.output)   # a bad vehicle file: before anything starts
+    vehicle = with_output(load_vehicle(args.vehicle_params), args.output)   # a bad file: before anything starts
+    excitation = excitation_params(args, vehicle.output)
     load_maneuver_arg(args)             # a bad maneuver file or --laps: before anything starts
     out = Path(args.out) if args.out else Path("flights") / time.strftime("%Y%m%d-%H%M%S")
     why = check_output_dir(str(out))    # the default --out too, before the flight
@@ -157,5 +159,5 @@ def run(args) -> int:
                       signing_key=Path(args.signing_key) if args.signing_key is not None else None,
                       gcs_urls=gcs["gcs_urls"], gcs=gcs["gcs"], tlog_clock=args.tlog_clock,
                       argv=tuple(getattr(args, "command_line", ())), planner=planner_bounds(args), output=args.output,
-                      laps=args.laps)
+                      laps=args.laps, excitation=excitation)
     return fly(opts)

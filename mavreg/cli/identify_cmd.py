@@ -103,6 +103,10 @@ def add_arguments(p):
     p.add_argument("--parasitic", choices=("auto", "yes", "no"), default="auto",
                    help="quadratic parasitic drag: auto keeps it when its 95 %% interval excludes 0 "
                    "(default: auto)")
+    p.add_argument("--rate-window", choices=("auto", "all"), default="auto",
+                   help="rates output: the samples the rate loop is fitted on: auto (the identification "
+                   "excitation's doublets when the flight has them, 'mavreg fly --identify-excitation', "
+                   "else the whole flight) or all (default: auto)")
     p.add_argument("--replicates", type=_replicates, default=300, metavar="N",
                    help="bootstrap replicates for the intervals (default: %(default)s)")
     p.add_argument("--seed", type=nonneg_int, default=0, metavar="N", help="bootstrap seed (default: %(default)s)")

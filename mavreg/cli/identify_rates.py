@@ -18,7 +18,8 @@ def fit(args, vehicle, series):
     link = series.link_delay_s
     delay, source = resolve_delay(args.delay, link, vehicle.estimate_latency_s)
     options = FitOptions(delay_s=delay, parasitic=args.parasitic, replicates=args.replicates, seed=args.seed,
-                         rotor_drag_thrust_exponent=vehicle.rotor_drag_thrust_exponent)
+                         rotor_drag_thrust_exponent=vehicle.rotor_drag_thrust_exponent,
+                         rate_window=getattr(args, "rate_window", "auto"))
     link_part = 0.0 if link is None else link + vehicle.estimate_latency_s
     return identify_rates(series, vehicle.mass_kg, options, link_delay_part_s=link_part), source
 
@@ -60,7 +61,8 @@ def format_result(r, vehicle, flight: str, delay_source: str) -> str:
 def _rate_table(r, ri) -> list[str]:
     """The rate loop's rows: tau, D, d, gain, residual per axis; the file's tau and d last."""
     lines = ["rate loop dw/dt = (w_cmd(t - D) - w)/tau: D from the sample the command answered, "
-             "d the loop's own delay, k the gain fitted freely (the model: 1)",
+             "d the loop's own delay, k the gain fitted freely (the model: 1); fitted on "
+             f"{r.rate_window}",
              f"{'axis':<24}{'tau (ms)':>9}  {'95 % interval':<15}{'D (ms)':>7}  {'95 % interval':<15}"
              f"{'d (ms)':>7}{'k':>8}{'resid (rad/s)':>15}"]
     for name, label in (("roll", "roll"), ("pitch", "pitch"), ("yaw", "yaw"),

@@ -4,8 +4,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..config.defaults import CONTROL_RATE_HZ, STALE_TIMEOUT_S
-from .common import (REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, add_output_argument, add_planner_arguments,
-                     add_signing_argument, gcs_config, output_file, planner_bounds, positive_float, socket_path,
+from .common import (REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, add_excitation_argument, add_output_argument,
+                     add_planner_arguments,
+                     add_signing_argument, excitation_params, gcs_config, output_file, planner_bounds, positive_float, socket_path,
                      vehicle_url)
 
 HELP = "run the offboard daemon: fly maneuvers uploaded on the control endpoint"
@@ -55,6 +56,7 @@ def add_arguments(p):
                    help="the vehicle is a lockstep simulator (it waits for each command): do not "
                    "fly telemetry gaps on the prediction (in real time the daemon does)")
     add_output_argument(p)
+    add_excitation_argument(p)
     add_signing_argument(p)
     add_gcs_arguments(p)
     add_planner_arguments(p)
@@ -80,7 +82,8 @@ def run(args) -> int:
                           Path(args.tlog) if args.tlog else None,
                           SupervisorParams(land_when_done=False, stale_timeout_s=args.stale_timeout_s,
                                            gap_fill=not args.vehicle_lockstep, lockstep=args.vehicle_lockstep,
-                                           hover=HoverParams.from_controller(controller)),
+                                           hover=HoverParams.from_controller(controller),
+                                           excitation=excitation_params(args, vehicle.output)),
                           envelope=controller.envelope, controller=controller,
                           control_rate_hz=args.control_rate_hz, **gcs, planner=planner_bounds(args),
                           tlog_clock="vehicle" if args.vehicle_lockstep else "wall")

@@ -74,6 +74,12 @@ class FlightContext:
     """The recovery has been level, slow and at its altitude since (None: not settled)."""
     gate_wait_start_vehicle_s: float | None = None
     """The health gate first failed in this hold (None: it has not)."""
+    excitation_start_vehicle_s: float | None = None
+    """The identification excitation began (None: not yet, or none asked for)."""
+    excitation_end_vehicle_s: float | None = None
+    """It ended, finished or cut short (None: not yet); it is flown once per flight."""
+    rate_excitation: tuple | None = None
+    """(axis, rate rad/s) the hold's excitation puts on the next rate command (None: none)."""
 
     # the maneuvers
     pending: list = field(default_factory=list)

@@ -18,6 +18,7 @@ from ..model.rotation_kernel import rpy_matrix
 from . import flightpath as fp
 from . import messages as mm
 from .context import FlightContext, FlightParts
+from .excitation import EXCITATION_END
 from .gate import MarginCheck, delay_margin_of
 from .phases import FREE_FLIGHT, Event, LogRecord, Output, Phase
 from .records import BoundViolation, Outcome
@@ -81,6 +82,10 @@ class Flight:
         if phase == Phase.HOLD:
             parts.gate.reset()
             ctx.gate_wait_start_vehicle_s = None
+        ctx.rate_excitation = None             # an excitation never outlives its hold
+        if ctx.excitation_start_vehicle_s is not None and ctx.excitation_end_vehicle_s is None:
+            ctx.excitation_end_vehicle_s = ctx.vehicle_now_s
+            self.announce(out, "excitation", mm.SEVERITY_INFO, f"{EXCITATION_END} cut short: {phase}")
         if phase == Phase.ABORTED and not ctx.reason:
             ctx.reason = detail
         self.event(out, "phase", detail)
@@ -138,7 +143,8 @@ class Flight:
         cmd = parts.forecaster.command(t, rotor_forces_n)
         x = ctx.forecast.x if ctx.forecast is not None else (
             None if ctx.last_sample is None else ctx.last_sample.x)
-        out.messages.append(parts.output.message(now_wall_s, t, cmd, x))
+        excite = ctx.rate_excitation if ctx.phase == Phase.HOLD else None
+        out.messages.append(parts.output.message(now_wall_s, t, cmd, x, excite))
         parts.counters.actuator_sent += 1
         if parts.timesync.due(t):
             out.messages.append(mm.timesync_request(parts.timesync.request(int(now_wall_s * 1e9), t)))

@@ -36,6 +36,7 @@ from ..config.vehicle import load_vehicle, with_output
 from ..control.hover import HoverParams
 from .app import Daemon, DaemonConfig, regulator_factory
 from .ctrllog import load_control_log
+from .excitation import ExcitationParams
 from .gcs import GcsParams
 from .lifeline import wrap_command
 from .link import io_impl
@@ -92,6 +93,9 @@ class FlyOptions:
     """``rotors`` or ``rates`` (what the daemon commands); None: the vehicle file's."""
     laps: int | None = None
     """Fly the maneuver's laps segment this many times (``--laps``); None: as in the file."""
+    excitation: ExcitationParams | None = None
+    """The identification flight's rate doublets in the hold (``--identify-excitation``,
+    :mod:`mavreg.daemon.excitation`); None: none."""
 
 
 def spawn_emulator(vehicle_path: Path, record: Path | None, lockstep: bool, extra: tuple[str, ...] = (),
@@ -162,6 +166,7 @@ def fly(opts: FlyOptions) -> int:
                                                       gap_fill=not (opts.lockstep or opts.vehicle_lockstep),
                                                       lockstep=opts.lockstep or opts.vehicle_lockstep,
                                                       entry_offset_m=tuple(opts.entry_offset_m),
+                                                      excitation=opts.excitation,
                                                       hover=HoverParams.from_controller(controller)),
                           envelope=controller.envelope,
                           controller=controller, control_rate_hz=opts.control_rate_hz,

@@ -13,9 +13,11 @@ import math
 
 import numpy as np
 
+from ..model.mixer import Mixer
 from . import flightpath as fp
 from . import messages as mm
 from .flight import NAN11, Flight, angle_between, norm3, smoothstep
+from .excitation import EXCITATION_END, EXCITATION_START
 from .gate import plan_outside_envelope
 from .monitor import Tracking
 from .phases import Phase
@@ -83,15 +85,71 @@ class Takeoff(HoverPhase):
 
 class Hold(HoverPhase):
     """The safe point: a queued maneuver starts here once the health gate passes; with
-    nothing to fly, land (``fly``) or hold on (``serve``)."""
+    nothing to fly, land (``fly``) or hold on (``serve``). Before the first maneuver, the
+    identification excitation when asked for (:mod:`mavreg.daemon.excitation`): its doublets
+    first, then the hold and the gate as always."""
+
+    def __init__(self, flight: Flight, safety: SafetyPolicy):
+        super().__init__(flight, safety)
+        self._mixer = Mixer.from_vehicle(flight.parts.vehicle).matrix
+        self._unmix = np.linalg.inv(self._mixer)
+
+    def shape(self, sample, rotors, tracking, out):
+        """In a doublet, the hover LQR's torque about the excited axis is left out (the
+        doublet's rate goes out there instead, :meth:`RateOutput.command`), so that fighting
+        the doublet does not saturate the rotor commands the monitor counts."""
+        ctx = self.flight.ctx
+        ctx.rate_excitation = None
+        exc = self.flight.parts.params.excitation
+        if exc is None or ctx.excitation_start_vehicle_s is None or ctx.excitation_end_vehicle_s is not None:
+            return rotors, tracking
+        step = exc.rate_at(sample.time_s - ctx.excitation_start_vehicle_s)
+        if step is not None:
+            ctx.rate_excitation = step
+            wrench = self._mixer @ np.asarray(rotors, dtype=float)
+            wrench[1 + step[0]] = 0.0
+            rotors = self._unmix @ wrench
+        return rotors, tracking
 
     def ramp_done(self, sample, x, rotors, tracking, out) -> None:
         ctx, params = self.flight.ctx, self.flight.parts.params
         t = sample.time_s
+        if self._exciting(t, out):
+            return                          # the gate and the hold's time wait for its end
         self.flight.parts.gate.observe(t, tracking.position_error_m, tracking.attitude_error_rad, rotors)
         hold_s = params.hold_after_s if ctx.maneuvers_done else params.hold_before_s
-        if t - max(ctx.phase_start_vehicle_s, ctx.ramp_start_vehicle_s + ctx.ramps[0].duration_s) >= hold_s:
+        since = max(ctx.phase_start_vehicle_s, ctx.ramp_start_vehicle_s + ctx.ramps[0].duration_s)
+        if ctx.excitation_end_vehicle_s is not None:
+            since = max(since, ctx.excitation_end_vehicle_s)
+        if t - since >= hold_s:
             self._leave(sample, out)
+
+    def _exciting(self, t: float, out) -> bool:
+        """Start, run or end the excitation at vehicle time ``t``: True while it runs. Only
+        before the first maneuver, with one pending and no landing asked for; once a flight."""
+        flight, ctx = self.flight, self.flight.ctx
+        exc = flight.parts.params.excitation
+        if exc is None or ctx.excitation_end_vehicle_s is not None:
+            return False
+        wanted = bool(ctx.pending) and not ctx.maneuvers_done and not ctx.land_requested
+        if ctx.excitation_start_vehicle_s is None:
+            if not wanted:
+                return False
+            ctx.excitation_start_vehicle_s = t
+            flight.parts.forecaster.observing = False    # the doublets are no disturbance to learn
+            flight.announce(out, "excitation", mm.SEVERITY_INFO, f"{EXCITATION_START} {exc.describe()}")
+            return True
+        elapsed = t - ctx.excitation_start_vehicle_s
+        if wanted and elapsed < exc.duration_s:
+            return True
+        ctx.excitation_end_vehicle_s = t
+        ctx.rate_excitation = None
+        flight.parts.forecaster.observing = True
+        flight.parts.gate.reset()                        # the gate judges the hold after it
+        flight.announce(out, "excitation", mm.SEVERITY_INFO,
+                        f"{EXCITATION_END} {'done' if elapsed >= exc.duration_s else 'cut short'} "
+                        f"after {elapsed:.1f} s; holding")
+        return False
 
     def _leave(self, sample, out) -> None:
         flight, ctx = self.flight, self.flight.ctx

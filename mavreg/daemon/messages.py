@@ -14,7 +14,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 __all__ = ["mavlink2", "rate_target", "RATE_TYPE_MASK", "PX4_MAIN_OFFBOARD", "PX4_MAIN_AUTO", "PX4_SUB_LOITER", "PX4_SUB_LAND",
            "VehicleStatus", "decode_heartbeat", "actuator_target", "arm_disarm", "force_disarm",
            "set_offboard", "daemon_heartbeat", "mode_name", "statustext", "SEVERITY_CRITICAL",
-           "SEVERITY_WARNING", "FORCE_DISARM_MAGIC"]
+           "SEVERITY_WARNING", "SEVERITY_INFO", "FORCE_DISARM_MAGIC"]
 
 PX4_MAIN_AUTO = 4
 PX4_MAIN_OFFBOARD = 6
@@ -24,6 +24,7 @@ FORCE_DISARM_MAGIC = 21196.0
 """param2 of ARM_DISARM that forces a disarm in flight (PX4's value)."""
 SEVERITY_CRITICAL = mavlink2.MAV_SEVERITY_CRITICAL
 SEVERITY_WARNING = mavlink2.MAV_SEVERITY_WARNING
+SEVERITY_INFO = mavlink2.MAV_SEVERITY_INFO
 _TEXT_LEN = 50
 _MAX_CHUNKS = 6
 

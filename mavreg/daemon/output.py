@@ -38,8 +38,10 @@ class RotorOutput:
         self._fmax = float(vehicle.max_rotor_thrust_n)
         self._target = (system_id, component_id)
 
-    def message(self, now_s: float, t_s: float, rotor_forces_n: np.ndarray, x: np.ndarray | None):
-        """The message for clipped rotor commands (N); ``t_s`` and ``x`` are not needed."""
+    def message(self, now_s: float, t_s: float, rotor_forces_n: np.ndarray, x: np.ndarray | None,
+                excitation: tuple | None = None):
+        """The message for clipped rotor commands (N); ``t_s`` and ``x`` are not needed, and
+        there is no rate loop to excite (the supervisor refuses an excitation here)."""
         return mm.actuator_target(int(now_s * 1e6), *self._target, rotor_forces_n / self._fmax)
 
 
@@ -82,9 +84,13 @@ class RateOutput:
         return self._torque
 
     def command(self, rotor_forces_n: np.ndarray, x: np.ndarray | None,
-                t_s: float | None = None) -> tuple[np.ndarray, float]:
+                t_s: float | None = None, excitation: tuple | None = None) -> tuple[np.ndarray, float]:
         """(rates (3,) rad/s, normalized thrust) for the rotor commands at state x (None: at
-        rest), the torque lagged up to vehicle time ``t_s`` (None: not lagged)."""
+        rest), the torque lagged up to vehicle time ``t_s`` (None: not lagged).
+        ``excitation`` (axis, rate rad/s): the identification flight's doublet sends that
+        rate on that axis instead (:mod:`mavreg.daemon.excitation`), within the same limits
+        and as is: a clean step, not compensated for an autopilot's attitude term (whose
+        error still integrates it), as a rate-step measurement sends it."""
         wrench = self._mixer @ np.asarray(rotor_forces_n, dtype=float)
         omega = np.zeros(3) if x is None else np.asarray(x[9:12], dtype=float)
         if t_s is not None and self._t_s is not None and t_s > self._t_s:
@@ -94,12 +100,17 @@ class RateOutput:
         if wrench[0] <= 0.0:
             self._attitude_loop.reset()    # motors idle: ask for no rotation
             return np.zeros(3), self._map.normalized(float(wrench[0]))
+        axis = None
+        if excitation is not None:
+            axis = int(excitation[0])
+            rates[axis] = float(np.clip(excitation[1], -self._max_rate[axis], self._max_rate[axis]))
         if self._attitude_loop.active:
-            rates = self._attitude_loop.rates(rates, omega, self._period_s, self._max_rate)
+            rates = self._attitude_loop.rates(rates, omega, self._period_s, self._max_rate, as_is=axis)
         return rates, self._map.normalized(float(wrench[0]))
 
-    def message(self, now_s: float, t_s: float, rotor_forces_n: np.ndarray, x: np.ndarray | None):
-        rates, thrust = self.command(rotor_forces_n, x, t_s)
+    def message(self, now_s: float, t_s: float, rotor_forces_n: np.ndarray, x: np.ndarray | None,
+                excitation: tuple | None = None):
+        rates, thrust = self.command(rotor_forces_n, x, t_s, excitation)
         return mm.rate_target(int(now_s * 1e3) & 0xFFFFFFFF, *self._target, rates, thrust)
 
 

@@ -12,6 +12,7 @@ import numpy as np
 
 from ..config.defaults import STALE_TIMEOUT_S
 from ..control.hover import HoverParams
+from .excitation import ExcitationParams
 
 __all__ = ["Phase", "PHASE_CODES", "AIRBORNE", "FREE_FLIGHT", "SupervisorParams", "Event", "LogRecord",
            "Output", "Counters"]
@@ -113,6 +114,10 @@ class SupervisorParams:
     parameter_timeout_s: float = 10.0
     """Vehicle time the autopilot may take to answer the parameter reads before arming
     (:mod:`mavreg.daemon.preflight`); then the take-off is refused."""
+    excitation: ExcitationParams | None = None
+    """The identification flight's rate doublets in the hold before the first maneuver
+    (``--identify-excitation``, :mod:`mavreg.daemon.excitation`; the rates output only).
+    None (the default): no excitation."""
 
 
 @dataclass(frozen=True)

@@ -42,6 +42,7 @@ from ..config.vehicle import VehicleParams
 from ..control.forecast import Forecaster
 from . import messages as mm
 from .context import FlightContext, FlightParts
+from .excitation import check_output
 from .flight import Flight
 from .gate import nominal_points
 from .handlers import make_handlers
@@ -89,6 +90,7 @@ class Supervisor:
                  forecaster: Forecaster | None = None, fixed_delay_s: float | None = None):
         parts = FlightParts.build(vehicle, params, regulator_factory, envelope, link_health, forecaster,
                                   fixed_delay_s)
+        check_output(params.excitation, parts.output.kind)
         for f in dataclasses.fields(parts):          # sup.forecaster, sup.monitor, ...: the parts
             setattr(self, f.name, getattr(parts, f.name))
         self.ctx = FlightContext()

@@ -96,6 +96,9 @@ class FitOptions:
     """Rates output: the longest rate-loop time constant searched."""
     rate_delay_max_s: float = 0.1
     """Rates output: the longest sample-to-rate-response delay searched."""
+    rate_window: str = "auto"
+    """Rates output: the samples the rate loop is fitted on. 'auto': the identification
+    excitation's doublets when the flight has them (and 0.5 s after), else all; 'all'."""
     rotor_drag_thrust_exponent: float = 0.0
     """e of the rotor-plane drag c_xy (T / m g)^e (the vehicle file's): the body x and y drag
     columns are scaled by it, T taken as the mass times the measured specific force, so that
@@ -332,6 +335,8 @@ def checked_options(options: FitOptions | None) -> FitOptions:
                             f"its polynomial order 1..window-2 (got {o.polyorder})")
     if o.parasitic not in ("auto", "yes", "no"):
         raise IdentifyError(f"parasitic must be auto, yes or no, got {o.parasitic!r}")
+    if o.rate_window not in ("auto", "all"):
+        raise IdentifyError(f"rate window must be auto or all, got {o.rate_window!r}")
     return o
 
 

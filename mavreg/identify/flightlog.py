@@ -23,6 +23,9 @@ From the ``.tlog`` (every message in and out, in the order the daemon saw or sen
   it, so a command goes with the latest complete sample not answered yet. A command with no
   such sample (real time: sent across a telemetry gap) is placed on the vehicle clock by its
   ``time_usec`` or ``time_boot_ms`` (the daemon's clock) less the median offset of the paired commands;
+- the daemon's STATUSTEXTs ``mavreg excitation: start:`` and ``end:`` bound the
+  identification flight's rate doublets (:mod:`mavreg.daemon.excitation`), each at the time
+  of the last complete sample before it;
 - TIMESYNC: the daemon's request (``tc1 = 0``) follows the command of the sample it goes
   with; the vehicle's reply carries its clock (``tc1``, ns). ``tc1`` minus that sample's time
   is the sample-to-actuation delay of the link (:mod:`mavreg.daemon.timesync`); the median is
@@ -45,6 +48,8 @@ _RATES_MASK = 128
 """SET_ATTITUDE_TARGET type_mask bits: attitude ignored (128) ..."""
 _RATES_UNUSED = 1 | 2 | 4 | 64
 """... and none of the body rates (1, 2, 4) or the thrust (64) ignored: the rates output."""
+_EXCITATION = ("mavreg excitation: start:", "mavreg excitation: end:")
+"""The daemon's STATUSTEXTs at the start and the end of the excitation (their first chunk)."""
 
 
 def read_flight(path: str | Path) -> FlightSeries:
@@ -122,10 +127,12 @@ def _parse(conn, path: Path) -> FlightSeries:
     cmds = {"rotors": _Commands(), "rates": _Commands()}
     ts_request: dict[int, float] = {}
     delays: list[float] = []
+    marks: list[list[float]] = []       # [start, end] of each excitation
     while True:
         try:
             msg = conn.recv_match(type=["LOCAL_POSITION_NED", "ATTITUDE_QUATERNION", "ATTITUDE", "HEARTBEAT",
-                                        "SET_ACTUATOR_CONTROL_TARGET", "SET_ATTITUDE_TARGET", "TIMESYNC"])
+                                        "SET_ACTUATOR_CONTROL_TARGET", "SET_ATTITUDE_TARGET", "TIMESYNC",
+                                        "STATUSTEXT"])
         except Exception as exc:
             raise UsageError(f"{path}: unreadable tlog ({type(exc).__name__}: {exc})") from None
         if msg is None:
@@ -141,6 +148,9 @@ def _parse(conn, path: Path) -> FlightSeries:
                 if unanswered is not None:
                     last_answered = unanswered
                 unanswered = None
+        elif mtype == "STATUSTEXT":
+            if src != vehicle and rows:
+                _excitation_mark(str(msg.text), rows[-1][0], marks)
         elif mtype == "TIMESYNC":
             if src != vehicle and msg.tc1 == 0 and not math.isnan(last_answered):
                 ts_request[int(msg.ts1)] = last_answered
@@ -173,10 +183,19 @@ def _parse(conn, path: Path) -> FlightSeries:
                     for k in [k for k in store if k <= tms]:
                         del store[k]
                 unanswered = t
-    return _series(path, vehicle, rows, cmds, delays)
+    windows = tuple((a, b if math.isfinite(b) else rows[-1][0]) for a, b in marks) if rows else ()
+    return _series(path, vehicle, rows, cmds, delays, windows)
 
 
-def _series(path: Path, vehicle, rows: list, cmds: dict, delays: list) -> FlightSeries:
+def _excitation_mark(text: str, t: float, marks: list) -> None:
+    """A start (a new window open to the end) or an end (closing the last) of the excitation."""
+    if text.startswith(_EXCITATION[0]):
+        marks.append([t, math.inf])
+    elif text.startswith(_EXCITATION[1]) and marks and not math.isfinite(marks[-1][1]):
+        marks[-1][1] = t
+
+
+def _series(path: Path, vehicle, rows: list, cmds: dict, delays: list, windows: tuple = ()) -> FlightSeries:
     """The parsed flight as a FlightSeries; UsageError (one line) if it lacks what the fit needs."""
     if vehicle is None or not rows:
         raise UsageError(f"{path}: no vehicle telemetry (LOCAL_POSITION_NED with ATTITUDE_QUATERNION) "
@@ -197,7 +216,7 @@ def _series(path: Path, vehicle, rows: list, cmds: dict, delays: list) -> Flight
         command_t_s=_place_commands(np.array(c.t), np.array(c.usec, dtype=float)),
         command_controls=np.array(c.u, dtype=float),
         link_delay_s=float(np.median(delays)) if delays else None,
-        output=output, body_rates_rad_s=a[:, 12:15])
+        output=output, body_rates_rad_s=a[:, 12:15], excitation_windows_s=windows)
 
 
 def _place_commands(t: np.ndarray, usec: np.ndarray) -> np.ndarray:

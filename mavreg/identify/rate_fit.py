@@ -30,6 +30,12 @@ over a grid, and the bootstrap gives every interval. The gain k fitted freely at
 :math:`(\tau_\omega, D)` is reported: near 1 says the model fits. The delay D runs from the sample the command answered to the response, so the rate
 loop's own delay is :math:`d = D - D_{link}` with the link's part (TIMESYNC plus the vehicle
 file's estimate latency) given by the caller.
+
+**Which samples.** A flight with the identification excitation (``mavreg fly
+--identify-excitation``: rate doublets in the hold, :mod:`mavreg.daemon.excitation`) has the
+rate loop fitted on the doublets' window only (:func:`rate_rows`; ``rate_window`` 'all': the
+whole flight). A maneuver's rates are large and smooth: where the loop is not first order
+they weigh a split of lag and delay of their own into the fit, which the steps pin otherwise.
 """
 from __future__ import annotations
 
@@ -42,7 +48,7 @@ from .estimates import Estimate, drag_estimates, fit_quality, interval, interval
 from .fit import FitOptions, ColumnModel, checked_options, fit_columns, translational_fit
 from .regressors import FlightSeries, IdentifyError, Regressors, lagged_integrals
 
-__all__ = ["RateAxis", "RateIdentification", "identify_rates", "thrust_channels", "AXES"]
+__all__ = ["RateAxis", "RateIdentification", "identify_rates", "thrust_channels", "rate_rows", "AXES"]
 
 AXES = {"roll": (0,), "pitch": (1,), "yaw": (2,), "roll_pitch": (0, 1)}
 """The rate fits: each axis alone, and roll with pitch sharing one time constant and delay
@@ -53,6 +59,9 @@ _RATE_GRID_S = (0.01, 0.004)
 
 _MIN_RATE_RMS_RAD_S = 0.05
 """An axis whose commanded rate varies less than this (RMS about its mean) is not fitted."""
+_MIN_EXCITED_RMS_RAD_S = 0.02
+"""The same on the identification excitation's window, whose yaw pulses are small on
+purpose (0.1 rad/s: a larger yaw step meets the yaw torque's limit) but are steps."""
 
 
 @dataclass(frozen=True)
@@ -109,6 +118,8 @@ class RateIdentification:
     intervals: str
     link_delay_s: float | None
     output: str = "rates"
+    rate_window: str = "the whole flight"
+    """The samples the rate loop was fitted on (:func:`rate_rows`)."""
 
     def as_dict(self) -> dict:
         return {
@@ -122,7 +133,7 @@ class RateIdentification:
             "parasitic_drag_n_s2_per_m2": self.parasitic_n_s2_per_m2.as_dict(),
             "residual_rms_m_s2": self.residual_rms_m_s2, "r_squared": self.r_squared,
             "thrust_range": list(self.thrust_range),
-            "rate_loop": {k: a.as_dict() for k, a in self.rate_axes.items()},
+            "rate_loop": {k: a.as_dict() for k, a in self.rate_axes.items()}, "rate_window": self.rate_window,
             "link_delay_part_s": self.link_delay_part_s, "link_delay_timesync_s": self.link_delay_s,
             "samples": self.samples, "duration_s": self.duration_s,
             "rms_body_speed_m_s": list(self.rms_body_speed_m_s), "intervals": self.intervals,
@@ -144,8 +155,8 @@ class _RateRows:
     measured rate integrated over the interval ending at each row, ``fixed`` (rows, a, a) an
     offset per axis, and one column: the delayed, lagged command's integral."""
 
-    def __init__(self, P: Regressors, command: np.ndarray, axes: tuple):
-        self.h, self.rows, self.axes = P.h, P.rows, axes
+    def __init__(self, P: Regressors, command: np.ndarray, axes: tuple, rows: np.ndarray | None = None):
+        self.h, self.rows, self.axes = P.h, P.rows if rows is None else rows, axes
         self.cmd = command[:, list(axes)]
         w = P.rates[:, list(axes)]
         self.y = P.h / 2 * (w[self.rows - 1] + w[self.rows])
@@ -197,7 +208,9 @@ def identify_rates(series: FlightSeries, mass_kg: float, options: FitOptions | N
                             "pitchspeed, yawspeed all 0): the rate loop cannot be measured")
     ro = replace(o, tau_max_s=o.rate_tau_max_s, delay_max_s=o.rate_delay_max_s, delay_s=None,
                  grid_steps_s=_RATE_GRID_S, delay_needs_margin=True)
-    axes = {name: _rate_axis(P, command, idx, ro, link_delay_part_s) for name, idx in AXES.items()}
+    rows, window = rate_rows(P, series.excitation_windows_s, o.rate_window)
+    least = _MIN_EXCITED_RMS_RAD_S if window.startswith("the identification") else _MIN_RATE_RMS_RAD_S
+    axes = {name: _rate_axis(P, command, idx, ro, link_delay_part_s, rows, least) for name, idx in AXES.items()}
     fit, speed = translational_fit(P, o)
     hover, expo, fmax = _thrust_map(fit, mass_kg)
     tau_f, delay_f = lag_estimates(fit, o, what="collective's lag")
@@ -211,7 +224,26 @@ def identify_rates(series: FlightSeries, mass_kg: float, options: FitOptions | N
         thrust_range=tuple(float(x) for x in np.percentile(used, [5, 95])),
         rate_axes=axes, link_delay_part_s=float(link_delay_part_s), samples=int(P.rows.size),
         duration_s=float(P.rows.size * P.h), rms_body_speed_m_s=speed,
-        intervals=intervals_text(fit["bs"], P.h, o), link_delay_s=series.link_delay_s)
+        intervals=intervals_text(fit["bs"], P.h, o), link_delay_s=series.link_delay_s, rate_window=window)
+
+
+_AFTER_EXCITATION_S = 0.5
+"""The rate fit keeps this much after the excitation's end: its last doublet's response."""
+
+
+def rate_rows(P: Regressors, windows: tuple, how: str) -> tuple[np.ndarray, str]:
+    """(the rows the rate loop is fitted on, a phrase saying which): with ``how`` 'auto' and
+    the identification excitation in the flight, the usable rows inside its windows (and
+    ``_AFTER_EXCITATION_S`` after), where the rate steps are; else every usable row."""
+    if how == "auto" and windows:
+        t = P.t0 + P.rows * P.h
+        inside = np.zeros(P.rows.size, bool)
+        for start, end in windows:
+            inside |= (t >= start) & (t <= end + _AFTER_EXCITATION_S)
+        if inside.sum() * P.h >= 2.0:
+            span = ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in windows)
+            return P.rows[inside], f"the identification excitation ({span}, {inside.sum() * P.h:.1f} s)"
+    return P.rows, "the whole flight"
 
 
 def _hover(c1, c2, weight_n):
@@ -240,15 +272,16 @@ def _thrust_map(fit: dict, mass_kg: float) -> tuple[Estimate, Estimate, Estimate
             interval(float(c1 + c2), fmax_r))
 
 
-def _rate_axis(P: Regressors, command: np.ndarray, axes: tuple, o: FitOptions, link_part_s: float) -> RateAxis:
-    """The rate loop about ``axes`` (one, or several sharing tau and D)."""
-    cmd = command[P.rows][:, list(axes)]
+def _rate_axis(P: Regressors, command: np.ndarray, axes: tuple, o: FitOptions, link_part_s: float,
+               rows: np.ndarray, least_rms_rad_s: float = _MIN_RATE_RMS_RAD_S) -> RateAxis:
+    """The rate loop about ``axes`` (one, or several sharing tau and D), on ``rows``."""
+    cmd = command[rows][:, list(axes)]
     spread = float(np.sqrt(np.mean((cmd - cmd.mean(axis=0)) ** 2)))
-    if spread < _MIN_RATE_RMS_RAD_S:
-        why = f"commanded rate RMS {spread:.3f} rad/s < {_MIN_RATE_RMS_RAD_S:g}: the flight does not turn about it"
+    if spread < least_rms_rad_s:
+        why = f"commanded rate RMS {spread:.3f} rad/s < {least_rms_rad_s:g}: the flight does not turn about it"
         none = Estimate(None, why=why)
         return RateAxis(none, none, none, float("nan"), float("nan"), float("nan"), spread)
-    R = _RateRows(P, command, axes)
+    R = _RateRows(P, command, axes, rows)
     cols = list(range(len(axes)))
     fit = fit_columns(R, cols, o, known=np.ones(1))
     tau, delay = lag_estimates(fit, o, what="rate loop")

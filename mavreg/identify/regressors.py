@@ -54,6 +54,9 @@ class FlightSeries:
     (SET_ATTITUDE_TARGET body rates and thrust)."""
     body_rates_rad_s: np.ndarray | None = None
     """(N, 3) the measured body rates p, q, r (rad/s, FRD) of each sample, if known."""
+    excitation_windows_s: tuple = ()
+    """((start, end), ...) vehicle times of the identification flight's rate doublets
+    (the daemon's ``mavreg excitation: start:`` and ``end:`` STATUSTEXTs; none: empty)."""
 
 
 def rotor_channels(s: FlightSeries, max_rotor_thrust_n: float) -> np.ndarray:

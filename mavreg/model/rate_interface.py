@@ -122,10 +122,15 @@ class AttitudeLoopCompensation:
     def reset(self) -> None:
         self.error = np.zeros(3)
 
-    def rates(self, wanted, omega, dt_s: float, limit=np.inf) -> np.ndarray:
+    def rates(self, wanted, omega, dt_s: float, limit=np.inf, as_is=None) -> np.ndarray:
         """The rates to send (within +-``limit``) for ``wanted`` (3,), the body rates now
-        ``omega`` (3,), and the time ``dt_s`` this command will be held."""
+        ``omega`` (3,), and the time ``dt_s`` this command will be held. ``as_is`` (an axis
+        index, or None): that axis is sent as wanted, uncompensated (an identification step,
+        which should reach the autopilot as a clean step); its error integrates as ever."""
         send = np.clip(np.asarray(wanted, dtype=float) - self.gain * self.error, -limit, limit)
+        if as_is is not None:
+            cap = float(np.broadcast_to(limit, (3,))[as_is])
+            send[as_is] = min(max(float(wanted[as_is]), -cap), cap)
         step = dt_s * (send - np.asarray(omega, dtype=float))
         self.error = np.clip(self.error + step, -self.max_error_rad, self.max_error_rad)
         return send

@@ -133,7 +133,7 @@ def _rodrigues(w_dt: np.ndarray) -> np.ndarray:
 def synthetic_rate_flight(duration_s=20.0, h=0.002, hover_thrust=0.35, expo=0.4, rate_tau_s=(0.03, 0.03, 0.05),
                           delay_s=0.012, thrust_tau_s=0.03, drag=(0.25, 0.35, 0.15), noise_sd=0.02,
                           noise_tc_s=0.2, gyro_sd=0.01, seed=1, excite=1.0, rate_order=1,
-                          squares=True) -> FlightSeries:
+                          squares=True, doublets=None) -> FlightSeries:
     """A flight of the rates output, closed loop: the rigid body under a stock autopilot's
     rate loop (a pure delay, then first order per axis with ``rate_tau_s``; ``rate_order`` 2:
     two cascaded lags of half that, the wrong model order) and thrust map
@@ -142,7 +142,10 @@ def synthetic_rate_flight(duration_s=20.0, h=0.002, hover_thrust=0.35, expo=0.4,
 
     At each sample the "regulator" commands body rates
     ``0.5 w_measured - 2 (roll, pitch, yaw - yaw_ref) + excitation`` (sinusoids and square
-    waves per axis, scaled by ``excite``; ``squares`` False: the sinusoids only); the measured rates carry white noise ``gyro_sd``)
+    waves per axis, scaled by ``excite``; ``squares`` False: the sinusoids only; ``doublets``,
+    an :class:`~mavreg.daemon.excitation.ExcitationParams`: no sinusoids or square waves, but the
+    identification flight's doublets from t = 0.5 s, sent as they are on their axis in place of
+    the feedback, as the daemon's hold sends them); the measured rates carry white noise ``gyro_sd``)
     and the thrust that holds the weight through the tilt, less a vertical-speed feedback on
     the measured (Gauss-Markov noisy) velocity, with a slow sinusoid, a 3 Hz square wave and
     noise. The fine step is h / 2; body drag as :func:`synthetic_flight`.
@@ -158,7 +161,7 @@ def synthetic_rate_flight(duration_s=20.0, h=0.002, hover_thrust=0.35, expo=0.4,
     decay = np.exp(-hf / tau)                       # stages (p1, p2, q1, q2, r1, r2)
     ts = np.arange(n) * h
     sq = np.sign if squares else np.zeros_like
-    exc = excite * np.stack([1.2 * np.sin(2 * np.pi * 0.4 * ts) + 0.6 * sq(np.sin(2 * np.pi * 2.3 * ts)),
+    exc = (0.0 if doublets is not None else excite) * np.stack([1.2 * np.sin(2 * np.pi * 0.4 * ts) + 0.6 * sq(np.sin(2 * np.pi * 2.3 * ts)),
                              1.2 * np.sin(2 * np.pi * 0.3 * ts + 1) + 0.6 * sq(np.sin(2 * np.pi * 1.7 * ts)),
                              0.8 * np.sin(2 * np.pi * 0.2 * ts) + 0.4 * sq(np.sin(2 * np.pi * 1.1 * ts))], 1)
     thr_exc = 1 + excite * (0.15 * np.sin(2 * np.pi * 0.9 * ts) + 0.12 * np.sign(np.sin(2 * np.pi * 3.0 * ts))
@@ -186,6 +189,9 @@ def synthetic_rate_flight(duration_s=20.0, h=0.002, hover_thrust=0.35, expo=0.4,
             rpy = matrix_to_rpy(R)
             rpy[2] -= 0.25 * ts[k]
             cmd[k, :3] = 0.5 * w_m - 2.0 * ((rpy + np.pi) % (2 * np.pi) - np.pi) + exc[k]
+            step = None if doublets is None else doublets.rate_at(ts[k] - 0.5)
+            if step is not None:
+                cmd[k, step[0]] = step[1]
             tilt = max(0.5, R[2, 2])
             f_sched[k] = MASS_KG * (G + 1.0 * (v[2] + e_v[2])) / tilt * thr_exc[k]
             cmd[k, 3] = tmap.normalized(f_sched[k])
