@@ -201,16 +201,18 @@ class DisturbanceObserver:
             if self.torque.update(dt_s, thrust_n, innovation_rad_s, rate_rad_s):
                 self._estimates = None
 
+    def sample_gap(self) -> None:
+        """Samples too far apart to compare: the rotor-lag part's sensitivity starts again
+        (:meth:`RotorLagObserver.restart <mavreg.control.lag_observer.RotorLagObserver.restart>`)."""
+        if self.lag is not None:
+            self.lag.restart()
+
     def update_lag(self, dt_s: float, torque_change_n_m, innovation_rad_s, rate_rad_s) -> None:
         """One sample interval of the rotor-lag part (:meth:`RotorLagObserver.update
-        <mavreg.control.lag_observer.RotorLagObserver.update>`; a gap restarts its
-        sensitivity); nothing without it."""
-        if self.lag is None:
-            return
-        if not 0.0 < dt_s <= self.params.max_sample_gap_s:
-            self.lag.restart()
-        elif self.lag.update(dt_s, torque_change_n_m, innovation_rad_s, rate_rad_s):
-            self._estimates = None
+        <mavreg.control.lag_observer.RotorLagObserver.update>`); nothing without it."""
+        if self.lag is not None and 0.0 < dt_s <= self.params.max_sample_gap_s:
+            if self.lag.update(dt_s, torque_change_n_m, innovation_rad_s, rate_rad_s):
+                self._estimates = None
 
     def update(self, dt_s: float, R, v, thrust_n: float, innovation_m_s) -> None:
         """One measurement: ``innovation_m_s`` (3,) = the sample's velocity less its prediction

@@ -112,7 +112,7 @@ class Forecaster:
         h = t_s - t0
         obs = self.observer
         if not 0.0 < h <= obs.params.max_sample_gap_s:
-            obs.update_lag(h, None, None, None)         # a gap: the lag's sensitivity restarts
+            obs.sample_gap()
             return
         model = self._model()
         f0 = self.predictor.rotor_forces(t0, delay_s)

@@ -91,8 +91,8 @@ class Hold(HoverPhase):
 
     def __init__(self, flight: Flight, safety: SafetyPolicy):
         super().__init__(flight, safety)
-        self._mixer = Mixer.from_vehicle(flight.parts.vehicle).matrix
-        self._unmix = np.linalg.inv(self._mixer)
+        mixer = Mixer.from_vehicle(flight.parts.vehicle)
+        self._mixer, self._unmix = mixer.matrix, mixer.inverse
 
     def shape(self, sample, rotors, tracking, out):
         """In a doublet, the hover LQR's torque about the excited axis is left out (the
