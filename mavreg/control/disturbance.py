@@ -146,8 +146,14 @@ class DisturbanceObserver:
         self.updates = 0
         self.rejected = 0
         """Measurements refused by the innovation gate."""
-        self.torque = (TorqueBiasObserver(params.torque_bias, vehicle) if params.torque_bias.enabled else None)
-        """The torque part (:mod:`mavreg.control.torque_bias`), or None."""
+        self.torque = (TorqueBiasObserver(params.torque_bias, vehicle)
+                       if params.torque_bias.enabled and vehicle.output == "rotors" else None)
+        """The torque part (:mod:`mavreg.control.torque_bias`), or None. Not with rates and
+        thrust to an autopilot (``vehicle.output`` "rates"): the autopilot's rate loop
+        integrates its rate error, so a torque proportional to the thrust is rejected there,
+        and what the body rates show against the model is the loop's own transient. On a stock
+        PX4 (SIH) the part read that as t1 = +23.9 mm and the hold drifted 0.54 m off its point
+        (docs/autopilots.md, *PX4*)."""
         self.lag = (RotorLagObserver(params.rotor_lag, vehicle)
                     if params.rotor_lag.enabled and vehicle.output == "rotors" else None)
         """The rotor-lag part (:mod:`mavreg.control.lag_observer`), or None. Not with rates and

@@ -137,3 +137,12 @@ def test_with_rates_to_an_autopilot_the_lag_is_the_files():
     assert DisturbanceObserver(on, VEHICLE).lag is not None
     rates = DisturbanceObserver(on, with_output(VEHICLE, "rates"))
     assert rates.lag is None and rates.estimate.rotor_time_constant_s is None
+
+
+def test_with_rates_to_an_autopilot_no_torque_bias_is_estimated():
+    """The autopilot's rate loop integrates its rate error and so rejects a torque bias
+    itself: the torque part is off there, on in the rotors output of the same file."""
+    on = _observing(True)
+    assert DisturbanceObserver(on, VEHICLE).torque is not None
+    rates = DisturbanceObserver(on, with_output(VEHICLE, "rates"))
+    assert rates.torque is None and rates.estimate.torque_bias == (0.0,) * 6
