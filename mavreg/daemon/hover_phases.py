@@ -209,6 +209,28 @@ class RunIn(HoverPhase):
         flight.set_phase(out, Phase.MANEUVER, f"maneuver {plan.name!r} begins")
 
 
+def touched_down(descent, t_s: float, vz_m_s: float, altitude_m: float, params) -> float | None:
+    """The touchdown speed (m/s, down positive) once the ground has stopped the landing's
+    descent, else None.
+
+    ``descent`` keeps ``(t_s, vz_m_s)`` of the last second (appended here). Touchdown: within
+    ``params.touchdown_band_m`` of the take-off height, every vertical speed of the last
+    ``params.touchdown_settle_s`` below ``params.touchdown_stall_m_s`` while the landing asks
+    for a descent, after it sank faster than that (or for a whole second: a landing begun at
+    the ground). The speed is the fastest descent of the second before it.""" 
+    descent.append((t_s, vz_m_s))
+    while descent and t_s - descent[0][0] > 1.0:
+        descent.popleft()
+    if altitude_m > params.touchdown_band_m or t_s - descent[0][0] < params.touchdown_settle_s:
+        return None
+    if any(vz >= params.touchdown_stall_m_s for tv, vz in descent if t_s - tv <= params.touchdown_settle_s):
+        return None
+    fastest = max(vz for _, vz in descent)
+    if fastest < params.touchdown_stall_m_s and t_s - descent[0][0] < 0.9:
+        return None          # not yet sinking (a landing begun low): a stall says nothing yet
+    return fastest
+
+
 class Land(HoverPhase):
     """Descend to the take-off altitude (the hover LQR, or the recovery controller after a
     recovery that could not settle); at touchdown spool down, then disarm."""
@@ -234,12 +256,9 @@ class Land(HoverPhase):
         t = sample.time_s
         altitude = ctx.ground_z_m - sample.x[2]
         if ctx.spool_down_start_vehicle_s is None:
-            ctx.descent.append((t, float(sample.velocity_ned_m_s[2])))
-            while ctx.descent and t - ctx.descent[0][0] > 0.3:
-                ctx.descent.popleft()
-            if altitude <= params.touchdown_altitude_m:
+            speed = touched_down(ctx.descent, t, float(sample.velocity_ned_m_s[2]), altitude, params)
+            if speed is not None:
                 ctx.spool_down_start_vehicle_s = t
-                speed = max(vz for _, vz in ctx.descent)
                 ctx.touchdown_speed_m_s = speed
                 flight.event(out, "touchdown", f"touchdown at altitude {altitude:.3f} m, descending at "
                              f"{speed:.2f} m/s; spooling down")

@@ -90,7 +90,16 @@ class SupervisorParams:
     with the entry's velocity. Zero in ordinary flight."""
     land_speed_m_s: float = 0.3
     land_slow_altitude_m: float = 0.4
-    touchdown_altitude_m: float = 0.03
+    touchdown_band_m: float = 0.5
+    """Touchdown is looked for within this height of the take-off point: an estimator's height
+    over the same ground can move by tenths of a metre in a flight (PX4's EKF2 follows its
+    barometer: 0.3 m measured), so the height alone cannot say the vehicle is down."""
+    touchdown_stall_m_s: float = 0.1
+    touchdown_settle_s: float = 0.25
+    """Touchdown: within :attr:`touchdown_band_m`, the descent the landing asks for has stopped
+    (every vertical speed below :attr:`touchdown_stall_m_s`, sinking, for this long): the
+    ground holds the vehicle. Only then are the motors spooled down, so that an estimate that
+    reads the ground too high never idles the motors in the air."""
     land_mode_after_s: float = 1.0
     """Vehicle time after the spool-down that disarm requests are tried; then the autopilot's
     own landing mode is asked for (its land detector disarms; ArduCopter refuses a disarm in
