@@ -61,7 +61,12 @@ class RateInterfaceParams:
     """e of the thrust map: the curvature the autopilot leaves in its thrust command (0: the
     autopilot linearizes its motors' thrust, as ArduPilot with ``MOT_THST_EXPO`` does)."""
     rate_time_constant_s: float = field(default=0.02, metadata={"min": 0.001, "max": 0.5})
-    """tau_omega: time constant of the body rates' response to their command."""
+    """tau_omega: time constant of the body rates' response to their command (roll and pitch;
+    yaw too unless :attr:`yaw_rate_time_constant_s` says otherwise)."""
+    yaw_rate_time_constant_s: float | None = field(default=None, metadata={"min": 0.001, "max": 2.0})
+    """tau_omega of yaw where it differs (None: ``rate_time_constant_s``). A stock autopilot's
+    yaw loop can be an order of magnitude slower than roll and pitch: PX4's SIH quadrotor
+    (``MC_YAWRATE_P`` 0.2 on 0.2 N m of yaw authority) answers in 0.25-0.5 s against 0.05-0.08 s."""
     rate_delay_s: float = field(default=0.0, metadata={"min": 0.0, "max": 0.2})
     """d: from the command's arrival to the start of the rates' response (added to the
     link delay the state is predicted across)."""

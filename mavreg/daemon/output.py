@@ -64,7 +64,8 @@ class RateOutput:
         self._mixer = Mixer.from_vehicle(vehicle).matrix
         self._map = ThrustMap.from_params(vehicle.mass_kg, p)
         self._inertia = np.asarray(vehicle.inertia_kg_m2, dtype=float)
-        self._tau = float(p.rate_time_constant_s)
+        yaw_tau = p.rate_time_constant_s if p.yaw_rate_time_constant_s is None else p.yaw_rate_time_constant_s
+        self._tau = np.array([p.rate_time_constant_s, p.rate_time_constant_s, yaw_tau], dtype=float)
         self._max_rate = np.asarray(p.max_body_rate_rad_s, dtype=float)
         self._target = (system_id, component_id)
         self._lag_s = float(vehicle.rotor_time_constant_s)

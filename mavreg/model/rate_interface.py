@@ -77,10 +77,11 @@ class ThrustMap:
         return min(2.0 * y / (b + math.sqrt(b * b + 4.0 * e * y)), 1.0)
 
 
-def rate_command(omega, torque_n_m, inertia_kg_m2, time_constant_s: float) -> np.ndarray:
+def rate_command(omega, torque_n_m, inertia_kg_m2, time_constant_s) -> np.ndarray:
     r"""The rate command :math:`\omega_c = \omega + \tau J^{-1}(\gamma - \omega\times J\omega)`
     that makes a first-order rate loop of time constant :math:`\tau` give the rigid body of
-    diagonal inertia J the torque :math:`\gamma` (all body frame, (3,))."""
+    diagonal inertia J the torque :math:`\gamma` (all body frame, (3,)); :math:`\tau` one for
+    every axis or one per axis (3,)."""
     w = np.asarray(omega, dtype=float)
     J = np.asarray(inertia_kg_m2, dtype=float)
     gyro = np.cross(w, J * w)

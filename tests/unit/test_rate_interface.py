@@ -96,6 +96,26 @@ def test_rate_output_realizes_the_wrench(vehicle):
     np.testing.assert_allclose([msg.body_roll_rate, msg.body_pitch_rate, msg.body_yaw_rate], rates, atol=1e-6)
 
 
+def test_a_slower_yaw_loop_is_inverted_on_its_own_axis(vehicle):
+    """``yaw_rate_time_constant_s``: the yaw command leads by the yaw loop's own time constant,
+    and through per-axis first-order loops the body still gets the torque exactly; roll and
+    pitch are as without it."""
+    slow_yaw = dataclasses.replace(vehicle, rate_interface=dataclasses.replace(RATES, yaw_rate_time_constant_s=0.35))
+    mixer = Mixer.from_vehicle(vehicle)
+    wrench = np.array([9.0, 0.02, -0.01, 0.005])
+    x = np.zeros(12)
+    x[9:12] = (0.5, -0.3, 0.2)
+    same, _ = RateOutput(vehicle, 1, 1).command(mixer.inverse @ wrench, x)
+    rates, _ = RateOutput(slow_yaw, 1, 1).command(mixer.inverse @ wrench, x)
+    np.testing.assert_allclose(rates[:2], same[:2], atol=1e-12)
+    tau = np.array([0.03, 0.03, 0.35])
+    J = np.asarray(vehicle.inertia_kg_m2)
+    rigid = (wrench[1:] - np.cross(x[9:12], J * x[9:12])) / J
+    np.testing.assert_allclose(rate_response_rhs(x[9:12], rates, tau), rigid, rtol=1e-12, atol=1e-12)
+    # negative control: the roll-pitch time constant on yaw gives the body a tenth of its yaw torque
+    assert abs(rate_response_rhs(x[9:12], same, tau)[2] - rigid[2]) > 0.5 * abs(rigid[2])
+
+
 def test_rate_output_clips_rates_and_idles(vehicle):
     out = RateOutput(vehicle, 1, 1)
     mixer = Mixer.from_vehicle(vehicle)
