@@ -5,6 +5,7 @@ plan in EKF2's frame), split into the estimate's own path error and EKF2's error
 
     python -m scripts.px4.fly [--flights 5] [--maneuver FILE] [--airframe default|aggressive]
                               [--vehicle FILE] [--controller FILE] [--param NAME=VALUE ...] [--out DIR]
+                              [--position-source gps|mocap]
 
 Needs the PX4 SITL (``MAVREG_PX4_DIR`` or ``../shared/autopilot/px4``; tests/helpers/px4_sitl.py).
 Real time: about 1.5 minutes a flight. docs/autopilots.md quotes it.
@@ -18,6 +19,7 @@ import tempfile
 from pathlib import Path
 
 from tests.helpers.px4_flight import AGGRESSIVE_PARAMS, CONTROLLER, VEHICLE, fly_on_px4
+from tests.helpers.px4_sitl import POSITION_SOURCES
 
 REPO = Path(__file__).resolve().parents[2]
 AIRFRAMES = {"default": {}, "aggressive": AGGRESSIVE_PARAMS}
@@ -38,6 +40,8 @@ def main(argv=None) -> int:
     p.add_argument("--controller", default=str(CONTROLLER))
     p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                    help="a PX4 parameter set before each flight (repeatable)")
+    p.add_argument("--position-source", choices=POSITION_SOURCES, default="gps",
+                   help="EKF2's: SIH's GPS and barometer, or the truth fed back as motion capture (default: %(default)s)")
     p.add_argument("--fly-arg", action="append", default=[], metavar="ARG", help="one more `mavreg fly` argument")
     p.add_argument("--out", default=None, help="keep the flights here (default: a temporary directory)")
     args = p.parse_args(argv)
@@ -55,7 +59,7 @@ def main(argv=None) -> int:
     print("|---|---|---|---|---|---|---|")
     for k in range(1, args.flights + 1):
         s = fly_on_px4(Path(args.maneuver), root / f"flight{k}", Path(args.vehicle), Path(args.controller),
-                       params=params, extra_args=tuple(args.fly_arg))
+                       params=params, extra_args=tuple(args.fly_arg), position_source=args.position_source)
         gt = s.get("px4_truth") or {}
         ok += s["result"] == "ok"
         why = "" if s["result"] == "ok" else ": " + str(s.get("reason", ""))[:90]
