@@ -65,6 +65,7 @@ ALIASES = [
     ("firmware-sim", ["--preset", "ideal"], ["--world", "ideal"]),
     ("firmware-sim", ["--lockstep-timeout", "3"], ["--lockstep-timeout-s", "3"]),
     ("firmware-sim", ["--offboard-loss-timeout", "0.3"], ["--offboard-loss-timeout-s", "0.3"]),
+    ("firmware-sim", ["--system-id", "6"], ["--vehicle-system-id", "6"]),
 ]
 
 
