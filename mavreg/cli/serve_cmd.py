@@ -1,6 +1,7 @@
 """``mavreg serve``: the long-running daemon that flies uploaded maneuvers."""
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from ..config.defaults import CONTROL_RATE_HZ, STALE_TIMEOUT_S
@@ -29,7 +30,9 @@ Writes a .tlog of every MAVLink message (--tlog, default none) and the controlle
 (--control-log, default none).
 
 Exit status: 0 landed and disarmed or stopped on request; 1 the flight was aborted (stale
-state, non-finite output, the vehicle left OFFBOARD); 2 bad arguments or files (--tlog,
+state, non-finite output, the vehicle left OFFBOARD) or refused before take-off (a vehicle
+mavreg does not fly, a parameter, the plan outside the envelope, the link: the daemon ends
+at once, the cause in one line); 2 bad arguments or files (--tlog,
 --control-log and --socket are checked before the daemon starts), or another daemon serves
 on the socket.
 """
@@ -93,4 +96,8 @@ def run(args) -> int:
     asyncio.run(daemon.run())
     if args.control_log:
         daemon.ctrl_log.save(args.control_log)
+    failure = daemon.supervisor.failure
+    if failure is not None and failure.phase == Phase.PREFLIGHT:      # refused before take-off
+        print(f"mavreg serve: {failure.line()}", file=sys.stderr, flush=True)
+        return 1
     return 1 if daemon.supervisor.phase == Phase.ABORTED else 0

@@ -96,6 +96,10 @@ class FlightContext:
 
     # the landing
     land_requested: bool = False
+    arm_requested: bool = False
+    """An ARM request went out (a refusal on the ground then sends one more disarm)."""
+    ground_end_wall_s: float | None = None
+    """The flight began to end on the ground with the vehicle armed (None: it has not)."""
     land_mode_requested: bool = False
     descent: collections.deque = field(default_factory=collections.deque)
     """(vehicle time s, down velocity m/s) of the last 0.3 s before touchdown."""

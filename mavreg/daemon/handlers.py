@@ -80,6 +80,7 @@ class Preflight(_Handler):
                 self.safety.refuse(verdict, out, Phase.PREFLIGHT)
             elif self._link_delay_known(t, out):
                 flight.command(out, mm.arm_disarm(sysid, compid, True))
+                ctx.arm_requested = True
         elif not st.offboard:
             if t - ctx.stream_start_vehicle_s >= params.offboard_stream_min_s:
                 flight.command(out, parts.autopilot.set_offboard_mode())

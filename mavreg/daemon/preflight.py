@@ -8,9 +8,9 @@ on, at the control rate: ArduCopter sends none of it by default). Before the fir
 request, :meth:`AutopilotSetup.ready` reads the parameters the dialect checks
 (PARAM_REQUEST_READ by name, repeated every ``retry_s`` for those not yet answered). It
 passes when every parameter has been read and holds; it refuses, with the dialect's one line
-naming the parameter and the value to set, when one does not hold, when the autopilot is
-not one mavreg speaks to, or when the parameters are not answered within ``timeout_s`` of
-vehicle time. It never sets a parameter.
+naming the parameter and the value to set, when one does not hold, or when the parameters
+are not answered within ``timeout_s`` of vehicle time. It never sets a parameter. A vehicle
+mavreg does not speak to is refused at its first HEARTBEAT (:attr:`AutopilotSetup.refusal`).
 """
 from __future__ import annotations
 
@@ -73,11 +73,17 @@ class AutopilotSetup:
         """The command that asks for the mode mavreg flies in."""
         return self.dialect.set_offboard_mode(*self.target)
 
+    @property
+    def refusal(self) -> GateVerdict | None:
+        """The refusal of a vehicle mavreg does not fly (its autopilot, or a dialect choice that
+        contradicts it), known at its first HEARTBEAT; None otherwise."""
+        return None if self.unsupported is None else GateVerdict(False, "gate_autopilot", detail=self.unsupported)
+
     def ready(self, t_s: float, messages: list) -> GateVerdict | None:
         """PASS, a refusal, or None while waiting; requests to send are appended to
         ``messages``. ``t_s``: vehicle time."""
         if self.unsupported is not None:
-            return GateVerdict(False, "gate_autopilot", detail=self.unsupported)
+            return self.refusal
         if self.dialect is None:
             return None
         if self.checker is None:

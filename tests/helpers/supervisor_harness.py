@@ -92,12 +92,15 @@ class SimVehicle:
     with the force code (as PX4 does) and sends a HEARTBEAT at once on an arming change;
     ``ignore_disarm`` commands are dropped unanswered (a lossy uplink). It answers TIMESYNC
     requests with its own clock, as PX4, ArduPilot and firmware_sim do, unless
-    ``answer_timesync`` is False."""
+    ``answer_timesync`` is False. It announces ``autopilot`` in its HEARTBEAT (PX4's mode
+    layout whatever it announces)."""
 
     PARAMS = {"COM_OF_LOSS_T": 0.5, "COM_OBL_RC_ACT": 5.0}
     """The parameters it answers PARAM_REQUEST_READ for (as REAL32); ``params`` overrides."""
 
-    def __init__(self, rate_hz=250, mass_scale=1.0, ignore_disarm=0, answer_timesync=True, params=None):
+    def __init__(self, rate_hz=250, mass_scale=1.0, ignore_disarm=0, answer_timesync=True, params=None,
+                 autopilot=mavlink2.MAV_AUTOPILOT_PX4):
+        self.autopilot = autopilot
         self.dt = 1.0 / rate_hz
         self.model = QuadrotorModel.from_vehicle(replace(VEHICLE, mass_kg=VEHICLE.mass_kg * mass_scale))
         self.ignore_disarm = ignore_disarm
@@ -120,7 +123,7 @@ class SimVehicle:
         base = mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (
             mavlink2.MAV_MODE_FLAG_SAFETY_ARMED if self.armed else 0)
         return wire(mavlink2.MAVLink_heartbeat_message(
-            2, mavlink2.MAV_AUTOPILOT_PX4, base, (self.main << 16) | (self.sub << 24), 4, 3))
+            2, self.autopilot, base, (self.main << 16) | (self.sub << 24), 4, 3))
 
     def receive(self, msg):
         t = msg.get_type()
