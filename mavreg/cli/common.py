@@ -24,7 +24,7 @@ __all__ = ["PARAMS_DIR", "DEFAULT_VEHICLE", "PAPER_CONTROLLER", "PAPER_GOVERNED_
            "DESIGN_CONTROLLER", "REAL_CONTROLLER", "add_model_arguments", "add_laps_argument",
            "add_entry_offset_argument", "load_model_params", "load_maneuver_arg",
            "add_gcs_arguments", "gcs_config", "add_signing_argument", "add_output_argument",
-           "add_excitation_argument", "excitation_params",
+           "add_excitation_argument", "excitation_params", "add_vehicle_identity_arguments",
            "add_planner_arguments", "planner_bounds", "Parser", "positive_float", "nonneg_float",
            "finite_float", "positive_int", "nonneg_int", "vehicle_url", "plot_file", "input_file",
            "output_file", "output_dir", "socket_path", "check_output_file", "check_output_dir",
@@ -139,6 +139,18 @@ def add_output_argument(p: argparse.ArgumentParser) -> None:
                    "or 'rates', body rates and a normalized thrust (SET_ATTITUDE_TARGET), which stock "
                    "PX4 and ArduPilot autopilots take; needs the vehicle file's rate_interface: "
                    "section (docs/autopilots.md) (default: the vehicle file's output:, else rotors)")
+
+
+def add_vehicle_identity_arguments(p: argparse.ArgumentParser) -> None:
+    """``--dialect px4|ardupilot`` (fly, serve): the mode layout of custom firmware
+    (docs/autopilots.md, *Which dialect*)."""
+    from ..config.vehicle import DIALECTS
+    p.add_argument("--dialect", choices=DIALECTS, default=None,
+                   help="the mode layout of custom firmware that announces MAV_AUTOPILOT_GENERIC (0): "
+                   "'px4' (OFFBOARD, AUTO.LAND) or 'ardupilot' (GUIDED, LAND); its parameters are not "
+                   "checked. Stock PX4 and ArduPilot are known from their HEARTBEAT and refuse a "
+                   "contradicting choice (default: the vehicle file's dialect:, else PX4's in the rotors "
+                   "output; the rates output refuses a GENERIC vehicle without a choice)")
 
 
 def add_excitation_argument(p: argparse.ArgumentParser) -> None:

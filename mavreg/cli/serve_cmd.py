@@ -7,7 +7,7 @@ from pathlib import Path
 from ..config.defaults import CONTROL_RATE_HZ, STALE_TIMEOUT_S
 from .common import (REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, add_excitation_argument, add_output_argument,
                      add_planner_arguments,
-                     add_signing_argument, excitation_params, gcs_config, output_file, planner_bounds, positive_float, socket_path,
+                     add_signing_argument, add_vehicle_identity_arguments, excitation_params, gcs_config, output_file, planner_bounds, positive_float, socket_path,
                      vehicle_url)
 
 HELP = "run the offboard daemon: fly maneuvers uploaded on the control endpoint"
@@ -58,6 +58,7 @@ def add_arguments(p):
     p.add_argument("--vehicle-lockstep", action="store_true",
                    help="the vehicle is a lockstep simulator (it waits for each command): do not "
                    "fly telemetry gaps on the prediction (in real time the daemon does)")
+    add_vehicle_identity_arguments(p)
     add_output_argument(p)
     add_excitation_argument(p)
     add_signing_argument(p)
@@ -69,7 +70,7 @@ def add_arguments(p):
 def run(args) -> int:
     import asyncio
 
-    from ..config.vehicle import load_vehicle, with_output
+    from ..config.vehicle import load_vehicle, with_dialect, with_output
     from ..control.hover import HoverParams
     from ..daemon.app import Daemon, DaemonConfig, regulator_factory
     from ..daemon.endpoint import default_socket_path
@@ -77,7 +78,7 @@ def run(args) -> int:
     from ..daemon.signing import Signing
     signing = Signing(args.signing_key, "mavreg") if args.signing_key is not None else None
     gcs = gcs_config(args)
-    vehicle = with_output(load_vehicle(args.vehicle_params), args.output)
+    vehicle = with_dialect(with_output(load_vehicle(args.vehicle_params), args.output), args.dialect)
     from ..config.controller import load_controller
     controller = load_controller(args.controller)
     config = DaemonConfig(args.vehicle, Path(args.vehicle_params), Path(args.controller),

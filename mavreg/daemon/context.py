@@ -165,5 +165,6 @@ class FlightParts:
             gate=HealthGate(envelope, vehicle.mass_kg, vehicle.max_rotor_thrust_n,
                             link_health if link_health is not None else delay.measured_link),
             autopilot=AutopilotSetup(params.vehicle_system_id, params.vehicle_component_id,
-                                     params.telemetry_rate_hz, params.parameter_timeout_s),
+                                     params.telemetry_rate_hz, params.parameter_timeout_s,
+                                     choice=vehicle.dialect, output=vehicle.output),
             counters=Counters())

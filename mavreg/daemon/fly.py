@@ -32,7 +32,7 @@ import numpy as np
 from ..config.controller import load_controller
 from ..config.defaults import CONTROL_RATE_HZ, STALE_TIMEOUT_S
 from ..config.maneuver import maneuver_text_with_laps
-from ..config.vehicle import load_vehicle, with_output
+from ..config.vehicle import load_vehicle, with_dialect, with_output
 from ..control.hover import HoverParams
 from .app import Daemon, DaemonConfig, regulator_factory
 from .ctrllog import load_control_log
@@ -96,6 +96,9 @@ class FlyOptions:
     excitation: ExcitationParams | None = None
     """The identification flight's rate doublets in the hold (``--identify-excitation``,
     :mod:`mavreg.daemon.excitation`); None: none."""
+    dialect: str | None = None
+    """The mode layout of a vehicle that announces GENERIC (``--dialect``); None: the vehicle
+    file's (:func:`mavreg.daemon.autopilots.choose_dialect`)."""
 
 
 def spawn_emulator(vehicle_path: Path, record: Path | None, lockstep: bool, extra: tuple[str, ...] = (),
@@ -155,7 +158,7 @@ def fly(opts: FlyOptions) -> int:
     text = opts.maneuver_path.read_text()
     if opts.laps is not None:
         text = maneuver_text_with_laps(text, opts.laps, str(opts.maneuver_path))
-    vehicle = with_output(load_vehicle(opts.vehicle_path), opts.output)
+    vehicle = with_dialect(with_output(load_vehicle(opts.vehicle_path), opts.output), opts.dialect)
     controller = load_controller(opts.controller_path)
     opts.out_dir.mkdir(parents=True, exist_ok=True)
     record_path = opts.out_dir / "groundtruth.npz"

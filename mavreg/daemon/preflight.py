@@ -2,7 +2,9 @@
 (sans-I/O; a part of the :class:`~mavreg.daemon.supervisor.Supervisor`).
 
 The first vehicle HEARTBEAT chooses the :class:`~mavreg.daemon.autopilots.Dialect` (PX4 or
-ArduCopter); every later one is decoded by it. With each HEARTBEAT until the first complete
+ArduCopter; for custom firmware that announces GENERIC, the mode layout the operator chose,
+PX4's by default in the rotors output: :func:`~mavreg.daemon.autopilots.choose_dialect`);
+every later one is decoded by it. With each HEARTBEAT until the first complete
 state sample, the dialect's SET_MESSAGE_INTERVAL requests go out (the telemetry mavreg flies
 on, at the control rate: ArduCopter sends none of it by default). Before the first arm
 request, :meth:`AutopilotSetup.ready` reads the parameters the dialect checks
@@ -16,7 +18,7 @@ from __future__ import annotations
 
 import math
 
-from .autopilots import Dialect, HeartbeatInfo, ParamChecker, dialect_for, unsupported_reason
+from .autopilots import Dialect, HeartbeatInfo, ParamChecker, choose_dialect
 from .gate import GateVerdict
 
 __all__ = ["AutopilotSetup"]
@@ -35,17 +37,26 @@ class AutopilotSetup:
         Vehicle time the parameter reads may take before the take-off is refused.
     retry_s : float
         Vehicle time between repeats of unanswered reads.
+    choice : {"px4", "ardupilot"} or None
+        The mode layout of a vehicle that announces GENERIC (``--dialect``, ``dialect:``).
+    output : {"rotors", "rates"}
+        What the daemon commands (a GENERIC vehicle in the rates output needs ``choice``).
     """
 
-    def __init__(self, system_id: int, component_id: int, telemetry_rate_hz: float,
-                 timeout_s: float = 10.0, retry_s: float = 1.0):
+    def __init__(self, system_id: int, component_id: int, telemetry_rate_hz: float, timeout_s: float = 10.0,
+                 retry_s: float = 1.0, choice: str | None = None, output: str = "rotors"):
         self.target = (system_id, component_id)
+        self.choice = choice
+        self.output = output
         self.telemetry_rate_hz = float(telemetry_rate_hz)
         self.timeout_s = float(timeout_s)
         self.retry_s = float(retry_s)
         self.dialect: Dialect | None = None
         self.unsupported: str | None = None
         """Why the vehicle's autopilot is not one mavreg speaks to (None: it is, or unknown)."""
+        self.notice: str | None = None
+        """The line the first HEARTBEAT's choice of dialect is announced with (None: nothing
+        to say, or already said: the supervisor takes it)."""
         self.checker: ParamChecker | None = None
         self._t0 = math.nan
         self._sent_t = -math.inf
@@ -55,9 +66,7 @@ class AutopilotSetup:
         autopilot is not supported. Until the telemetry is ``streaming`` (complete samples
         arrive), its requests are appended to ``messages``."""
         if self.dialect is None and self.unsupported is None:
-            self.dialect = dialect_for(msg)
-            if self.dialect is None:
-                self.unsupported = unsupported_reason(msg)
+            self.dialect, self.unsupported, self.notice = choose_dialect(msg, self.choice, self.output)
         if self.dialect is None:
             return None
         if not streaming:

@@ -265,10 +265,13 @@ class Supervisor:
 
     # ----------------------------------------------------------------- messages in
     def _heartbeat(self, msg, out: Output) -> None:
-        """A vehicle HEARTBEAT: the vehicle's status; a vehicle mavreg does not fly is refused on
-        the ground at once."""
+        """A vehicle HEARTBEAT: the dialect (its notice), then the vehicle's status; a vehicle
+        mavreg does not fly is refused on the ground at once."""
         autopilot = self.autopilot
         st = autopilot.heartbeat(msg, out.messages, self.ctx.last_sample is not None)
+        if autopilot.notice is not None:
+            self.flight.announce(out, "dialect", mm.SEVERITY_WARNING, autopilot.notice)
+            autopilot.notice = None
         if st is not None:
             self._on_heartbeat(st, out)
             return

@@ -10,17 +10,28 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
 from mavreg.config.envelope import EnvelopeParams
+from mavreg.config.vehicle import with_dialect, with_output
 from mavreg.daemon.phases import Phase
-from mavreg.daemon.supervisor import SupervisorParams
-from tests.helpers.supervisor_harness import FakePlan, SimVehicle, make_supervisor, run
+from mavreg.daemon.supervisor import Supervisor, SupervisorParams
+from tests.helpers.supervisor_harness import VEHICLE, FakePlan, FakeRegulator, SimVehicle, make_supervisor, run
 
 STEP_S = SimVehicle().dt
+
+
+def _rates_supervisor(dialect=None):
+    vehicle = with_dialect(with_output(VEHICLE, "rates"), dialect)
+    sup = Supervisor(vehicle, SupervisorParams(), FakeRegulator)
+    sup.offer_plan(FakePlan(), 0.0)
+    return sup
 
 
 CASES = {
     # name: (supervisor, vehicle, the bound of the refusal, words of its one line)
     "autopilot": (lambda: make_supervisor(FakePlan()), lambda: SimVehicle(autopilot=mavlink2.MAV_AUTOPILOT_SLUGS),
                   "gate_autopilot", "neither PX4"),
+    "generic_rates": (_rates_supervisor, lambda: SimVehicle(autopilot=mavlink2.MAV_AUTOPILOT_GENERIC),
+                      "gate_autopilot", "--dialect px4|ardupilot"),
+    "contradicted": (lambda: _rates_supervisor("ardupilot"), SimVehicle, "gate_autopilot", "announces PX4"),
     "parameter": (lambda: make_supervisor(FakePlan()),
                   lambda: SimVehicle(params={"COM_OF_LOSS_T": 0.5, "COM_OBL_RC_ACT": 6.0}),
                   "gate_parameter", "COM_OBL_RC_ACT is 6"),

@@ -123,6 +123,26 @@ def test_output_choice_and_its_errors(vehicle):
         dataclasses.replace(base, output="rates", rate_interface=None)
 
 
+def test_the_dialect_key_and_its_override(tmp_path):
+    """``dialect:`` in the vehicle file (the one validating loader), ``--dialect`` over it."""
+    from mavreg.config.loader import load_text
+    from mavreg.config.vehicle import VehicleParams, with_dialect
+    text = DEFAULT_VEHICLE.read_text()
+    base = load_vehicle(DEFAULT_VEHICLE)
+    assert base.dialect is None
+    chosen = load_text(text + "\ndialect: ardupilot\n", VehicleParams, kind="vehicle", source="v.yaml")
+    assert chosen.dialect == "ardupilot" and with_dialect(chosen, None) is chosen
+    assert with_dialect(chosen, "px4").dialect == "px4"
+    for bad, words in (("inav", "expected one of px4, ardupilot, got 'inav'"),
+                       ("PX4", "expected one of px4, ardupilot, got 'PX4'"),
+                       ("12", "expected a string, got int 12"), ("[px4]", "expected a string")):
+        with pytest.raises(ConfigError, match=f"dialect: {words}") as exc:
+            load_text(text + f"\ndialect: {bad}\n", VehicleParams, kind="vehicle", source="v.yaml")
+        assert "\n" not in str(exc.value)
+    with pytest.raises(ConfigError, match="expected one of px4, ardupilot, got 'generic'"):
+        with_dialect(base, "generic")
+
+
 def test_rate_output_lags_the_torque_as_the_rotors_would(vehicle):
     """The torque realized follows a step of the commanded one with the vehicle's rotor lag:
     63 % after one time constant (vehicle time), the collective at once."""
