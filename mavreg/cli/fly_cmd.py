@@ -161,5 +161,6 @@ def run(args) -> int:
                       signing_key=Path(args.signing_key) if args.signing_key is not None else None,
                       gcs_urls=gcs["gcs_urls"], gcs=gcs["gcs"], tlog_clock=args.tlog_clock,
                       argv=tuple(getattr(args, "command_line", ())), planner=planner_bounds(args), output=args.output,
-                      laps=args.laps, excitation=excitation, dialect=args.dialect)
+                      laps=args.laps, excitation=excitation, dialect=args.dialect,
+                      vehicle_system_id=args.vehicle_system_id)
     return fly(opts)

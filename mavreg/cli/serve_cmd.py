@@ -74,6 +74,7 @@ def run(args) -> int:
     from ..control.hover import HoverParams
     from ..daemon.app import Daemon, DaemonConfig, regulator_factory
     from ..daemon.endpoint import default_socket_path
+    from ..daemon.peers import system_id_to_use
     from ..daemon.supervisor import Phase, SupervisorParams
     from ..daemon.signing import Signing
     signing = Signing(args.signing_key, "mavreg") if args.signing_key is not None else None
@@ -84,7 +85,8 @@ def run(args) -> int:
     config = DaemonConfig(args.vehicle, Path(args.vehicle_params), Path(args.controller),
                           Path(args.socket) if args.socket else default_socket_path(),
                           Path(args.tlog) if args.tlog else None,
-                          SupervisorParams(land_when_done=False, stale_timeout_s=args.stale_timeout_s,
+                          SupervisorParams(system_id_to_use(args.vehicle, args.vehicle_system_id),
+                                           land_when_done=False, stale_timeout_s=args.stale_timeout_s,
                                            gap_fill=not args.vehicle_lockstep, lockstep=args.vehicle_lockstep,
                                            hover=HoverParams.from_controller(controller),
                                            excitation=excitation_params(args, vehicle.output)),

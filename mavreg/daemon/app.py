@@ -155,6 +155,8 @@ class Daemon:
             self.max_tick_cpu_s = max(self.max_tick_cpu_s, cpu - last_cpu)
             last, last_cpu = now, cpu
             self._emit(self.supervisor.tick(self.clock_s()))
+            if self.link is not None and (line := self.link.peer.silence_notice(self.clock_s())) is not None:
+                self.log(f"link: {line}")
 
     # ---------------------------------------------------------------- requests
     async def offer_text(self, yaml_text: str, source: str) -> dict:
@@ -267,7 +269,8 @@ class Daemon:
         the ground station's messages judged by :func:`mavreg.daemon.gcs_policy.judge`."""
         def land() -> None:
             self._emit(self.supervisor.request_land(self.clock_s()))
-        self.gcs = GcsLink(self.config.gcs_urls, self.config.supervisor.vehicle_system_id, self.config.gcs,
+        # before a system id taken from the vehicle's HEARTBEAT is known, 1; then the vehicle's
+        self.gcs = GcsLink(self.config.gcs_urls, self.config.supervisor.vehicle_system_id or 1, self.config.gcs,
                            self.clock_s, lambda: not self.supervisor.finished,
                            lambda msg: self.link is not None and self.link.send(msg), land, self.log)
         await self.gcs.open()

@@ -61,7 +61,7 @@ class Preflight(_Handler):
         flight, ctx, parts = self.flight, self.flight.ctx, self.flight.parts
         params = parts.params
         t = sample.time_s
-        sysid, compid = params.vehicle_system_id, params.vehicle_component_id
+        sysid, compid = parts.ids.target
         if ctx.stream_start_vehicle_s is None:
             ctx.stream_start_vehicle_s = t
         flight.send_rotors(np.zeros(4), now_wall_s, out)

@@ -56,7 +56,9 @@ FREE_FLIGHT = frozenset({Phase.HOLD, Phase.RUN_IN, Phase.MANEUVER})
 class SupervisorParams:
     """Identities, timeouts and flight-shape parameters (SI units)."""
 
-    vehicle_system_id: int = 1
+    vehicle_system_id: int | None = 1
+    """The vehicle's system id (1..255); None: taken from its first autopilot HEARTBEAT
+    (:class:`mavreg.daemon.peers.VehicleIds`; ``udpin:`` without ``--vehicle-system-id``)."""
     vehicle_component_id: int = 1
     stale_timeout_s: float = STALE_TIMEOUT_S
     """No complete sample for this long (injected clock) while armed: the link is lost, the

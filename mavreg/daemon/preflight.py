@@ -20,6 +20,7 @@ import math
 
 from .autopilots import Dialect, HeartbeatInfo, ParamChecker, choose_dialect
 from .gate import GateVerdict
+from .peers import VehicleIds
 
 __all__ = ["AutopilotSetup"]
 
@@ -29,8 +30,8 @@ class AutopilotSetup:
 
     Parameters
     ----------
-    system_id, component_id : int
-        The vehicle's.
+    ids : VehicleIds
+        The vehicle's (read when a request is built: known by its first HEARTBEAT).
     telemetry_rate_hz : float
         Rate asked for the attitude and position telemetry (the control rate).
     timeout_s : float
@@ -43,9 +44,9 @@ class AutopilotSetup:
         What the daemon commands (a GENERIC vehicle in the rates output needs ``choice``).
     """
 
-    def __init__(self, system_id: int, component_id: int, telemetry_rate_hz: float, timeout_s: float = 10.0,
+    def __init__(self, ids: VehicleIds, telemetry_rate_hz: float, timeout_s: float = 10.0,
                  retry_s: float = 1.0, choice: str | None = None, output: str = "rotors"):
-        self.target = (system_id, component_id)
+        self.ids = ids
         self.choice = choice
         self.output = output
         self.telemetry_rate_hz = float(telemetry_rate_hz)
@@ -70,7 +71,7 @@ class AutopilotSetup:
         if self.dialect is None:
             return None
         if not streaming:
-            messages.extend(self.dialect.telemetry_requests(*self.target, self.telemetry_rate_hz))
+            messages.extend(self.dialect.telemetry_requests(*self.ids.target, self.telemetry_rate_hz))
         return self.dialect.decode(msg)
 
     def param_value(self, msg) -> None:
@@ -80,7 +81,7 @@ class AutopilotSetup:
 
     def set_offboard_mode(self):
         """The command that asks for the mode mavreg flies in."""
-        return self.dialect.set_offboard_mode(*self.target)
+        return self.dialect.set_offboard_mode(*self.ids.target)
 
     @property
     def refusal(self) -> GateVerdict | None:
@@ -110,7 +111,7 @@ class AutopilotSetup:
                                f"{', '.join(verdict.missing)} within {self.timeout_s:g} s: mavreg checks "
                                "them before arming (docs/autopilots.md)")
         if t_s - self._sent_t >= self.retry_s or t_s < self._sent_t:
-            messages.extend(self.dialect.param_requests(*self.target, verdict.missing))
+            messages.extend(self.dialect.param_requests(*self.ids.target, verdict.missing))
             self._sent_t = t_s
         return None
 

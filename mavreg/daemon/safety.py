@@ -177,7 +177,7 @@ class SafetyPolicy:
                              f"{params.terminate_timeout_s:g} s; the vehicle's failsafe is in charge")
             return
         if now_wall_s - ctx.disarm_sent_wall_s >= params.disarm_retry_s:
-            out.messages.append(mm.force_disarm(params.vehicle_system_id, params.vehicle_component_id))
+            out.messages.append(mm.force_disarm(*flight.parts.ids.target))
             flight.parts.counters.commands_sent += 1
             ctx.disarm_sent_wall_s = now_wall_s
 
@@ -233,8 +233,7 @@ class SafetyPolicy:
         ctx.land_requested = True
         ctx.pending.clear()
         st = ctx.vehicle_status
-        params = flight.parts.params
-        disarm = mm.arm_disarm(params.vehicle_system_id, params.vehicle_component_id, False) if st is not None else None
+        disarm = mm.arm_disarm(*flight.parts.ids.target, False) if st is not None else None
         if st is not None and st.armed:
             ctx.ground_end_wall_s = ctx.now_wall_s
             flight.event(out, "disarming", f"{why}; disarming on the ground")

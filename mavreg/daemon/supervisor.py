@@ -190,11 +190,10 @@ class Supervisor:
         """Process one decoded message from the link (``now_s``: the injected wall clock)."""
         out = Output()
         self.ctx.now_wall_s = now_s
-        if (msg.get_srcSystem() != self.params.vehicle_system_id
-                or msg.get_srcComponent() != self.params.vehicle_component_id):
+        mtype = msg.get_type()
+        if not self._vehicle_ids(msg, mtype, out):
             self.counters.foreign_dropped += 1
             return out
-        mtype = msg.get_type()
         if mtype == "HEARTBEAT":
             self._heartbeat(msg, out)
         elif mtype == "PARAM_VALUE":
@@ -264,6 +263,19 @@ class Supervisor:
         return out
 
     # ----------------------------------------------------------------- messages in
+    def _vehicle_ids(self, msg, mtype: str, out: Output) -> bool:
+        """Whether ``msg`` is the vehicle's (:class:`~mavreg.daemon.peers.VehicleIds`: its system
+        id pinned, or fixed by its first autopilot HEARTBEAT, which is announced)."""
+        ids = self.ids
+        known = ids.system_id is not None
+        hb = (int(msg.type), int(msg.autopilot)) if mtype == "HEARTBEAT" else None
+        if not ids.take(msg.get_srcSystem(), msg.get_srcComponent(), hb):
+            return False
+        if not known:
+            self.flight.event(out, "vehicle_id", f"vehicle system id {ids.system_id}, from its first autopilot "
+                              f"HEARTBEAT (autopilot {hb[1]}); pin another with --vehicle-system-id N")
+        return True
+
     def _heartbeat(self, msg, out: Output) -> None:
         """A vehicle HEARTBEAT: the dialect (its notice), then the vehicle's status; a vehicle
         mavreg does not fly is refused on the ground at once."""

@@ -20,6 +20,7 @@ DIALECT = {
     "vehicle parameter file": ("--vehicle-params", "YAML file",
                                {"plan", "simulate", "fly", "serve", "identify", "firmware-sim"}),
     "vehicle connection": ("--vehicle", "udpin:/udpout: URL", {"fly", "serve"}),
+    "the vehicle's system id": ("--vehicle-system-id", "1..255", {"fly", "serve", "firmware-sim"}),
     "custom firmware's mode layout": ("--dialect", "px4 or ardupilot", {"fly", "serve"}),
     "controller file": ("--controller", "YAML file", {"plan", "simulate", "fly", "serve"}),
     "emulator world": ("--world", "preset name", {"fly", "firmware-sim"}),
@@ -52,6 +53,7 @@ OTHER_SPELLINGS = {
     "lockstep wait for a command": ("--lockstep-timeout",),
     "offboard loss failsafe after": ("--offboard-loss-timeout",),
     "give up after": ("--timeout",),
+    "the vehicle's system id": ("--system-id", "--sysid", "--target-system", "--vehicle-sysid"),
     "custom firmware's mode layout": ("--autopilot-dialect", "--mode-layout", "--modes"),
 }
 """Spellings a command must not show: the old ones (hidden aliases for a release) and near misses."""
