@@ -69,7 +69,9 @@ action is also sent to the vehicle as a STATUSTEXT.
 Exit status: 0 the maneuver was flown within its envelope and the vehicle landed (touchdown
 under 1 m/s) and disarmed; 1 the flight failed: the first bound violated (where, by how much,
 what was done) is printed in one line and kept in summary.json under "failure" (also: the
-maneuver cannot be flown); 2 bad file or arguments (--out and --socket are checked before
+maneuver cannot be flown, or a check before take-off refused it: the vehicle's autopilot or
+--dialect, a parameter, the plan outside the envelope, the link; then fly ends within 2 s of
+the refusal); 2 bad file or arguments (--out and --socket are checked before
 anything starts).
 """
 
