@@ -51,11 +51,13 @@ def io_impl() -> str:
     return impl
 
 
-def _parse_url(url: str, option: str, scheme_wanted: str, lowest_port: int) -> tuple[str, int]:
+def _parse_url(url: str, option: str, wanted: str, lowest_port: int) -> tuple[str, int]:
+    """``WANTED:HOST:PORT`` -> ``(host, port)``, the port in ``lowest_port``..65535; else
+    ValueError naming ``option``."""
     scheme, _, rest = url.partition(":")
     host, sep, port_text = rest.rpartition(":")
-    if scheme != scheme_wanted or not sep or not host:
-        raise ValueError(f"{option} {url!r}: expected {scheme_wanted}:HOST:PORT (e.g. {scheme_wanted}:127.0.0.1:14540)")
+    if scheme != wanted or not sep or not host:
+        raise ValueError(f"{option} {url!r}: expected {wanted}:HOST:PORT (e.g. {wanted}:127.0.0.1:14540)")
     try:
         port = int(port_text)
     except ValueError:

@@ -81,7 +81,8 @@ class PeerFilter:
         if msg.get_type() == "HEARTBEAT":
             if known is None or known[1] != addr:
                 self.peers[sysid] = (compid, addr)
-                self.addresses[:] = sorted({a for _, a in self.peers.values()} | ({self.remote} - {None}))
+                learned = {a for _, a in self.peers.values()}
+                self.addresses[:] = sorted(learned if self.remote is None else learned | {self.remote})
             return None
         if known is None or addr != known[1]:
             return "foreign_address"

@@ -12,7 +12,8 @@ from .link import parse_remote_url
 from .px4 import Px4Config, Px4Services
 from .rate_loop import RateLoopConfig
 
-__all__ = ["add_identity_args", "add_px4_args", "px4_services", "parse_home", "rate_loop_config", "print_rate_response"]
+__all__ = ["add_identity_args", "add_px4_args", "px4_services", "parse_home", "rate_loop_config",
+           "print_rate_response"]
 
 MAX_RATE_LATENCY_MS = 100.0
 

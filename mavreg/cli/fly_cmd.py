@@ -9,7 +9,8 @@ from ..errors import UsageError
 from ..config.defaults import CONTROL_RATE_HZ, STALE_TIMEOUT_S
 from .common import (REAL_CONTROLLER, add_entry_offset_argument, add_gcs_arguments,
                      add_laps_argument, add_model_arguments, add_excitation_argument, add_output_argument,
-                     add_planner_arguments, add_signing_argument, add_vehicle_identity_arguments, check_output_dir, excitation_params, gcs_config, input_file, load_maneuver_arg,
+                     add_planner_arguments, add_signing_argument, add_vehicle_identity_arguments,
+                     check_output_dir, excitation_params, gcs_config, input_file, load_maneuver_arg,
                      output_dir, planner_bounds, positive_float, socket_path, vehicle_url)
 
 MAX_ENTRY_OFFSET_M = 2.0

@@ -7,8 +7,8 @@ from pathlib import Path
 from ..config.defaults import CONTROL_RATE_HZ, STALE_TIMEOUT_S
 from .common import (REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, add_excitation_argument, add_output_argument,
                      add_planner_arguments,
-                     add_signing_argument, add_vehicle_identity_arguments, excitation_params, gcs_config, output_file, planner_bounds, positive_float, socket_path,
-                     vehicle_url)
+                     add_signing_argument, add_vehicle_identity_arguments, excitation_params, gcs_config,
+                     output_file, planner_bounds, positive_float, socket_path, vehicle_url)
 
 HELP = "run the offboard daemon: fly maneuvers uploaded on the control endpoint"
 DESCRIPTION = """\

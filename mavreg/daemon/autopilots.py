@@ -4,12 +4,13 @@ A :class:`Dialect` is chosen from the vehicle's HEARTBEAT by :func:`dialect_for`
 ``autopilot`` field: PX4 or ArduPilot; for ArduPilot only multicopter frames, whose mode
 numbers are ArduCopter's), and by :func:`choose_dialect` with the operator's choice
 (``--dialect`` or the vehicle file's ``dialect:``) for custom firmware that announces
-``MAV_AUTOPILOT_GENERIC``: PX4's or ArduCopter's mode layout, without the parameter checks. It decodes the armed flag and the flight mode of a heartbeat and
-says whether the vehicle obeys offboard set-points (PX4 OFFBOARD, ArduCopter GUIDED); it
-builds the COMMAND_LONGs that ask for that mode and for the land mode (how a flight ends on
-ArduCopter), and the SET_MESSAGE_INTERVAL commands for the telemetry mavreg needs; and it
-lists the parameters that must hold before arming (:class:`ParamRule`), read with
-PARAM_REQUEST_READ and judged by a :class:`ParamChecker`.
+``MAV_AUTOPILOT_GENERIC``: PX4's or ArduCopter's mode layout, without the parameter checks.
+It decodes the armed flag and the flight mode of a heartbeat and says whether the vehicle
+obeys offboard set-points (PX4 OFFBOARD, ArduCopter GUIDED); it builds the COMMAND_LONGs that
+ask for that mode and for the land mode (how a flight ends on ArduCopter), and the
+SET_MESSAGE_INTERVAL commands for the telemetry mavreg needs; and it lists the parameters
+that must hold before arming (:class:`ParamRule`), read with PARAM_REQUEST_READ and judged
+by a :class:`ParamChecker`.
 Nothing here ever builds a PARAM_SET: mavreg reports a wrong safety parameter, it does not
 change it. See ``docs/autopilots.md`` for the measurements behind the numbers.
 """
@@ -257,7 +258,6 @@ def unsupported_reason(hb) -> str:
         return f"ArduPilot vehicle of MAV_TYPE {vtype} is not a multicopter: only ArduCopter is supported"
     return (f"autopilot {autopilot} (MAV_AUTOPILOT) is neither PX4 (12) nor ArduPilot (3) nor custom firmware "
             "that announces GENERIC (0)")
-
 
 
 class DialectChoice(NamedTuple):

@@ -125,21 +125,27 @@ class HeardSystems:
             self.heartbeats[system_id] = (component_id, *heartbeat)
 
     def vehicles(self) -> list[int]:
-        """System ids whose last HEARTBEAT is an autopilot's (what a pin could name)."""
-        return sorted(s for s, (_, vtype, ap) in self.heartbeats.items()
-                      if vtype not in _NOT_VEHICLES and ap != mavlink2.MAV_AUTOPILOT_INVALID)
+        """System ids whose last HEARTBEAT is an autopilot's, from component 1 (what a pin could
+        name)."""
+        return sorted(s for s, (comp, vtype, ap) in self.heartbeats.items()
+                      if comp == VEHICLE_COMPONENT_ID and vtype not in _NOT_VEHICLES
+                      and ap != mavlink2.MAV_AUTOPILOT_INVALID)
 
-    def describe(self) -> str:
-        """``system 6 (120 frames; HEARTBEAT of component 1: type 2, autopilot 12), ...``."""
+    def describe(self, most: int = 6) -> str:
+        """``system 6 (120 frames; HEARTBEAT of component 1: type 2, autopilot 12), ...``: the
+        ``most`` systems heard most, in id order, and how many more (a flood of ids stays one
+        short line)."""
+        shown = sorted(sorted(self.frames, key=self.frames.get, reverse=True)[:most])
         parts = []
-        for s in sorted(self.frames):
+        for s in shown:
             hb = self.heartbeats.get(s)
             what = ("no HEARTBEAT" if hb is None else
                     f"HEARTBEAT of component {hb[0]}: type {hb[1]}, autopilot {hb[2]}"
                     + (", a ground station" if hb[1] == mavlink2.MAV_TYPE_GCS else "")
                     + (", not an autopilot" if hb[2] == mavlink2.MAV_AUTOPILOT_INVALID else ""))
             parts.append(f"system {s} ({self.frames[s]} frames; {what})")
-        return ", ".join(parts)
+        more = len(self.frames) - len(shown)
+        return ", ".join(parts) + (f" and {more} more systems" if more else "")
 
 
 class PeerFilter:
@@ -210,7 +216,7 @@ class PeerFilter:
         if len(vehicles) == 1:
             use = f"to fly it, {flag} {vehicles[0]}"
         elif vehicles:
-            use = f"to fly one of them, {flag} N with N in {vehicles}"
+            use = f"to fly one of them, {flag} N with N in {vehicles[:16]}" + ("..." if len(vehicles) > 16 else "")
         else:
             use = (f"none is an autopilot: check the vehicle's link, or pin its id with {flag} N "
                    "(its MAV_SYS_ID or SYSID_THISMAV)")

@@ -21,20 +21,12 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from mavreg.daemon.ctrllog import load_control_log
 from mavreg.daemon.report import ground_truth_errors
-from sitl_helpers import BARREL, CONTROLLER, VEHICLE, load_record, mavreg, start_emulator
+from sitl_helpers import BARREL, CONTROLLER, VEHICLE, free_udp_port, load_record, mavreg, start_emulator
 
 pytestmark = pytest.mark.sitl
 
 GCS_HEARTBEAT = mavlink2.MAVLink_heartbeat_message(mavlink2.MAV_TYPE_GCS, mavlink2.MAV_AUTOPILOT_INVALID,
                                                    0, 0, mavlink2.MAV_STATE_ACTIVE, 3)
-
-
-def _free_udp_port() -> int:
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
 
 
 def _line_time(proc, needle: str, timeout_s: float) -> float:
@@ -44,7 +36,7 @@ def _line_time(proc, needle: str, timeout_s: float) -> float:
 
 
 def test_generic_firmware_with_system_id_6_on_udpin_flies_the_barrel_roll(tmp_path, barrel_plan):
-    port = _free_udp_port()
+    port = free_udp_port()
     out = tmp_path / "out"
     fly = mavreg("fly", str(BARREL), "--vehicle", f"udpin:127.0.0.1:{port}", "--vehicle-lockstep",
                  "--vehicle-params", str(VEHICLE), "--controller", str(CONTROLLER), "--out", str(out),
@@ -101,7 +93,7 @@ def test_a_refusal_before_take_off_ends_fly_within_two_seconds(tmp_path):
 
 
 def test_only_another_system_heard_is_said_within_seconds(tmp_path):
-    port = _free_udp_port()
+    port = free_udp_port()
     fly = mavreg("fly", str(BARREL), "--vehicle", f"udpin:127.0.0.1:{port}", "--vehicle-system-id", "1",
                  "--controller", str(CONTROLLER), "--out", str(tmp_path / "out"), "--timeout-s", "8")
     emu = None

@@ -63,7 +63,8 @@ def test_no_dialect_for_other_autopilots_or_ardupilot_planes():
     # stock autopilots: known from the HEARTBEAT; a choice may only agree
     (M.MAV_AUTOPILOT_PX4, None, "rates", PX4, None),
     (M.MAV_AUTOPILOT_PX4, "px4", "rotors", PX4, None),
-    (M.MAV_AUTOPILOT_PX4, "ardupilot", "rotors", None, "announces PX4 (autopilot 12) but the dialect chosen is ardupilot"),
+    (M.MAV_AUTOPILOT_PX4, "ardupilot", "rotors", None,
+     "announces PX4 (autopilot 12) but the dialect chosen is ardupilot"),
     (M.MAV_AUTOPILOT_ARDUPILOTMEGA, "ardupilot", "rates", ARDUCOPTER, None),
     (M.MAV_AUTOPILOT_ARDUPILOTMEGA, "px4", "rates", None, "announces ArduCopter (autopilot 3)"),
     # custom firmware: PX4's layout by default in the rotors output, the choice otherwise

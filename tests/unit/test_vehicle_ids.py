@@ -75,7 +75,7 @@ def test_udpin_locks_on_the_first_autopilot_heartbeat_never_a_ground_stations():
     assert f.admit(frame(quat(), 6), OTHER_ADDR) == "foreign_address"
     assert f.admit(frame(quat(), 6), VEHICLE_ADDR) is None
     assert f.heard.frames == {255: 2, 254: 1, 7: 1, 6: 2, 9: 2}
-    assert f.heard.vehicles() == [6, 9]
+    assert f.heard.vehicles() == [9]             # 6 was last heard from component 2 (before the lock)
 
 
 def test_with_signing_only_an_authenticated_heartbeat_names_the_vehicle():
@@ -116,6 +116,13 @@ def test_only_other_systems_heard_is_said_once_within_seconds():
     line = f.silence_notice(SILENCE_NOTICE_S)
     assert line.startswith("no autopilot HEARTBEAT") and "none is an autopilot" in line
     assert "--vehicle-system-id N" in line
+
+    f = PeerFilter(None, 1)                                                 # a flood of ids: one short line
+    for sysid in range(2, 256):
+        f.admit(frame(hb(), sysid, 2), GCS_ADDR)
+    f.silence_notice(0.0)
+    line = f.silence_notice(SILENCE_NOTICE_S)
+    assert "and 248 more systems" in line and len(line) < 1000 and "none is an autopilot" in line
 
     f = PeerFilter(None, 1)                                                 # the vehicle is heard: nothing to say
     f.admit(frame(GCS_HB, 255, 190), GCS_ADDR)
