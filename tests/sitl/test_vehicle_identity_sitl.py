@@ -48,7 +48,10 @@ def test_generic_firmware_with_system_id_6_on_udpin_flies_the_barrel_roll(tmp_pa
         gcs.sendto(GCS_HEARTBEAT.pack(mavlink2.MAVLink(None, srcSystem=255, srcComponent=190)),
                    ("127.0.0.1", port))
         gcs.close()
-        emu, _ = start_emulator(tmp_path / "groundtruth.npz", "--lockstep", "--world", "ideal",
+        # the daemon is the only pacer, as for mavreg fly's own lockstep emulator (a period
+        # lost to a loaded machine would leave every later command one period late)
+        emu, _ = start_emulator(tmp_path / "groundtruth.npz", "--lockstep", "--lockstep-timeout-s", "2",
+                                "--world", "ideal",
                                 "--vehicle-params", str(VEHICLE), "--autopilot", "generic",
                                 "--vehicle-system-id", "6", "--remote", f"udpout:127.0.0.1:{port}")
         code = fly.wait(300)
@@ -67,6 +70,9 @@ def test_generic_firmware_with_system_id_6_on_udpin_flies_the_barrel_roll(tmp_pa
     ph = [e for e in ctrl["events"] if e["kind"] == "phase"]
     i = next(k for k, e in enumerate(ph) if e["phase"] == "maneuver")
     record = load_record(tmp_path / "groundtruth.npz")
+    meta = json.loads(str(record["meta_json"]))
+    assert meta["counters"]["lockstep_timeouts"] <= 1, meta["counters"]    # 1: landed, the daemon stops
+    assert meta["drops"]["foreign_address"] == 0, meta["drops"]     # our HEARTBEAT came before any command
     truth = ground_truth_errors(record, barrel_plan, ph[i]["time_s"], ph[i + 1]["time_s"])
     print(f"\nGENERIC firmware, system id 6, udpin: true max transverse error {100 * truth['max_m']:.2f} cm "
           f"(loop {100 * truth['segments']['loop']['max_m']:.2f} cm), RMS {100 * truth['rms_m']:.2f} cm")
