@@ -114,3 +114,18 @@ def test_a_land_request_before_take_off_ends_the_flight_the_same_way():
     veh.receive(disarm)
     events, _, _ = run(sup, veh, 1.0)
     assert sup.phase == Phase.DISARMED and events[-1].time_s - 0.5 <= 2 * STEP_S
+
+
+def test_a_land_request_before_the_first_sample_still_retries_the_disarm():
+    """Armed (by someone else) and no state sample yet, so no vehicle time: the disarm goes out
+    at once, and is repeated once samples come (a retry timer started without a vehicle time
+    must not block them)."""
+    sup = make_supervisor(FakePlan())
+    veh = SimVehicle(ignore_disarm=10_000)
+    veh.armed = True
+    sup.handle(veh.heartbeat(), 0.0)
+    out = sup.request_land(0.0)
+    assert [m.command for m in out.messages if m.get_type() == "COMMAND_LONG"] == [400]
+    _, _, sent = run(sup, veh, 0.9)
+    disarms = [t for t, m in sent if m.get_type() == "COMMAND_LONG" and m.command == 400 and m.param1 == 0.0]
+    assert len(disarms) == 2 and disarms[1] - disarms[0] == 500          # every command_retry_s
