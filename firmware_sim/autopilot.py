@@ -42,7 +42,7 @@ from .px4_commands import HANDLED, CommandInt, handle_command, handle_param
 from .stabilizer import Stabilizer
 
 __all__ = ["AutopilotConfig", "Autopilot", "FORCE_DISARM_MAGIC", "DROP_REASONS", "OFFBOARD_TARGETS",
-           "state_messages"]
+           "state_messages", "AUTOPILOTS"]
 
 FORCE_DISARM_MAGIC = 21196.0
 TAKEOFF_REACHED_M = 0.1
@@ -51,6 +51,9 @@ DROP_REASONS = ("malformed", "foreign_system", "foreign_component", "wrong_targe
                 "out_of_range", "not_armed_or_not_offboard", "unsupported")
 OFFBOARD_TARGETS = ("SET_ACTUATOR_CONTROL_TARGET", "SET_ATTITUDE_TARGET")
 """The offboard peer's per-sample messages: rotor forces or body rates (the lockstep counts them)."""
+AUTOPILOTS = {"px4": mavlink2.MAV_AUTOPILOT_PX4, "generic": mavlink2.MAV_AUTOPILOT_GENERIC}
+"""What the HEARTBEAT may announce (``--autopilot``): PX4, or custom firmware (GENERIC) that
+speaks PX4's mode layout, as a rotor-command vehicle of one's own might."""
 
 _SEV_INFO = mavlink2.MAV_SEVERITY_INFO
 _SEV_WARN = mavlink2.MAV_SEVERITY_WARNING
@@ -70,6 +73,8 @@ class AutopilotConfig:
 
     system_id: int = 1
     component_id: int = 1
+    autopilot: int = mavlink2.MAV_AUTOPILOT_PX4
+    """The HEARTBEAT's ``autopilot`` (:data:`AUTOPILOTS`); the modes are PX4's either way."""
     peer_system_ids: tuple = ()
     """COMMAND_LONG and TIMESYNC are also taken from these system ids (ground stations;
     the link's peer filter must admit them too, :mod:`firmware_sim.peers`)."""
@@ -151,9 +156,10 @@ class Autopilot:
 
     def heartbeat(self):
         """HEARTBEAT describing the current mode and armed flag, as PX4 announces itself
-        (``MAV_AUTOPILOT_PX4``: log tools and ground stations then name its modes)."""
+        (``MAV_AUTOPILOT_PX4``: log tools and ground stations then name its modes), or as
+        custom firmware does (``MAV_AUTOPILOT_GENERIC``, :attr:`AutopilotConfig.autopilot`)."""
         return mavlink2.MAVLink_heartbeat_message(
-            mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_PX4,
+            mavlink2.MAV_TYPE_QUADROTOR, self.cfg.autopilot,
             modes.base_mode(self.armed), self.mode,
             mavlink2.MAV_STATE_ACTIVE if self.armed else mavlink2.MAV_STATE_STANDBY, 3)
 

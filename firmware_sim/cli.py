@@ -9,11 +9,11 @@ import sys
 import textwrap
 
 from .argtypes import (add_deprecated_alias, checked, input_file, nonneg_float, nonneg_int, output_file,
-                       positive_float, positive_int, probability, sysid, unit_scale)
-from .autopilot import Autopilot, AutopilotConfig
+                       positive_float, positive_int, probability, unit_scale)
+from .autopilot import AUTOPILOTS, Autopilot, AutopilotConfig
 from .clock import StopRun, run_lockstep, run_realtime
 from .engine import Engine
-from .link import Link, parse_listen_url
+from .link import Link, parse_listen_url, parse_remote_url
 from .signing import Signing
 from .mismatch import BOUNDS, airframe_arrays, apply_mismatch, describe_airframe, draw_mismatch
 from mavreg.config.vehicle import EmulatorParams, load_vehicle
@@ -26,7 +26,7 @@ from .stabilizer import Stabilizer
 from .status import ExitCode, SimStop
 from .wind import Wind, WindItem, parse_wind
 from .faults import link_faults_from_args
-from .px4_args import add_px4_args, print_rate_response, px4_services, rate_loop_config
+from .px4_args import add_identity_args, add_px4_args, print_rate_response, px4_services, rate_loop_config
 from .world import PRESET_NAMES, PRESETS, build_world
 
 __all__ = ["main", "build_parser", "build_engine", "BadInput"]
@@ -123,12 +123,7 @@ def build_parser() -> argparse.ArgumentParser:
         "(default %(default)s)"))
     a("--failsafe-hold-s", type=nonneg_float, default=1.5, metavar="S",
       help="failsafe: seconds of level/hold-altitude before landing (default %(default)s)")
-    a("--system-id", type=sysid, default=1, help="our MAVLink system id (default 1)")
-    a("--peer-system-id", dest="peer_system_ids", type=sysid, action="append", default=[],
-      metavar="N", help="also take commands from system N (repeatable; a ground station, e.g. 255 "
-      "QGroundControl/MAVProxy, 245 MAVSDK), once it has sent a HEARTBEAT. Default: only our own "
-      "system id, which the daemon uses")
-    a("--gcs-system-id", dest="peer_system_ids", type=sysid, action="append", help=argparse.SUPPRESS)
+    add_identity_args(p)
     a("--signing-key", default=None, metavar="FILE",
       help="MAVLink 2 signing: sign every message and take only validly signed ones (FILE: 32 "
       "bytes as 64 hex characters or base64, mode 0600; the timestamp state is kept beside it "
@@ -265,6 +260,7 @@ def _assemble(args, world, vehicle_path, vehicle, nominal, params, start, items)
     stab = Stabilizer(n.mass_kg, nominal.inertia_matrix_kg_m2, n.arm_length_m,
                       n.drag_torque_ratio_m, n.max_rotor_thrust_n)
     cfg = AutopilotConfig(system_id=args.system_id, peer_system_ids=tuple(args.peer_system_ids),
+                          autopilot=AUTOPILOTS[args.autopilot],
                           answer_timesync=not args.no_timesync,
                           max_rotor_thrust_n=command_scale_n,
                           offboard_loss_timeout_s=args.offboard_loss_timeout,
@@ -274,7 +270,8 @@ def _assemble(args, world, vehicle_path, vehicle, nominal, params, start, items)
         signing = Signing(args.signing_key, "firmware-sim") if args.signing_key is not None else None
         faults = link_faults_from_args(args.link_faults, args.uplink_faults, args.downlink_faults, args.seed)
         link = Link(args.listen, args.system_id, cfg.component_id,
-                    peer_system_ids=(args.system_id, *args.peer_system_ids), signing=signing)
+                    peer_system_ids=(args.system_id, *args.peer_system_ids), signing=signing,
+                    remote=parse_remote_url(args.remote) if args.remote is not None else None)
     except ValueError as exc:
         raise BadInput(str(exc)) from None
     engine = Engine(sim, ap, link, world, faults)

@@ -25,7 +25,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from .peers import PeerFilter
 from .wire import Wire
 
-__all__ = ["Link", "parse_listen_url", "MAX_DATAGRAM_BYTES", "io_impl"]
+__all__ = ["Link", "parse_listen_url", "parse_remote_url", "MAX_DATAGRAM_BYTES", "io_impl"]
 
 MAX_DATAGRAM_BYTES = 1400
 """Frames are packed together into datagrams up to this size (an Ethernet MTU with room)."""
@@ -51,6 +51,22 @@ def io_impl() -> str:
     return impl
 
 
+def _parse_url(url: str, option: str, wanted: str, lowest_port: int) -> tuple[str, int]:
+    """``WANTED:HOST:PORT`` -> ``(host, port)``, the port in ``lowest_port``..65535; else
+    ValueError naming ``option``."""
+    scheme, _, rest = url.partition(":")
+    host, sep, port_text = rest.rpartition(":")
+    if scheme != wanted or not sep or not host:
+        raise ValueError(f"{option} {url!r}: expected {wanted}:HOST:PORT (e.g. {wanted}:127.0.0.1:14540)")
+    try:
+        port = int(port_text)
+    except ValueError:
+        raise ValueError(f"{option} {url!r}: port must be an integer") from None
+    if not lowest_port <= port <= 65535:
+        raise ValueError(f"{option} {url!r}: port must be in {lowest_port}..65535")
+    return host, port
+
+
 def parse_listen_url(url: str) -> tuple[str, int]:
     """``udpin:HOST:PORT`` -> ``(host, port)``; port 0 picks a free port.
 
@@ -59,17 +75,18 @@ def parse_listen_url(url: str) -> tuple[str, int]:
     ValueError
         For anything else.
     """
-    scheme, _, rest = url.partition(":")
-    host, sep, port_text = rest.rpartition(":")
-    if scheme != "udpin" or not sep or not host:
-        raise ValueError(f"--listen {url!r}: expected udpin:HOST:PORT (e.g. udpin:127.0.0.1:14540)")
-    try:
-        port = int(port_text)
-    except ValueError:
-        raise ValueError(f"--listen {url!r}: port must be an integer") from None
-    if not 0 <= port <= 65535:
-        raise ValueError(f"--listen {url!r}: port must be in 0..65535")
-    return host, port
+    return _parse_url(url, "--listen", "udpin", 0)
+
+
+def parse_remote_url(url: str) -> tuple[str, int]:
+    """``udpout:HOST:PORT`` (``--remote``) -> ``(host, port)``, a port in 1..65535.
+
+    Raises
+    ------
+    ValueError
+        For anything else.
+    """
+    return _parse_url(url, "--remote", "udpout", 1)
 
 
 class Link:
@@ -86,10 +103,12 @@ class Link:
     peer_system_ids : iterable of int, optional
         Systems whose messages are taken (default: ours, the daemon's).
     signing : Signing or None
+    remote : (host, port) or None
+        Also sent to from the start (``--remote``), before anything is heard from it.
     """
 
     def __init__(self, url: str, system_id: int, component_id: int, io: str | None = None,
-                 peer_system_ids=None, signing=None):
+                 peer_system_ids=None, signing=None, remote=None):
         host, port = parse_listen_url(url)
         self.fast = (io_impl() if io is None else io) == "fast"
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -104,11 +123,21 @@ class Link:
         self.mav = self.wire.mav                      # the reference codec (robust parsing)
         self.signing = signing
         self.filter = PeerFilter(system_id, component_id,
-                                 (system_id,) if peer_system_ids is None else peer_system_ids, signing)
+                                 (system_id,) if peer_system_ids is None else peer_system_ids, signing,
+                                 None if remote is None else self._resolve(remote))
         self.peers: list = self.filter.addresses
         """The learned peers' addresses (the filter keeps this list)."""
         self.bytes_in = 0
         self.send_errors = 0
+
+    def _resolve(self, remote) -> tuple[str, int]:
+        """``remote``'s address as ``recvfrom`` reports it (a host name resolved once)."""
+        try:
+            info = socket.getaddrinfo(remote[0], remote[1], socket.AF_INET, socket.SOCK_DGRAM)
+        except OSError as exc:
+            self.sock.close()
+            raise ValueError(f"--remote {remote[0]}:{remote[1]}: {exc.strerror or exc}") from None
+        return info[0][4][:2]
 
     @property
     def url(self) -> str:

@@ -17,8 +17,9 @@ that applies:
 - ``foreign_address``: no HEARTBEAT of that peer yet, or another address than the one it
   was learned from.
 
-Telemetry goes to the learned peers' addresses only. ``BAD_DATA`` is passed on (the
-autopilot counts it ``malformed``).
+Telemetry goes to the learned peers' addresses only, and to a ``remote`` address given at
+start (``--remote``: PX4 SITL's way of sending to an offboard computer before it is heard).
+``BAD_DATA`` is passed on (the autopilot counts it ``malformed``).
 """
 from __future__ import annotations
 
@@ -38,16 +39,19 @@ class PeerFilter:
     peer_system_ids : iterable of int
         The systems whose commands are taken.
     signing : Signing or None
+    remote : (host, port) or None
+        Always sent to, from the start.
     """
 
-    def __init__(self, system_id: int, component_id: int, peer_system_ids, signing=None):
+    def __init__(self, system_id: int, component_id: int, peer_system_ids, signing=None, remote=None):
         self.own = (int(system_id), int(component_id))
         self.peer_system_ids = frozenset(int(s) for s in peer_system_ids)
         self.signing = signing
         self.peers: dict = {}
         """``{system id: (component id, address)}`` learned from HEARTBEATs."""
-        self.addresses: list = []
-        """Where telemetry goes: the learned peers' addresses."""
+        self.remote = None if remote is None else tuple(remote)
+        self.addresses: list = [] if remote is None else [self.remote]
+        """Where telemetry goes: the learned peers' addresses, and ``remote``."""
         self.drops = dict.fromkeys(LINK_DROP_REASONS, 0)
 
     def admit(self, msgs, addr) -> list:
@@ -77,7 +81,8 @@ class PeerFilter:
         if msg.get_type() == "HEARTBEAT":
             if known is None or known[1] != addr:
                 self.peers[sysid] = (compid, addr)
-                self.addresses[:] = sorted({a for _, a in self.peers.values()})
+                learned = {a for _, a in self.peers.values()}
+                self.addresses[:] = sorted(learned if self.remote is None else learned | {self.remote})
             return None
         if known is None or addr != known[1]:
             return "foreign_address"

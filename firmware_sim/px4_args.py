@@ -1,15 +1,19 @@
-"""The command-line options of the PX4-facing side (:mod:`firmware_sim.px4`) and of the rate
-mode (:mod:`firmware_sim.rate_loop`)."""
+"""The command-line options of the PX4-facing side (:mod:`firmware_sim.px4`): who the vehicle
+is on the link and whom it sends to, what a ground station sees, and the rate mode
+(:mod:`firmware_sim.rate_loop`)."""
 from __future__ import annotations
 
 import argparse
 import dataclasses
 
-from .argtypes import nonneg_float, probability
+from .argtypes import add_deprecated_alias, checked, nonneg_float, probability, sysid
+from .autopilot import AUTOPILOTS
+from .link import parse_remote_url
 from .px4 import Px4Config, Px4Services
 from .rate_loop import RateLoopConfig
 
-__all__ = ["add_px4_args", "px4_services", "parse_home", "rate_loop_config", "print_rate_response"]
+__all__ = ["add_identity_args", "add_px4_args", "px4_services", "parse_home", "rate_loop_config",
+           "print_rate_response"]
 
 MAX_RATE_LATENCY_MS = 100.0
 
@@ -33,6 +37,28 @@ def _home_type(text: str):
         return parse_home(text)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def add_identity_args(p: argparse.ArgumentParser) -> None:
+    """``--vehicle-system-id``, ``--autopilot``, ``--remote``, ``--peer-system-id``: who the
+    vehicle is on the link, what it announces, whom it sends to and takes commands from."""
+    a = p.add_argument
+    add_deprecated_alias(p, "--system-id", a(
+        "--vehicle-system-id", dest="system_id", type=sysid, default=1, metavar="N",
+        help="the vehicle's (our) MAVLink system id, 1..255, as PX4's MAV_SYS_ID; commands are taken "
+        "from it (the daemon flies with the vehicle's id) and any --peer-system-id (default 1)"))
+    a("--autopilot", choices=AUTOPILOTS, default="px4",
+      help="the autopilot its HEARTBEAT announces: 'px4' (MAV_AUTOPILOT_PX4, 12) or 'generic' "
+      "(MAV_AUTOPILOT_GENERIC, 0: custom firmware); it speaks PX4's modes either way (default %(default)s)")
+    a("--remote", default=None, metavar="URL", type=checked(parse_remote_url, "URL"),
+      help="udpout:HOST:PORT: also send everything there from the start, before hearing from it, "
+      "as PX4 SITL sends to an offboard computer's port (which listens: mavreg's udpin:HOST:PORT "
+      "vehicle URL). Default: send only to the peers heard")
+    a("--peer-system-id", dest="peer_system_ids", type=sysid, action="append", default=[],
+      metavar="N", help="also take commands from system N (repeatable; a ground station, e.g. 255 "
+      "QGroundControl/MAVProxy, 245 MAVSDK), once it has sent a HEARTBEAT. Default: only our own "
+      "system id, which the daemon uses")
+    a("--gcs-system-id", dest="peer_system_ids", type=sysid, action="append", help=argparse.SUPPRESS)
 
 
 def add_px4_args(p: argparse.ArgumentParser) -> None:

@@ -24,7 +24,7 @@ __all__ = ["PARAMS_DIR", "DEFAULT_VEHICLE", "PAPER_CONTROLLER", "PAPER_GOVERNED_
            "DESIGN_CONTROLLER", "REAL_CONTROLLER", "add_model_arguments", "add_laps_argument",
            "add_entry_offset_argument", "load_model_params", "load_maneuver_arg",
            "add_gcs_arguments", "gcs_config", "add_signing_argument", "add_output_argument",
-           "add_excitation_argument", "excitation_params",
+           "add_excitation_argument", "excitation_params", "add_vehicle_identity_arguments", "system_id",
            "add_planner_arguments", "planner_bounds", "Parser", "positive_float", "nonneg_float",
            "finite_float", "positive_int", "nonneg_int", "vehicle_url", "plot_file", "input_file",
            "output_file", "output_dir", "socket_path", "check_output_file", "check_output_dir",
@@ -139,6 +139,33 @@ def add_output_argument(p: argparse.ArgumentParser) -> None:
                    "or 'rates', body rates and a normalized thrust (SET_ATTITUDE_TARGET), which stock "
                    "PX4 and ArduPilot autopilots take; needs the vehicle file's rate_interface: "
                    "section (docs/autopilots.md) (default: the vehicle file's output:, else rotors)")
+
+
+def system_id(text: str) -> int:
+    """A MAVLink system id, a whole number in 1..255."""
+    n = _whole_number(text, 1)
+    if n > 255:
+        raise argparse.ArgumentTypeError(f"a MAVLink system id is at most 255, got {n}")
+    return n
+
+
+def add_vehicle_identity_arguments(p: argparse.ArgumentParser) -> None:
+    """``--vehicle-system-id N`` and ``--dialect px4|ardupilot`` (fly, serve): which system on the
+    link is the vehicle, and the mode layout of custom firmware (docs/autopilots.md, *Which
+    dialect*)."""
+    from ..config.vehicle import DIALECTS
+    p.add_argument("--vehicle-system-id", type=system_id, default=None, metavar="N",
+                   help="the vehicle's MAVLink system id, 1..255 (its MAV_SYS_ID or SYSID_THISMAV); the "
+                   "daemon takes only its frames and addresses it, with the same id as its own "
+                   "(default: on udpin: the system id of the first autopilot HEARTBEAT heard, never a "
+                   "ground station's; on udpout: and the bundled emulator, 1, which the emulator is "
+                   "then started with)")
+    p.add_argument("--dialect", choices=DIALECTS, default=None,
+                   help="the mode layout of custom firmware that announces MAV_AUTOPILOT_GENERIC (0): "
+                   "'px4' (OFFBOARD, AUTO.LAND) or 'ardupilot' (GUIDED, LAND); its parameters are not "
+                   "checked. Stock PX4 and ArduPilot are known from their HEARTBEAT and refuse a "
+                   "contradicting choice (default: the vehicle file's dialect:, else PX4's in the rotors "
+                   "output; the rates output refuses a GENERIC vehicle without a choice)")
 
 
 def add_excitation_argument(p: argparse.ArgumentParser) -> None:

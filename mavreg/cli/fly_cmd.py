@@ -9,7 +9,8 @@ from ..errors import UsageError
 from ..config.defaults import CONTROL_RATE_HZ, STALE_TIMEOUT_S
 from .common import (REAL_CONTROLLER, add_entry_offset_argument, add_gcs_arguments,
                      add_laps_argument, add_model_arguments, add_excitation_argument, add_output_argument,
-                     add_planner_arguments, add_signing_argument, check_output_dir, excitation_params, gcs_config, input_file, load_maneuver_arg,
+                     add_planner_arguments, add_signing_argument, add_vehicle_identity_arguments,
+                     check_output_dir, excitation_params, gcs_config, input_file, load_maneuver_arg,
                      output_dir, planner_bounds, positive_float, socket_path, vehicle_url)
 
 MAX_ENTRY_OFFSET_M = 2.0
@@ -69,7 +70,9 @@ action is also sent to the vehicle as a STATUSTEXT.
 Exit status: 0 the maneuver was flown within its envelope and the vehicle landed (touchdown
 under 1 m/s) and disarmed; 1 the flight failed: the first bound violated (where, by how much,
 what was done) is printed in one line and kept in summary.json under "failure" (also: the
-maneuver cannot be flown); 2 bad file or arguments (--out and --socket are checked before
+maneuver cannot be flown, or a check before take-off refused it: the vehicle's autopilot or
+--dialect, a parameter, the plan outside the envelope, the link; then fly ends within 2 s of
+the refusal); 2 bad file or arguments (--out and --socket are checked before
 anything starts).
 """
 
@@ -121,6 +124,7 @@ def add_arguments(p):
         "regulator takes over there (the paper's Section 4: 0.6 0.6 0.6; more than 0.5 m across "
         "the path needs a controller file whose envelope allows it, see mavreg experiment)"
         % MAX_ENTRY_OFFSET_M)
+    add_vehicle_identity_arguments(p)
     add_output_argument(p)
     add_excitation_argument(p)
     add_signing_argument(p, bundled_emulator=True)
@@ -130,7 +134,7 @@ def add_arguments(p):
 
 
 def run(args) -> int:
-    from ..config.vehicle import load_vehicle, with_output
+    from ..config.vehicle import load_vehicle, with_dialect, with_output
     from ..daemon.fly import FlyOptions, fly
     from ..daemon.signing import load_key
     maneuver = Path(args.maneuver)
@@ -145,7 +149,8 @@ def run(args) -> int:
         raise UsageError(f"--entry-offset must be at most {MAX_ENTRY_OFFSET_M:g} m long, "
                          f"got {' '.join(f'{v:g}' for v in offset)}")
     gcs = gcs_config(args)
-    vehicle = with_output(load_vehicle(args.vehicle_params), args.output)   # a bad file: before anything starts
+    vehicle = with_dialect(with_output(load_vehicle(args.vehicle_params), args.output),
+                           args.dialect)    # a bad file: before anything starts
     excitation = excitation_params(args, vehicle.output)
     load_maneuver_arg(args)             # a bad maneuver file or --laps: before anything starts
     out = Path(args.out) if args.out else Path("flights") / time.strftime("%Y%m%d-%H%M%S")
@@ -159,5 +164,6 @@ def run(args) -> int:
                       signing_key=Path(args.signing_key) if args.signing_key is not None else None,
                       gcs_urls=gcs["gcs_urls"], gcs=gcs["gcs"], tlog_clock=args.tlog_clock,
                       argv=tuple(getattr(args, "command_line", ())), planner=planner_bounds(args), output=args.output,
-                      laps=args.laps, excitation=excitation)
+                      laps=args.laps, excitation=excitation, dialect=args.dialect,
+                      vehicle_system_id=args.vehicle_system_id)
     return fly(opts)

@@ -1,13 +1,14 @@
 """``mavreg serve``: the long-running daemon that flies uploaded maneuvers."""
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from ..config.defaults import CONTROL_RATE_HZ, STALE_TIMEOUT_S
 from .common import (REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, add_excitation_argument, add_output_argument,
                      add_planner_arguments,
-                     add_signing_argument, excitation_params, gcs_config, output_file, planner_bounds, positive_float, socket_path,
-                     vehicle_url)
+                     add_signing_argument, add_vehicle_identity_arguments, excitation_params, gcs_config,
+                     output_file, planner_bounds, positive_float, socket_path, vehicle_url)
 
 HELP = "run the offboard daemon: fly maneuvers uploaded on the control endpoint"
 DESCRIPTION = """\
@@ -29,7 +30,9 @@ Writes a .tlog of every MAVLink message (--tlog, default none) and the controlle
 (--control-log, default none).
 
 Exit status: 0 landed and disarmed or stopped on request; 1 the flight was aborted (stale
-state, non-finite output, the vehicle left OFFBOARD); 2 bad arguments or files (--tlog,
+state, non-finite output, the vehicle left OFFBOARD) or refused before take-off (a vehicle
+mavreg does not fly, a parameter, the plan outside the envelope, the link: the daemon ends
+at once, the cause in one line); 2 bad arguments or files (--tlog,
 --control-log and --socket are checked before the daemon starts), or another daemon serves
 on the socket.
 """
@@ -55,6 +58,7 @@ def add_arguments(p):
     p.add_argument("--vehicle-lockstep", action="store_true",
                    help="the vehicle is a lockstep simulator (it waits for each command): do not "
                    "fly telemetry gaps on the prediction (in real time the daemon does)")
+    add_vehicle_identity_arguments(p)
     add_output_argument(p)
     add_excitation_argument(p)
     add_signing_argument(p)
@@ -66,21 +70,23 @@ def add_arguments(p):
 def run(args) -> int:
     import asyncio
 
-    from ..config.vehicle import load_vehicle, with_output
+    from ..config.vehicle import load_vehicle, with_dialect, with_output
     from ..control.hover import HoverParams
     from ..daemon.app import Daemon, DaemonConfig, regulator_factory
     from ..daemon.endpoint import default_socket_path
+    from ..daemon.peers import system_id_to_use
     from ..daemon.supervisor import Phase, SupervisorParams
     from ..daemon.signing import Signing
     signing = Signing(args.signing_key, "mavreg") if args.signing_key is not None else None
     gcs = gcs_config(args)
-    vehicle = with_output(load_vehicle(args.vehicle_params), args.output)
+    vehicle = with_dialect(with_output(load_vehicle(args.vehicle_params), args.output), args.dialect)
     from ..config.controller import load_controller
     controller = load_controller(args.controller)
     config = DaemonConfig(args.vehicle, Path(args.vehicle_params), Path(args.controller),
                           Path(args.socket) if args.socket else default_socket_path(),
                           Path(args.tlog) if args.tlog else None,
-                          SupervisorParams(land_when_done=False, stale_timeout_s=args.stale_timeout_s,
+                          SupervisorParams(system_id_to_use(args.vehicle, args.vehicle_system_id),
+                                           land_when_done=False, stale_timeout_s=args.stale_timeout_s,
                                            gap_fill=not args.vehicle_lockstep, lockstep=args.vehicle_lockstep,
                                            hover=HoverParams.from_controller(controller),
                                            excitation=excitation_params(args, vehicle.output)),
@@ -93,4 +99,8 @@ def run(args) -> int:
     asyncio.run(daemon.run())
     if args.control_log:
         daemon.ctrl_log.save(args.control_log)
+    failure = daemon.supervisor.failure
+    if failure is not None and failure.phase == Phase.PREFLIGHT:      # refused before take-off
+        print(f"mavreg serve: {failure.line()}", file=sys.stderr, flush=True)
+        return 1
     return 1 if daemon.supervisor.phase == Phase.ABORTED else 0

@@ -6,7 +6,8 @@ from pathlib import Path
 
 from .loader import ConfigError, load_file
 
-__all__ = ["EmulatorParams", "RateInterfaceParams", "VehicleParams", "load_vehicle", "G", "OUTPUTS", "with_output"]
+__all__ = ["EmulatorParams", "RateInterfaceParams", "VehicleParams", "load_vehicle", "G", "OUTPUTS", "with_output",
+           "DIALECTS", "with_dialect"]
 
 G = 9.81
 """Gravity (m/s^2), along +z (down) of NED."""
@@ -16,6 +17,11 @@ _POS = {"min_exclusive": 0.0}
 OUTPUTS = ("rotors", "rates")
 """What the daemon commands: rotor forces (SET_ACTUATOR_CONTROL_TARGET), or body rates and
 a collective thrust (SET_ATTITUDE_TARGET), which stock autopilots take (docs/autopilots.md)."""
+
+DIALECTS = ("px4", "ardupilot")
+"""Mode layouts a vehicle that announces MAV_AUTOPILOT_GENERIC (custom firmware) can be flown
+with: PX4's (OFFBOARD, custom main mode 6) or ArduCopter's (GUIDED, 4). Stock PX4 and
+ArduPilot are known from their HEARTBEAT (docs/autopilots.md, *Which dialect*)."""
 
 
 @dataclass(frozen=True)
@@ -117,6 +123,10 @@ class VehicleParams:
     """What the daemon commands (``--output`` overrides it)."""
     rate_interface: RateInterfaceParams | None = None
     """The autopilot's rate loop and thrust map; required by ``output: rates``."""
+    dialect: str | None = field(default=None, metadata={"choices": DIALECTS})
+    """The mode layout of custom firmware that announces MAV_AUTOPILOT_GENERIC: ``px4`` or
+    ``ardupilot`` (``--dialect`` overrides it). None: PX4's in the rotors output; the rates
+    output refuses such a vehicle without it. A stock PX4 or ArduPilot must not contradict it."""
     emulator: EmulatorParams = field(default_factory=EmulatorParams)
 
     def __post_init__(self):
@@ -154,3 +164,13 @@ def with_output(vehicle: VehicleParams, output: str | None) -> VehicleParams:
                           "output rates needs this section (hover_thrust, rate_time_constant_s, ...): "
                           "add it or run mavreg identify on a flight (docs/autopilots.md)")
     return replace(vehicle, output=output)
+
+
+def with_dialect(vehicle: VehicleParams, dialect: str | None) -> VehicleParams:
+    """``vehicle`` flown with the mode layout ``dialect`` (``px4``/``ardupilot``; None: as its
+    file says). Raises ConfigError (one line) for another value."""
+    if dialect is None or dialect == vehicle.dialect:
+        return vehicle
+    if dialect not in DIALECTS:
+        raise ConfigError(vehicle.name, None, "dialect", f"expected one of {', '.join(DIALECTS)}, got {dialect!r}")
+    return replace(vehicle, dialect=dialect)

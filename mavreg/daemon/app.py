@@ -78,6 +78,8 @@ class Daemon:
         self._stop = asyncio.Event()
         self._gap_timer: asyncio.TimerHandle | None = None
         self._signals = 0
+        self._greeted = False
+        """Our HEARTBEAT has answered the vehicle's first message (:meth:`_on_message`)."""
         self.max_tick_gap_s = 0.0
         self.max_tick_gap_phase = ""
         self.max_tick_cpu_s = 0.0
@@ -113,6 +115,11 @@ class Daemon:
             self.ctrl_log.clock_anchor = (daemon_s, self.supervisor.last_sample.time_s)
 
     def _on_message(self, msg, t_recv_ns: int) -> None:
+        if not self._greeted:
+            # on udpin: nothing could be sent before the vehicle was heard; our HEARTBEAT goes
+            # first, so a vehicle that takes commands only from a known peer (the emulator)
+            # knows us before the first command instead of up to a heartbeat period later
+            self._greeted = self.link is not None and self.link.send(self.supervisor.heartbeat())
         if self._emit(self.supervisor.handle(msg, self.clock_s())):
             dt = time.perf_counter_ns() - t_recv_ns
             self.latency_ns.append(dt)
@@ -155,6 +162,8 @@ class Daemon:
             self.max_tick_cpu_s = max(self.max_tick_cpu_s, cpu - last_cpu)
             last, last_cpu = now, cpu
             self._emit(self.supervisor.tick(self.clock_s()))
+            if self.link is not None and (line := self.link.peer.silence_notice(self.clock_s())) is not None:
+                self.log(f"link: {line}")
 
     # ---------------------------------------------------------------- requests
     async def offer_text(self, yaml_text: str, source: str) -> dict:
@@ -267,7 +276,8 @@ class Daemon:
         the ground station's messages judged by :func:`mavreg.daemon.gcs_policy.judge`."""
         def land() -> None:
             self._emit(self.supervisor.request_land(self.clock_s()))
-        self.gcs = GcsLink(self.config.gcs_urls, self.config.supervisor.vehicle_system_id, self.config.gcs,
+        # before a system id taken from the vehicle's HEARTBEAT is known, 1; then the vehicle's
+        self.gcs = GcsLink(self.config.gcs_urls, self.config.supervisor.vehicle_system_id or 1, self.config.gcs,
                            self.clock_s, lambda: not self.supervisor.finished,
                            lambda msg: self.link is not None and self.link.send(msg), land, self.log)
         await self.gcs.open()

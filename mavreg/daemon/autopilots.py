@@ -2,12 +2,15 @@
 
 A :class:`Dialect` is chosen from the vehicle's HEARTBEAT by :func:`dialect_for` (its
 ``autopilot`` field: PX4 or ArduPilot; for ArduPilot only multicopter frames, whose mode
-numbers are ArduCopter's). It decodes the armed flag and the flight mode of a heartbeat and
-says whether the vehicle obeys offboard set-points (PX4 OFFBOARD, ArduCopter GUIDED); it
-builds the COMMAND_LONGs that ask for that mode and for the land mode (how a flight ends on
-ArduCopter), and the SET_MESSAGE_INTERVAL commands for the telemetry mavreg needs; and it
-lists the parameters that must hold before arming (:class:`ParamRule`), read with
-PARAM_REQUEST_READ and judged by a :class:`ParamChecker`.
+numbers are ArduCopter's), and by :func:`choose_dialect` with the operator's choice
+(``--dialect`` or the vehicle file's ``dialect:``) for custom firmware that announces
+``MAV_AUTOPILOT_GENERIC``: PX4's or ArduCopter's mode layout, without the parameter checks.
+It decodes the armed flag and the flight mode of a heartbeat and says whether the vehicle
+obeys offboard set-points (PX4 OFFBOARD, ArduCopter GUIDED); it builds the COMMAND_LONGs that
+ask for that mode and for the land mode (how a flight ends on ArduCopter), and the
+SET_MESSAGE_INTERVAL commands for the telemetry mavreg needs; and it lists the parameters
+that must hold before arming (:class:`ParamRule`), read with PARAM_REQUEST_READ and judged
+by a :class:`ParamChecker`.
 Nothing here ever builds a PARAM_SET: mavreg reports a wrong safety parameter, it does not
 change it. See ``docs/autopilots.md`` for the measurements behind the numbers.
 """
@@ -15,12 +18,14 @@ from __future__ import annotations
 
 import math
 import struct
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 from .messages import PX4_MAIN_AUTO, PX4_SUB_LAND, decode_heartbeat, mavlink2, mode_name, set_offboard
 
-__all__ = ["param_value", "ParamRule", "ParamVerdict", "ParamChecker", "HeartbeatInfo", "Dialect", "PX4", "ARDUCOPTER",
-           "dialect_for", "unsupported_reason", "ARDUCOPTER_MODES", "ARDUCOPTER_GUIDED"]
+__all__ = ["param_value", "ParamRule", "ParamVerdict", "ParamChecker", "HeartbeatInfo", "Dialect", "PX4",
+           "ARDUCOPTER", "dialect_for", "unsupported_reason", "ARDUCOPTER_MODES", "ARDUCOPTER_GUIDED",
+           "DialectChoice", "choose_dialect"]
 
 M = mavlink2
 ARDUCOPTER_GUIDED = 4
@@ -256,5 +261,53 @@ def unsupported_reason(hb) -> str:
     autopilot, vtype = int(hb.autopilot), int(hb.type)
     if autopilot == M.MAV_AUTOPILOT_ARDUPILOTMEGA:
         return f"ArduPilot vehicle of MAV_TYPE {vtype} is not a multicopter: only ArduCopter is supported"
-    return f"autopilot {autopilot} (MAV_AUTOPILOT) is neither PX4 (12) nor ArduPilot (3)"
+    return (f"autopilot {autopilot} (MAV_AUTOPILOT) is neither PX4 (12) nor ArduPilot (3) nor custom firmware "
+            "that announces GENERIC (0)")
 
+
+class DialectChoice(NamedTuple):
+    """What :func:`choose_dialect` decided: a dialect, or a refusal, and a notice to show."""
+
+    dialect: Dialect | None
+    refusal: str | None = None
+    """Why mavreg does not fly this vehicle (one line); None when ``dialect`` is set."""
+    notice: str | None = None
+    """One line for the operator: the mode layout a GENERIC vehicle is flown with."""
+
+
+_LAYOUTS = {"px4": PX4, "ardupilot": ARDUCOPTER}
+_CHOOSE = "--dialect px4|ardupilot (or dialect: in the vehicle file)"
+
+
+def choose_dialect(hb, choice: str | None = None, output: str = "rotors") -> DialectChoice:
+    """The dialect of a vehicle HEARTBEAT with the operator's ``choice`` (``px4``, ``ardupilot``
+    or None) for the ``output`` flown (``rotors`` or ``rates``).
+
+    PX4 and ArduCopter are known from the HEARTBEAT; a choice that contradicts it is refused.
+    A vehicle that announces ``MAV_AUTOPILOT_GENERIC`` (custom firmware) is flown with the mode
+    layout chosen, PX4's by default in the rotors output; its parameters are not checked (the
+    rules name PX4's and ArduCopter's parameters) and its telemetry rate is not capped. In the
+    rates output a GENERIC vehicle needs the choice: whose thrust set-point it takes decides
+    how the thrust is read, so mavreg does not guess."""
+    if choice is not None and choice not in _LAYOUTS:
+        return DialectChoice(None, f"dialect {choice!r}: expected one of {', '.join(_LAYOUTS)}")
+    autopilot = int(hb.autopilot)
+    if autopilot != M.MAV_AUTOPILOT_GENERIC:
+        dialect = dialect_for(hb)
+        if dialect is None:
+            return DialectChoice(None, unsupported_reason(hb))
+        if choice is not None and _LAYOUTS[choice] is not dialect:
+            return DialectChoice(None, f"the vehicle announces {dialect.name} (autopilot {autopilot}) but the "
+                                 f"dialect chosen is {choice}: remove the choice (--dialect or the vehicle "
+                                 "file's dialect:), it is only for custom firmware that announces GENERIC (0)")
+        return DialectChoice(dialect)
+    if choice is None and output == "rates":
+        return DialectChoice(None, "autopilot 0 (MAV_AUTOPILOT_GENERIC) in the rates output: mavreg cannot tell "
+                             "whose mode numbers and thrust set-point it takes; choose with " + _CHOOSE)
+    layout = _LAYOUTS[choice or "px4"]
+    how = "as chosen" if choice is not None else "by default for the rotors output; change it with " + _CHOOSE
+    notice = (f"autopilot 0 (MAV_AUTOPILOT_GENERIC): flying it with {layout.name}'s mode layout "
+              f"({layout.offboard_mode} to fly, {layout.land_mode} to land) {how}; its parameters are not "
+              "checked, its own offboard-loss failsafe is the operator's to set")
+    return DialectChoice(replace(layout, name=f"GENERIC ({layout.name} modes)", rules=(), max_rate_hz=math.inf),
+                         notice=notice)

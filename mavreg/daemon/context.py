@@ -30,6 +30,7 @@ from .gate import HealthGate
 from .messages import VehicleStatus
 from .monitor import EnvelopeMonitor
 from .output import RateOutput, RotorOutput, command_output
+from .peers import VehicleIds
 from .phases import Counters, Phase, SupervisorParams
 from .preflight import AutopilotSetup
 from .records import Outcome
@@ -96,6 +97,10 @@ class FlightContext:
 
     # the landing
     land_requested: bool = False
+    arm_requested: bool = False
+    """An ARM request went out (a refusal on the ground then sends one more disarm)."""
+    ground_end_wall_s: float | None = None
+    """The flight began to end on the ground with the vehicle armed (None: it has not)."""
     land_mode_requested: bool = False
     descent: collections.deque = field(default_factory=collections.deque)
     """(vehicle time s, down velocity m/s) of the last 0.3 s before touchdown."""
@@ -137,6 +142,9 @@ class FlightParts:
     gate: HealthGate
     autopilot: AutopilotSetup
     counters: Counters
+    ids: VehicleIds
+    """The vehicle's system and component id (pinned, or fixed by its first autopilot HEARTBEAT):
+    every command and set-point is addressed to :attr:`VehicleIds.target`."""
 
     @classmethod
     def build(cls, vehicle: VehicleParams, params: SupervisorParams, regulator_factory,
@@ -148,7 +156,8 @@ class FlightParts:
         if forecaster is None:
             forecaster = Forecaster(vehicle, 1.0 / CONTROL_RATE_HZ, predict=False)
         envelope = envelope if envelope is not None else EnvelopeParams()
-        output = command_output(vehicle, params.vehicle_system_id, params.vehicle_component_id)
+        ids = VehicleIds(params.vehicle_system_id, params.vehicle_component_id)
+        output = command_output(vehicle, ids)
         delay = ActuationDelay(timesync, vehicle, output.kind, fixed_delay_s)
         return cls(
             vehicle=vehicle, params=params, envelope=envelope, regulator_factory=regulator_factory,
@@ -160,6 +169,6 @@ class FlightParts:
             output=output, delay=delay,
             gate=HealthGate(envelope, vehicle.mass_kg, vehicle.max_rotor_thrust_n,
                             link_health if link_health is not None else delay.measured_link),
-            autopilot=AutopilotSetup(params.vehicle_system_id, params.vehicle_component_id,
-                                     params.telemetry_rate_hz, params.parameter_timeout_s),
-            counters=Counters())
+            autopilot=AutopilotSetup(ids, params.telemetry_rate_hz, params.parameter_timeout_s,
+                                     choice=vehicle.dialect, output=vehicle.output),
+            counters=Counters(), ids=ids)

@@ -30,6 +30,10 @@ def status_report(daemon, tick_s: float) -> dict:
     st = sup.status()
     if daemon.link is not None:
         st["link"] = dict(daemon.link.counters.__dict__)
+        peer = daemon.link.peer
+        st["vehicle_ids"] = {"system_id": peer.vehicle.system_id, "component_id": peer.vehicle.component_id,
+                             "pinned": peer.vehicle.pinned,
+                             "dropped_by_system": {str(k): v for k, v in sorted(peer.heard.frames.items())}}
     sg = daemon.signing
     st["signing"] = None if sg is None else {"accepted": sg.accepted, **sg.drops,
                                              "state_file": str(sg.path)}

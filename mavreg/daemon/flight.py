@@ -119,11 +119,14 @@ class Flight:
         return self.parts.params.land_when_done or self.ctx.land_requested
 
     # ------------------------------------------------------------------ messages out
-    def command(self, out: Output, msg) -> None:
-        """Send a command, at most once per ``command_retry_s`` of vehicle time (retries)."""
+    def command(self, out: Output, msg, at_once: bool = False) -> None:
+        """Send a command, at most once per ``command_retry_s`` of vehicle time (retries), or
+        ``at_once`` (a new request: its retries are counted from now). Before the vehicle's
+        first sample (no vehicle time) it is not too soon."""
         ctx = self.ctx
-        t = ctx.last_sample.time_s
-        if t - ctx.last_command_vehicle_s >= self.parts.params.command_retry_s or t < ctx.last_command_vehicle_s:
+        t, last = ctx.vehicle_now_s, ctx.last_command_vehicle_s
+        too_soon = last <= t < last + self.parts.params.command_retry_s    # False with a NaN
+        if at_once or not too_soon:
             out.messages.append(msg)
             ctx.last_command_vehicle_s = t
             self.parts.counters.commands_sent += 1

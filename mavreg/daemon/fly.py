@@ -32,7 +32,7 @@ import numpy as np
 from ..config.controller import load_controller
 from ..config.defaults import CONTROL_RATE_HZ, STALE_TIMEOUT_S
 from ..config.maneuver import maneuver_text_with_laps
-from ..config.vehicle import load_vehicle, with_output
+from ..config.vehicle import load_vehicle, with_dialect, with_output
 from ..control.hover import HoverParams
 from .app import Daemon, DaemonConfig, regulator_factory
 from .ctrllog import load_control_log
@@ -40,6 +40,7 @@ from .excitation import ExcitationParams
 from .gcs import GcsParams
 from .lifeline import wrap_command
 from .link import io_impl
+from .peers import system_id_to_use
 from .signing import Signing
 from .report import controller_metrics, format_summary, ground_truth_errors, plot_flight
 from .records import Outcome
@@ -96,6 +97,13 @@ class FlyOptions:
     excitation: ExcitationParams | None = None
     """The identification flight's rate doublets in the hold (``--identify-excitation``,
     :mod:`mavreg.daemon.excitation`); None: none."""
+    dialect: str | None = None
+    """The mode layout of a vehicle that announces GENERIC (``--dialect``); None: the vehicle
+    file's (:func:`mavreg.daemon.autopilots.choose_dialect`)."""
+    vehicle_system_id: int | None = None
+    """The vehicle's system id (``--vehicle-system-id``); None: taken from its first autopilot
+    HEARTBEAT on ``udpin:``, 1 otherwise (:func:`mavreg.daemon.peers.system_id_to_use`). The
+    bundled emulator is started with it."""
 
 
 def spawn_emulator(vehicle_path: Path, record: Path | None, lockstep: bool, extra: tuple[str, ...] = (),
@@ -155,14 +163,15 @@ def fly(opts: FlyOptions) -> int:
     text = opts.maneuver_path.read_text()
     if opts.laps is not None:
         text = maneuver_text_with_laps(text, opts.laps, str(opts.maneuver_path))
-    vehicle = with_output(load_vehicle(opts.vehicle_path), opts.output)
+    vehicle = with_dialect(with_output(load_vehicle(opts.vehicle_path), opts.output), opts.dialect)
     controller = load_controller(opts.controller_path)
     opts.out_dir.mkdir(parents=True, exist_ok=True)
     record_path = opts.out_dir / "groundtruth.npz"
     config = DaemonConfig(vehicle_url=opts.vehicle_url or "", vehicle_path=opts.vehicle_path,
                           controller_path=opts.controller_path, socket_path=opts.socket_path,
                           tlog_path=opts.out_dir / "flight.tlog",
-                          supervisor=SupervisorParams(land_when_done=True, stale_timeout_s=opts.stale_timeout_s,
+                          supervisor=SupervisorParams(system_id_to_use(opts.vehicle_url, opts.vehicle_system_id),
+                                                      land_when_done=True, stale_timeout_s=opts.stale_timeout_s,
                                                       gap_fill=not (opts.lockstep or opts.vehicle_lockstep),
                                                       lockstep=opts.lockstep or opts.vehicle_lockstep,
                                                       entry_offset_m=tuple(opts.entry_offset_m),
@@ -179,6 +188,8 @@ def fly(opts: FlyOptions) -> int:
     signing = Signing(opts.signing_key, "mavreg") if opts.signing_key is not None else None
     daemon = Daemon(config, vehicle, make_regulator, signing=signing)
     extra = tuple(opts.emulator_args)
+    if opts.vehicle_system_id is not None:
+        extra = ("--vehicle-system-id", str(opts.vehicle_system_id)) + extra
     if opts.signing_key is not None:
         extra = ("--signing-key", str(opts.signing_key)) + extra
     proc = None

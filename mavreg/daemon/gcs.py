@@ -273,7 +273,10 @@ class GcsHub:
         self._offer_all(self.wire.pack(msg), msg.get_type(), now_s)
 
     def vehicle_message(self, msg, now_s: float) -> None:
-        """One message from the vehicle, forwarded as it came (its bytes, its ids)."""
+        """One message from the vehicle, forwarded as it came (its bytes, its ids); the daemon's
+        own messages follow its system id (taken from its HEARTBEAT on ``udpin:``)."""
+        if msg.get_srcSystem() != self.wire.system_id:
+            self.wire.identify(msg.get_srcSystem())
         mtype = msg.get_type()
         if mtype not in NOT_SHOWN:
             self._offer_all(msg.get_msgbuf(), mtype, now_s)

@@ -61,7 +61,7 @@ class Preflight(_Handler):
         flight, ctx, parts = self.flight, self.flight.ctx, self.flight.parts
         params = parts.params
         t = sample.time_s
-        sysid, compid = params.vehicle_system_id, params.vehicle_component_id
+        sysid, compid = parts.ids.target
         if ctx.stream_start_vehicle_s is None:
             ctx.stream_start_vehicle_s = t
         flight.send_rotors(np.zeros(4), now_wall_s, out)
@@ -80,6 +80,7 @@ class Preflight(_Handler):
                 self.safety.refuse(verdict, out, Phase.PREFLIGHT)
             elif self._link_delay_known(t, out):
                 flight.command(out, mm.arm_disarm(sysid, compid, True))
+                ctx.arm_requested = True
         elif not st.offboard:
             if t - ctx.stream_start_vehicle_s >= params.offboard_stream_min_s:
                 flight.command(out, parts.autopilot.set_offboard_mode())

@@ -281,7 +281,7 @@ class Land(HoverPhase):
         ground by itself."""
         params = self.flight.parts.params
         dialect = self.flight.parts.autopilot.dialect
-        sysid, compid = params.vehicle_system_id, params.vehicle_component_id
+        sysid, compid = self.flight.parts.ids.target
         wait_s = 0.0 if dialect.disarm_by_land_mode else params.land_mode_after_s
         if idle_s < wait_s or st.mode == dialect.land_mode:
             return mm.arm_disarm(sysid, compid, False)

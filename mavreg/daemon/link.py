@@ -19,13 +19,15 @@ Both
   to the ``.tlog``, and hand each decoded message to a callback with the time the
   datagram was read (``time.perf_counter_ns``);
 - take a frame only if :class:`mavreg.daemon.peers.PeerFilter` does: the vehicle's
-  system/component id, from the vehicle's address (fixed for ``udpout:HOST:PORT``,
+  system/component id (the system id pinned, or on ``udpin:`` taken from its first
+  autopilot HEARTBEAT), from the vehicle's address (fixed for ``udpout:HOST:PORT``,
   learned from the vehicle's first HEARTBEAT for ``udpin:HOST:PORT``), and, with a
   signing key (:mod:`mavreg.daemon.signing`), validly signed and not replayed; everything
   else is dropped and counted, and neither logged nor handed on;
 - sign every frame they send when signing is on;
-- pack outgoing messages with the daemon's own system id and component id 191
-  (MAV_COMP_ID_ONBOARD_COMPUTER).
+- pack outgoing messages with the vehicle's system id and component id 191
+  (MAV_COMP_ID_ONBOARD_COMPUTER); nothing is sent before the vehicle is heard on ``udpin:``,
+  so a system id taken from its HEARTBEAT is the one every frame carries.
 """
 from __future__ import annotations
 
@@ -111,8 +113,10 @@ class MavlinkLink(asyncio.DatagramProtocol):
     kind : {"udpin", "udpout"}
     vehicle_addr : (host, port) or None
         Known for udpout; learned from the vehicle's heartbeat for udpin.
-    system_id, vehicle_component_id : int
-        The vehicle's ids (the daemon uses the same system id and component 191).
+    system_id : int or None
+        The vehicle's system id (the daemon uses the same, with component 191); None (``udpin``
+        only): taken from the vehicle's first autopilot HEARTBEAT (:mod:`.peers`).
+    vehicle_component_id : int
     on_message : callable(msg, t_recv_ns)
         Receives each decoded message from the vehicle's address.
     tlog : TlogWriter or None
@@ -122,7 +126,7 @@ class MavlinkLink(asyncio.DatagramProtocol):
 
     kind: str
     vehicle_addr: tuple[str, int] | None
-    system_id: int
+    system_id: int | None
     vehicle_component_id: int
     on_message: Callable
     tlog: TlogWriter | None = None
@@ -135,7 +139,7 @@ class MavlinkLink(asyncio.DatagramProtocol):
         self.last_send_ns = 0
         """``time.perf_counter_ns`` when the last rotor command was handed to ``sendto``."""
         self._stamp = False
-        self.mav = mavlink2.MAVLink(_Writer(self), srcSystem=self.system_id, srcComponent=OWN_COMPONENT_ID)
+        self.mav = mavlink2.MAVLink(_Writer(self), srcSystem=self.system_id or 0, srcComponent=OWN_COMPONENT_ID)
         self.mav.robust_parsing = True
         self.connected = asyncio.Event()
         if self.vehicle_addr is not None:
@@ -169,6 +173,8 @@ class MavlinkLink(asyncio.DatagramProtocol):
                 self.tlog.write(msg.get_msgbuf())
             if self.vehicle_addr is None:
                 self.vehicle_addr = self.peer.addr
+                self.system_id = self.peer.vehicle.system_id
+                self.mav.srcSystem = self.system_id
                 self.connected.set()
             self.on_message(msg, t_ns)
 
@@ -225,7 +231,7 @@ class FastLink:
     Parameters are those of :class:`MavlinkLink`, plus the bound socket.
     """
 
-    def __init__(self, kind: str, vehicle_addr, system_id: int, vehicle_component_id: int,
+    def __init__(self, kind: str, vehicle_addr, system_id: int | None, vehicle_component_id: int,
                  on_message: Callable, tlog: TlogWriter | None, sock: socket.socket, signing=None):
         self.kind = kind
         self.vehicle_addr = vehicle_addr
@@ -235,7 +241,7 @@ class FastLink:
         self.tlog = tlog
         self.counters = LinkCounters()
         self.sock = sock
-        self.wire = Wire(system_id, OWN_COMPONENT_ID)
+        self.wire = Wire(system_id or 0, OWN_COMPONENT_ID)    # identified once the vehicle is heard
         self.signing = signing
         self.peer = PeerFilter(system_id, vehicle_component_id, vehicle_addr, signing)
         self.connected = asyncio.Event()
@@ -310,6 +316,8 @@ class FastLink:
                 self._skip = _AFTER_QUATERNION
             if self.vehicle_addr is None:    # the filter took the vehicle's first HEARTBEAT
                 self.vehicle_addr = self.peer.addr
+                self.system_id = self.peer.vehicle.system_id
+                self.wire.identify(self.system_id)
                 self.connected.set()
             self.on_message(msg, time.perf_counter_ns())
 
@@ -349,15 +357,20 @@ class FastLink:
             self.signing.save()
 
 
-async def open_link(url: str, system_id: int, vehicle_component_id: int, on_message: Callable,
+async def open_link(url: str, system_id: int | None, vehicle_component_id: int, on_message: Callable,
                     tlog: TlogWriter | None, impl: str | None = None, signing=None):
     """Create the UDP endpoint for ``url`` and return its link.
+
+    ``system_id``: the vehicle's; None only for ``udpin:`` (taken from its first autopilot
+    HEARTBEAT; on ``udpout:`` the daemon speaks first, so it must know it: ValueError).
 
     ``impl``: ``fast`` (:class:`FastLink`) or ``reference`` (:class:`MavlinkLink`);
     default: :func:`io_impl` (the :envvar:`MAVREG_IO` environment variable).
     ``signing``: a :class:`mavreg.daemon.signing.Signing`, or None (signing off).
     """
     kind, host, port = parse_url(url)
+    if system_id is None and kind != "udpin":
+        raise ValueError(f"vehicle URL {url!r}: on udpout the vehicle's system id must be given")
     impl = io_impl() if impl is None else impl
     loop = asyncio.get_running_loop()
     vehicle = (host, port) if kind == "udpout" else None

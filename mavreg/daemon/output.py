@@ -25,6 +25,7 @@ from ..model.mixer import Mixer
 from ..model.rate_interface import AttitudeLoopCompensation, ThrustMap, rate_command
 from ..model.rotor_lag import lag_decay, lag_toward
 from . import messages as mm
+from .peers import VehicleIds
 
 __all__ = ["RotorOutput", "RateOutput", "command_output"]
 
@@ -34,15 +35,15 @@ class RotorOutput:
 
     kind = "rotors"
 
-    def __init__(self, vehicle: VehicleParams, system_id: int, component_id: int):
+    def __init__(self, vehicle: VehicleParams, ids: VehicleIds):
         self._fmax = float(vehicle.max_rotor_thrust_n)
-        self._target = (system_id, component_id)
+        self._ids = ids
 
     def message(self, now_s: float, t_s: float, rotor_forces_n: np.ndarray, x: np.ndarray | None,
                 excitation: tuple | None = None):
         """The message for clipped rotor commands (N); ``t_s`` and ``x`` are not needed, and
         there is no rate loop to excite (the supervisor refuses an excitation here)."""
-        return mm.actuator_target(int(now_s * 1e6), *self._target, rotor_forces_n / self._fmax)
+        return mm.actuator_target(int(now_s * 1e6), *self._ids.target, rotor_forces_n / self._fmax)
 
 
 class RateOutput:
@@ -57,7 +58,7 @@ class RateOutput:
 
     kind = "rates"
 
-    def __init__(self, vehicle: VehicleParams, system_id: int, component_id: int):
+    def __init__(self, vehicle: VehicleParams, ids: VehicleIds):
         p = vehicle.rate_interface
         if p is None:
             raise ValueError("output: rates needs the vehicle file's rate_interface: section")
@@ -67,7 +68,7 @@ class RateOutput:
         yaw_tau = p.rate_time_constant_s if p.yaw_rate_time_constant_s is None else p.yaw_rate_time_constant_s
         self._tau = np.array([p.rate_time_constant_s, p.rate_time_constant_s, yaw_tau], dtype=float)
         self._max_rate = np.asarray(p.max_body_rate_rad_s, dtype=float)
-        self._target = (system_id, component_id)
+        self._ids = ids
         self._lag_s = float(vehicle.rotor_time_constant_s)
         self._torque = np.zeros(3)
         self._t_s: float | None = None
@@ -112,10 +113,11 @@ class RateOutput:
     def message(self, now_s: float, t_s: float, rotor_forces_n: np.ndarray, x: np.ndarray | None,
                 excitation: tuple | None = None):
         rates, thrust = self.command(rotor_forces_n, x, t_s, excitation)
-        return mm.rate_target(int(now_s * 1e3) & 0xFFFFFFFF, *self._target, rates, thrust)
+        return mm.rate_target(int(now_s * 1e3) & 0xFFFFFFFF, *self._ids.target, rates, thrust)
 
 
-def command_output(vehicle: VehicleParams, system_id: int, component_id: int) -> RotorOutput | RateOutput:
-    """The output the vehicle file's ``output`` names."""
+def command_output(vehicle: VehicleParams, ids: VehicleIds) -> RotorOutput | RateOutput:
+    """The output the vehicle file's ``output`` names, addressed to the vehicle's ``ids`` (read
+    at each message: a system id taken from the vehicle's HEARTBEAT applies at once)."""
     cls = RateOutput if vehicle.output == "rates" else RotorOutput
-    return cls(vehicle, system_id, component_id)
+    return cls(vehicle, ids)

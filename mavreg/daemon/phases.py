@@ -56,7 +56,9 @@ FREE_FLIGHT = frozenset({Phase.HOLD, Phase.RUN_IN, Phase.MANEUVER})
 class SupervisorParams:
     """Identities, timeouts and flight-shape parameters (SI units)."""
 
-    vehicle_system_id: int = 1
+    vehicle_system_id: int | None = 1
+    """The vehicle's system id (1..255); None: taken from its first autopilot HEARTBEAT
+    (:class:`mavreg.daemon.peers.VehicleIds`; ``udpin:`` without ``--vehicle-system-id``)."""
     vehicle_component_id: int = 1
     stale_timeout_s: float = STALE_TIMEOUT_S
     """No complete sample for this long (injected clock) while armed: the link is lost, the
@@ -104,6 +106,10 @@ class SupervisorParams:
     """Vehicle time after the spool-down that disarm requests are tried; then the autopilot's
     own landing mode is asked for (its land detector disarms; ArduCopter refuses a disarm in
     GUIDED until it has detected the landing itself)."""
+    ground_disarm_timeout_s: float = 1.0
+    """Injected-clock time an armed vehicle has to report disarmed when the flight ends on the
+    ground (a refusal before take-off, a land request); then the stream stops and the
+    vehicle's failsafe is in charge, so a refusal ends ``fly`` within 2 s."""
     land_when_done: bool = True
     """Land after the last queued maneuver (``fly``); ``serve`` keeps holding."""
     gap_fill: bool = True

@@ -2,22 +2,25 @@
 (sans-I/O; a part of the :class:`~mavreg.daemon.supervisor.Supervisor`).
 
 The first vehicle HEARTBEAT chooses the :class:`~mavreg.daemon.autopilots.Dialect` (PX4 or
-ArduCopter); every later one is decoded by it. With each HEARTBEAT until the first complete
+ArduCopter; for custom firmware that announces GENERIC, the mode layout the operator chose,
+PX4's by default in the rotors output: :func:`~mavreg.daemon.autopilots.choose_dialect`);
+every later one is decoded by it. With each HEARTBEAT until the first complete
 state sample, the dialect's SET_MESSAGE_INTERVAL requests go out (the telemetry mavreg flies
 on, at the control rate: ArduCopter sends none of it by default). Before the first arm
 request, :meth:`AutopilotSetup.ready` reads the parameters the dialect checks
 (PARAM_REQUEST_READ by name, repeated every ``retry_s`` for those not yet answered). It
 passes when every parameter has been read and holds; it refuses, with the dialect's one line
-naming the parameter and the value to set, when one does not hold, when the autopilot is
-not one mavreg speaks to, or when the parameters are not answered within ``timeout_s`` of
-vehicle time. It never sets a parameter.
+naming the parameter and the value to set, when one does not hold, or when the parameters
+are not answered within ``timeout_s`` of vehicle time. It never sets a parameter. A vehicle
+mavreg does not speak to is refused at its first HEARTBEAT (:attr:`AutopilotSetup.refusal`).
 """
 from __future__ import annotations
 
 import math
 
-from .autopilots import Dialect, HeartbeatInfo, ParamChecker, dialect_for, unsupported_reason
+from .autopilots import Dialect, HeartbeatInfo, ParamChecker, choose_dialect
 from .gate import GateVerdict
+from .peers import VehicleIds
 
 __all__ = ["AutopilotSetup"]
 
@@ -27,25 +30,34 @@ class AutopilotSetup:
 
     Parameters
     ----------
-    system_id, component_id : int
-        The vehicle's.
+    ids : VehicleIds
+        The vehicle's (read when a request is built: known by its first HEARTBEAT).
     telemetry_rate_hz : float
         Rate asked for the attitude and position telemetry (the control rate).
     timeout_s : float
         Vehicle time the parameter reads may take before the take-off is refused.
     retry_s : float
         Vehicle time between repeats of unanswered reads.
+    choice : {"px4", "ardupilot"} or None
+        The mode layout of a vehicle that announces GENERIC (``--dialect``, ``dialect:``).
+    output : {"rotors", "rates"}
+        What the daemon commands (a GENERIC vehicle in the rates output needs ``choice``).
     """
 
-    def __init__(self, system_id: int, component_id: int, telemetry_rate_hz: float,
-                 timeout_s: float = 10.0, retry_s: float = 1.0):
-        self.target = (system_id, component_id)
+    def __init__(self, ids: VehicleIds, telemetry_rate_hz: float, timeout_s: float = 10.0,
+                 retry_s: float = 1.0, choice: str | None = None, output: str = "rotors"):
+        self.ids = ids
+        self.choice = choice
+        self.output = output
         self.telemetry_rate_hz = float(telemetry_rate_hz)
         self.timeout_s = float(timeout_s)
         self.retry_s = float(retry_s)
         self.dialect: Dialect | None = None
         self.unsupported: str | None = None
         """Why the vehicle's autopilot is not one mavreg speaks to (None: it is, or unknown)."""
+        self.notice: str | None = None
+        """The line the first HEARTBEAT's choice of dialect is announced with (None: nothing
+        to say, or already said: the supervisor takes it)."""
         self.checker: ParamChecker | None = None
         self._t0 = math.nan
         self._sent_t = -math.inf
@@ -55,13 +67,11 @@ class AutopilotSetup:
         autopilot is not supported. Until the telemetry is ``streaming`` (complete samples
         arrive), its requests are appended to ``messages``."""
         if self.dialect is None and self.unsupported is None:
-            self.dialect = dialect_for(msg)
-            if self.dialect is None:
-                self.unsupported = unsupported_reason(msg)
+            self.dialect, self.unsupported, self.notice = choose_dialect(msg, self.choice, self.output)
         if self.dialect is None:
             return None
         if not streaming:
-            messages.extend(self.dialect.telemetry_requests(*self.target, self.telemetry_rate_hz))
+            messages.extend(self.dialect.telemetry_requests(*self.ids.target, self.telemetry_rate_hz))
         return self.dialect.decode(msg)
 
     def param_value(self, msg) -> None:
@@ -71,13 +81,19 @@ class AutopilotSetup:
 
     def set_offboard_mode(self):
         """The command that asks for the mode mavreg flies in."""
-        return self.dialect.set_offboard_mode(*self.target)
+        return self.dialect.set_offboard_mode(*self.ids.target)
+
+    @property
+    def refusal(self) -> GateVerdict | None:
+        """The refusal of a vehicle mavreg does not fly (its autopilot, or a dialect choice that
+        contradicts it), known at its first HEARTBEAT; None otherwise."""
+        return None if self.unsupported is None else GateVerdict(False, "gate_autopilot", detail=self.unsupported)
 
     def ready(self, t_s: float, messages: list) -> GateVerdict | None:
         """PASS, a refusal, or None while waiting; requests to send are appended to
         ``messages``. ``t_s``: vehicle time."""
         if self.unsupported is not None:
-            return GateVerdict(False, "gate_autopilot", detail=self.unsupported)
+            return self.refusal
         if self.dialect is None:
             return None
         if self.checker is None:
@@ -95,7 +111,7 @@ class AutopilotSetup:
                                f"{', '.join(verdict.missing)} within {self.timeout_s:g} s: mavreg checks "
                                "them before arming (docs/autopilots.md)")
         if t_s - self._sent_t >= self.retry_s or t_s < self._sent_t:
-            messages.extend(self.dialect.param_requests(*self.target, verdict.missing))
+            messages.extend(self.dialect.param_requests(*self.ids.target, verdict.missing))
             self._sent_t = t_s
         return None
 

@@ -61,7 +61,7 @@ TABLE_LEGEND = ("columns: e_t = transverse error, the distance from the path (th
 """One line under ``fly``'s table (and in ``mavreg fly --help``): what each column is."""
 
 EVENT_KINDS = ("phase", "touchdown", "command_refused", "gap", "recover", "recovered", "motors_stopped",
-               "hand_over", "refused", "hard_landing")
+               "hand_over", "refused", "hard_landing", "vehicle_id", "dialect", "disarming")
 """The events listed under ``fly``'s table (all of them are in summary.json)."""
 
 

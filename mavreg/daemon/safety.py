@@ -30,7 +30,12 @@ action must not be worse than the fault it answers, and a vehicle whose motors s
   ``stale_timeout_s``), the controller output is not finite, or the vehicle left OFFBOARD:
   the stream stops for good and the vehicle's failsafe flies.
 - **Refuse** (:meth:`SafetyPolicy.refuse`): the health gate does not pass within its time:
-  the maneuver is not flown; hold, then land (``fly``) or keep holding (``serve``).
+  the maneuver is not flown; hold, then land (``fly``) or keep holding (``serve``). A refusal
+  before take-off (the vehicle's autopilot or dialect, its parameters, the plan outside the
+  envelope, no link delay, a link too slow) ends the flight on the ground
+  (:meth:`SafetyPolicy.end_on_ground`): at once when the vehicle is disarmed, after its
+  disarm (or ``ground_disarm_timeout_s``) when it is armed; ``fly`` then exits 1 with the
+  cause in one line.
 
 Every action is an :class:`~mavreg.daemon.phases.Event`, a log line (the app prints events)
 and a STATUSTEXT to the vehicle (CRITICAL for recover / land / stop / hand over, WARNING for
@@ -172,7 +177,7 @@ class SafetyPolicy:
                              f"{params.terminate_timeout_s:g} s; the vehicle's failsafe is in charge")
             return
         if now_wall_s - ctx.disarm_sent_wall_s >= params.disarm_retry_s:
-            out.messages.append(mm.force_disarm(params.vehicle_system_id, params.vehicle_component_id))
+            out.messages.append(mm.force_disarm(*flight.parts.ids.target))
             flight.parts.counters.commands_sent += 1
             ctx.disarm_sent_wall_s = now_wall_s
 
@@ -198,22 +203,59 @@ class SafetyPolicy:
     # ------------------------------------------------------------------ refusals, landing
     def refuse(self, verdict, out, phase: Phase = Phase.HOLD) -> None:
         """The health gate did not pass in time (in the hold), or a check before take-off failed
-        (``phase`` preflight: the vehicle stays on the ground and is disarmed): the maneuver is
-        not flown."""
+        (``phase`` preflight: the flight ends on the ground, :meth:`end_on_ground`): the
+        maneuver (or, with none queued yet, the vehicle) is not flown."""
         flight, ctx = self.flight, self.flight.ctx
-        plan = ctx.pending[0][0]
-        flight.fail(verdict.at(phase, ctx.last_sample.time_s))
+        kind = "maneuver" if ctx.pending else "vehicle"
+        what = f"maneuver {ctx.pending[0][0].name!r}" if ctx.pending else "the vehicle"
+        violation = verdict.at(phase, ctx.vehicle_now_s)
+        flight.fail(violation)
         ctx.pending.clear()
         ctx.gate_wait_start_vehicle_s = None
         if phase == Phase.PREFLIGHT:
-            then = "staying on the ground, disarming"
-            ctx.land_requested = True
+            armed = ctx.vehicle_status is not None and ctx.vehicle_status.armed
+            then = "staying on the ground" + (", disarming" if armed else "")
         else:
             then = "landing" if flight.lands_when_done() else "holding"
-        flight.announce(out, "refused", mm.SEVERITY_WARNING, f"maneuver {plan.name!r} refused by the health gate: "
-                        f"{verdict.bound} {verdict.value:.3g} {verdict.unit} (limit {verdict.limit:.3g}); "
-                        f"{verdict.detail}; {then}")
-        flight.note_action(f"maneuver refused, {then}")
+        flight.announce(out, "refused", mm.SEVERITY_WARNING, f"{what} refused: {violation.describe()}; {then}")
+        flight.note_action(f"{kind} refused, {then}")
+        if phase == Phase.PREFLIGHT:
+            self.end_on_ground(out, f"refused before take-off ({verdict.bound}); nothing flown")
+
+    def end_on_ground(self, out, why: str) -> None:
+        """The flight ends before take-off (a refusal, or a land request): at once when the
+        vehicle is disarmed (after one more ARM_DISARM 0 when an arm request may still be on
+        its way), or has never been spoken to (no dialect: nothing was sent to it). An armed
+        vehicle is disarmed first: the preflight handler repeats ARM_DISARM 0, its HEARTBEAT
+        ends the flight, or after ``ground_disarm_timeout_s`` (injected clock) the stream is
+        left to its failsafe (:meth:`ground_disarm_timeout`)."""
+        flight, ctx = self.flight, self.flight.ctx
+        ctx.land_requested = True
+        ctx.pending.clear()
+        st = ctx.vehicle_status
+        disarm = mm.arm_disarm(*flight.parts.ids.target, False) if st is not None else None
+        if st is not None and st.armed:
+            ctx.ground_end_wall_s = ctx.now_wall_s
+            flight.event(out, "disarming", f"{why}; disarming on the ground")
+            flight.command(out, disarm, at_once=True)
+            return
+        if st is not None and ctx.arm_requested:
+            flight.command(out, disarm, at_once=True)
+        flight.set_phase(out, Phase.DISARMED, why)
+
+    def ground_disarm_timeout(self, now_wall_s: float, out) -> None:
+        """A flight ending on the ground whose armed vehicle has not reported disarmed within
+        ``ground_disarm_timeout_s``: the stream stops (aborted); the vehicle's own failsafe and
+        automatic disarm on the ground are in charge."""
+        flight, ctx = self.flight, self.flight.ctx
+        limit = flight.parts.params.ground_disarm_timeout_s
+        if ctx.phase != Phase.PREFLIGHT or ctx.ground_end_wall_s is None:
+            return
+        waited = now_wall_s - ctx.ground_end_wall_s
+        if waited > limit:
+            flight.note_action("disarm not confirmed")
+            flight.set_phase(out, Phase.ABORTED, f"the vehicle did not report disarmed within {limit:g} s on the "
+                             "ground; the command stream stops, its own failsafe and automatic disarm are in charge")
 
     def check_touchdown(self, descent_m_s: float, out) -> None:
         """A touchdown faster than the envelope allows is a hard landing (not an impact)."""

@@ -162,11 +162,7 @@ class Supervisor:
         ctx.land_requested = True
         ctx.pending.clear()
         if ctx.phase == Phase.PREFLIGHT:
-            armed = ctx.vehicle_status is not None and ctx.vehicle_status.armed
-            if not armed:
-                self.flight.set_phase(out, Phase.DISARMED, "land requested before take-off; nothing to fly")
-            else:
-                self.flight.event(out, "land_requested", "disarming on the ground")
+            self.safety.end_on_ground(out, "land requested before take-off; nothing to fly")
             return out
         self.flight.event(out, "land_requested", "landing at the next safe point")
         return out
@@ -194,17 +190,12 @@ class Supervisor:
         """Process one decoded message from the link (``now_s``: the injected wall clock)."""
         out = Output()
         self.ctx.now_wall_s = now_s
-        if (msg.get_srcSystem() != self.params.vehicle_system_id
-                or msg.get_srcComponent() != self.params.vehicle_component_id):
+        mtype = msg.get_type()
+        if not self._vehicle_ids(msg, mtype, out):
             self.counters.foreign_dropped += 1
             return out
-        mtype = msg.get_type()
         if mtype == "HEARTBEAT":
-            st = self.autopilot.heartbeat(msg, out.messages, self.ctx.last_sample is not None)
-            if st is not None:
-                self._on_heartbeat(st, out)
-            else:
-                self.counters.unsupported_heartbeats += 1
+            self._heartbeat(msg, out)
         elif mtype == "PARAM_VALUE":
             self.autopilot.param_value(msg)
         elif mtype == "COMMAND_ACK":
@@ -233,6 +224,8 @@ class Supervisor:
         ctx.last_tick_wall_s = now_s
         if ctx.phase == Phase.TERMINATE:
             self.safety.terminate_step(now_s, out)
+        elif ctx.ground_end_wall_s is not None:
+            self.safety.ground_disarm_timeout(now_s, out)
         elif not stalled and ctx.last_sample_wall_s is not None:
             self.safety.link_lost(now_s, out)
         return out
@@ -270,6 +263,34 @@ class Supervisor:
         return out
 
     # ----------------------------------------------------------------- messages in
+    def _vehicle_ids(self, msg, mtype: str, out: Output) -> bool:
+        """Whether ``msg`` is the vehicle's (:class:`~mavreg.daemon.peers.VehicleIds`: its system
+        id pinned, or fixed by its first autopilot HEARTBEAT, which is announced)."""
+        ids = self.ids
+        known = ids.system_id is not None
+        hb = (int(msg.type), int(msg.autopilot)) if mtype == "HEARTBEAT" else None
+        if not ids.take(msg.get_srcSystem(), msg.get_srcComponent(), hb):
+            return False
+        if not known:
+            self.flight.event(out, "vehicle_id", f"vehicle system id {ids.system_id}, from its first autopilot "
+                              f"HEARTBEAT (autopilot {hb[1]}); pin another with --vehicle-system-id N")
+        return True
+
+    def _heartbeat(self, msg, out: Output) -> None:
+        """A vehicle HEARTBEAT: the dialect (its notice), then the vehicle's status; a vehicle
+        mavreg does not fly is refused on the ground at once."""
+        autopilot = self.autopilot
+        st = autopilot.heartbeat(msg, out.messages, self.ctx.last_sample is not None)
+        if autopilot.notice is not None:
+            self.flight.announce(out, "dialect", mm.SEVERITY_WARNING, autopilot.notice)
+            autopilot.notice = None
+        if st is not None:
+            self._on_heartbeat(st, out)
+            return
+        self.counters.unsupported_heartbeats += 1
+        if self.ctx.phase == Phase.PREFLIGHT:
+            self.safety.refuse(autopilot.refusal, out, Phase.PREFLIGHT)
+
     def _on_heartbeat(self, st: mm.VehicleStatus, out: Output) -> None:
         ctx = self.ctx
         prev = ctx.vehicle_status
@@ -306,8 +327,6 @@ class Supervisor:
         prev, prev_wall_s = ctx.last_sample, ctx.last_sample_wall_s
         ctx.last_sample = sample
         ctx.last_sample_wall_s = now_s
-        if ctx.vehicle_status is None and self.autopilot.unsupported is not None and ctx.pending:
-            self.safety.refuse(self.autopilot.ready(sample.time_s, out.messages), out, Phase.PREFLIGHT)
         if self.finished or ctx.vehicle_status is None:
             return
         if ctx.phase not in AIRBORNE:

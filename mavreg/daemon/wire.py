@@ -152,6 +152,11 @@ class Wire:
         self.slow_in = 0
         """Datagrams (or their tails) handed to pymavlink's parser."""
 
+    def identify(self, system_id: int) -> None:
+        """Pack every later frame as ``system_id`` (the vehicle's, once it is known)."""
+        self.system_id = int(system_id)
+        self.mav.srcSystem = self.system_id
+
     # ------------------------------------------------------------------ sending
     def pack(self, msg) -> bytes:
         """The frame of ``msg`` with the next sequence number (as ``msg.pack(mav)`` and

@@ -92,12 +92,18 @@ class SimVehicle:
     with the force code (as PX4 does) and sends a HEARTBEAT at once on an arming change;
     ``ignore_disarm`` commands are dropped unanswered (a lossy uplink). It answers TIMESYNC
     requests with its own clock, as PX4, ArduPilot and firmware_sim do, unless
-    ``answer_timesync`` is False."""
+    ``answer_timesync`` is False. It speaks as ``system_id`` (component 1), announces
+    ``autopilot`` in its HEARTBEAT (PX4's mode layout whatever it announces), and ignores
+    commands and set-points addressed to another system (counted in ``wrong_target``)."""
 
     PARAMS = {"COM_OF_LOSS_T": 0.5, "COM_OBL_RC_ACT": 5.0}
     """The parameters it answers PARAM_REQUEST_READ for (as REAL32); ``params`` overrides."""
 
-    def __init__(self, rate_hz=250, mass_scale=1.0, ignore_disarm=0, answer_timesync=True, params=None):
+    def __init__(self, rate_hz=250, mass_scale=1.0, ignore_disarm=0, answer_timesync=True, params=None,
+                 system_id=1, autopilot=mavlink2.MAV_AUTOPILOT_PX4):
+        self.system_id = system_id
+        self.autopilot = autopilot
+        self.wrong_target = 0
         self.dt = 1.0 / rate_hz
         self.model = QuadrotorModel.from_vehicle(replace(VEHICLE, mass_kg=VEHICLE.mass_kg * mass_scale))
         self.ignore_disarm = ignore_disarm
@@ -120,10 +126,13 @@ class SimVehicle:
         base = mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (
             mavlink2.MAV_MODE_FLAG_SAFETY_ARMED if self.armed else 0)
         return wire(mavlink2.MAVLink_heartbeat_message(
-            2, mavlink2.MAV_AUTOPILOT_PX4, base, (self.main << 16) | (self.sub << 24), 4, 3))
+            2, self.autopilot, base, (self.main << 16) | (self.sub << 24), 4, 3), sysid=self.system_id)
 
     def receive(self, msg):
         t = msg.get_type()
+        if getattr(msg, "target_system", 0) not in (0, self.system_id):
+            self.wrong_target += 1
+            return
         if t == "SET_ACTUATOR_CONTROL_TARGET":
             assert all(np.isfinite(msg.controls))
             if self.stream_since is None:
@@ -143,14 +152,15 @@ class SimVehicle:
             if not self.armed:
                 self.main, self.sub = PX4_MAIN_AUTO, PX4_SUB_LOITER
         elif t == "TIMESYNC" and msg.tc1 == 0 and self.answer_timesync:
-            self.outbox.append(wire(mavlink2.MAVLink_timesync_message(self.t_ms * 1_000_000, msg.ts1)))
+            self.outbox.append(wire(mavlink2.MAVLink_timesync_message(self.t_ms * 1_000_000, msg.ts1),
+                                    sysid=self.system_id))
         elif t == "PARAM_REQUEST_READ":
             name = msg.param_id.decode() if isinstance(msg.param_id, bytes) else msg.param_id
             name = name.split("\0", 1)[0]
             if name in self.params:
                 self.outbox.append(wire(mavlink2.MAVLink_param_value_message(
                     name.encode(), float(self.params[name]), mavlink2.MAV_PARAM_TYPE_REAL32,
-                    len(self.params), list(self.params).index(name))))
+                    len(self.params), list(self.params).index(name)), sysid=self.system_id))
         elif t == "COMMAND_LONG" and msg.command == 176:
             if self.stream_since is not None and self.t_ms - self.stream_since >= 500:
                 self.main, self.sub = PX4_MAIN_OFFBOARD, 0
@@ -160,8 +170,8 @@ class SimVehicle:
         v_ned = rpy_to_matrix(*self.x[3:6]) @ self.x[6:9]
         r = self.x[9:12]
         return [
-            wire(mavlink2.MAVLink_attitude_quaternion_message(self.t_ms, *q, *r)),
-            wire(mavlink2.MAVLink_local_position_ned_message(self.t_ms, *self.x[:3], *v_ned)),
+            wire(mavlink2.MAVLink_attitude_quaternion_message(self.t_ms, *q, *r), sysid=self.system_id),
+            wire(mavlink2.MAVLink_local_position_ned_message(self.t_ms, *self.x[:3], *v_ned), sysid=self.system_id),
         ]
 
     def physics(self):

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -83,6 +84,15 @@ def start_emulator(record: Path, *args: str) -> tuple[Proc, str]:
                  "--record", str(record), *args])
     line = proc.wait_line("firmware_sim listening on", 30)
     return proc, line.split()[-1].replace("udpin:", "udpout:")
+
+
+def free_udp_port() -> int:
+    """A loopback UDP port free a moment ago (for a process that must listen on a known one)."""
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    return port
 
 
 def mavreg(*args: str) -> Proc:

@@ -17,7 +17,7 @@ import time
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from sitl_helpers import REPO, Proc, mavreg
+from sitl_helpers import REPO, Proc, free_udp_port, mavreg
 
 pytestmark = pytest.mark.sitl
 
@@ -63,19 +63,11 @@ class _Listener:
         self.sock.close()
 
 
-def _free_udp_port() -> int:
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
-
-
 @pytest.mark.slow          # 15 s: MAVProxy end to end; before each release (the forwarding and its policy: tests/unit/test_gcs*.py)
 def test_mavproxy_sees_the_vehicle_its_modes_and_the_daemons_messages(tmp_path):
     t0 = time.monotonic()
     listener = _Listener()
-    port = _free_udp_port()
+    port = free_udp_port()
     mp = Proc([sys.executable, "-u", "-m", "MAVProxy.mavproxy", "--master", f"udpin:127.0.0.1:{port}",
                "--out", f"udp:127.0.0.1:{listener.port}", "--target-system", "1", "--target-component", "0",
                "--daemon", "--non-interactive", "--no-state"],

@@ -12,7 +12,8 @@ import struct
 
 import pytest
 
-from mavreg.daemon.autopilots import (ARDUCOPTER, PX4, ParamChecker, dialect_for, unsupported_reason)
+from mavreg.daemon.autopilots import (ARDUCOPTER, PX4, ParamChecker, choose_dialect, dialect_for,
+                                      unsupported_reason)
 from mavreg.daemon.messages import mavlink2 as M
 
 ARMED = M.MAV_MODE_FLAG_SAFETY_ARMED | M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
@@ -56,6 +57,41 @@ def test_no_dialect_for_other_autopilots_or_ardupilot_planes():
     assert dialect_for(gcs) is None
     assert "neither PX4" in unsupported_reason(gcs)
     assert dialect_for(heartbeat(M.MAV_AUTOPILOT_GENERIC)) is None
+
+
+@pytest.mark.parametrize("autopilot, choice, output, layout, words", [
+    # stock autopilots: known from the HEARTBEAT; a choice may only agree
+    (M.MAV_AUTOPILOT_PX4, None, "rates", PX4, None),
+    (M.MAV_AUTOPILOT_PX4, "px4", "rotors", PX4, None),
+    (M.MAV_AUTOPILOT_PX4, "ardupilot", "rotors", None,
+     "announces PX4 (autopilot 12) but the dialect chosen is ardupilot"),
+    (M.MAV_AUTOPILOT_ARDUPILOTMEGA, "ardupilot", "rates", ARDUCOPTER, None),
+    (M.MAV_AUTOPILOT_ARDUPILOTMEGA, "px4", "rates", None, "announces ArduCopter (autopilot 3)"),
+    # custom firmware: PX4's layout by default in the rotors output, the choice otherwise
+    (M.MAV_AUTOPILOT_GENERIC, None, "rotors", PX4, "by default for the rotors output; change it with --dialect"),
+    (M.MAV_AUTOPILOT_GENERIC, "ardupilot", "rotors", ARDUCOPTER, "ArduCopter's mode layout (GUIDED to fly, LAND"),
+    (M.MAV_AUTOPILOT_GENERIC, "px4", "rates", PX4, "PX4's mode layout (OFFBOARD to fly, AUTO.LAND to land) as chosen"),
+    (M.MAV_AUTOPILOT_GENERIC, None, "rates", None, "choose with --dialect px4|ardupilot"),
+    # anything else, whatever the choice
+    (M.MAV_AUTOPILOT_SLUGS, "px4", "rotors", None, "neither PX4 (12) nor ArduPilot (3)"),
+    (M.MAV_AUTOPILOT_PX4, "inav", "rotors", None, "expected one of px4, ardupilot"),
+])
+def test_dialect_choice(autopilot, choice, output, layout, words):
+    got = choose_dialect(heartbeat(autopilot), choice, output)
+    if layout is None:
+        assert got.dialect is None and words in got.refusal and "\n" not in got.refusal
+        return
+    assert got.refusal is None and got.dialect.autopilot == layout.autopilot
+    assert got.dialect.offboard_mode == layout.offboard_mode
+    if autopilot != M.MAV_AUTOPILOT_GENERIC:
+        assert got.dialect is layout and got.notice is None
+        return
+    # custom firmware: the layout's modes and commands, none of its parameter rules, no rate cap
+    assert words in got.notice and "not checked" in got.notice and "\n" not in got.notice
+    assert got.dialect.rules == () and got.dialect.max_rate_hz == math.inf
+    assert got.dialect.param_checker().verdict().state == "ok"
+    assert got.dialect.set_offboard_mode(6, 1).param2 == layout.set_offboard_mode(6, 1).param2
+    assert got.dialect.decode(heartbeat(0, custom_mode=6 << 16)).offboard == (layout is PX4)
 
 
 # -- heartbeat decoding --------------------------------------------------------------------

@@ -20,6 +20,8 @@ DIALECT = {
     "vehicle parameter file": ("--vehicle-params", "YAML file",
                                {"plan", "simulate", "fly", "serve", "identify", "firmware-sim"}),
     "vehicle connection": ("--vehicle", "udpin:/udpout: URL", {"fly", "serve"}),
+    "the vehicle's system id": ("--vehicle-system-id", "1..255", {"fly", "serve", "firmware-sim"}),
+    "custom firmware's mode layout": ("--dialect", "px4 or ardupilot", {"fly", "serve"}),
     "controller file": ("--controller", "YAML file", {"plan", "simulate", "fly", "serve"}),
     "emulator world": ("--world", "preset name", {"fly", "firmware-sim"}),
     "control and telemetry rate": ("--control-rate-hz", "Hz", {"simulate", "fly", "serve", "firmware-sim"}),
@@ -51,6 +53,8 @@ OTHER_SPELLINGS = {
     "lockstep wait for a command": ("--lockstep-timeout",),
     "offboard loss failsafe after": ("--offboard-loss-timeout",),
     "give up after": ("--timeout",),
+    "the vehicle's system id": ("--system-id", "--sysid", "--target-system", "--vehicle-sysid"),
+    "custom firmware's mode layout": ("--autopilot-dialect", "--mode-layout", "--modes"),
 }
 """Spellings a command must not show: the old ones (hidden aliases for a release) and near misses."""
 
@@ -65,6 +69,7 @@ ALIASES = [
     ("firmware-sim", ["--preset", "ideal"], ["--world", "ideal"]),
     ("firmware-sim", ["--lockstep-timeout", "3"], ["--lockstep-timeout-s", "3"]),
     ("firmware-sim", ["--offboard-loss-timeout", "0.3"], ["--offboard-loss-timeout-s", "0.3"]),
+    ("firmware-sim", ["--system-id", "6"], ["--vehicle-system-id", "6"]),
 ]
 
 

@@ -47,6 +47,12 @@ def _one_error_line(capsys, prog: str) -> str:
     (["fly", BARREL, "--out", "{file}"], "--out: {file}: exists and is not a directory"),
     (["fly", BARREL, "--vehicle", "udp:1"], "expected udpin:HOST:PORT or udpout:HOST:PORT"),
     (["fly", BARREL, "--timeout-s", "-1"], "--timeout-s: expected a number > 0"),
+    (["fly", BARREL, "--vehicle-system-id", "0"], "--vehicle-system-id: must be at least 1, got 0"),
+    (["fly", BARREL, "--vehicle-system-id", "256"], "--vehicle-system-id: a MAVLink system id is at most 255"),
+    (["serve", "--vehicle-system-id", "six"], "--vehicle-system-id: expected a whole number, got 'six'"),
+    (["fly", BARREL, "--dialect", "inav"], "--dialect: invalid choice: 'inav' (choose from 'px4', 'ardupilot')"),
+    (["serve", "--dialect", "generic"], "--dialect: invalid choice: 'generic'"),
+    (["fly", BARREL, "--vehicle-params", "{dialect}"], "dialect: expected one of px4, ardupilot, got 'inav'"),
     (["serve", "--tlog", "/no/such/dir/f.tlog"], "--tlog: /no/such/dir/f.tlog: no such directory"),
     (["serve", "--control-log", "{tmp}"], "--control-log: {tmp}: is a directory"),
     (["serve", "--socket", "{file}/x.sock"], "is not a directory"),
@@ -57,7 +63,9 @@ def _one_error_line(capsys, prog: str) -> str:
 def test_bad_input_is_one_line_and_exit_2_before_any_work(argv, words, tmp_path, capsys):
     file = tmp_path / "a_file"
     file.write_text("")
-    argv = [a.format(tmp=tmp_path, file=file) for a in argv]
+    dialect = tmp_path / "dialect.yaml"               # a vehicle file with an unknown dialect
+    dialect.write_text(DEFAULT_VEHICLE.read_text() + "\ndialect: inav\n")
+    argv = [a.format(tmp=tmp_path, file=file, dialect=dialect) for a in argv]
     assert _run(argv) == EXIT_USAGE
     line = _one_error_line(capsys, argv[0])
     assert words.format(tmp=tmp_path, file=file) in line

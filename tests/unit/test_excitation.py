@@ -13,6 +13,7 @@ from mavreg.config.paths import DEFAULT_VEHICLE, PARAMS_DIR
 from mavreg.config.vehicle import load_vehicle, with_output
 from mavreg.daemon.excitation import MAX_TURN_RAD, ExcitationParams
 from mavreg.daemon.output import RateOutput
+from mavreg.daemon.peers import VehicleIds
 from mavreg.daemon.supervisor import Supervisor, SupervisorParams
 from mavreg.model.mixer import Mixer
 
@@ -92,7 +93,7 @@ def test_the_pulse_goes_out_as_a_clean_step_on_its_axis(path):
     forces = np.linalg.solve(mixer, [vehicle.mass_kg * 9.81, 0.02, -0.01, 0.003])
     x = np.zeros(12)
     x[9:12] = (0.1, -0.05, 0.02)
-    plain, excited = RateOutput(vehicle, 1, 1), RateOutput(vehicle, 1, 1)
+    plain, excited = RateOutput(vehicle, VehicleIds(1)), RateOutput(vehicle, VehicleIds(1))
     for k in range(50):
         t = 0.002 * k
         r0, th0 = plain.command(forces, x, t)
@@ -108,7 +109,7 @@ def test_a_pulse_is_clipped_to_the_files_rate_limit():
     base = with_output(load_vehicle(DEFAULT_VEHICLE), "rates")
     ri = dataclasses.replace(base.rate_interface, max_body_rate_rad_s=(0.5, 0.5, 0.5))
     vehicle = dataclasses.replace(base, rate_interface=ri)
-    out = RateOutput(vehicle, 1, 1)
+    out = RateOutput(vehicle, VehicleIds(1))
     forces = np.full(4, vehicle.mass_kg * 9.81 / 4)
     rates, _ = out.command(forces, np.zeros(12), 0.0, excitation=(0, 0.6))
     assert rates[0] == 0.5

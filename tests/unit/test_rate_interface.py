@@ -13,6 +13,7 @@ from mavreg.config.paths import DEFAULT_VEHICLE
 from mavreg.config.vehicle import G, RateInterfaceParams, load_vehicle, with_output
 from mavreg.daemon import messages as mm
 from mavreg.daemon.output import RateOutput, RotorOutput, command_output
+from mavreg.daemon.peers import VehicleIds
 from mavreg.model.mixer import Mixer
 from mavreg.model.rate_interface import ThrustMap, rate_command, rate_response_rhs
 
@@ -81,7 +82,7 @@ def test_rate_command_with_delay_predicted_matches_rigid_body():
 
 
 def test_rate_output_realizes_the_wrench(vehicle):
-    out = RateOutput(vehicle, 1, 1)
+    out = RateOutput(vehicle, VehicleIds(1))
     mixer = Mixer.from_vehicle(vehicle)
     wrench = np.array([9.0, 0.02, -0.01, 0.005])
     x = np.zeros(12)
@@ -117,7 +118,7 @@ def test_a_slower_yaw_loop_is_inverted_on_its_own_axis(vehicle):
 
 
 def test_rate_output_clips_rates_and_idles(vehicle):
-    out = RateOutput(vehicle, 1, 1)
+    out = RateOutput(vehicle, VehicleIds(1))
     mixer = Mixer.from_vehicle(vehicle)
     rates, _ = out.command(mixer.inverse @ np.array([9.0, 50.0, -50.0, 50.0]), np.zeros(12))
     np.testing.assert_allclose(np.abs(rates), (10.0, 10.0, 5.0))
@@ -134,8 +135,8 @@ def test_rate_target_refuses_bad_values():
 
 def test_output_choice_and_its_errors(vehicle):
     base = load_vehicle(DEFAULT_VEHICLE)
-    assert isinstance(command_output(base, 1, 1), RotorOutput)
-    assert isinstance(command_output(vehicle, 1, 1), RateOutput)
+    assert isinstance(command_output(base, VehicleIds(1)), RotorOutput)
+    assert isinstance(command_output(vehicle, VehicleIds(1)), RateOutput)
     with pytest.raises(ConfigError, match="rate_interface"):
         with_output(dataclasses.replace(base, rate_interface=None), "rates")
     assert with_output(vehicle, "rotors").output == "rotors"
@@ -143,10 +144,30 @@ def test_output_choice_and_its_errors(vehicle):
         dataclasses.replace(base, output="rates", rate_interface=None)
 
 
+def test_the_dialect_key_and_its_override(tmp_path):
+    """``dialect:`` in the vehicle file (the one validating loader), ``--dialect`` over it."""
+    from mavreg.config.loader import load_text
+    from mavreg.config.vehicle import VehicleParams, with_dialect
+    text = DEFAULT_VEHICLE.read_text()
+    base = load_vehicle(DEFAULT_VEHICLE)
+    assert base.dialect is None
+    chosen = load_text(text + "\ndialect: ardupilot\n", VehicleParams, kind="vehicle", source="v.yaml")
+    assert chosen.dialect == "ardupilot" and with_dialect(chosen, None) is chosen
+    assert with_dialect(chosen, "px4").dialect == "px4"
+    for bad, words in (("inav", "expected one of px4, ardupilot, got 'inav'"),
+                       ("PX4", "expected one of px4, ardupilot, got 'PX4'"),
+                       ("12", "expected a string, got int 12"), ("[px4]", "expected a string")):
+        with pytest.raises(ConfigError, match=f"dialect: {words}") as exc:
+            load_text(text + f"\ndialect: {bad}\n", VehicleParams, kind="vehicle", source="v.yaml")
+        assert "\n" not in str(exc.value)
+    with pytest.raises(ConfigError, match="expected one of px4, ardupilot, got 'generic'"):
+        with_dialect(base, "generic")
+
+
 def test_rate_output_lags_the_torque_as_the_rotors_would(vehicle):
     """The torque realized follows a step of the commanded one with the vehicle's rotor lag:
     63 % after one time constant (vehicle time), the collective at once."""
-    out = RateOutput(vehicle, 1, 1)
+    out = RateOutput(vehicle, VehicleIds(1))
     mixer = Mixer.from_vehicle(vehicle)
     tau, J, tau_w = vehicle.rotor_time_constant_s, np.asarray(vehicle.inertia_kg_m2), 0.03
     out.command(mixer.inverse @ np.array([8.0, 0.0, 0.0, 0.0]), np.zeros(12), 1.0)
@@ -156,7 +177,7 @@ def test_rate_output_lags_the_torque_as_the_rotors_would(vehicle):
         rates, thrust = out.command(step, np.zeros(12), 1.0 + k * dt)
     assert rates[0] == pytest.approx(tau_w * 0.02 / J[0] * (1 - np.exp(-1.0)), rel=1e-6)
     assert ThrustMap.from_params(vehicle.mass_kg, RATES).thrust_n(thrust) == pytest.approx(8.0)
-    out_nolag = RateOutput(dataclasses.replace(vehicle, rotor_time_constant_s=0.0), 1, 1)
+    out_nolag = RateOutput(dataclasses.replace(vehicle, rotor_time_constant_s=0.0), VehicleIds(1))
     out_nolag.command(mixer.inverse @ np.array([8.0, 0.0, 0.0, 0.0]), np.zeros(12), 1.0)
     assert out_nolag.command(step, np.zeros(12), 1.002)[0][0] == pytest.approx(tau_w * 0.02 / J[0])
 

@@ -79,14 +79,18 @@ def test_unanswered_parameter_reads_refuse_after_the_timeout():
     assert 8 <= len(reads) <= 14                            # the missing one, about once a second
 
 
-def test_an_autopilot_mavreg_does_not_speak_to_is_refused():
-    from tests.helpers.supervisor_harness import mavlink2 as m2, wire
+def test_custom_firmware_that_announces_generic_flies_with_px4_modes_and_says_so():
+    """MAV_AUTOPILOT_GENERIC in the rotors output: PX4's mode layout by default, announced in
+    one line naming the option that changes it; no parameter is read (the rules name PX4's)."""
+    from tests.helpers.supervisor_harness import mavlink2 as m2
     sup = make_supervisor(FakePlan())
-    veh = SimVehicle()
-    veh.heartbeat = lambda: wire(m2.MAVLink_heartbeat_message(2, m2.MAV_AUTOPILOT_GENERIC, 0, 0, 4, 3))
-    run(sup, veh, 2.0)
-    assert not veh.armed and sup.failure.bound == "gate_autopilot"
-    assert "neither PX4" in sup.failure.detail and sup.counters.unsupported_heartbeats >= 1
+    veh = SimVehicle(autopilot=m2.MAV_AUTOPILOT_GENERIC)
+    events, _, sent = run(sup, veh, 60.0)
+    assert sup.succeeded and not veh.armed
+    (notice,) = [e for e in events if e.kind == "dialect"]
+    assert "PX4's mode layout" in notice.detail and "--dialect px4|ardupilot" in notice.detail
+    assert "\n" not in notice.detail and sup.autopilot.dialect.rules == ()
+    assert not any(m.get_type() == "PARAM_REQUEST_READ" for _, m in sent)
 
 
 def test_without_a_plan_it_streams_idle_but_never_arms():
