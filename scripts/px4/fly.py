@@ -42,9 +42,13 @@ def main(argv=None) -> int:
                    help="a PX4 parameter set before each flight (repeatable)")
     p.add_argument("--position-source", choices=POSITION_SOURCES, default="gps",
                    help="EKF2's: SIH's GPS and barometer, or the truth fed back as motion capture (default: %(default)s)")
+    p.add_argument("--instance", type=int, default=None, metavar="N",
+                   help="PX4's instance, 0-9: its ports and its system id 1 + N (default: the first free one)")
     p.add_argument("--fly-arg", action="append", default=[], metavar="ARG", help="one more `mavreg fly` argument")
     p.add_argument("--out", default=None, help="keep the flights here (default: a temporary directory)")
     args = p.parse_args(argv)
+    if args.instance is not None and not 0 <= args.instance <= 9:
+        p.error(f"--instance {args.instance}: want 0 to 9")
     params = dict(AIRFRAMES[args.airframe])
     for item in args.param:
         name, _, value = item.partition("=")
@@ -59,7 +63,8 @@ def main(argv=None) -> int:
     print("|---|---|---|---|---|---|---|")
     for k in range(1, args.flights + 1):
         s = fly_on_px4(Path(args.maneuver), root / f"flight{k}", Path(args.vehicle), Path(args.controller),
-                       params=params, extra_args=tuple(args.fly_arg), position_source=args.position_source)
+                       params=params, extra_args=tuple(args.fly_arg), position_source=args.position_source,
+                       instance=args.instance)
         gt = s.get("px4_truth") or {}
         ok += s["result"] == "ok"
         why = "" if s["result"] == "ok" else ": " + str(s.get("reason", ""))[:90]
