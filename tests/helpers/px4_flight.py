@@ -152,7 +152,8 @@ def truth_touchdowns(out: Path) -> list[tuple[float, float]]:
 
 
 def kill_mid_maneuver(maneuver: Path, out: Path, after_s: float = 2.0, params: dict | None = None,
-                      vehicle: Path = VEHICLE, controller: Path = CONTROLLER, wait_s: float = 90.0) -> dict:
+                      vehicle: Path = VEHICLE, controller: Path = CONTROLLER, wait_s: float = 90.0,
+                      position_source: str = "gps") -> dict:
     """Fly ``maneuver`` with mavreg on a fresh PX4, SIGKILL the daemon ``after_s`` (wall clock)
     into the maneuver, then watch PX4 alone: its modes, until it disarms (or ``wait_s``).
     Returns the modes seen after the kill, ``disarmed``, the truth's touchdowns and
@@ -166,7 +167,7 @@ def kill_mid_maneuver(maneuver: Path, out: Path, after_s: float = 2.0, params: d
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     result = {"modes": [], "disarmed": False, "killed_at_wall_s": None}
-    with Px4Sitl(params=params) as px4:
+    with Px4Sitl(params=params, position_source=position_source) as px4:
         port = px4.release_link()
         cmd = [sys.executable, "-m", "mavreg.cli.main", "fly", str(maneuver), "--vehicle", f"udpin:127.0.0.1:{port}",
                "--output", "rates", "--vehicle-params", str(vehicle), "--controller", str(controller),

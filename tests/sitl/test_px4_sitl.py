@@ -2,7 +2,9 @@
 body rates and thrust only, judged by SIH's ground truth (HIL_STATE_QUATERNION).
 
 Slow (real time: PX4's boot, EKF2, take-off, a hop, landing: about 80 s a flight) and skipped
-where the PX4 SITL is absent (tests/helpers/px4_sitl.py says where it is looked for).
+where the PX4 SITL is absent (tests/helpers/px4_sitl.py says where it is looked for). EKF2 flies
+on the harness's motion-capture feed: on SIH's GPS and barometer its estimate wanders 0.3-1 m,
+and the take-off or the hold leaves the envelope's 0.5 m by that alone (docs/autopilots.md).
 ``python -m scripts.px4.fly --flights 5`` flies the campaigns docs/autopilots.md quotes.
 """
 from __future__ import annotations
@@ -32,7 +34,7 @@ def test_a_hop_on_a_stock_px4_from_arming_to_its_own_disarm(tmp_path):
     (a disarm once its land detector agrees, or AUTO.LAND): every phase in mavreg's summary,
     PX4's own .ulg written, and on the truth no touchdown at 1 m/s or more."""
     require_px4()
-    s = fly_on_px4(HOP, tmp_path / "flight")
+    s = fly_on_px4(HOP, tmp_path / "flight", position_source="mocap")
     phases = [e["phase"] for e in s["events"] if e["kind"] == "phase"]
     assert phases[0] == "takeoff" and "maneuver" in phases and phases[-1] == "disarmed", phases
     assert not any(e["kind"] == "motors_stopped" for e in s["events"])
@@ -49,7 +51,7 @@ def test_mavreg_killed_mid_maneuver_px4_takes_over_and_lands(tmp_path):
     (``COM_OF_LOSS_T`` 1 s, then ``COM_OBL_RC_ACT`` 4: Land, as docs/autopilots.md suggests)
     takes the vehicle, lands it and disarms; the truth sees a soft touchdown."""
     require_px4()
-    r = kill_mid_maneuver(HOP, tmp_path / "kill", after_s=2.0, params={"COM_OBL_RC_ACT": 4})
+    r = kill_mid_maneuver(HOP, tmp_path / "kill", after_s=2.0, params={"COM_OBL_RC_ACT": 4}, position_source="mocap")
     assert r["killed_at_wall_s"] is not None, "the daemon ended before it was killed"
     assert r["disarmed"], r["modes"]
     assert any(m.startswith("AUTO.LAND") for m in r["modes"]), r["modes"]
