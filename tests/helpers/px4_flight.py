@@ -28,13 +28,18 @@ import numpy as np
 
 from .px4_sitl import Px4Sitl
 
-__all__ = ["fly_on_px4", "px4_truth", "VEHICLE", "CONTROLLER", "AGGRESSIVE_PARAMS"]
+__all__ = ["fly_on_px4", "px4_truth", "VEHICLE", "AGGRESSIVE_VEHICLE", "CONTROLLER", "AGGRESSIVE_PARAMS"]
 
 REPO = Path(__file__).resolve().parents[2]
 VEHICLE = REPO / "mavreg" / "params" / "vehicles" / "px4_sih.yaml"
+AGGRESSIVE_VEHICLE = VEHICLE.with_name("px4_sih_aggressive.yaml")
 CONTROLLER = REPO / "mavreg" / "params" / "controller" / "px4_sih.yaml"
-AGGRESSIVE_PARAMS = {"SIH_T_MAX": 12.5, "SIH_Q_MAX": 0.25}
-"""SIH's airframe set up for aggressive flight (thrust-to-weight 5): a racing frame's motors."""
+AGGRESSIVE_PARAMS = {"SIH_T_MAX": 12.5, "SIH_Q_MAX": 0.25, "MC_AIRMODE": 1, "MC_ROLLRATE_MAX": 720.0,
+                     "MC_PITCHRATE_MAX": 720.0}
+"""SIH's airframe set up for aggressive flight, as a pilot sets up a racing frame: thrust-to-weight
+5, roll-pitch airmode (PX4 keeps its roll and pitch torques at low collective) and roll and pitch
+rates to 720 deg/s (at the default 220 deg/s a forward loop's pitch rate was clipped at its top).
+``mavreg/params/vehicles/px4_sih_aggressive.yaml`` is its vehicle file."""
 
 
 def fly_on_px4(maneuver: Path, out: Path, vehicle: Path = VEHICLE, controller: Path = CONTROLLER,

@@ -51,7 +51,7 @@ TRUTH_RATE_HZ = 100.0
 PX4_INT_PARAMS = frozenset({"COM_OBL_RC_ACT", "MAV_SYS_ID", "COM_RCL_EXCEPT", "NAV_RCL_ACT", "NAV_DLL_ACT",
                             "COM_ARM_WO_GPS", "CBRK_SUPPLY_CHK", "COM_DISARM_PRFLT", "EKF2_GPS_CTRL",
                             "EKF2_EV_CTRL", "EKF2_HGT_REF", "EKF2_BARO_CTRL", "EKF2_MAG_TYPE",
-                            "EKF2_EV_NOISE_MD", "SYS_HAS_MAG"})
+                            "EKF2_EV_NOISE_MD", "SYS_HAS_MAG", "MC_AIRMODE"})
 """PX4 parameters of integer type that a harness sets (their bytes travel in the float)."""
 MOCAP_PARAMS = {"EKF2_EV_CTRL": 15, "EKF2_HGT_REF": 3, "EKF2_GPS_CTRL": 0, "EKF2_BARO_CTRL": 0,
                 "EKF2_MAG_TYPE": 5, "EKF2_EV_DELAY": 5.0, "EKF2_EV_NOISE_MD": 1, "EKF2_EVP_NOISE": 0.01,
