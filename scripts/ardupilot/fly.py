@@ -16,6 +16,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from tests.helpers.sitl_link import parse_param_items
 from tests.helpers.ardupilot_flight import fly_on_ardupilot
 from tests.helpers.ardupilot_sitl import POSITION_SOURCES
 
@@ -38,13 +39,7 @@ def main(argv=None) -> int:
     p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                    help="an ArduPilot parameter set before each flight (repeatable; an experiment's)")
     args = p.parse_args(argv)
-    params = {}
-    for item in args.param:
-        name, _, value = item.partition("=")
-        try:
-            params[name.strip()] = float(value)
-        except ValueError:
-            p.error(f"--param {item!r}: want NAME=VALUE with a number")
+    params = parse_param_items(p, args.param)
     root = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="mavreg-ardupilot-"))
     ok = 0
     print("| flight | result | loop max (cm) | all max (cm) | all RMS (cm) | touchdown (m/s) |")

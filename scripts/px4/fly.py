@@ -18,6 +18,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from tests.helpers.sitl_link import parse_param_items
 from tests.helpers.px4_flight import AGGRESSIVE_PARAMS, CONTROLLER, VEHICLE, fly_on_px4
 from tests.helpers.px4_sitl import POSITION_SOURCES
 
@@ -49,13 +50,7 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     if args.instance is not None and not 0 <= args.instance <= 9:
         p.error(f"--instance {args.instance}: want 0 to 9")
-    params = dict(AIRFRAMES[args.airframe])
-    for item in args.param:
-        name, _, value = item.partition("=")
-        try:
-            params[name.strip()] = float(value)
-        except ValueError:
-            p.error(f"--param {item!r}: want NAME=VALUE with a number")
+    params = {**AIRFRAMES[args.airframe], **parse_param_items(p, args.param)}
     root = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="mavreg-px4-"))
     ok = 0
     print("| flight | result | maneuver max (cm) | RMS (cm) | estimate's path error max (cm) | EKF2 error max (cm) "

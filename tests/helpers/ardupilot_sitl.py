@@ -30,12 +30,11 @@ import pytest
 from .ardupilot_mocap import HOME, MocapFeed
 from .processes import alive as _alive
 from .processes import terminate as _terminate
-from .sitl_link import M, SitlError, SitlExitedEarly, SitlLink, mavutil
+from .sitl_link import M, SitlError, SitlExitedEarly, SitlLink, autopilot_dir, mavutil
 
 __all__ = ["ardupilot_dir", "ArduPilotSitl", "SitlError", "require_ardupilot", "arducopter_sitl_fixture",
            "TEST_PARAMS", "POSITION_SOURCES", "HOME"]
 
-REPO = Path(__file__).resolve().parents[2]
 ENV_VAR = "MAVREG_ARDUPILOT_DIR"
 START_ATTEMPTS = 6
 """start.sh's exit races with the SITL's start (see ``ArduPilotSitl._launch``): about 1 in 4
@@ -50,19 +49,9 @@ EXTRA_DEFAULTS = {"vicon": Path(__file__).with_name("ardupilot_vicon.parm"),
 
 
 def ardupilot_dir() -> Path | None:
-    """The SITL directory, or None.
-
-    ``$MAVREG_ARDUPILOT_DIR`` when set; else ``shared/autopilot/ardupilot`` in the directory
-    that holds the repository (or the main checkout, when this is a git worktree)."""
-    env = os.environ.get(ENV_VAR)
-    roots = [REPO]
-    git = REPO / ".git"
-    if git.is_file() and git.read_text().startswith("gitdir:"):   # a worktree: .git names the main one's
-        roots.append(Path(git.read_text().split(":", 1)[1].strip()).parents[2])
-    for d in [Path(env)] if env else [r / ".." / "shared" / "autopilot" / "ardupilot" for r in roots]:
-        if (d / "start.sh").is_file() and (d / "arducopter").is_file():
-            return d.resolve()
-    return None
+    """The SITL directory, or None: ``$MAVREG_ARDUPILOT_DIR`` when set; else
+    ``shared/autopilot/ardupilot`` beside the repository (:func:`~tests.helpers.sitl_link.autopilot_dir`)."""
+    return autopilot_dir(ENV_VAR, "ardupilot", ("start.sh", "arducopter"))
 
 
 def require_ardupilot() -> Path:

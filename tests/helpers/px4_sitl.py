@@ -39,12 +39,11 @@ from mavreg.daemon.autopilots import param_value
 from .ardupilot_mocap import ned_m
 from .processes import alive as _alive
 from .processes import terminate as _terminate
-from .sitl_link import M, SitlError, SitlExitedEarly, SitlLink, mavutil
+from .sitl_link import M, SitlError, SitlExitedEarly, SitlLink, autopilot_dir, mavutil
 
 __all__ = ["px4_dir", "require_px4", "Px4Sitl", "TruthRecorder", "SitlError", "PX4_INT_PARAMS",
            "PILOT_PARAMS", "TRUTH_RATE_HZ"]
 
-REPO = Path(__file__).resolve().parents[2]
 ENV_VAR = "MAVREG_PX4_DIR"
 TRUTH_RATE_HZ = 100.0
 """HIL_STATE_QUATERNION's rate asked for on SIH's display link (25 Hz by default)."""
@@ -66,17 +65,9 @@ defaults pass mavreg's checks (``COM_OF_LOSS_T`` 1 s, ``COM_OBL_RC_ACT`` 0 Posit
 
 
 def px4_dir() -> Path | None:
-    """The PX4 SITL directory, or None (``$MAVREG_PX4_DIR``, else ``shared/autopilot/px4``
-    beside the repository or beside the main checkout of a git worktree)."""
-    env = os.environ.get(ENV_VAR)
-    roots = [REPO]
-    git = REPO / ".git"
-    if git.is_file() and git.read_text().startswith("gitdir:"):
-        roots.append(Path(git.read_text().split(":", 1)[1].strip()).parents[2])
-    for d in [Path(env)] if env else [r / ".." / "shared" / "autopilot" / "px4" for r in roots]:
-        if (d / "start.sh").is_file() and (d / "bin" / "px4").is_file():
-            return d.resolve()
-    return None
+    """The PX4 SITL directory, or None: ``$MAVREG_PX4_DIR`` when set; else ``shared/autopilot/px4``
+    beside the repository (:func:`~tests.helpers.sitl_link.autopilot_dir`)."""
+    return autopilot_dir(ENV_VAR, "px4", ("start.sh", "bin/px4"))
 
 
 def require_px4() -> Path:

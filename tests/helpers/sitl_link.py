@@ -12,14 +12,44 @@ from __future__ import annotations
 
 import os
 import time
+from pathlib import Path
 
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil  # noqa: E402  (MAVLINK20 must be set first)
 
-__all__ = ["SitlLink", "SitlError", "SitlExitedEarly", "M", "mavutil"]
+__all__ = ["SitlLink", "SitlError", "SitlExitedEarly", "M", "mavutil", "autopilot_dir", "parse_param_items"]
+
+REPO = Path(__file__).resolve().parents[2]
 
 M = mavutil.mavlink
 PREARM_BIT = M.MAV_SYS_STATUS_PREARM_CHECK
+
+
+def autopilot_dir(env_var: str, name: str, files: tuple[str, ...]) -> Path | None:
+    """A stock autopilot's SITL directory, or None: ``$env_var`` when set; else
+    ``shared/autopilot/<name>`` in the directory that holds the repository (or the main
+    checkout, when this is a git worktree); it must hold every one of ``files``."""
+    env = os.environ.get(env_var)
+    roots = [REPO]
+    git = REPO / ".git"
+    if git.is_file() and git.read_text().startswith("gitdir:"):   # a worktree: .git names the main one's
+        roots.append(Path(git.read_text().split(":", 1)[1].strip()).parents[2])
+    for d in [Path(env)] if env else [r / ".." / "shared" / "autopilot" / name for r in roots]:
+        if all((d / f).is_file() for f in files):
+            return d.resolve()
+    return None
+
+
+def parse_param_items(parser, items) -> dict:
+    """``NAME=VALUE`` command-line items as {name: float}; a malformed one is the parser's error."""
+    params = {}
+    for item in items:
+        name, _, value = item.partition("=")
+        try:
+            params[name.strip()] = float(value)
+        except ValueError:
+            parser.error(f"--param {item!r}: want NAME=VALUE with a number")
+    return params
 
 
 class SitlError(RuntimeError):
