@@ -35,7 +35,8 @@ def _ranges(s: np.ndarray, bad: np.ndarray) -> str:
 
 def check_feasibility(s, u, rotor_forces_n, speed_m_s, max_rotor_thrust_n: float,
                       min_speed_m_s: float, segment_of, attitude=None,
-                      max_tilt_rad: float = np.pi) -> Feasibility:
+                      max_tilt_rad: float = np.pi, body_rates_rad_s=None,
+                      max_body_rate_rad_s=None) -> Feasibility:
     """Check a nominal sampled at arc lengths ``s``.
 
     Parameters
@@ -44,7 +45,9 @@ def check_feasibility(s, u, rotor_forces_n, speed_m_s, max_rotor_thrust_n: float
     forces by the inverse of eq 34; speed_m_s : (N,); segment_of : callable s -> name;
     attitude : (N,3,3) nominal attitude, body to NED (None: the tilt is not checked);
     max_tilt_rad : the largest angle of the thrust axis from the vertical (the maneuver
-    file's ``limits.max_tilt_deg``).
+    file's ``limits.max_tilt_deg``); body_rates_rad_s : (N,3) nominal body rates and
+    max_body_rate_rad_s : (3,) the largest the autopilot is sent (``rate_interface``; None:
+    not checked): a rate the output clips cannot be flown.
     """
     s = np.asarray(s)
     out: list[str] = []
@@ -68,6 +71,8 @@ def check_feasibility(s, u, rotor_forces_n, speed_m_s, max_rotor_thrust_n: float
                    f"in {segment_of(s[i])!r}: maneuver regulation needs ds/dt bounded away from 0")
     if attitude is not None and max_tilt_rad < np.pi:
         out += _tilt_violation(s, np.asarray(attitude), max_tilt_rad, segment_of)
+    if body_rates_rad_s is not None and max_body_rate_rad_s is not None:
+        out += _rate_violations(s, np.asarray(body_rates_rad_s), np.asarray(max_body_rate_rad_s), segment_of)
     torque = np.abs(u[:, 1:]).max(axis=0)
     return Feasibility(
         feasible=not out, violations=tuple(out),
@@ -87,3 +92,15 @@ def _tilt_violation(s, R, max_tilt_rad: float, segment_of) -> list[str]:
     i = int(np.argmax(tilt))
     return [f"tilt {np.degrees(tilt[i]):.1f} deg > limits.max_tilt_deg {np.degrees(max_tilt_rad):.1f} "
             f"at s = {s[i]:.2f} m in {segment_of(s[i])!r}; over at {_ranges(s, over)}"]
+
+
+def _rate_violations(s, omega, max_rate, segment_of) -> list[str]:
+    """Each body axis whose nominal rate exceeds ``max_rate`` (the rates output clips there)."""
+    out = []
+    for axis, name in enumerate(("roll", "pitch", "yaw")):
+        over = np.abs(omega[:, axis]) > max_rate[axis]
+        if np.any(over):
+            i = int(np.argmax(np.abs(omega[:, axis])))
+            out.append(f"{name} rate {abs(omega[i, axis]):.2f} rad/s > max_body_rate_rad_s {max_rate[axis]:.2f} "
+                       f"at s = {s[i]:.2f} m in {segment_of(s[i])!r}; over at {_ranges(s, over)}")
+    return out

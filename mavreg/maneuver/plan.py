@@ -206,9 +206,11 @@ def _stage(spec: ManeuverSpec, vehicle: VehicleParams, controller: ControllerPar
     clock.lap("path")
     nominal = nominal_on_grid(model, path, speed, yaw, s, spec.yaw.mode)
     rotors = nominal.u @ mixer.inverse.T
+    ri = vehicle.rate_interface if vehicle.output == "rates" else None
     feas = check_feasibility(s, nominal.u, rotors, nominal.v, vehicle.max_rotor_thrust_n,
                              spec.limits.min_speed_m_s, lambda q: path.segment_at(q).name,
-                             nominal.R, spec.limits.max_tilt_rad)
+                             nominal.R, spec.limits.max_tilt_rad, nominal.x[:, 9:12],
+                             None if ri is None else ri.max_body_rate_rad_s)
     clock.lap("nominal")
     return _Stage(spec, vehicle, model, path, speed, yaw, s, nominal, rotors, feas)
 

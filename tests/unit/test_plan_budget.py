@@ -105,6 +105,24 @@ def test_max_tilt_of_the_file_reaches_the_plan():
     assert any(v.startswith("tilt ") and "max_tilt_deg 10.0" in v for v in plan.feasibility.violations)
 
 
+def test_body_rates_beyond_the_autopilots_limit_make_a_plan_infeasible():
+    """With rates to an autopilot the output clips every rate at ``max_body_rate_rad_s``: the
+    forward loop's nominal pitch rate (5.7 rad/s at its top) is refused at PX4's default
+    220 deg/s, named by axis and where; the rotors output does not check it."""
+    from dataclasses import replace as dc_replace
+
+    from mavreg.config.vehicle import RateInterfaceParams
+    loop = load_maneuver(maneuver_file("forward_loop"))
+    rates = dc_replace(VEHICLE, output="rates", rate_interface=RateInterfaceParams(
+        hover_thrust=0.2, max_body_rate_rad_s=(3.84, 3.84, 3.5)))
+    plan = pm.plan_spec(loop, rates, CONTROLLER, strict=False)
+    assert not plan.feasibility.feasible
+    bad = [v for v in plan.feasibility.violations if v.startswith("pitch rate ")]
+    assert bad and "max_body_rate_rad_s 3.84" in bad[0] and "'loop'" in bad[0]
+    fast = dc_replace(rates, rate_interface=dc_replace(rates.rate_interface, max_body_rate_rad_s=(12.0, 12.0, 6.0)))
+    assert not any("rate" in v for v in pm.plan_spec(loop, fast, CONTROLLER, strict=False).feasibility.violations)
+
+
 def test_the_cache_keeps_its_byte_cap(tmp_path):
     """Entries of 40 kB under a 100 kB cap: the newest two stay; one over half the cap is
     not stored at all."""
