@@ -22,6 +22,8 @@ from ..model.drag import rotor_plane_scale
 from ..model.rotation import quats_to_matrices
 
 __all__ = ["FlightSeries", "IdentifyError", "Regressors", "lagged_integrals", "rotor_channels", "G"]
+GAP_PERIODS = 3
+"""By default a telemetry gap of up to this many sample periods (or 10 ms) is interpolated."""
 
 
 
@@ -109,7 +111,8 @@ class Regressors:
         # good: measured or inside a short gap, controlled, airborne, commands streaming
         k = np.searchsorted(idx, grid, side="right") - 1
         gap = np.append(np.diff(idx), 1)[k]
-        near = (grid == idx[k]) | (gap * h <= o.max_gap_s + 1e-9)
+        max_gap_s = max(0.01, GAP_PERIODS * h) if o.max_gap_s is None else o.max_gap_s
+        near = (grid == idx[k]) | (gap * h <= max_gap_s + 1e-9)
         airborne = pos[:, 2] < _ground_z(p[:, 2], ctrl) - o.min_height_m
         self.t0 = float(t[0])
         self.held, alive = self.hold(s.command_t_s, channels, o.command_timeout_s)

@@ -201,6 +201,23 @@ def test_short_telemetry_gaps_are_bridged():
     assert r.drag_n_s_per_m[1].value == pytest.approx(TRUTH["drag"][1], rel=0.05)
 
 
+def test_gaps_of_a_few_periods_of_slower_telemetry_are_bridged_by_default():
+    """PX4 asked for 200 Hz sends every 8 ms with one gap of 16-24 ms in twenty samples: by
+    default gaps up to 3 periods are bridged and nearly the whole flight is used; pinned at
+    10 ms (the old default) the same gaps cut most windows (negative control)."""
+    s = synthetic_flight(duration_s=20.0, h=0.008, seed=8)
+    keep = np.ones(s.t_s.size, bool)
+    keep[np.random.default_rng(1).choice(np.arange(1, s.t_s.size - 1), s.t_s.size // 20, replace=False)] = False
+    gappy = dataclasses.replace(s, t_s=s.t_s[keep], position_ned_m=s.position_ned_m[keep],
+                                velocity_ned_m_s=s.velocity_ned_m_s[keep],
+                                quaternion_wxyz=s.quaternion_wxyz[keep], controlled=s.controlled[keep])
+    r = identify(gappy, MASS_KG, MAX_ROTOR_N, FitOptions(delay_s=TRUTH["delay_s"]))
+    assert r.duration_s > 17.0
+    assert r.thrust_scale.value == pytest.approx(TRUTH["thrust_scale"], rel=0.01)
+    pinned = identify(gappy, MASS_KG, MAX_ROTOR_N, FitOptions(delay_s=TRUTH["delay_s"], max_gap_s=0.01))
+    assert pinned.duration_s < 0.6 * r.duration_s
+
+
 # ------------------------------------------------------------------ bootstrap
 
 def _ar1(n, a, seed):
