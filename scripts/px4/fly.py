@@ -7,7 +7,8 @@ plan in EKF2's frame), split into the estimate's own path error and EKF2's error
                               [--vehicle FILE] [--controller FILE] [--param NAME=VALUE ...] [--out DIR]
                               [--position-source gps|mocap]
 
-Needs the PX4 SITL (``MAVREG_PX4_DIR`` or ``../shared/autopilot/px4``; tests/helpers/px4_sitl.py).
+Needs the PX4 SITL (``MAVREG_PX4_DIR``, or the shared autopilot directory beside the repository:
+tests/helpers/px4_sitl.py).
 Real time: about 1.5 minutes a flight. docs/autopilots.md quotes it.
 """
 from __future__ import annotations
