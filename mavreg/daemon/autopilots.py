@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 from .messages import PX4_MAIN_AUTO, PX4_SUB_LAND, decode_heartbeat, mavlink2, mode_name, set_offboard
 
-__all__ = ["ParamRule", "ParamVerdict", "ParamChecker", "HeartbeatInfo", "Dialect", "PX4", "ARDUCOPTER",
+__all__ = ["param_value", "ParamRule", "ParamVerdict", "ParamChecker", "HeartbeatInfo", "Dialect", "PX4", "ARDUCOPTER",
            "dialect_for", "unsupported_reason", "ARDUCOPTER_MODES", "ARDUCOPTER_GUIDED"]
 
 M = mavlink2
@@ -36,6 +36,16 @@ MULTICOPTER_TYPES = frozenset((M.MAV_TYPE_QUADROTOR, M.MAV_TYPE_COAXIAL, M.MAV_T
                                M.MAV_TYPE_DODECAROTOR, M.MAV_TYPE_DECAROTOR))
 _INT_FORMATS = {M.MAV_PARAM_TYPE_UINT8: "<B", M.MAV_PARAM_TYPE_INT8: "<b", M.MAV_PARAM_TYPE_UINT16: "<H",
                 M.MAV_PARAM_TYPE_INT16: "<h", M.MAV_PARAM_TYPE_UINT32: "<I", M.MAV_PARAM_TYPE_INT32: "<i"}
+
+
+def param_value(msg, bytewise: bool) -> float:
+    """A PARAM_VALUE's value. ``bytewise``: an integer parameter travels with its bytes in the
+    float field (PX4), else cast to float (ArduPilot)."""
+    value = float(msg.param_value)
+    fmt = _INT_FORMATS.get(int(msg.param_type))
+    if bytewise and fmt is not None:
+        value = float(struct.unpack_from(fmt, struct.pack("<f", value))[0])
+    return value
 
 
 @dataclass(frozen=True)
@@ -88,12 +98,7 @@ class ParamChecker:
         name = name.split("\x00", 1)[0]
         if name not in self.rules:
             return False
-        value = float(msg.param_value)
-        fmt = _INT_FORMATS.get(int(msg.param_type))
-        if self.bytewise and fmt is not None:
-            raw = struct.pack("<f", value)
-            value = float(struct.unpack_from(fmt, raw)[0])
-        self.values[name] = value
+        self.values[name] = param_value(msg, self.bytewise)
         return True
 
     def verdict(self, timed_out: bool = False) -> ParamVerdict:

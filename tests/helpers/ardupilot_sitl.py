@@ -27,20 +27,16 @@ from pathlib import Path
 
 import pytest
 
-os.environ.setdefault("MAVLINK20", "1")
-from pymavlink import mavutil  # noqa: E402  (MAVLINK20 must be set first)
-
-from .ardupilot_mocap import HOME, MocapFeed  # noqa: E402
-from .processes import alive as _alive  # noqa: E402
-from .processes import terminate as _terminate  # noqa: E402
+from .ardupilot_mocap import HOME, MocapFeed
+from .processes import alive as _alive
+from .processes import terminate as _terminate
+from .sitl_link import M, SitlError, SitlExitedEarly, SitlLink, mavutil
 
 __all__ = ["ardupilot_dir", "ArduPilotSitl", "SitlError", "require_ardupilot", "arducopter_sitl_fixture",
            "TEST_PARAMS", "POSITION_SOURCES", "HOME"]
 
 REPO = Path(__file__).resolve().parents[2]
 ENV_VAR = "MAVREG_ARDUPILOT_DIR"
-M = mavutil.mavlink
-PREARM_BIT = M.MAV_SYS_STATUS_PREARM_CHECK
 START_ATTEMPTS = 6
 """start.sh's exit races with the SITL's start (see ``ArduPilotSitl._launch``): about 1 in 4
 starts die at once; six attempts all fail about once in 4000."""
@@ -51,14 +47,6 @@ defaults), the SITL's simulated Vicon or the harness's motion-capture feed
 with either, the EKF's local frame is the vision frame, about :data:`HOME`."""
 EXTRA_DEFAULTS = {"vicon": Path(__file__).with_name("ardupilot_vicon.parm"),
                   "mocap": Path(__file__).with_name("ardupilot_mocap.parm")}
-
-
-class SitlError(RuntimeError):
-    """The SITL did not start, answer or become ready in time (one line, with its last texts)."""
-
-
-class SitlExitedEarly(SitlError):
-    """The SITL process ended while the harness waited for it."""
 
 
 def ardupilot_dir() -> Path | None:
@@ -121,8 +109,8 @@ def free_instance(first: int = 1, last: int = 60) -> int:
     raise SitlError(f"no free SITL instance in {first}..{last} (UDP ports 5501 + 10 * instance all taken)")
 
 
-class ArduPilotSitl:
-    """One ArduCopter SITL process and a pymavlink connection to it.
+class ArduPilotSitl(SitlLink):
+    """One ArduCopter SITL process and a pymavlink connection to it (:class:`SitlLink`).
 
     Parameters
     ----------
@@ -144,6 +132,8 @@ class ArduPilotSitl:
         on SERIAL5 (``vicon``) or the motion-capture feed on SERIAL1 (``mocap``).
     """
 
+    name = "ArduCopter SITL"
+
     def __init__(self, frame: str = "freestyle", params: dict | None = None,
                  rates_hz: dict | None = None, wait_ready: bool = True, timeout_s: float = 90.0,
                  directory: Path | None = None, position_source: str = "gps"):
@@ -159,20 +149,10 @@ class ArduPilotSitl:
         self.wait_ready = wait_ready
         self.timeout_s = float(timeout_s)
         self.directory = directory or ardupilot_dir()
+        self._init_link()
         self.pid: int | None = None
-        self.conn = None
         self.port: int | None = None
         self.workdir: tempfile.TemporaryDirectory | None = None
-        self.texts: list[tuple[float, str]] = []
-        """(seconds since start, STATUSTEXT) of everything seen by :meth:`recv`."""
-        self.t0 = 0.0
-        self.sysid = 1
-        self.compid = 1
-        self._last_hb = -1e9
-        self.first_seen: dict[str, float] = {}
-        """Message type -> seconds since start when :meth:`recv` first saw it."""
-        self.prearm_ok = False
-        """The pre-arm health bit of the latest SYS_STATUS."""
         self.start_attempts = 0
         """start.sh runs it took (more than one when the SITL died at once)."""
 
@@ -291,82 +271,17 @@ class ArduPilotSitl:
             self.workdir.cleanup()
             self.workdir = None
 
-    # -- messages ---------------------------------------------------------------------------
-    def elapsed_s(self) -> float:
-        return time.monotonic() - self.t0
-
-    def recv(self, timeout_s: float = 0.1):
-        """The next message from the vehicle (None on timeout); STATUSTEXTs are recorded.
-
-        Sends a ground-station HEARTBEAT every second on the way."""
-        now = time.monotonic()
-        if now - self._last_hb >= 1.0:
-            self._last_hb = now
-            self.conn.mav.heartbeat_send(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID,
-                                         0, 0, 0)
-        m = self.conn.recv_match(blocking=True, timeout=timeout_s)
-        if m is None or m.get_type() == "BAD_DATA":
-            return None
-        mtype = m.get_type()
-        self.first_seen.setdefault(mtype, self.elapsed_s())
-        if mtype == "STATUSTEXT":
-            self.texts.append((self.elapsed_s(), m.text))
-        elif mtype == "SYS_STATUS":
-            self.prearm_ok = bool(m.onboard_control_sensors_health & PREARM_BIT)
-        return m
-
-    def wait_until(self, cond, timeout_s: float, what: str) -> None:
-        """Receive until ``cond()`` holds; :class:`SitlError` after ``timeout_s``."""
-        deadline = time.monotonic() + timeout_s
-        while not cond():
-            if time.monotonic() > deadline:
-                raise self._timeout(what, timeout_s)
-            self._check_alive(what)
-            self.recv(0.2)
-
-    def wait_for(self, pred, timeout_s: float, what: str):
-        """The first message satisfying ``pred``; :class:`SitlError` after ``timeout_s``."""
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            self._check_alive(what)
-            m = self.recv(0.2)
-            if m is not None and pred(m):
-                return m
-        raise self._timeout(what, timeout_s)
-
-    def _timeout(self, what: str, timeout_s: float) -> SitlError:
-        last = "; ".join(t for _, t in self.texts[-3:])
-        return SitlError(f"ArduCopter SITL: no {what} within {timeout_s:.0f} s (last texts: {last}; "
-                         f"last output: {self.output_tail()})")
-
-    def send(self, msg) -> None:
-        self.conn.mav.send(msg)
-
-    def command_long(self, command: int, *params: float, timeout_s: float = 3.0):
-        """Send a COMMAND_LONG and return its COMMAND_ACK (SitlError if none)."""
-        p = [float(v) for v in params] + [0.0] * (7 - len(params))
-        self.conn.mav.command_long_send(self.sysid, self.compid, command, 0, *p)
-        return self.wait_for(lambda m: m.get_type() == "COMMAND_ACK" and m.command == command,
-                             timeout_s, f"COMMAND_ACK of command {command}")
-
-    def set_rate(self, msg_id: int, hz: float) -> int:
-        """MAV_CMD_SET_MESSAGE_INTERVAL; returns the ACK's result."""
-        ack = self.command_long(M.MAV_CMD_SET_MESSAGE_INTERVAL, msg_id,
-                                1e6 / hz if hz > 0 else -1)
-        return int(ack.result)
-
+    # -- parameters -----------------------------------------------------------------------
     def get_param(self, name: str, timeout_s: float = 3.0) -> float:
         """PARAM_REQUEST_READ by name; the PARAM_VALUE's value."""
         self.conn.mav.param_request_read_send(self.sysid, self.compid, name.encode(), -1)
-        return float(self.wait_for(lambda m: m.get_type() == "PARAM_VALUE" and m.param_id == name,
-                                   timeout_s, f"PARAM_VALUE {name}").param_value)
+        return float(self._param_value(name, timeout_s, f"PARAM_VALUE {name}").param_value)
 
     def set_param(self, name: str, value: float, timeout_s: float = 3.0) -> None:
         """PARAM_SET, confirmed by the echoed PARAM_VALUE (test setup only)."""
         self.conn.mav.param_set_send(self.sysid, self.compid, name.encode(), float(value),
                                      M.MAV_PARAM_TYPE_REAL32)
-        got = self.wait_for(lambda m: m.get_type() == "PARAM_VALUE" and m.param_id == name,
-                            timeout_s, f"PARAM_VALUE echo of {name}").param_value
+        got = self._param_value(name, timeout_s, f"PARAM_VALUE echo of {name}").param_value
         if abs(got - float(value)) > 1e-6 * max(1.0, abs(float(value))):
             raise SitlError(f"ArduCopter SITL: {name} is {got} after setting {value}")
 

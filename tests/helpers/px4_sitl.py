@@ -1,0 +1,308 @@
+"""A stock PX4 SITL (SIH, PX4's in-process simulator) as a test fixture: start, configure over
+MAVLink, record its ground truth, stop.
+
+The directory (``$MAVREG_PX4_DIR``, else ``shared/autopilot/px4`` beside the repository) holds
+PX4 v1.16's ``bin/px4``, its ``etc/`` and a ``start.sh`` that starts it headless on an
+``INSTANCE`` and prints its PID (its README). Instance ``i`` fixes the ports and the system id:
+
+- the offboard link (PX4's ``onboard`` MAVLink instance) sends to 127.0.0.1:14540 + i, where
+  the harness (and then mavreg) listens, and listens on 14580 + i;
+- SIH's display link sends ``HIL_STATE_QUATERNION`` (the simulator's true state) from
+  19450 + i to 127.0.0.1:19410 + i, where :class:`TruthRecorder` listens;
+- the system id is 1 + i (``MAV_SYS_ID``).
+
+PX4's rc script calls its modules as ``px4-<module>``, links to ``bin/px4``. Where the
+directory was copied without its links (each ``px4-*`` a small file naming ``px4``), the
+harness makes the links in a directory of its own and puts it first on ``PATH``; start.sh runs
+as it is. Parameters are set over MAVLink only (integers with their bytes in the float field,
+``MAV_PARAM_TYPE_INT32``, as PX4 does), before arming; SIH's airframe parameters (``SIH_*``)
+take effect at once. The harness waits by messages, never by sleeps: the first HEARTBEAT, then
+``LOCAL_POSITION_NED``, EKF2's origin and the pre-arm checks passing.
+"""
+from __future__ import annotations
+
+import os
+import socket
+import struct
+import subprocess
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mavreg.daemon.autopilots import param_value
+
+from .ardupilot_mocap import ned_m
+from .processes import alive as _alive
+from .processes import terminate as _terminate
+from .sitl_link import M, SitlError, SitlExitedEarly, SitlLink, mavutil
+
+__all__ = ["px4_dir", "require_px4", "Px4Sitl", "TruthRecorder", "SitlError", "PX4_INT_PARAMS",
+           "PILOT_PARAMS", "TRUTH_RATE_HZ"]
+
+REPO = Path(__file__).resolve().parents[2]
+ENV_VAR = "MAVREG_PX4_DIR"
+TRUTH_RATE_HZ = 100.0
+"""HIL_STATE_QUATERNION's rate asked for on SIH's display link (25 Hz by default)."""
+PX4_INT_PARAMS = frozenset({"COM_OBL_RC_ACT", "MAV_SYS_ID", "COM_RCL_EXCEPT", "NAV_RCL_ACT", "NAV_DLL_ACT",
+                            "COM_ARM_WO_GPS", "CBRK_SUPPLY_CHK", "COM_DISARM_PRFLT", "EKF2_GPS_CTRL"})
+"""PX4 parameters of integer type that a harness sets (their bytes travel in the float)."""
+PILOT_PARAMS: dict = {}
+"""What docs/autopilots.md tells a pilot to set on PX4 before flying mavreg: nothing, PX4's
+defaults pass mavreg's checks (``COM_OF_LOSS_T`` 1 s, ``COM_OBL_RC_ACT`` 0 Position)."""
+
+
+def px4_dir() -> Path | None:
+    """The PX4 SITL directory, or None (``$MAVREG_PX4_DIR``, else ``shared/autopilot/px4``
+    beside the repository or beside the main checkout of a git worktree)."""
+    env = os.environ.get(ENV_VAR)
+    roots = [REPO]
+    git = REPO / ".git"
+    if git.is_file() and git.read_text().startswith("gitdir:"):
+        roots.append(Path(git.read_text().split(":", 1)[1].strip()).parents[2])
+    for d in [Path(env)] if env else [r / ".." / "shared" / "autopilot" / "px4" for r in roots]:
+        if (d / "start.sh").is_file() and (d / "bin" / "px4").is_file():
+            return d.resolve()
+    return None
+
+
+def require_px4() -> Path:
+    """The PX4 SITL directory, or skip the calling test with a clear message."""
+    d = px4_dir()
+    if d is None:
+        pytest.skip(f"PX4 SITL not found: set {ENV_VAR} to a directory holding start.sh and bin/px4 "
+                    "(PX4 v1.16 built for px4_sitl_default, with its etc/)")
+    return d
+
+
+def _instance_free(i: int) -> bool:
+    """Every UDP port instance ``i`` binds or sends to is free on the loopback."""
+    for port in (14540 + i, 14580 + i, 18570 + i, 19410 + i, 19450 + i):
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            try:
+                s.bind(("127.0.0.1", port))
+            except OSError:
+                return False
+    return True
+
+
+def free_instance(first: int = 0, last: int = 9) -> int:
+    for i in range(first, last + 1):
+        if _instance_free(i):
+            return i
+    raise SitlError(f"no free PX4 instance in {first}..{last} (UDP 14540+i, 14580+i, 19410+i all taken)")
+
+
+def module_links(directory: Path, into: Path) -> Path | None:
+    """A directory of ``px4-<module>`` links to ``bin/px4`` when ``directory``'s are not links
+    (a copy that flattened them), else None."""
+    bindir = directory / "bin"
+    stubs = [p for p in bindir.glob("px4-*") if p.name != "px4-alias.sh"]
+    if not stubs or all(p.is_symlink() or os.access(p, os.X_OK) for p in stubs):
+        return None
+    into.mkdir(parents=True, exist_ok=True)
+    for p in stubs:
+        (into / p.name).symlink_to(bindir / "px4")
+    return into
+
+
+class TruthRecorder:
+    """SIH's true state, ``HIL_STATE_QUATERNION``, recorded from its display link in a thread.
+
+    Rows: PX4's boot time (s; the clock of ``time_boot_ms`` in every other message), latitude
+    and longitude (deg), altitude (m), the quaternion (w, x, y, z), NED velocity (m/s).
+    """
+
+    def __init__(self, instance: int, system_id: int, rate_hz: float = TRUTH_RATE_HZ):
+        self.port = 19410 + instance
+        self.system_id = system_id
+        self.rate_hz = rate_hz
+        self.rows: list[tuple] = []
+        self._stop = threading.Event()
+        self._conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{self.port}", source_system=255,
+                                                source_component=191, dialect="common")
+        self._thread = threading.Thread(target=self._run, name="px4-truth", daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def _run(self) -> None:
+        asked = -1e9
+        while not self._stop.is_set():
+            now = time.monotonic()
+            if now - asked > 2.0 and (not self.rows or self.rows[-1][0] - self.rows[0][0] < 1.0):
+                asked = now             # until it streams at the rate: SIH's link took no request yet
+                self._conn.mav.command_long_send(self.system_id, 1, M.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                                                 M.MAVLINK_MSG_ID_HIL_STATE_QUATERNION, 1e6 / self.rate_hz,
+                                                 0, 0, 0, 0, 0)
+            m = self._conn.recv_match(type="HIL_STATE_QUATERNION", blocking=True, timeout=0.2)
+            if m is not None:
+                self.rows.append((m.time_usec * 1e-6, m.lat * 1e-7, m.lon * 1e-7, m.alt * 1e-3,
+                                  *m.attitude_quaternion, m.vx * 0.01, m.vy * 0.01, m.vz * 0.01))
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=2.0)
+        self._conn.close()
+
+    def save(self, path: Path, origin: tuple[float, float, float]) -> Path:
+        """Write ``truth.npz``: time_s, position_ned_m about ``origin`` (lat, lon deg, alt m),
+        quaternion_wxyz, velocity_ned_m_s."""
+        rows = np.array(self.rows, dtype=float).reshape(-1, 11)
+        pos = np.array([ned_m(r[1], r[2], r[3], origin) for r in rows]).reshape(-1, 3)
+        np.savez(path, time_s=rows[:, 0], position_ned_m=pos, quaternion_wxyz=rows[:, 4:8],
+                 velocity_ned_m_s=rows[:, 8:11], origin=np.array(origin))
+        return Path(path)
+
+
+class Px4Sitl(SitlLink):
+    """One PX4 SIH process, a pymavlink connection to its offboard link, and its truth.
+
+    Parameters
+    ----------
+    params : dict
+        Parameters set over MAVLink once it answers (``SIH_*`` for the airframe,
+        ``COM_*``), e.g. ``{"SIH_T_MAX": 10.0}``; names in :data:`PX4_INT_PARAMS` as integers.
+    instance : int or None
+        PX4's instance (system id 1 + instance); the first free one from 0 by default.
+    wait_ready : bool
+        Wait for EKF2's local position, its origin and the pre-arm checks.
+    timeout_s : float
+        Bound on each wait.
+    """
+
+    name = "PX4 SITL"
+
+    def __init__(self, params: dict | None = None, instance: int | None = None, wait_ready: bool = True,
+                 timeout_s: float = 60.0, directory: Path | None = None):
+        self._init_link()
+        self.params = dict(params or {})
+        self.instance = instance
+        self.wait_ready = wait_ready
+        self.timeout_s = float(timeout_s)
+        self.directory = directory or px4_dir()
+        self.pid: int | None = None
+        self.workdir: tempfile.TemporaryDirectory | None = None
+        self.truth: TruthRecorder | None = None
+        self.origin: tuple[float, float, float] | None = None
+        """EKF2's origin (lat, lon deg, alt m): the local frame's, but for the barometer's height."""
+
+    def __enter__(self) -> "Px4Sitl":
+        try:
+            self.start()
+        except BaseException:
+            self.stop()
+            raise
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    @property
+    def port(self) -> int:
+        """The UDP port PX4's offboard link sends to (``udpin:127.0.0.1:PORT`` for mavreg)."""
+        return 14540 + self.instance
+
+    def start(self) -> None:
+        if self.directory is None:
+            raise SitlError(f"PX4 SITL not found (set {ENV_VAR})")
+        if self.instance is None:
+            self.instance = free_instance()
+        self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{self.port}", source_system=255,
+                                               source_component=190, dialect="common")
+        self.truth = TruthRecorder(self.instance, 1 + self.instance)
+        self.t0 = time.monotonic()
+        self._launch()
+        hb = self.wait_for(lambda m: m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1
+                           and m.autopilot == M.MAV_AUTOPILOT_PX4, self.timeout_s, "first HEARTBEAT")
+        self.sysid, self.compid = hb.get_srcSystem(), hb.get_srcComponent()
+        self.conn.target_system, self.conn.target_component = self.sysid, self.compid
+        self.truth.start()
+        for name, value in self.params.items():
+            self.set_param(name, value)
+        if self.wait_ready:
+            self.set_rate(M.MAVLINK_MSG_ID_SYS_STATUS, 2.0)
+            self.wait_until(lambda: "LOCAL_POSITION_NED" in self.first_seen, self.timeout_s, "local position")
+            self.command_long(M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN)
+            o = self.wait_for(lambda m: m.get_type() == "GPS_GLOBAL_ORIGIN", 10.0, "GPS_GLOBAL_ORIGIN")
+            self.origin = (o.latitude * 1e-7, o.longitude * 1e-7, o.altitude * 1e-3)
+            self.wait_until(lambda: self.prearm_ok, self.timeout_s, "pre-arm checks passing")
+
+    def _launch(self) -> None:
+        self.workdir = tempfile.TemporaryDirectory(prefix="mavreg-px4-")
+        work = Path(self.workdir.name)
+        env = dict(os.environ, INSTANCE=str(self.instance), WORKDIR=str(work / "px4"))
+        links = module_links(self.directory, work / "bin")
+        if links is not None:
+            env["PATH"] = f"{links}{os.pathsep}{env.get('PATH', '')}"
+        out = subprocess.run([str(self.directory / "start.sh")], env=env, capture_output=True, text=True,
+                             timeout=30)
+        if out.returncode != 0 or not out.stdout.strip().isdigit():
+            raise SitlError(f"PX4 start.sh failed ({out.returncode}): {out.stderr.strip()[-200:]}")
+        self.pid = int(out.stdout.strip())
+
+    def stop(self) -> None:
+        """Stop the truth, SIGTERM PX4 by its PID (SIGKILL after 10 s), close the link."""
+        if self.truth is not None:
+            self.truth.stop()
+        if self.pid is not None:
+            _terminate(self.pid)
+            self.pid = None
+        if self.conn is not None:
+            self.conn.close()
+            self.conn = None
+
+    def cleanup(self) -> None:
+        """Remove the working directory (parameters, ``.ulg`` logs); after :meth:`stop`."""
+        if self.workdir is not None:
+            self.workdir.cleanup()
+            self.workdir = None
+
+    def ulogs(self) -> list[Path]:
+        """PX4's own flight logs of this run (``.ulg``)."""
+        if self.workdir is None:
+            return []
+        return sorted((Path(self.workdir.name) / "px4" / "log").rglob("*.ulg"))
+
+    def release_link(self) -> int:
+        """Close the harness's offboard link so mavreg can take the port; the port."""
+        self.conn.close()
+        self.conn = None
+        return self.port
+
+    # -- parameters -------------------------------------------------------------------------
+    def get_param(self, name: str, timeout_s: float = 3.0) -> float:
+        """PARAM_REQUEST_READ by name; the value (an integer parameter decoded from its bytes)."""
+        self.conn.mav.param_request_read_send(self.sysid, self.compid, name.encode(), -1)
+        return param_value(self._param_value(name, timeout_s, f"PARAM_VALUE {name}"), bytewise=True)
+
+    def set_param(self, name: str, value: float, timeout_s: float = 3.0) -> None:
+        """PARAM_SET, confirmed by the echoed PARAM_VALUE (test setup only)."""
+        if name in PX4_INT_PARAMS:
+            raw = struct.unpack("<f", struct.pack("<i", int(value)))[0]
+            self.conn.mav.param_set_send(self.sysid, self.compid, name.encode(), raw, M.MAV_PARAM_TYPE_INT32)
+        else:
+            self.conn.mav.param_set_send(self.sysid, self.compid, name.encode(), float(value),
+                                         M.MAV_PARAM_TYPE_REAL32)
+        got = param_value(self._param_value(name, timeout_s, f"PARAM_VALUE echo of {name}"),
+                          bytewise=True)
+        if abs(got - float(value)) > 1e-5 * max(1.0, abs(float(value))):
+            raise SitlError(f"PX4 SITL: {name} is {got} after setting {value}")
+
+    def _check_alive(self, what: str) -> None:
+        if self.pid is not None and not _alive(self.pid):
+            self.pid = None
+            raise SitlExitedEarly(f"PX4 SITL exited while waiting for {what}; its last output: "
+                                  f"{self.output_tail()}")
+
+    def output_tail(self, lines: int = 3) -> str:
+        try:
+            text = (Path(self.workdir.name) / "px4" / "px4.out").read_text(errors="replace")
+        except (OSError, AttributeError):
+            return "(none)"
+        return " | ".join(text.strip().splitlines()[-lines:]) or "(none)"
+
