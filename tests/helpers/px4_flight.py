@@ -8,8 +8,9 @@ for it. :func:`px4_truth` then measures the flight against the plan in EKF2's fr
 - the truth is converted to NED about EKF2's origin (``GPS_GLOBAL_ORIGIN``), and its height
   moved by the offset between the truth and ``LOCAL_POSITION_NED`` on the ground before
   take-off (EKF2's height follows the barometer: tenths of a metre off the truth);
-- both are stamped with PX4's boot time (``time_usec``, ``time_boot_ms``), so the maneuver's
-  window comes from summary.json's events;
+- SIH stamps its truth with ``time_usec`` 0, so the harness stamps it on arrival by the wall
+  clock, as the daemon's tlog stamps the telemetry; the telemetry's ``time_boot_ms`` against
+  those stamps maps both onto PX4's boot time, where summary.json's events are;
 - the error splits as for the ArduCopter: the estimate's own path error (what mavreg
   regulates on: the controller's part) and the estimate's error, truth less estimate
   (the estimator's part).
@@ -65,15 +66,17 @@ def fly_on_px4(maneuver: Path, out: Path, vehicle: Path = VEHICLE, controller: P
 
 
 def _estimates(tlog: Path):
-    """(time s, NED position) of every LOCAL_POSITION_NED the daemon received."""
+    """(PX4's boot time s, NED position) of every LOCAL_POSITION_NED the daemon received, and
+    the wall clock's offset from PX4's boot time (the median of the tlog's stamps less
+    ``time_boot_ms``: loopback, so within a millisecond or two)."""
     from pymavlink import mavutil
     log = mavutil.mavlink_connection(str(tlog), dialect="common")
     rows = []
     while (m := log.recv_match(type="LOCAL_POSITION_NED")) is not None:
         if m.get_srcComponent() == 1:
-            rows.append((m.time_boot_ms * 1e-3, m.x, m.y, m.z))
-    a = np.array(rows, dtype=float).reshape(-1, 4)
-    return a[:, 0], a[:, 1:]
+            rows.append((m.time_boot_ms * 1e-3, m._timestamp, m.x, m.y, m.z))
+    a = np.array(rows, dtype=float).reshape(-1, 5)
+    return a[:, 0], a[:, 2:], float(np.median(a[:, 1] - a[:, 0])) if len(a) else 0.0
 
 
 def _window(summary: dict) -> tuple[float, float] | None:
@@ -97,8 +100,8 @@ def px4_truth(out: Path, maneuver: Path, vehicle: Path = VEHICLE, controller: Pa
     out = Path(out)
     summary = json.loads((out / "summary.json").read_text())
     truth = np.load(out / "truth.npz")
-    t, pos = truth["time_s"], truth["position_ned_m"].copy()
-    t_est, est = _estimates(out / "flight.tlog")
+    t_est, est, wall_offset_s = _estimates(out / "flight.tlog")
+    t, pos = truth["wall_time_s"] - wall_offset_s, truth["position_ned_m"].copy()
     if len(t) < 2 or len(t_est) < 2:
         return None
     # the height's offset on the ground, before take-off (the first two seconds of telemetry)
@@ -118,5 +121,76 @@ def px4_truth(out: Path, maneuver: Path, vehicle: Path = VEHICLE, controller: Pa
     result["estimate_max_m"] = estimate["max_m"]
     result["estimate_segments"] = {k: v.get("max_m") for k, v in estimate["segments"].items()}
     result["ekf_error_max_m"] = float(np.linalg.norm(pos[sel] - est_at, axis=1).max()) if sel.any() else None
-    result["lowest_altitude_m"] = float(-pos[:, 2].min() - 0.0)
+    result["lowest_altitude_m"] = float(-pos[:, 2].max())
     return result
+
+
+def truth_touchdowns(out: Path) -> list[tuple[float, float]]:
+    """(wall time s, speed m/s) of each ground contact after a lift-off in ``truth.npz``: the
+    ground is the truth's height before take-off (within 5 cm)."""
+    from mavreg.experiments.robustness_metrics import touchdowns
+    truth = np.load(Path(out) / "truth.npz")
+    t, pos = truth["wall_time_s"], truth["position_ned_m"]
+    on_ground = pos[:, 2] >= pos[0, 2] - 0.05
+    return touchdowns(t, truth["velocity_ned_m_s"], on_ground)
+
+
+def kill_mid_maneuver(maneuver: Path, out: Path, after_s: float = 2.0, params: dict | None = None,
+                      vehicle: Path = VEHICLE, controller: Path = CONTROLLER, wait_s: float = 90.0) -> dict:
+    """Fly ``maneuver`` with mavreg on a fresh PX4, SIGKILL the daemon ``after_s`` (wall clock)
+    into the maneuver, then watch PX4 alone: its modes, until it disarms (or ``wait_s``).
+    Returns the modes seen after the kill, ``disarmed``, the truth's touchdowns and
+    ``killed_at_wall_s``; the truth is kept in ``out/truth.npz``."""
+    import os
+    import signal
+    import time
+
+    from mavreg.daemon.autopilots import PX4
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    result = {"modes": [], "disarmed": False, "killed_at_wall_s": None}
+    with Px4Sitl(params=params) as px4:
+        port = px4.release_link()
+        cmd = [sys.executable, "-m", "mavreg.cli.main", "fly", str(maneuver), "--vehicle", f"udpin:127.0.0.1:{port}",
+               "--output", "rates", "--vehicle-params", str(vehicle), "--controller", str(controller),
+               "--control-rate-hz", "200", "--out", str(out / "flight")]
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        lines = []
+        for line in proc.stdout:              # the daemon's own word that the maneuver began
+            lines.append(line)
+            if "[maneuver] phase" in line:
+                break
+        deadline = time.monotonic() + after_s
+        while time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.05)                  # the scenario's timing (the kill's moment), not a wait for a state
+        if proc.poll() is None:
+            os.kill(proc.pid, signal.SIGKILL)
+            result["killed_at_wall_s"] = time.time()
+        proc.wait(timeout=10)
+        (out / "fly.log").write_text("".join(lines) + (proc.stdout.read() or ""))
+        px4.conn = mavutil_connection(port)
+        end = time.monotonic() + wait_s
+        while time.monotonic() < end:
+            m = px4.recv(0.5)
+            if m is None or m.get_type() != "HEARTBEAT" or m.get_srcComponent() != 1:
+                continue
+            info = PX4.decode(m)
+            if not result["modes"] or result["modes"][-1] != info.mode:
+                result["modes"].append(info.mode)
+            if not info.armed:
+                result["disarmed"] = True
+                break
+        px4.stop()
+        px4.truth.save(out / "truth.npz", px4.origin)
+        px4.cleanup()
+    result["touchdowns"] = truth_touchdowns(out)
+    (out / "kill.json").write_text(json.dumps(result, indent=1))
+    return result
+
+
+def mavutil_connection(port: int):
+    """A ground station's link on PX4's offboard port again (the daemon is gone)."""
+    from pymavlink import mavutil
+    return mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=255, source_component=190,
+                                      dialect="common")

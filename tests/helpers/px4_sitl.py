@@ -112,7 +112,8 @@ def module_links(directory: Path, into: Path) -> Path | None:
 class TruthRecorder:
     """SIH's true state, ``HIL_STATE_QUATERNION``, recorded from its display link in a thread.
 
-    Rows: PX4's boot time (s; the clock of ``time_boot_ms`` in every other message), latitude
+    Rows: the wall clock at arrival (s; SIH sends ``time_usec`` 0, and the daemon's tlog stamps
+    its frames with the same clock, which maps them onto PX4's boot time), latitude
     and longitude (deg), altitude (m), the quaternion (w, x, y, z), NED velocity (m/s).
     """
 
@@ -139,8 +140,8 @@ class TruthRecorder:
                                                  M.MAVLINK_MSG_ID_HIL_STATE_QUATERNION, 1e6 / self.rate_hz,
                                                  0, 0, 0, 0, 0)
             m = self._conn.recv_match(type="HIL_STATE_QUATERNION", blocking=True, timeout=0.2)
-            if m is not None:
-                self.rows.append((m.time_usec * 1e-6, m.lat * 1e-7, m.lon * 1e-7, m.alt * 1e-3,
+            if m is not None:      # SIH leaves time_usec 0: stamped on arrival, by the wall clock
+                self.rows.append((time.time(), m.lat * 1e-7, m.lon * 1e-7, m.alt * 1e-3,
                                   *m.attitude_quaternion, m.vx * 0.01, m.vy * 0.01, m.vz * 0.01))
 
     def stop(self) -> None:
@@ -150,11 +151,11 @@ class TruthRecorder:
         self._conn.close()
 
     def save(self, path: Path, origin: tuple[float, float, float]) -> Path:
-        """Write ``truth.npz``: time_s, position_ned_m about ``origin`` (lat, lon deg, alt m),
+        """Write ``truth.npz``: wall_time_s, position_ned_m about ``origin`` (lat, lon deg, alt m),
         quaternion_wxyz, velocity_ned_m_s."""
         rows = np.array(self.rows, dtype=float).reshape(-1, 11)
         pos = np.array([ned_m(r[1], r[2], r[3], origin) for r in rows]).reshape(-1, 3)
-        np.savez(path, time_s=rows[:, 0], position_ned_m=pos, quaternion_wxyz=rows[:, 4:8],
+        np.savez(path, wall_time_s=rows[:, 0], position_ned_m=pos, quaternion_wxyz=rows[:, 4:8],
                  velocity_ned_m_s=rows[:, 8:11], origin=np.array(origin))
         return Path(path)
 
