@@ -22,11 +22,15 @@ import sys
 import tempfile
 from pathlib import Path
 
+from mavreg.experiments.autopilot_baseline import FEEDFORWARDS
+
 REPO = Path(__file__).resolve().parents[1]
 MANEUVERS = REPO / "mavreg" / "params" / "maneuvers"
 CONTROLLER = REPO / "mavreg" / "params" / "controller" / "realistic.yaml"
 ARDUPILOT_VEHICLE = REPO / "mavreg" / "params" / "vehicles" / "ardupilot_freestyle.yaml"
 PX4_VEHICLE = REPO / "mavreg" / "params" / "vehicles" / "px4_sih.yaml"
+if not PX4_VEHICLE.is_file():           # until the PX4 work ships its vehicle file: the same airframe
+    PX4_VEHICLE = REPO / "tests" / "sitl" / "px4_sih_baseline.yaml"
 DEFAULT_RUNS = "px4:figure_eight,px4:slalom,ardupilot:figure_eight"
 AUTOPILOTS = ("px4", "ardupilot")
 
@@ -63,7 +67,8 @@ def _cm(v) -> str:
     return f"{100 * v:.1f}" if isinstance(v, (int, float)) and v == v else "n/a"
 
 
-def fly_one(autopilot: str, maneuver: Path, out: Path, vehicle: Path, params: dict, instance: int) -> dict:
+def fly_one(autopilot: str, maneuver: Path, out: Path, vehicle: Path, params: dict, instance: int,
+            feedforward: str) -> dict:
     """One flight; a row of the table (``result`` names the failure in one line)."""
     from mavreg.config.controller import load_controller
     from mavreg.config.vehicle import load_vehicle
@@ -71,12 +76,14 @@ def fly_one(autopilot: str, maneuver: Path, out: Path, vehicle: Path, params: di
     from tests.helpers.autopilot_baseline_flight import fly_ardupilot_baseline, fly_px4_baseline
     from tests.helpers.sitl_link import SitlError
     plan = plan_file(maneuver, load_vehicle(vehicle), load_controller(CONTROLLER))
-    row = {"autopilot": autopilot, "maneuver": maneuver.stem, "out": str(out), "load_before": os.getloadavg()[0]}
+    row = {"autopilot": autopilot, "maneuver": maneuver.stem, "feedforward": feedforward, "out": str(out),
+           "load_before": os.getloadavg()[0]}
     try:
         if autopilot == "px4":
-            s = fly_px4_baseline(plan, maneuver, out, vehicle, CONTROLLER, params, instance=instance)
+            s = fly_px4_baseline(plan, maneuver, out, vehicle, CONTROLLER, params, instance=instance,
+                                 feedforward=feedforward)
         else:
-            s = fly_ardupilot_baseline(plan, maneuver, out, CONTROLLER, params)
+            s = fly_ardupilot_baseline(plan, maneuver, out, CONTROLLER, params, feedforward=feedforward)
     except (SitlError, OSError) as exc:
         return {**row, "result": f"failed: {str(exc).splitlines()[0][:160]}"}
     truth = s.get("truth") or {}
@@ -87,7 +94,7 @@ def fly_one(autopilot: str, maneuver: Path, out: Path, vehicle: Path, params: di
 
 
 def markdown_row(k: int, row: dict) -> str:
-    return (f"| {row['autopilot']} | {row['maneuver']} | {k} | {row['result']} | {_cm(row.get('max_m'))} | "
+    return (f"| {row['autopilot']} | {row['maneuver']} | {row['feedforward']} | {k} | {row['result']} | {_cm(row.get('max_m'))} | "
             f"{_cm(row.get('rms_m'))} | {_cm(row.get('ekf_error_max_m'))} | {row['load_before']:.2f} |")
 
 
@@ -113,7 +120,7 @@ def figures(rows: list[dict], root: Path, vehicles: dict) -> list[Path]:
         for r in mine:
             track = flown_track(Path(r["out"]))
             ax.plot(track[:, 1], track[:, 0], lw=1,
-                    label=f"{r['autopilot']} flight {Path(r['out']).name}: max {_cm(r['max_m'])} cm")
+                    label=f"{Path(r['out']).name}: max {_cm(r['max_m'])} cm")
         ax.set_xlabel("east (m)")
         ax.set_ylabel("north (m)")
         ax.set_aspect("equal")
@@ -136,6 +143,10 @@ def main(argv=None) -> int:
                    "with (default: %(default)s)")
     p.add_argument("--px4-instance", type=int, default=7, help="PX4 SITL instance: ports 14540+i, 19410+i "
                    "(default: %(default)s)")
+    p.add_argument("--feedforward", choices=FEEDFORWARDS, default="kinematic",
+                   help="the maneuver's acceleration set-point: the nominal's kinematic acceleration, or the "
+                   "part its thrust gives (kinematic less the nominal's drag; the autopilots model no drag) "
+                   "(default: %(default)s)")
     p.add_argument("--param", action="append", default=[], metavar="AUTOPILOT:NAME=VALUE",
                    help="an autopilot parameter set before each flight on top of the baseline's (repeatable)")
     args = p.parse_args(argv)
@@ -148,16 +159,24 @@ def main(argv=None) -> int:
     vehicles = {"px4": Path(args.px4_vehicle), "ardupilot": ARDUPILOT_VEHICLE}
     if any(a == "px4" for a, _ in runs) and not vehicles["px4"].is_file():
         p.error(f"no PX4 vehicle file {vehicles['px4']}: pass --px4-vehicle FILE")
+    from mavreg.config.loader import ConfigError
+    from mavreg.config.vehicle import load_vehicle
+    for autopilot in {a for a, _ in runs}:
+        try:
+            load_vehicle(vehicles[autopilot])
+        except ConfigError as exc:
+            p.error(str(exc).splitlines()[0])
     root = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="mavreg-compare-"))
     root.mkdir(parents=True, exist_ok=True)
     print(f"{datetime.datetime.now().isoformat(timespec='minutes')}, {os.cpu_count()} cores; flights in {root}\n")
-    print("| autopilot | maneuver | flight | result | max (cm) | RMS (cm) | EKF error max (cm) | load before |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| autopilot | maneuver | acceleration fed forward | flight | result | max (cm) | RMS (cm) "
+          "| EKF error max (cm) | load before |")
+    print("|---|---|---|---|---|---|---|---|---|")
     rows = []
     for autopilot, maneuver in runs:
         for k in range(1, args.flights + 1):
-            row = fly_one(autopilot, maneuver, root / f"{autopilot}_{maneuver.stem}_{k}", vehicles[autopilot],
-                          params[autopilot], args.px4_instance)
+            row = fly_one(autopilot, maneuver, root / f"{autopilot}_{maneuver.stem}_{args.feedforward}_{k}",
+                          vehicles[autopilot], params[autopilot], args.px4_instance, args.feedforward)
             rows.append(row)
             print(markdown_row(k, row), flush=True)
             (root / "results.json").write_text(json.dumps(rows, indent=1, default=float))

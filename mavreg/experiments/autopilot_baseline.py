@@ -26,7 +26,7 @@ from ..model.rotation import rpy_to_matrix, wrap_angle
 from ..trackers.timed import TimedNominal
 
 __all__ = ["Setpoint", "Phase", "BaselineSchedule", "nominal_setpoint", "TYPE_MASK_POS_VEL_ACC_YAW",
-           "SETPOINT_RATE_HZ", "MANEUVER"]
+           "SETPOINT_RATE_HZ", "MANEUVER", "FEEDFORWARDS"]
 
 TYPE_MASK_POS_VEL_ACC_YAW = 0
 """``SET_POSITION_TARGET_LOCAL_NED.type_mask`` with nothing ignored: position, velocity,
@@ -36,6 +36,11 @@ SETPOINT_RATE_HZ = 50.0
 controller runs at the estimator's 50 Hz... 100 Hz)."""
 MANEUVER = "maneuver"
 """The phase judged: the nominal flown in time."""
+FEEDFORWARDS = ("kinematic", "thrust")
+"""The acceleration fed forward on the maneuver: ``kinematic``, the nominal position's second
+derivative (what the message's field means); ``thrust``, what the nominal's thrust alone gives,
+gravity added (the kinematic one less the nominal's drag): an autopilot that models no drag
+(PX4, ArduCopter) turns it into the nominal's thrust and tilt, as mavreg's plan has them."""
 
 
 class Setpoint(NamedTuple):
@@ -63,12 +68,13 @@ class Phase:
         return self.start_s + self.duration_s
 
 
-def nominal_setpoint(timed: TimedNominal, t_s: float) -> tuple:
+def nominal_setpoint(timed: TimedNominal, t_s: float, feedforward: str = "kinematic") -> tuple:
     """(position, velocity, acceleration NED, yaw, yaw rate) of the timed nominal at ``t_s``.
 
     The velocity is the nominal body velocity turned to NED; the acceleration the second time
     derivative of the nominal position (:meth:`TimedNominal.reference`: what the nominal's
-    thrust and drag add up to, its kinematics only); the yaw rate is the ZYX Euler rate of the
+    thrust and drag add up to), or with ``feedforward="thrust"`` the thrust's part of it,
+    ``g e3 - (f / m) R e3`` (:data:`FEEDFORWARDS`); the yaw rate is the ZYX Euler rate of the
     nominal body rates."""
     ref = timed.reference(float(t_s))
     x = ref.x
@@ -76,8 +82,12 @@ def nominal_setpoint(timed: TimedNominal, t_s: float) -> tuple:
     R = rpy_to_matrix(phi, theta, psi)
     q, r = float(x[10]), float(x[11])
     yaw_rate = (q * math.sin(phi) + r * math.cos(phi)) / max(math.cos(theta), 1e-6)
-    return (np.asarray(x[:3], dtype=float), R @ x[6:9], np.asarray(ref.acceleration_ned_m_s2, dtype=float),
-            float(wrap_angle(psi)), float(yaw_rate))
+    if feedforward == "thrust":
+        model = timed.model
+        accel = np.array([0.0, 0.0, model.g]) - (float(ref.u[0]) / model.mass_kg) * R[:, 2]
+    else:
+        accel = np.asarray(ref.acceleration_ned_m_s2, dtype=float)
+    return np.asarray(x[:3], dtype=float), R @ x[6:9], accel, float(wrap_angle(psi)), float(yaw_rate)
 
 
 def _ramp_phase(name: str, start_s: float, ramp: Ramp, duration_s: float | None = None) -> Phase:
@@ -95,12 +105,15 @@ class BaselineSchedule:
     Phases: ``spool`` (``spool_s`` on the spot), ``climb`` (straight up to the hold altitude),
     ``transfer`` (to the hold point before the entry), ``hold`` (``hold_s``), ``run_in`` (the
     daemon's ramp onto the entry's position, velocity and acceleration), ``maneuver`` (the
-    nominal in time, :attr:`maneuver_s` long), ``stop`` (the daemon's stop ramp from the exit)
+    nominal in time, :attr:`maneuver_s` long, its acceleration as ``feedforward`` says), ``stop`` (the daemon's stop ramp from the exit)
     and ``exit_hold`` (``exit_hold_s``). After :attr:`duration_s` it holds the last point.
     """
 
     def __init__(self, plan, start_m, start_yaw_rad: float, hold_s: float = 3.0, exit_hold_s: float = 3.0,
-                 spool_s: float = 1.0, run_in_m: float = 0.6, hover: HoverParams | None = None):
+                 spool_s: float = 1.0, run_in_m: float = 0.6, hover: HoverParams | None = None,
+                 feedforward: str = "kinematic"):
+        if feedforward not in FEEDFORWARDS:
+            raise ValueError(f"feedforward must be one of {', '.join(FEEDFORWARDS)}, not {feedforward!r}")
         for name, value in (("hold_s", hold_s), ("exit_hold_s", exit_hold_s), ("spool_s", spool_s)):
             if not (math.isfinite(value) and value >= 0.0):
                 raise ValueError(f"{name} must be a finite number >= 0, got {value}")
@@ -108,6 +121,7 @@ class BaselineSchedule:
         if start.shape != (3,) or not np.all(np.isfinite(start)):
             raise ValueError(f"start_m must be 3 finite NED coordinates, got {start_m!r}")
         hover = hover or HoverParams()
+        self.feedforward = feedforward
         self.plan = plan
         self.timed = TimedNominal(plan)
         entry = fp.entry_of(plan, hover, run_in_m)
@@ -127,7 +141,7 @@ class BaselineSchedule:
         self.maneuver_start_s = phases[-1].end_s
         self.maneuver_s = float(self.timed.duration_s)
         phases.append(Phase(MANEUVER, self.maneuver_start_s, self.maneuver_s,
-                            lambda t: nominal_setpoint(self.timed, t)))
+                            lambda t: nominal_setpoint(self.timed, t, feedforward)))
         p_end, v_end, _, yaw_end, _ = nominal_setpoint(self.timed, self.maneuver_s)
         stop = fp.stop_ramp(p_end, v_end, yaw_end, hover)
         add("stop", stop)
@@ -161,7 +175,7 @@ class BaselineSchedule:
         if not step_s > 0.0:
             raise ValueError(f"step_s must be positive, got {step_s}")
         t = np.arange(0.0, self.maneuver_s + 0.5 * step_s, step_s)
-        rows = [nominal_setpoint(self.timed, float(ti)) for ti in t]
+        rows = [nominal_setpoint(self.timed, float(ti), self.feedforward) for ti in t]
         return {"t_s": t, "position_ned_m": np.array([r[0] for r in rows]),
                 "velocity_ned_m_s": np.array([r[1] for r in rows]),
                 "accel_ned_m_s2": np.array([r[2] for r in rows])}

@@ -122,7 +122,8 @@ def _send(link, clock: VehicleClock, sp) -> None:
 def stream(link, clock: VehicleClock, setpoint_at, until, timeout_s: float, what: str):
     """Send ``setpoint_at(host time)`` (None: nothing) at :data:`SETPOINT_RATE_HZ` and receive in
     between, until ``until(message or None)`` holds; that message. :class:`SitlError` after
-    ``timeout_s``. The pace is the stream's; every wait ends on a message or the deadline."""
+    ``timeout_s``. The pace is the stream's; every wait ends on a message or the deadline.
+    Between two set-points every waiting message is read (a backlog would stamp the tlog late)."""
     period = 1.0 / SETPOINT_RATE_HZ
     next_send = time.monotonic()
     deadline = next_send + timeout_s
@@ -133,14 +134,17 @@ def stream(link, clock: VehicleClock, setpoint_at, until, timeout_s: float, what
             if sp is not None:
                 _send(link, clock, sp)
             next_send = max(next_send + period, now)
+            link._check_alive(what)
         if now > deadline:
             raise link._timeout(what, timeout_s)
-        link._check_alive(what)
-        m = link.recv(max(0.0, min(next_send - time.monotonic(), period)))
-        if m is not None:
+        m = link.recv(max(0.001, min(next_send - time.monotonic(), period)))
+        while m is not None:
             clock.update(m)
-        if until(m):
-            return m
+            if until(m):
+                return m
+            m = link.recv(0.001) if time.monotonic() < next_send else None
+        if until(None):
+            return None
 
 
 def _is_heartbeat(m) -> bool:
@@ -207,9 +211,10 @@ def _px4_mode_is(main: int, sub: int):
 
 
 def fly_px4_baseline(plan, maneuver: Path, out: Path, vehicle: Path, controller: Path, params: dict | None = None,
-                     instance: int | None = None, hold_s: float = HOLD_S) -> dict:
+                     instance: int | None = None, hold_s: float = HOLD_S, feedforward: str = "kinematic") -> dict:
     """Fly ``plan`` (planned from ``maneuver`` with ``vehicle`` and ``controller``) through PX4's
-    position controller on a fresh SIH; summary.json plus ``px4_truth``."""
+    position controller on a fresh SIH; summary.json plus ``px4_truth``. ``feedforward``: the
+    maneuver's acceleration (:data:`~mavreg.experiments.autopilot_baseline.FEEDFORWARDS`)."""
     from .px4_flight import px4_truth
     from .px4_sitl import Px4Sitl
     out = Path(out)
@@ -227,7 +232,8 @@ def fly_px4_baseline(plan, maneuver: Path, out: Path, vehicle: Path, controller:
                      lambda m: m is not None and m.get_type() == "LOCAL_POSITION_NED", 10.0, "LOCAL_POSITION_NED")
         ground = np.array([pos.x, pos.y, pos.z])
         fl = _Flight(px4, clock, out)
-        schedule = BaselineSchedule(plan, ground, float(att.yaw), hold_s=hold_s, exit_hold_s=hold_s)
+        schedule = BaselineSchedule(plan, ground, float(att.yaw), hold_s=hold_s, exit_hold_s=hold_s,
+                                    feedforward=feedforward)
         idle = lambda now: schedule.at(0.0)                      # noqa: E731  (the ground point)
         t_idle = time.monotonic()
         stream(px4, clock, idle, lambda m: time.monotonic() - t_idle >= 2.5, 5.0, "the idle stream")
@@ -249,7 +255,7 @@ def fly_px4_baseline(plan, maneuver: Path, out: Path, vehicle: Path, controller:
         for ulg in px4.ulogs():
             shutil.copy(ulg, out / ulg.name)
         px4.cleanup()
-    summary = fl.finish({"autopilot": "px4", "params_set": set_params, "params_read": read,
+    summary = fl.finish({"autopilot": "px4", "feedforward": feedforward, "params_set": set_params, "params_read": read,
                          "maneuver_window_s": schedule.maneuver_window_s})
     summary["truth"] = px4_truth(out, maneuver, vehicle, controller)
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
@@ -268,7 +274,7 @@ def _command(link, clock, setpoint_at, command: int, *params: float) -> None:
 
 
 def fly_ardupilot_baseline(plan, maneuver: Path, out: Path, controller: Path, params: dict | None = None,
-                           hold_s: float = HOLD_S) -> dict:
+                           hold_s: float = HOLD_S, feedforward: str = "kinematic") -> dict:
     """Fly ``plan`` through ArduCopter's GUIDED position controller on a fresh freestyle SITL;
     summary.json plus ``truth`` (SIM_STATE, :func:`true_errors_from_tlog`)."""
     from .ardupilot_flight import true_errors_from_tlog
@@ -296,13 +302,13 @@ def fly_ardupilot_baseline(plan, maneuver: Path, out: Path, controller: Path, pa
                      and -m.z >= ARDUPILOT_TAKEOFF_M - 0.1 and abs(m.vz) < 0.2, 30.0, "the take-off's altitude")
         att = stream(ap, clock, none, lambda m: m is not None and m.get_type() == "ATTITUDE", 2.0, "ATTITUDE")
         schedule = BaselineSchedule(plan, [pos.x, pos.y, pos.z], float(att.yaw), hold_s=hold_s,
-                                    exit_hold_s=hold_s, spool_s=0.0)
+                                    exit_hold_s=hold_s, spool_s=0.0, feedforward=feedforward)
         fl.fly_schedule(schedule)
         _command(ap, clock, lambda now: schedule.at(schedule.duration_s), M.MAV_CMD_DO_SET_MODE, 1, AP_LAND)
         stream(ap, clock, none, lambda m: _is_heartbeat(m) and not _armed(m), 60.0, "the disarm after LAND")
         fl.event("disarmed", "ArduCopter disarmed itself in LAND", kind="schedule")
         tlog.close()
-    summary = fl.finish({"autopilot": "ardupilot", "params_set": set_params, "params_read": read,
+    summary = fl.finish({"autopilot": "ardupilot", "feedforward": feedforward, "params_set": set_params, "params_read": read,
                          "maneuver_window_s": schedule.maneuver_window_s,
                          "origin": {k: getattr(origin, k) for k in ("latitude", "longitude", "altitude")}})
     summary["truth"] = true_errors_from_tlog(out, maneuver, origin, controller)

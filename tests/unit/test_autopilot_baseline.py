@@ -54,3 +54,18 @@ def test_bad_input_is_one_line():
         BaselineSchedule(None, [0, 0, 0], 0.0, hold_s=-1.0)
     with pytest.raises(ValueError, match="start_m must be 3 finite"):
         BaselineSchedule(None, [0, 0], 0.0)
+
+
+def test_the_thrust_feedforward_is_the_kinematic_one_less_the_nominals_drag(schedule):
+    """On the freestyle file's drag (0.13 N s/m in the rotor plane, parasitic 0.027 N s2/m2):
+    at the top speed the two differ by the drag's deceleration and agree at rest."""
+    t = 0.5 * schedule.maneuver_s
+    kin = nominal_setpoint(schedule.timed, t)
+    thr = nominal_setpoint(schedule.timed, t, "thrust")
+    drag = thr[2] - kin[2]                                  # what the thrust adds against the drag
+    assert np.dot(drag, kin[1]) > 0                         # along the velocity
+    assert 0.5 < np.linalg.norm(drag) < 2.0                 # (0.13 x 4.5 + 0.027 x 4.5^2) / 0.8 = 1.4 m/s2
+    assert np.allclose(nominal_setpoint(schedule.timed, 0.0, "thrust")[2], nominal_setpoint(schedule.timed, 0.0)[2],
+                       atol=0.15)
+    with pytest.raises(ValueError, match="feedforward must be one of"):
+        BaselineSchedule(schedule.plan, [0, 0, 0], 0.0, feedforward="jerk")
