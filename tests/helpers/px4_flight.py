@@ -39,13 +39,14 @@ AGGRESSIVE_PARAMS = {"SIH_T_MAX": 12.5, "SIH_Q_MAX": 0.25}
 
 def fly_on_px4(maneuver: Path, out: Path, vehicle: Path = VEHICLE, controller: Path = CONTROLLER,
                params: dict | None = None, control_rate_hz: float = 200.0, timeout_s: float = 240.0,
-               extra_args: tuple = (), instance: int | None = None) -> dict:
+               extra_args: tuple = (), instance: int | None = None, position_source: str = "gps") -> dict:
     """Fly ``maneuver`` with mavreg on a fresh PX4; summary.json plus ``px4_truth``
     (:func:`px4_truth`) and ``exit_code``. ``params``: PX4 parameters set before the flight
-    (the airframe's ``SIH_*``, an experiment's); ``extra_args``: more ``mavreg fly`` options."""
+    (the airframe's ``SIH_*``, an experiment's); ``extra_args``: more ``mavreg fly`` options;
+    ``position_source``: EKF2's, ``gps`` or ``mocap`` (:class:`~tests.helpers.px4_sitl.Px4Sitl`)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    with Px4Sitl(params=params, instance=instance) as px4:
+    with Px4Sitl(params=params, instance=instance, position_source=position_source) as px4:
         port = px4.release_link()          # the daemon takes the port; PX4 keeps sending there
         cmd = [sys.executable, "-m", "mavreg.cli.main", "fly", str(maneuver), "--vehicle", f"udpin:127.0.0.1:{port}",
                "--output", "rates", "--vehicle-params", str(vehicle), "--controller", str(controller),

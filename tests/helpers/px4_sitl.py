@@ -21,6 +21,7 @@ take effect at once. The harness waits by messages, never by sleeps: the first H
 """
 from __future__ import annotations
 
+import math
 import os
 import socket
 import struct
@@ -48,8 +49,17 @@ ENV_VAR = "MAVREG_PX4_DIR"
 TRUTH_RATE_HZ = 100.0
 """HIL_STATE_QUATERNION's rate asked for on SIH's display link (25 Hz by default)."""
 PX4_INT_PARAMS = frozenset({"COM_OBL_RC_ACT", "MAV_SYS_ID", "COM_RCL_EXCEPT", "NAV_RCL_ACT", "NAV_DLL_ACT",
-                            "COM_ARM_WO_GPS", "CBRK_SUPPLY_CHK", "COM_DISARM_PRFLT", "EKF2_GPS_CTRL"})
+                            "COM_ARM_WO_GPS", "CBRK_SUPPLY_CHK", "COM_DISARM_PRFLT", "EKF2_GPS_CTRL",
+                            "EKF2_EV_CTRL", "EKF2_HGT_REF", "EKF2_BARO_CTRL", "EKF2_MAG_TYPE",
+                            "EKF2_EV_NOISE_MD", "SYS_HAS_MAG"})
 """PX4 parameters of integer type that a harness sets (their bytes travel in the float)."""
+MOCAP_PARAMS = {"EKF2_EV_CTRL": 15, "EKF2_HGT_REF": 3, "EKF2_GPS_CTRL": 0, "EKF2_BARO_CTRL": 0,
+                "EKF2_MAG_TYPE": 5, "EKF2_EV_DELAY": 5.0, "EKF2_EV_NOISE_MD": 1, "EKF2_EVP_NOISE": 0.01,
+                "EKF2_EVV_NOISE": 0.03, "EKF2_EVA_NOISE": 0.03}
+"""EKF2 on a motion-capture system (external vision: position, velocity and yaw; height from
+it, not from the barometer; no GPS, no magnetometer), as a lab sets it up; its delay is the
+feed's loopback and PX4's stream scheduling, a few milliseconds."""
+POSITION_SOURCES = ("gps", "mocap")
 PILOT_PARAMS: dict = {}
 """What docs/autopilots.md tells a pilot to set on PX4 before flying mavreg: nothing, PX4's
 defaults pass mavreg's checks (``COM_OF_LOSS_T`` 1 s, ``COM_OBL_RC_ACT`` 0 Position)."""
@@ -117,10 +127,16 @@ class TruthRecorder:
     and longitude (deg), altitude (m), the quaternion (w, x, y, z), NED velocity (m/s).
     """
 
-    def __init__(self, instance: int, system_id: int, rate_hz: float = TRUTH_RATE_HZ):
+    def __init__(self, instance: int, system_id: int, rate_hz: float = TRUTH_RATE_HZ, feed: bool = False):
         self.port = 19410 + instance
         self.system_id = system_id
         self.rate_hz = rate_hz
+        self.feed = feed
+        """Send each sample back at once as ``ODOMETRY`` (estimator type VISION): a
+        motion-capture system for EKF2 (:data:`MOCAP_PARAMS`), NED about :attr:`home`."""
+        self.home: tuple[float, float, float] | None = None
+        """The first sample's latitude, longitude (deg) and altitude (m): the vehicle on the
+        ground at boot, the origin of the motion-capture frame."""
         self.rows: list[tuple] = []
         self._stop = threading.Event()
         self._conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{self.port}", source_system=255,
@@ -141,8 +157,24 @@ class TruthRecorder:
                                                  0, 0, 0, 0, 0)
             m = self._conn.recv_match(type="HIL_STATE_QUATERNION", blocking=True, timeout=0.2)
             if m is not None:      # SIH leaves time_usec 0: stamped on arrival, by the wall clock
-                self.rows.append((time.time(), m.lat * 1e-7, m.lon * 1e-7, m.alt * 1e-3,
-                                  *m.attitude_quaternion, m.vx * 0.01, m.vy * 0.01, m.vz * 0.01))
+                row = (time.time(), m.lat * 1e-7, m.lon * 1e-7, m.alt * 1e-3,
+                       *m.attitude_quaternion, m.vx * 0.01, m.vy * 0.01, m.vz * 0.01)
+                self.rows.append(row)
+                if self.home is None:
+                    self.home = row[1:4]
+                if self.feed:
+                    self._send_odometry(row)
+
+    def _send_odometry(self, row: tuple) -> None:
+        """The sample as ODOMETRY: position and velocity NED about :attr:`home`, the attitude
+        body to NED; ``time_usec`` 0, which PX4 stamps with its arrival (this link answers no
+        TIMESYNC, so PX4's time sync never converges on it); covariances unknown (NaN: PX4 takes
+        ``EKF2_EVP_NOISE``, ``EKF2_EVV_NOISE``, ``EKF2_EVA_NOISE``)."""
+        n, e, d = ned_m(row[1], row[2], row[3], self.home)
+        nan21 = [math.nan] + [0.0] * 20
+        self._conn.mav.odometry_send(0, M.MAV_FRAME_LOCAL_NED, M.MAV_FRAME_LOCAL_NED, n, e, d, list(row[4:8]),
+                                     row[8], row[9], row[10], math.nan, math.nan, math.nan, nan21, nan21,
+                                     0, M.MAV_ESTIMATOR_TYPE_VISION, 100)
 
     def stop(self) -> None:
         self._stop.set()
@@ -174,14 +206,20 @@ class Px4Sitl(SitlLink):
         Wait for EKF2's local position, its origin and the pre-arm checks.
     timeout_s : float
         Bound on each wait.
+    position_source : str
+        EKF2's: ``gps`` (SIH's GPS and barometer, as the airframe has them) or ``mocap`` (the
+        truth fed back as external vision at 100 Hz, :data:`MOCAP_PARAMS`).
     """
 
     name = "PX4 SITL"
 
     def __init__(self, params: dict | None = None, instance: int | None = None, wait_ready: bool = True,
-                 timeout_s: float = 60.0, directory: Path | None = None):
+                 timeout_s: float = 60.0, directory: Path | None = None, position_source: str = "gps"):
+        if position_source not in POSITION_SOURCES:
+            raise ValueError(f"position_source must be one of {POSITION_SOURCES}, not {position_source!r}")
         self._init_link()
-        self.params = dict(params or {})
+        self.position_source = position_source
+        self.params = {**(MOCAP_PARAMS if position_source == "mocap" else {}), **(params or {})}
         self.instance = instance
         self.wait_ready = wait_ready
         self.timeout_s = float(timeout_s)
@@ -189,6 +227,7 @@ class Px4Sitl(SitlLink):
         self.pid: int | None = None
         self.workdir: tempfile.TemporaryDirectory | None = None
         self.truth: TruthRecorder | None = None
+        self._origin_msg = None
         self.origin: tuple[float, float, float] | None = None
         """EKF2's origin (lat, lon deg, alt m): the local frame's, but for the barometer's height."""
 
@@ -215,7 +254,7 @@ class Px4Sitl(SitlLink):
             self.instance = free_instance()
         self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{self.port}", source_system=255,
                                                source_component=190, dialect="common")
-        self.truth = TruthRecorder(self.instance, 1 + self.instance)
+        self.truth = TruthRecorder(self.instance, 1 + self.instance, feed=self.position_source == "mocap")
         self.t0 = time.monotonic()
         self._launch()
         hb = self.wait_for(lambda m: m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1
@@ -228,10 +267,30 @@ class Px4Sitl(SitlLink):
         if self.wait_ready:
             self.set_rate(M.MAVLINK_MSG_ID_SYS_STATUS, 2.0)
             self.wait_until(lambda: "LOCAL_POSITION_NED" in self.first_seen, self.timeout_s, "local position")
-            self.command_long(M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN)
-            o = self.wait_for(lambda m: m.get_type() == "GPS_GLOBAL_ORIGIN", 10.0, "GPS_GLOBAL_ORIGIN")
-            self.origin = (o.latitude * 1e-7, o.longitude * 1e-7, o.altitude * 1e-3)
             self.wait_until(lambda: self.prearm_ok, self.timeout_s, "pre-arm checks passing")
+            # with motion capture EKF2's frame is the feed's, about the vehicle at boot
+            self.origin = self._ekf_origin() if self.position_source == "gps" else self.truth.home
+
+    def _ekf_origin(self) -> tuple[float, float, float]:
+        """EKF2's origin (lat, lon deg, alt m), asked for until it answers: EKF2 sets it once
+        GPS is fused, which may come after its first local position."""
+        deadline = time.monotonic() + self.timeout_s
+        while self._origin_msg is None:
+            self.command_long(M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN)
+            try:             # PX4 sends it before its COMMAND_ACK: recv keeps it on the way
+                self.wait_until(lambda: self._origin_msg is not None, 2.0, "GPS_GLOBAL_ORIGIN")
+            except SitlError:
+                if time.monotonic() > deadline:
+                    raise
+        o = self._origin_msg
+        return (o.latitude * 1e-7, o.longitude * 1e-7, o.altitude * 1e-3)
+
+    def recv(self, timeout_s: float = 0.1):
+        """:meth:`SitlLink.recv`, keeping the latest GPS_GLOBAL_ORIGIN."""
+        m = super().recv(timeout_s)
+        if m is not None and m.get_type() == "GPS_GLOBAL_ORIGIN":
+            self._origin_msg = m
+        return m
 
     def _launch(self) -> None:
         self.workdir = tempfile.TemporaryDirectory(prefix="mavreg-px4-")
