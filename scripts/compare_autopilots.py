@@ -20,6 +20,7 @@ import json
 import os
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 from mavreg.experiments.autopilot_baseline import FEEDFORWARDS
@@ -89,13 +90,23 @@ def fly_one(autopilot: str, maneuver: Path, out: Path, vehicle: Path, params: di
     truth = s.get("truth") or {}
     return {**row, "result": s["result"], "max_m": truth.get("max_m"), "rms_m": truth.get("rms_m"),
             "samples": truth.get("samples"), "ekf_error_max_m": truth.get("ekf_error_max_m"),
+            "estimate_max_m": truth.get("estimate_max_m"),
             "segments": {k: v.get("max_m") for k, v in (truth.get("segments") or {}).items()},
             "params_set": s.get("params_set"), "load_after": os.getloadavg()[0]}
 
 
+def _quiet_machine(max_load: float, wait_s: float) -> None:
+    """Wait until the load average is below ``max_load``, at most ``wait_s`` (polled: the load
+    is no message to wait on)."""
+    deadline = time.monotonic() + wait_s
+    while os.getloadavg()[0] >= max_load and time.monotonic() < deadline:
+        time.sleep(5.0)
+
+
 def markdown_row(k: int, row: dict) -> str:
     return (f"| {row['autopilot']} | {row['maneuver']} | {row['feedforward']} | {k} | {row['result']} | {_cm(row.get('max_m'))} | "
-            f"{_cm(row.get('rms_m'))} | {_cm(row.get('ekf_error_max_m'))} | {row['load_before']:.2f} |")
+            f"{_cm(row.get('rms_m'))} | {_cm(row.get('estimate_max_m'))} | {_cm(row.get('ekf_error_max_m'))} | "
+            f"{row['load_before']:.2f} |")
 
 
 def figures(rows: list[dict], root: Path, vehicles: dict) -> list[Path]:
@@ -147,6 +158,10 @@ def main(argv=None) -> int:
                    help="the maneuver's acceleration set-point: the nominal's kinematic acceleration, or the "
                    "part its thrust gives (kinematic less the nominal's drag; the autopilots model no drag) "
                    "(default: %(default)s)")
+    p.add_argument("--max-load", type=float, default=1.5, help="wait before each flight until the 1-minute "
+                   "load average is below this (real time: a loaded machine slows the SITL) (default: %(default)s)")
+    p.add_argument("--load-wait-s", type=float, default=600.0, help="fly anyway after waiting this long "
+                   "(the row says the load) (default: %(default)s)")
     p.add_argument("--param", action="append", default=[], metavar="AUTOPILOT:NAME=VALUE",
                    help="an autopilot parameter set before each flight on top of the baseline's (repeatable)")
     args = p.parse_args(argv)
@@ -169,12 +184,13 @@ def main(argv=None) -> int:
     root = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="mavreg-compare-"))
     root.mkdir(parents=True, exist_ok=True)
     print(f"{datetime.datetime.now().isoformat(timespec='minutes')}, {os.cpu_count()} cores; flights in {root}\n")
-    print("| autopilot | maneuver | acceleration fed forward | flight | result | max (cm) | RMS (cm) "
-          "| EKF error max (cm) | load before |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| autopilot | maneuver | acceleration fed forward | flight | result | true max (cm) | true RMS (cm) "
+          "| estimate's path error max (cm) | EKF error max (cm) | load before |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     rows = []
     for autopilot, maneuver in runs:
         for k in range(1, args.flights + 1):
+            _quiet_machine(args.max_load, args.load_wait_s)
             row = fly_one(autopilot, maneuver, root / f"{autopilot}_{maneuver.stem}_{args.feedforward}_{k}",
                           vehicles[autopilot], params[autopilot], args.px4_instance, args.feedforward)
             rows.append(row)

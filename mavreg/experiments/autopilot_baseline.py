@@ -156,9 +156,10 @@ class BaselineSchedule:
         return self.maneuver_start_s, self.maneuver_start_s + self.maneuver_s
 
     def phase_at(self, t_s: float) -> Phase:
-        """The phase flown at schedule time ``t_s`` (the first before 0, the last after the end)."""
+        """The phase flown at schedule time ``t_s`` (the first before 0, the last after the end;
+        a phase of no duration, the spool after an autopilot's own take-off, is never flown)."""
         for ph in self.phases:
-            if t_s < ph.end_s:
+            if t_s < ph.end_s and ph.duration_s > 0.0:
                 return ph
         return self.phases[-1]
 

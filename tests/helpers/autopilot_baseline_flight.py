@@ -185,7 +185,7 @@ class _Flight:
         seen: list = []
 
         def at(now: float):
-            t = self.clock.vehicle_s(now) - t0
+            t = max(self.clock.vehicle_s(now) - t0, 0.0)
             sp = schedule.at(t)
             if not seen or seen[-1] != sp.phase:
                 seen.append(sp.phase)
@@ -313,7 +313,7 @@ def fly_ardupilot_baseline(plan, maneuver: Path, out: Path, controller: Path, pa
                          "origin": {k: getattr(origin, k) for k in ("latitude", "longitude", "altitude")}})
     summary["truth"] = true_errors_from_tlog(out, maneuver, origin, controller)
     if summary["truth"] is not None:
-        summary["truth"]["ekf_error_max_m"] = _ardupilot_ekf_error(out, origin, _judged_window(summary))
+        summary["truth"].update(_ardupilot_estimate(plan, out, origin, _judged_window(summary)))
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
     return summary
 
@@ -325,21 +325,26 @@ def _judged_window(summary: dict) -> tuple[float, float]:
     return begin, next(e["time_s"] for e in ev if e["time_s"] > begin and e["phase"] != MANEUVER)
 
 
-def _ardupilot_ekf_error(out: Path, origin, window) -> float | None:
-    """Largest |SIM_STATE - LOCAL_POSITION_NED| in the window (the estimate interpolated at each
-    truth sample's stamp: the vehicle time of the telemetry before it, 5 ms resolution)."""
+def _ardupilot_estimate(plan, out: Path, origin, window) -> dict:
+    """What px4_truth adds for PX4: ``estimate_max_m``, the path error of EKF3's own position
+    over the window (the controller's part), and ``ekf_error_max_m``, the largest
+    |SIM_STATE - LOCAL_POSITION_NED| in it (the estimate interpolated at each truth sample's
+    stamp: the vehicle time of the telemetry before it, 5 ms resolution)."""
+    from mavreg.sim.truth import true_errors
     from .ardupilot_flight import _truth_samples
     from .px4_flight import _estimates
     truth = _truth_samples(out / "flight.tlog", origin)
     t_est, est = _estimates(out / "flight.tlog")[:2]
     if truth is None or len(t_est) < 2:
-        return None
+        return {}
     t, pos = truth[0], truth[1]
     sel = (t >= window[0]) & (t <= window[1])
-    if not sel.any():
-        return None
+    own = (t_est >= window[0]) & (t_est <= window[1])
+    if not sel.any() or not own.any():
+        return {}
     at = np.column_stack([np.interp(t[sel], t_est, est[:, k]) for k in range(3)])
-    return float(np.linalg.norm(pos[sel] - at, axis=1).max())
+    return {"estimate_max_m": true_errors(plan, est[own])["max_m"],
+            "ekf_error_max_m": float(np.linalg.norm(pos[sel] - at, axis=1).max())}
 
 
 def flown_track(out: Path) -> np.ndarray:
