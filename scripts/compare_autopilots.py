@@ -114,6 +114,7 @@ def figures(rows: list[dict], root: Path, vehicles: dict) -> list[Path]:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import numpy as np
 
     from mavreg.config.controller import load_controller
     from mavreg.config.vehicle import load_vehicle
@@ -126,17 +127,22 @@ def figures(rows: list[dict], root: Path, vehicles: dict) -> list[Path]:
             continue
         plan = plan_file(MANEUVERS / f"{maneuver}.yaml", load_vehicle(vehicles[mine[0]["autopilot"]]),
                          load_controller(CONTROLLER))
-        fig, ax = plt.subplots(figsize=(8, 6))
-        ax.plot(plan.x[:, 1], plan.x[:, 0], "k-", lw=2.5, label="nominal")
+        north, east = plan.x[:, 0], plan.x[:, 1]
+        along = np.ptp(north) > 3.0 * np.ptp(east)    # a long course (the slalom): north across the page
+        fig, ax = plt.subplots(figsize=(12, 4.5) if along else (8, 7))
+
+        def draw(n, e, **kw):
+            return ax.plot(n, e, **kw) if along else ax.plot(e, n, **kw)
+        draw(north, east, color="k", lw=2.5, label="nominal")
         for r in mine:
             track = flown_track(Path(r["out"]))
-            ax.plot(track[:, 1], track[:, 0], lw=1,
-                    label=f"{Path(r['out']).name}: max {_cm(r['max_m'])} cm")
-        ax.set_xlabel("east (m)")
-        ax.set_ylabel("north (m)")
-        ax.set_aspect("equal")
+            draw(track[:, 0], track[:, 1], lw=1, label=f"{Path(r['out']).name}: max {_cm(r['max_m'])} cm")
+        ax.set_xlabel("north (m)" if along else "east (m)")
+        ax.set_ylabel("east (m)" if along else "north (m)")
+        if not along:
+            ax.set_aspect("equal")
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=7, loc="best")
         ax.set_title(f"{maneuver}: the autopilot's own position controller (true position, top view)")
         path = root / f"{maneuver}.png"
         fig.savefig(path, dpi=120, bbox_inches="tight")
