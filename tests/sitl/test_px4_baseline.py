@@ -21,7 +21,7 @@ HERE = Path(__file__).resolve().parent
 CONTROLLER_FILE = HERE.parents[1] / "mavreg" / "params" / "controller" / "realistic.yaml"
 MAX_M = 3.5
 """Generous: PX4's position controller with the kinematic feed-forward flew the figure-eight
-2.2-2.3 m off at worst (3 flights, docs/compare_autopilots.md; most of it the SIH drag it does
+1.9-2.3 m off at worst (3 flights, docs/compare_autopilots.md; most of it the SIH drag it does
 not model, and EKF2's height); one that loses the path would leave it by more than its 3 m
 radius."""
 
