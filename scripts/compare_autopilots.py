@@ -6,8 +6,8 @@ true path error: the baseline mavreg is compared with (issue 29, item 4).
     python -m scripts.compare_autopilots [--runs px4:figure_eight,px4:slalom,ardupilot:figure_eight]
         [--flights N] [--out DIR] [--px4-vehicle FILE] [--px4-instance 7] [--param px4:NAME=VALUE ...]
 
-Each flight starts a fresh SITL (PX4 SIH from ../shared/autopilot/px4, ArduCopter from
-../shared/autopilot/ardupilot; tests/helpers says where they are looked for), real time, one at
+Each flight starts a fresh SITL (PX4 SIH and ArduCopter from the shared autopilot directory
+beside the repository; tests/helpers says where they are looked for), real time, one at
 a time: about 1.5 min (PX4 figure-eight) to 3 min (ArduCopter). Prints one markdown row per
 flight (maneuver max and RMS true path error, EKF error), writes ``results.json`` and one
 figure per maneuver (top view of the nominal and every flown track) into ``--out``.
