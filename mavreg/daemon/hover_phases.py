@@ -217,7 +217,7 @@ def touched_down(descent, t_s: float, vz_m_s: float, altitude_m: float, params) 
     ``params.touchdown_band_m`` of the take-off height, every vertical speed of the last
     ``params.touchdown_settle_s`` below ``params.touchdown_stall_m_s`` while the landing asks
     for a descent, after it sank faster than that (or for a whole second: a landing begun at
-    the ground). The speed is the fastest descent of the second before it.""" 
+    the ground). The speed is the fastest descent of the second before it."""
     descent.append((t_s, vz_m_s))
     while descent and t_s - descent[0][0] > 1.0:
         descent.popleft()
