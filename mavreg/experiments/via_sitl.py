@@ -51,7 +51,7 @@ from ..daemon.lifeline import wrap_command
 from ..model.rotation import quats_to_matrices
 from .record import Flight
 
-__all__ = ["SitlFiles", "prepare_sitl_files", "fly_sitl", "EXPERIMENT_ENVELOPE", "FLIGHT_FILES",
+__all__ = ["maneuver_window", "SitlFiles", "prepare_sitl_files", "fly_sitl", "EXPERIMENT_ENVELOPE", "FLIGHT_FILES",
            "START_TOLERANCE_S"]
 
 EXPERIMENT_ENVELOPE = {
@@ -195,7 +195,7 @@ def _reference_start(run, files: SitlFiles, run_dir: Path) -> float:
         summary = json.loads((run_dir / "summary.json").read_text())
     except (OSError, ValueError) as exc:
         raise ValueError(f"the gust-free reference flight failed ({run_dir / 'fly.log'}): {exc}") from None
-    t0 = _window(summary["events"])[0]
+    t0 = maneuver_window(summary["events"])[0]
     if t0 is None:
         raise ValueError(f"the gust-free reference flight never began its maneuver: {summary['reason']}")
     return t0
@@ -228,8 +228,9 @@ def fly_command(spec, files: SitlFiles, run_dir: Path) -> list[str]:
     return cmd
 
 
-def _window(events) -> tuple[float | None, float | None, str | None]:
-    """(start, end, phase after) of the maneuver phase, from the flight's events."""
+def maneuver_window(events) -> tuple[float | None, float | None, str | None]:
+    """(start, end, phase after) of the maneuver phase, from a flight's events (summary.json's
+    ``events``; None where there is none)."""
     t0 = t1 = after = None
     for ev in events:
         if ev["kind"] != "phase" or ev["time_s"] is None:
@@ -288,7 +289,7 @@ def fly_sitl(spec, files: SitlFiles, run_dir: Path, max_rotor_thrust_n: float,
     top = sorted(peaks.items(), key=lambda kv: -kv[1]["ratio"])[:ENVELOPE_PEAKS_KEPT]
     extra.update(flight_result=summary["result"], flight_reason=summary["reason"],
                  envelope_peaks={k: {f: v[f] for f in ("ratio", "value", "limit", "phase")} for k, v in top})
-    t0, t1, after = _window(summary["events"])
+    t0, t1, after = maneuver_window(summary["events"])
     if t0 is None:
         return _empty("not_flown", summary["reason"] or "the maneuver did not start", limit, extra)
     if spec.gust_force_n is not None:

@@ -102,21 +102,19 @@ def true_errors_from_tlog(out: Path, maneuver: Path, origin, controller: Path = 
     """True errors of the maneuver's window against its plan (None: no maneuver, no truth)."""
     from mavreg.config.controller import load_controller
     from mavreg.config.vehicle import load_vehicle
+    from mavreg.experiments.via_sitl import maneuver_window
     from mavreg.planning.plan_io import plan_file
     from mavreg.sim.truth import true_errors
     summary = json.loads((Path(out) / "summary.json").read_text())
-    events = summary.get("events") or []
-    begin = [e["time_s"] for e in events if e.get("kind") == "phase" and e.get("phase") == "maneuver"]
-    if not begin:
+    begin, end, _ = maneuver_window(summary.get("events") or [])
+    if begin is None:
         return None
-    after = [e["time_s"] for e in events if e.get("kind") == "phase" and e.get("time_s") is not None
-             and e["time_s"] > begin[0] and e.get("phase") != "maneuver"]
     truth = _truth_samples(Path(out) / "flight.tlog", origin)
     if truth is None:
         return None
     t, pos, rot, vel = truth
-    end = after[0] if after else t[-1]
-    sel = (t >= begin[0]) & (t <= end)
+    end = t[-1] if end is None else end
+    sel = (t >= begin) & (t <= end)
     plan = plan_file(maneuver, load_vehicle(VEHICLE), load_controller(controller))
     result = true_errors(plan, pos[sel], rot[sel], vel[sel])
     result["lowest_altitude_m"] = float((-pos[:, 2]).min()) if len(pos) else math.nan

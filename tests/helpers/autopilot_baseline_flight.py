@@ -321,10 +321,13 @@ def fly_ardupilot_baseline(plan, maneuver: Path, out: Path, controller: Path, pa
 
 
 def _judged_window(summary: dict) -> tuple[float, float]:
-    """(start, end) vehicle time of the judged window: the maneuver's start to the next phase."""
-    ev = [e for e in summary["events"] if e["kind"] == "phase"]
-    begin = next(e["time_s"] for e in ev if e["phase"] == MANEUVER)
-    return begin, next(e["time_s"] for e in ev if e["time_s"] > begin and e["phase"] != MANEUVER)
+    """(start, end) vehicle time of the judged window: the maneuver's start to the next phase
+    (:func:`~mavreg.experiments.via_sitl.maneuver_window`; a baseline flight always has both)."""
+    from mavreg.experiments.via_sitl import maneuver_window
+    begin, end, _ = maneuver_window(summary["events"])
+    if begin is None or end is None:
+        raise ValueError("the baseline flight's summary has no complete maneuver window")
+    return begin, end
 
 
 def _ardupilot_estimate(plan, out: Path, origin, window) -> dict:

@@ -26,6 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+from mavreg.experiments.via_sitl import maneuver_window
+
 from .px4_sitl import Px4Sitl
 
 __all__ = ["fly_on_px4", "px4_truth", "VEHICLE", "AGGRESSIVE_VEHICLE", "CONTROLLER", "AGGRESSIVE_PARAMS"]
@@ -100,16 +102,6 @@ def _estimates(tlog: Path):
     return a[:, 0], a[:, 2:], boot_of_wall
 
 
-def _window(summary: dict) -> tuple[float, float] | None:
-    """The maneuver's (begin, end) in vehicle time from summary.json's events, or None."""
-    events = [e for e in summary.get("events") or [] if e.get("kind") == "phase" and e.get("time_s") is not None]
-    begin = [e["time_s"] for e in events if e.get("phase") == "maneuver"]
-    if not begin:
-        return None
-    after = [e["time_s"] for e in events if e["time_s"] > begin[0] and e.get("phase") != "maneuver"]
-    return begin[0], (after[0] if after else math.inf)
-
-
 def px4_truth(out: Path, maneuver: Path, vehicle: Path = VEHICLE, controller: Path = CONTROLLER) -> dict | None:
     """True errors of the maneuver's window against its plan in EKF2's frame, the estimate's
     path error and the estimate's own error (None: no maneuver flown or no truth)."""
@@ -130,9 +122,10 @@ def px4_truth(out: Path, maneuver: Path, vehicle: Path = VEHICLE, controller: Pa
     offset = np.median(np.interp(t_est[ground], t, pos[:, 2]) - est[ground, 2])
     pos[:, 2] -= offset
     result = {"ground_height_offset_m": float(offset)}
-    window = _window(summary)
-    if window is None:
+    begin, end, _ = maneuver_window(summary.get("events") or [])
+    if begin is None:
         return result
+    window = (begin, math.inf if end is None else end)
     sel = (t >= window[0]) & (t <= window[1])
     plan = plan_file(maneuver, load_vehicle(vehicle), load_controller(controller))
     result.update(true_errors(plan, pos[sel], quats_to_matrices(truth["quaternion_wxyz"][sel]),
