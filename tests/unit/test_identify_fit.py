@@ -188,13 +188,18 @@ def test_bad_inputs_are_one_line_errors():
     assert "at least 10 s" in _one_line(e)
 
 
+def _samples(s, keep):
+    """The flight with only the telemetry samples ``keep`` says (the commands as they were)."""
+    return dataclasses.replace(s, t_s=s.t_s[keep], position_ned_m=s.position_ned_m[keep],
+                               velocity_ned_m_s=s.velocity_ned_m_s[keep],
+                               quaternion_wxyz=s.quaternion_wxyz[keep], controlled=s.controlled[keep])
+
+
 def test_short_telemetry_gaps_are_bridged():
     s = synthetic_flight(duration_s=20.0, seed=8)
     keep = np.ones(s.t_s.size, bool)
     keep[np.random.default_rng(0).choice(s.t_s.size, s.t_s.size // 50, replace=False)] = False   # 2 % lost
-    lossy = dataclasses.replace(s, t_s=s.t_s[keep], position_ned_m=s.position_ned_m[keep],
-                                velocity_ned_m_s=s.velocity_ned_m_s[keep],
-                                quaternion_wxyz=s.quaternion_wxyz[keep], controlled=s.controlled[keep])
+    lossy = _samples(s, keep)
     r = identify(lossy, MASS_KG, MAX_ROTOR_N, FitOptions(delay_s=TRUTH["delay_s"]))
     assert r.duration_s > 15.0
     assert r.thrust_scale.value == pytest.approx(TRUTH["thrust_scale"], rel=0.005)
@@ -208,9 +213,7 @@ def test_gaps_of_a_few_periods_of_slower_telemetry_are_bridged_by_default():
     s = synthetic_flight(duration_s=20.0, h=0.008, seed=8)
     keep = np.ones(s.t_s.size, bool)
     keep[np.random.default_rng(1).choice(np.arange(1, s.t_s.size - 1), s.t_s.size // 20, replace=False)] = False
-    gappy = dataclasses.replace(s, t_s=s.t_s[keep], position_ned_m=s.position_ned_m[keep],
-                                velocity_ned_m_s=s.velocity_ned_m_s[keep],
-                                quaternion_wxyz=s.quaternion_wxyz[keep], controlled=s.controlled[keep])
+    gappy = _samples(s, keep)
     r = identify(gappy, MASS_KG, MAX_ROTOR_N, FitOptions(delay_s=TRUTH["delay_s"]))
     assert r.duration_s > 17.0
     assert r.thrust_scale.value == pytest.approx(TRUTH["thrust_scale"], rel=0.01)
