@@ -146,17 +146,6 @@ class ArduPilotSitl(SitlLink):
         """start.sh runs it took (more than one when the SITL died at once)."""
 
     # -- life cycle -------------------------------------------------------------------------
-    def __enter__(self) -> "ArduPilotSitl":
-        try:
-            self.start()
-        except BaseException:
-            self.stop()
-            raise
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.stop()
-
     def start(self) -> None:
         """Start the SITL, configure it and (optionally) wait until it can arm."""
         if self.directory is None:
@@ -259,20 +248,6 @@ class ArduPilotSitl(SitlLink):
         if self.workdir is not None:
             self.workdir.cleanup()
             self.workdir = None
-
-    # -- parameters -----------------------------------------------------------------------
-    def get_param(self, name: str, timeout_s: float = 3.0) -> float:
-        """PARAM_REQUEST_READ by name; the PARAM_VALUE's value."""
-        self.conn.mav.param_request_read_send(self.sysid, self.compid, name.encode(), -1)
-        return float(self._param_value(name, timeout_s, f"PARAM_VALUE {name}").param_value)
-
-    def set_param(self, name: str, value: float, timeout_s: float = 3.0) -> None:
-        """PARAM_SET, confirmed by the echoed PARAM_VALUE (test setup only)."""
-        self.conn.mav.param_set_send(self.sysid, self.compid, name.encode(), float(value),
-                                     M.MAV_PARAM_TYPE_REAL32)
-        got = self._param_value(name, timeout_s, f"PARAM_VALUE echo of {name}").param_value
-        if abs(got - float(value)) > 1e-6 * max(1.0, abs(float(value))):
-            raise SitlError(f"ArduCopter SITL: {name} is {got} after setting {value}")
 
     def _check_alive(self, what: str) -> None:
         if self.pid is not None:

@@ -24,7 +24,6 @@ from __future__ import annotations
 import math
 import os
 import socket
-import struct
 import subprocess
 import tempfile
 import threading
@@ -34,7 +33,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mavreg.daemon.autopilots import param_value
 
 from .ardupilot_mocap import ned_m
 from .processes import alive as _alive
@@ -204,6 +202,8 @@ class Px4Sitl(SitlLink):
     """
 
     name = "PX4 SITL"
+    bytewise = True
+    int_params = PX4_INT_PARAMS
 
     def __init__(self, params: dict | None = None, instance: int | None = None, wait_ready: bool = True,
                  timeout_s: float = 60.0, directory: Path | None = None, position_source: str = "gps"):
@@ -221,18 +221,8 @@ class Px4Sitl(SitlLink):
         self.truth: TruthRecorder | None = None
         self._origin_msg = None
         self.origin: tuple[float, float, float] | None = None
-        """EKF2's origin (lat, lon deg, alt m): the local frame's, but for the barometer's height."""
-
-    def __enter__(self) -> "Px4Sitl":
-        try:
-            self.start()
-        except BaseException:
-            self.stop()
-            raise
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.stop()
+        """The local frame's origin (lat, lon deg, alt m): EKF2's on GPS (but for the barometer's
+        height), the vehicle at boot on motion capture."""
 
     @property
     def port(self) -> int:
@@ -325,25 +315,6 @@ class Px4Sitl(SitlLink):
         self.conn.close()
         self.conn = None
         return self.port
-
-    # -- parameters -------------------------------------------------------------------------
-    def get_param(self, name: str, timeout_s: float = 3.0) -> float:
-        """PARAM_REQUEST_READ by name; the value (an integer parameter decoded from its bytes)."""
-        self.conn.mav.param_request_read_send(self.sysid, self.compid, name.encode(), -1)
-        return param_value(self._param_value(name, timeout_s, f"PARAM_VALUE {name}"), bytewise=True)
-
-    def set_param(self, name: str, value: float, timeout_s: float = 3.0) -> None:
-        """PARAM_SET, confirmed by the echoed PARAM_VALUE (test setup only)."""
-        if name in PX4_INT_PARAMS:
-            raw = struct.unpack("<f", struct.pack("<i", int(value)))[0]
-            self.conn.mav.param_set_send(self.sysid, self.compid, name.encode(), raw, M.MAV_PARAM_TYPE_INT32)
-        else:
-            self.conn.mav.param_set_send(self.sysid, self.compid, name.encode(), float(value),
-                                         M.MAV_PARAM_TYPE_REAL32)
-        got = param_value(self._param_value(name, timeout_s, f"PARAM_VALUE echo of {name}"),
-                          bytewise=True)
-        if abs(got - float(value)) > 1e-5 * max(1.0, abs(float(value))):
-            raise SitlError(f"PX4 SITL: {name} is {got} after setting {value}")
 
     def _check_alive(self, what: str) -> None:
         if self.pid is not None and not _alive(self.pid):

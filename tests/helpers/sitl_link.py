@@ -11,11 +11,14 @@ says what it printed last (``output_tail``).
 from __future__ import annotations
 
 import os
+import struct
 import time
 from pathlib import Path
 
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil  # noqa: E402  (MAVLINK20 must be set first)
+
+from mavreg.daemon.autopilots import param_value  # noqa: E402
 
 __all__ = ["SitlLink", "SitlError", "SitlExitedEarly", "M", "mavutil", "autopilot_dir", "parse_param_items"]
 
@@ -64,6 +67,10 @@ class SitlLink:
     """The MAVLink side of a SITL harness (a mixin: the subclass opens ``conn`` and sets ``t0``)."""
 
     name = "SITL"
+    bytewise = False
+    """Integer parameters arrive with their bytes in PARAM_VALUE's float (PX4), not cast (ArduPilot)."""
+    int_params: frozenset = frozenset()
+    """Parameters :meth:`set_param` sends as integers."""
 
     def _init_link(self) -> None:
         self.conn = None
@@ -141,6 +148,37 @@ class SitlLink:
 
     def _param_value(self, name: str, timeout_s: float, what: str):
         return self.wait_for(lambda m: m.get_type() == "PARAM_VALUE" and m.param_id == name, timeout_s, what)
+
+    def get_param(self, name: str, timeout_s: float = 3.0) -> float:
+        """PARAM_REQUEST_READ by name; the PARAM_VALUE's value (decoded as the autopilot sends
+        integers: :attr:`bytewise`)."""
+        self.conn.mav.param_request_read_send(self.sysid, self.compid, name.encode(), -1)
+        return param_value(self._param_value(name, timeout_s, f"PARAM_VALUE {name}"), self.bytewise)
+
+    def set_param(self, name: str, value: float, timeout_s: float = 3.0) -> None:
+        """PARAM_SET, confirmed by the echoed PARAM_VALUE (test setup only). A name in
+        :attr:`int_params` travels as an INT32 with its bytes in the float, as PX4 takes it."""
+        if name in self.int_params:
+            raw = struct.unpack("<f", struct.pack("<i", int(value)))[0]
+            self.conn.mav.param_set_send(self.sysid, self.compid, name.encode(), raw, M.MAV_PARAM_TYPE_INT32)
+        else:
+            self.conn.mav.param_set_send(self.sysid, self.compid, name.encode(), float(value),
+                                         M.MAV_PARAM_TYPE_REAL32)
+        got = param_value(self._param_value(name, timeout_s, f"PARAM_VALUE echo of {name}"), self.bytewise)
+        if abs(got - float(value)) > 1e-6 * max(1.0, abs(float(value))):
+            raise SitlError(f"{self.name}: {name} is {got} after setting {value}")
+
+    # -- life cycle (the subclass's start and stop) -----------------------------------------
+    def __enter__(self):
+        try:
+            self.start()
+        except BaseException:
+            self.stop()
+            raise
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
 
     def _check_alive(self, what: str) -> None:
         """Raise :class:`SitlExitedEarly` when the autopilot's process has ended."""
