@@ -184,7 +184,7 @@ def kill_mid_maneuver(maneuver: Path, out: Path, after_s: float = 2.0, params: d
             result["killed_at_wall_s"] = time.time()
         proc.wait(timeout=10)
         (out / "fly.log").write_text("".join(lines) + (proc.stdout.read() or ""))
-        px4.conn = mavutil_connection(port)
+        px4.take_link()
         end = time.monotonic() + wait_s
         while time.monotonic() < end:
             m = px4.recv(0.5)
@@ -203,9 +203,3 @@ def kill_mid_maneuver(maneuver: Path, out: Path, after_s: float = 2.0, params: d
     (out / "kill.json").write_text(json.dumps(result, indent=1))
     return result
 
-
-def mavutil_connection(port: int):
-    """A ground station's link on PX4's offboard port again (the daemon is gone)."""
-    from pymavlink import mavutil
-    return mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=255, source_component=190,
-                                      dialect="common")

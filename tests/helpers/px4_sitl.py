@@ -234,8 +234,7 @@ class Px4Sitl(SitlLink):
             raise SitlError(f"PX4 SITL not found (set {ENV_VAR})")
         if self.instance is None:
             self.instance = free_instance()
-        self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{self.port}", source_system=255,
-                                               source_component=190, dialect="common")
+        self.take_link()
         self.truth = TruthRecorder(self.instance, 1 + self.instance, feed=self.position_source == "mocap")
         self.t0 = time.monotonic()
         self._launch()
@@ -309,6 +308,11 @@ class Px4Sitl(SitlLink):
         if self.workdir is None:
             return []
         return sorted((Path(self.workdir.name) / "px4" / "log").rglob("*.ulg"))
+
+    def take_link(self) -> None:
+        """Listen on PX4's offboard link as a ground station (again, once mavreg is gone)."""
+        self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{self.port}", source_system=255,
+                                               source_component=190, dialect="common")
 
     def release_link(self) -> int:
         """Close the harness's offboard link so mavreg can take the port; the port."""
