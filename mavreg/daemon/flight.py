@@ -89,10 +89,16 @@ class Flight:
         if phase == Phase.ABORTED and not ctx.reason:
             ctx.reason = detail
         self.event(out, "phase", detail)
+        # ... and in the autopilot's own log: PX4 writes a STATUSTEXT of its own system into its
+        # .ulg, ArduPilot into its dataflash log (and either shows it to a ground station).
+        self._statustext(out, "phase", mm.SEVERITY_INFO, f"{phase}: {detail}")
 
     def announce(self, out: Output, kind: str, severity: int, text: str) -> None:
         """An event, and the same words in a STATUSTEXT to the vehicle (and the .tlog)."""
         self.event(out, kind, text)
+        self._statustext(out, kind, severity, text)
+
+    def _statustext(self, out: Output, kind: str, severity: int, text: str) -> None:
         for msg in mm.statustext(severity, f"mavreg {kind}: {text}", self._statustext_id()):
             out.messages.append(msg)
             self.parts.counters.statustexts += 1

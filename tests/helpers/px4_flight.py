@@ -139,6 +139,13 @@ def px4_truth(out: Path, maneuver: Path, vehicle: Path = VEHICLE, controller: Pa
     return result
 
 
+def ulog_texts(ulg: Path) -> list[str]:
+    """The texts PX4 wrote into its own flight log (``.ulg``): its own messages and the
+    STATUSTEXTs other components of its system sent it (mavreg's phase changes among them)."""
+    from pyulog import ULog
+    return [m.message for m in ULog(str(ulg), message_name_filter_list=[]).logged_messages]
+
+
 def truth_touchdowns(out: Path) -> list[tuple[float, float]]:
     """(wall time s, speed m/s) of each ground contact after a lift-off in ``truth.npz``: the
     ground is the truth's height before take-off (within 5 cm)."""

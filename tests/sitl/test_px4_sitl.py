@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.helpers.px4_flight import fly_on_px4, kill_mid_maneuver, truth_touchdowns
+from tests.helpers.px4_flight import fly_on_px4, kill_mid_maneuver, truth_touchdowns, ulog_texts
 from tests.helpers.px4_sitl import require_px4
 
 HOP = Path(__file__).with_name("px4_hop.yaml")
@@ -31,14 +31,18 @@ def _no_motor_stop_and_soft_touchdowns(out: Path) -> list:
 def test_a_hop_on_a_stock_px4_from_arming_to_its_own_disarm(tmp_path):
     """Connect, the parameter check (PX4's defaults pass), the streams, OFFBOARD, arming,
     take-off by thrust, the hold, a 4 m line, the landing, and the flight ended the PX4 way
-    (a disarm once its land detector agrees, or AUTO.LAND): every phase in mavreg's summary,
-    PX4's own .ulg written, and on the truth no touchdown at 1 m/s or more."""
+    (a disarm once its land detector agrees, or AUTO.LAND): every phase in mavreg's summary and
+    in PX4's own .ulg, and on the truth no touchdown at 1 m/s or more."""
     require_px4()
     s = fly_on_px4(HOP, tmp_path / "flight", position_source="mocap")
     phases = [e["phase"] for e in s["events"] if e["kind"] == "phase"]
     assert phases[0] == "takeoff" and "maneuver" in phases and phases[-1] == "disarmed", phases
     assert not any(e["kind"] == "motors_stopped" for e in s["events"])
-    assert list((tmp_path / "flight").glob("*.ulg")), "PX4 wrote no .ulg"
+    ulogs = list((tmp_path / "flight").glob("*.ulg"))
+    assert ulogs, "PX4 wrote no .ulg"
+    # every phase change in PX4's own log too, in order, as mavreg's STATUSTEXTs
+    in_ulog = [t.split(":")[1].strip() for t in ulog_texts(ulogs[0]) if t.startswith("mavreg phase:")]
+    assert in_ulog == phases, (in_ulog, phases)
     truth = s["px4_truth"]
     assert truth is not None and truth["samples"] > 100              # the hop judged on SIH's truth
     assert abs(truth["ground_height_offset_m"]) < 1.0

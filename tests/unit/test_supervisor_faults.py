@@ -7,6 +7,10 @@ from tests.helpers.supervisor_harness import FakePlan, FakeRegulator, SimVehicle
 from pymavlink.dialects.v20 import common as mavlink2
 
 
+def _text(m) -> str:
+    return m.text.decode(errors="replace").rstrip("\x00") if isinstance(m.text, bytes) else m.text
+
+
 def _actuators(out):
     return [m for m in out.messages if m.get_type() == "SET_ACTUATOR_CONTROL_TARGET"]
 
@@ -25,9 +29,13 @@ def test_stale_state_stops_stream_for_good():
             break
     assert sup.phase == Phase.ABORTED and "stale" in sup.reason
     assert any(e.phase == Phase.ABORTED for e in out.events) and _actuators(out) == []
-    # announced to the vehicle (and the .tlog) as a CRITICAL STATUSTEXT
+    # announced to the vehicle (and the .tlog) as a CRITICAL STATUSTEXT, beside the phase change
+    # itself (INFO, for the autopilot's own log)
     texts = [m for m in out.messages if m.get_type() == "STATUSTEXT"]
-    assert texts and all(m.severity == mavlink2.MAV_SEVERITY_CRITICAL for m in texts)
+    phase = [m for m in texts if m.severity == mavlink2.MAV_SEVERITY_INFO]
+    assert phase and _text(phase[0]).startswith("mavreg phase: aborted: stale")
+    cause = [m for m in texts if m not in phase]
+    assert cause and all(m.severity == mavlink2.MAV_SEVERITY_CRITICAL for m in cause)
     assert sup.failure.bound == "link_lost" and sup.failure.value > 0.1
     assert 0.1 < 0.02 * k + veh.dt <= 0.13   # the last sample came one period before `now`
     # fresh samples afterwards never restart the stream
