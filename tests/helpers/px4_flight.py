@@ -156,6 +156,30 @@ def truth_touchdowns(out: Path) -> list[tuple[float, float]]:
     return touchdowns(t, truth["velocity_ned_m_s"], on_ground)
 
 
+def _fly_into_the_maneuver(px4: Px4Sitl, maneuver: Path, out: Path, vehicle: Path, controller: Path,
+                           after_s: float, wait_s: float = 120.0):
+    """Start ``mavreg fly`` on ``px4``'s offboard link (its output into ``out/fly.log``) and
+    return it ``after_s`` (wall clock) after the daemon said the maneuver began; None where it
+    ended or did not get there within ``wait_s``."""
+    import time
+    port = px4.release_link()
+    cmd = [sys.executable, "-m", "mavreg.cli.main", "fly", str(maneuver), "--vehicle", f"udpin:127.0.0.1:{port}",
+           "--output", "rates", "--vehicle-params", str(vehicle), "--controller", str(controller),
+           "--control-rate-hz", "200", "--out", str(out / "flight")]
+    log = out / "fly.log"
+    with open(log, "w") as f:
+        proc = subprocess.Popen(cmd, stdout=f, stderr=subprocess.STDOUT, text=True)
+    end = time.monotonic() + wait_s
+    while "[maneuver] phase" not in log.read_text():    # the daemon's own word that the maneuver began
+        if proc.poll() is not None or time.monotonic() > end:
+            return proc, False
+        time.sleep(0.05)
+    deadline = time.monotonic() + after_s
+    while time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.05)                  # the scenario's timing (the fault's moment), not a wait for a state
+    return proc, proc.poll() is None
+
+
 def kill_mid_maneuver(maneuver: Path, out: Path, after_s: float = 2.0, params: dict | None = None,
                       vehicle: Path = VEHICLE, controller: Path = CONTROLLER, wait_s: float = 90.0,
                       position_source: str = "gps") -> dict:
@@ -173,24 +197,11 @@ def kill_mid_maneuver(maneuver: Path, out: Path, after_s: float = 2.0, params: d
     out.mkdir(parents=True, exist_ok=True)
     result = {"modes": [], "disarmed": False, "killed_at_wall_s": None}
     with Px4Sitl(params=params, position_source=position_source) as px4:
-        port = px4.release_link()
-        cmd = [sys.executable, "-m", "mavreg.cli.main", "fly", str(maneuver), "--vehicle", f"udpin:127.0.0.1:{port}",
-               "--output", "rates", "--vehicle-params", str(vehicle), "--controller", str(controller),
-               "--control-rate-hz", "200", "--out", str(out / "flight")]
-        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-        lines = []
-        for line in proc.stdout:              # the daemon's own word that the maneuver began
-            lines.append(line)
-            if "[maneuver] phase" in line:
-                break
-        deadline = time.monotonic() + after_s
-        while time.monotonic() < deadline and proc.poll() is None:
-            time.sleep(0.05)                  # the scenario's timing (the kill's moment), not a wait for a state
-        if proc.poll() is None:
+        proc, flying = _fly_into_the_maneuver(px4, maneuver, out, vehicle, controller, after_s)
+        if flying:
             os.kill(proc.pid, signal.SIGKILL)
             result["killed_at_wall_s"] = time.time()
         proc.wait(timeout=10)
-        (out / "fly.log").write_text("".join(lines) + (proc.stdout.read() or ""))
         px4.take_link()
         end = time.monotonic() + wait_s
         while time.monotonic() < end:
@@ -210,3 +221,40 @@ def kill_mid_maneuver(maneuver: Path, out: Path, after_s: float = 2.0, params: d
     (out / "kill.json").write_text(json.dumps(result, indent=1))
     return result
 
+
+def glitch_mid_maneuver(maneuver: Path, out: Path, offset_m=(0.8, 0.0, 0.0), after_s: float = 2.0,
+                        glitch_s: float | None = None, vehicle: Path = VEHICLE, controller: Path = CONTROLLER,
+                        timeout_s: float = 240.0) -> dict:
+    """Fly ``maneuver`` with mavreg on a fresh PX4 on motion capture and, ``after_s`` into the
+    maneuver, shift the motion-capture position fed to EKF2 by ``offset_m`` (NED), for
+    ``glitch_s`` seconds or for good: a position source that jumps (a re-referenced or
+    mis-tracked motion capture). EKF2 first rejects the jump, then resets its position onto
+    it; mavreg sees what EKF2 makes of it. The daemon is left to end the flight. Returns the
+    flight's summary (``exit_code``, ``glitch_at_wall_s``) and the truth's ``touchdowns``."""
+    import time
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    glitch_at = None
+    with Px4Sitl(position_source="mocap") as px4:
+        proc, flying = _fly_into_the_maneuver(px4, maneuver, out, vehicle, controller, after_s)
+        if flying:
+            px4.truth.feed_offset_m = tuple(float(v) for v in offset_m)
+            glitch_at = time.time()
+            if glitch_s is not None:
+                time.sleep(glitch_s)      # the glitch's length, by the wall clock as the feed runs
+                px4.truth.feed_offset_m = (0.0, 0.0, 0.0)
+        try:
+            proc.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        px4.stop()
+        px4.truth.save(out / "truth.npz", px4.origin)
+        for ulg in px4.ulogs():
+            shutil.copy(ulg, out / ulg.name)
+        px4.cleanup()
+    summary_path = out / "flight" / "summary.json"
+    summary = json.loads(summary_path.read_text()) if summary_path.exists() else {}
+    summary.update(exit_code=proc.returncode, glitch_at_wall_s=glitch_at, touchdowns=truth_touchdowns(out))
+    (out / "glitch.json").write_text(json.dumps(summary, indent=1, default=str))
+    return summary

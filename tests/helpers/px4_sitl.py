@@ -127,6 +127,8 @@ class TruthRecorder:
         """The first sample's latitude, longitude (deg) and altitude (m): the vehicle on the
         ground at boot, the origin of the motion-capture frame."""
         self.rows: list[tuple] = []
+        self.feed_offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+        """Added to the position fed to EKF2 (NED, m): a fault test's glitch."""
         self._stop = threading.Event()
         self._conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{self.port}", source_system=255,
                                                 source_component=191, dialect="common")
@@ -160,7 +162,7 @@ class TruthRecorder:
         body to NED; ``time_usec`` 0, which PX4 stamps with its arrival (this link answers no
         TIMESYNC, so PX4's time sync never converges on it); covariances unknown (NaN: PX4 takes
         ``EKF2_EVP_NOISE``, ``EKF2_EVV_NOISE``, ``EKF2_EVA_NOISE``)."""
-        n, e, d = ned_m(row[1], row[2], row[3], self.home)
+        n, e, d = np.add(ned_m(row[1], row[2], row[3], self.home), self.feed_offset_m)
         nan21 = [math.nan] + [0.0] * 20
         self._conn.mav.odometry_send(0, M.MAV_FRAME_LOCAL_NED, M.MAV_FRAME_LOCAL_NED, n, e, d, list(row[4:8]),
                                      row[8], row[9], row[10], math.nan, math.nan, math.nan, nan21, nan21,

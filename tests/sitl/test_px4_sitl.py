@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.helpers.px4_flight import fly_on_px4, kill_mid_maneuver, truth_touchdowns, ulog_texts
+from tests.helpers.px4_flight import fly_on_px4, glitch_mid_maneuver, kill_mid_maneuver, truth_touchdowns, ulog_texts
 from tests.helpers.px4_sitl import require_px4
 
 HOP = Path(__file__).with_name("px4_hop.yaml")
@@ -60,3 +60,25 @@ def test_mavreg_killed_mid_maneuver_px4_takes_over_and_lands(tmp_path):
     assert r["disarmed"], r["modes"]
     assert any(m.startswith("AUTO.LAND") for m in r["modes"]), r["modes"]
     _no_motor_stop_and_soft_touchdowns(tmp_path / "kill")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("glitch_s", [None, 0.5], ids=["for-good", "half-a-second"])
+def test_a_position_source_that_jumps_mid_maneuver_ends_safely_not_in_a_crash(tmp_path, glitch_s):
+    """The motion capture fed to EKF2 jumps 0.8 m 2 s into the maneuver. For good: EKF2 resets
+    its position onto it, mavreg reads the jump as the position bound it is (more than the
+    velocity explains), recovers, holds and lands on the shifted estimate. For half a second:
+    EKF2's innovation gate rejects it and the flight goes on. Either way the truth sees a soft
+    touchdown, the motors never stop in the air and the flight ends disarmed."""
+    require_px4()
+    r = glitch_mid_maneuver(HOP, tmp_path / "glitch", offset_m=(0.8, 0.0, 0.0), glitch_s=glitch_s)
+    assert r["glitch_at_wall_s"] is not None, "the flight ended before the glitch"
+    kinds = [(e["kind"], e["detail"]) for e in r["events"]]
+    if glitch_s is None:
+        assert any(k in ("recover", "abort") and "position_jump" in d for k, d in kinds), kinds
+    else:
+        assert r["result"] == "ok" or any("position_jump" in d for _, d in kinds), kinds
+    assert not any(k == "motors_stopped" for k, _ in kinds), kinds
+    phases = [e["phase"] for e in r["events"] if e["kind"] == "phase"]
+    assert phases[-1] == "disarmed", phases
+    _no_motor_stop_and_soft_touchdowns(tmp_path / "glitch")
