@@ -24,7 +24,7 @@ __all__ = ["PARAMS_DIR", "DEFAULT_VEHICLE", "PAPER_CONTROLLER", "PAPER_GOVERNED_
            "DESIGN_CONTROLLER", "REAL_CONTROLLER", "add_model_arguments", "add_laps_argument",
            "add_entry_offset_argument", "load_model_params", "load_maneuver_arg",
            "add_gcs_arguments", "gcs_config", "add_signing_argument", "add_output_argument",
-           "add_excitation_argument", "excitation_params", "add_vehicle_identity_arguments", "system_id",
+           "add_excitation_argument", "excitation_params", "add_vehicle_identity_arguments", "add_airborne_argument", "system_id",
            "add_planner_arguments", "planner_bounds", "Parser", "positive_float", "nonneg_float",
            "finite_float", "positive_int", "nonneg_int", "vehicle_url", "plot_file", "input_file",
            "output_file", "output_dir", "socket_path", "check_output_file", "check_output_dir",
@@ -166,6 +166,18 @@ def add_vehicle_identity_arguments(p: argparse.ArgumentParser) -> None:
                    "checked. Stock PX4 and ArduPilot are known from their HEARTBEAT and refuse a "
                    "contradicting choice (default: the vehicle file's dialect:, else PX4's in the rotors "
                    "output; the rates output refuses a GENERIC vehicle without a choice)")
+
+
+def add_airborne_argument(p: argparse.ArgumentParser) -> None:
+    """``--airborne land|fly`` (fly, serve): a vehicle found armed in the air (docs/safety.md)."""
+    from ..daemon.phases import AIRBORNE_CHOICES
+    p.add_argument("--airborne", choices=AIRBORNE_CHOICES, default="land",
+                   help="a vehicle found armed in the air (a daemon restarted mid-flight): it is taken "
+                   "over where it is (set-points matching it stream before OFFBOARD is asked for; it is "
+                   "never armed, disarmed or taken off), held, then 'land' (the queued maneuver is "
+                   "dropped) or 'fly' (the queued maneuver, or with serve the next upload, from the "
+                   "hold). A vehicle armed on the ground by another is refused and left armed "
+                   "(default: %(default)s)")
 
 
 def add_excitation_argument(p: argparse.ArgumentParser) -> None:

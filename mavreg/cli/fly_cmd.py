@@ -9,7 +9,7 @@ from ..errors import UsageError
 from ..config.defaults import CONTROL_RATE_HZ, STALE_TIMEOUT_S
 from .common import (REAL_CONTROLLER, add_entry_offset_argument, add_gcs_arguments,
                      add_laps_argument, add_model_arguments, add_excitation_argument, add_output_argument,
-                     add_planner_arguments, add_signing_argument, add_vehicle_identity_arguments,
+                     add_planner_arguments, add_signing_argument, add_vehicle_identity_arguments, add_airborne_argument,
                      check_output_dir, excitation_params, gcs_config, input_file, load_maneuver_arg,
                      output_dir, planner_bounds, positive_float, socket_path, vehicle_url)
 
@@ -125,6 +125,7 @@ def add_arguments(p):
         "the path needs a controller file whose envelope allows it, see mavreg experiment)"
         % MAX_ENTRY_OFFSET_M)
     add_vehicle_identity_arguments(p)
+    add_airborne_argument(p)
     add_output_argument(p)
     add_excitation_argument(p)
     add_signing_argument(p, bundled_emulator=True)
@@ -165,5 +166,5 @@ def run(args) -> int:
                       gcs_urls=gcs["gcs_urls"], gcs=gcs["gcs"], tlog_clock=args.tlog_clock,
                       argv=tuple(getattr(args, "command_line", ())), planner=planner_bounds(args), output=args.output,
                       laps=args.laps, excitation=excitation, dialect=args.dialect,
-                      vehicle_system_id=args.vehicle_system_id)
+                      vehicle_system_id=args.vehicle_system_id, airborne=args.airborne)
     return fly(opts)

@@ -7,7 +7,7 @@ from pathlib import Path
 from ..config.defaults import CONTROL_RATE_HZ, STALE_TIMEOUT_S
 from .common import (REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, add_excitation_argument, add_output_argument,
                      add_planner_arguments,
-                     add_signing_argument, add_vehicle_identity_arguments, excitation_params, gcs_config,
+                     add_signing_argument, add_vehicle_identity_arguments, add_airborne_argument, excitation_params, gcs_config,
                      output_file, planner_bounds, positive_float, socket_path, vehicle_url)
 
 HELP = "run the offboard daemon: fly maneuvers uploaded on the control endpoint"
@@ -59,6 +59,7 @@ def add_arguments(p):
                    help="the vehicle is a lockstep simulator (it waits for each command): do not "
                    "fly telemetry gaps on the prediction (in real time the daemon does)")
     add_vehicle_identity_arguments(p)
+    add_airborne_argument(p)
     add_output_argument(p)
     add_excitation_argument(p)
     add_signing_argument(p)
@@ -86,7 +87,8 @@ def run(args) -> int:
                           Path(args.socket) if args.socket else default_socket_path(),
                           Path(args.tlog) if args.tlog else None,
                           SupervisorParams(system_id_to_use(args.vehicle, args.vehicle_system_id),
-                                           land_when_done=False, stale_timeout_s=args.stale_timeout_s,
+                                           land_when_done=False, airborne=args.airborne,
+                                           stale_timeout_s=args.stale_timeout_s,
                                            gap_fill=not args.vehicle_lockstep, lockstep=args.vehicle_lockstep,
                                            hover=HoverParams.from_controller(controller),
                                            excitation=excitation_params(args, vehicle.output)),

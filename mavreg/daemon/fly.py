@@ -104,6 +104,9 @@ class FlyOptions:
     """The vehicle's system id (``--vehicle-system-id``); None: taken from its first autopilot
     HEARTBEAT on ``udpin:``, 1 otherwise (:func:`mavreg.daemon.peers.system_id_to_use`). The
     bundled emulator is started with it."""
+    airborne: str = "land"
+    """A vehicle found armed in the air: taken over, then ``land`` or ``fly`` (``--airborne``,
+    :attr:`mavreg.daemon.phases.SupervisorParams.airborne`)."""
 
 
 def spawn_emulator(vehicle_path: Path, record: Path | None, lockstep: bool, extra: tuple[str, ...] = (),
@@ -171,7 +174,8 @@ def fly(opts: FlyOptions) -> int:
                           controller_path=opts.controller_path, socket_path=opts.socket_path,
                           tlog_path=opts.out_dir / "flight.tlog",
                           supervisor=SupervisorParams(system_id_to_use(opts.vehicle_url, opts.vehicle_system_id),
-                                                      land_when_done=True, stale_timeout_s=opts.stale_timeout_s,
+                                                      land_when_done=True, airborne=opts.airborne,
+                                                      stale_timeout_s=opts.stale_timeout_s,
                                                       gap_fill=not (opts.lockstep or opts.vehicle_lockstep),
                                                       lockstep=opts.lockstep or opts.vehicle_lockstep,
                                                       entry_offset_m=tuple(opts.entry_offset_m),

@@ -34,7 +34,7 @@ from .monitor import Tracking
 from .phases import Phase
 from .safety import SafetyPolicy
 
-__all__ = ["AirborneHandler", "GroundHandler", "Preflight", "Maneuver", "Recover", "Terminate", "Finished",
+__all__ = ["AirborneHandler", "GroundHandler", "Preflight", "Maneuver", "Recover", "Takeover", "Terminate", "Finished",
            "HANDLERS", "make_handlers"]
 
 
@@ -64,6 +64,10 @@ class Preflight(_Handler):
         sysid, compid = parts.ids.target
         if ctx.stream_start_vehicle_s is None:
             ctx.stream_start_vehicle_s = t
+        st = ctx.vehicle_status
+        if st.armed and not ctx.arm_requested:             # armed by another: never idle, arm or disarm it
+            self._armed_by_another(sample, out)
+            return
         flight.send_rotors(np.zeros(4), now_wall_s, out)
         if ctx.land_requested:
             if ctx.vehicle_status.armed:
@@ -71,7 +75,6 @@ class Preflight(_Handler):
             return
         if not ctx.pending:
             return
-        st = ctx.vehicle_status
         if not st.armed:
             verdict = self._checks(sample, out)
             if verdict is None:
@@ -90,6 +93,46 @@ class Preflight(_Handler):
                 self.safety.refuse(verdict, out, Phase.PREFLIGHT)
                 return
             self._start_takeoff(sample, out)
+
+    def _armed_by_another(self, sample, out) -> None:
+        """The vehicle is armed and this daemon did not arm it (a restart after a crash, a pilot's
+        take-off): airborne by its landed state (EXTENDED_SYS_STATE), or with none heard within
+        ``takeover_landed_state_wait_s``, by its height over the estimate's origin, it is taken
+        over (:class:`Takeover`); armed on the ground, it is refused and left armed."""
+        flight, ctx, parts = self.flight, self.flight.ctx, self.flight.parts
+        params = parts.params
+        waited = sample.time_s - ctx.stream_start_vehicle_s
+        height_m = ctx.ground_z_m - float(sample.x[2])
+        if ctx.landed_state is not None:
+            airborne = ctx.landed_state not in (mm.mavlink2.MAV_LANDED_STATE_ON_GROUND,
+                                                 mm.mavlink2.MAV_LANDED_STATE_UNDEFINED)
+        elif waited >= params.takeover_landed_state_wait_s:
+            airborne = height_m > params.touchdown_band_m
+        else:
+            return                                         # its landed state may be on its way
+        if not airborne:
+            self.safety.refuse(GateVerdict(
+                False, "armed_by_another", height_m, params.touchdown_band_m, "m",
+                "the vehicle is armed on the ground and mavreg did not arm it: mavreg takes off only "
+                "a vehicle it armed itself; disarm it and start again"), out, Phase.PREFLIGHT)
+            return
+        if not parts.delay.known and waited < params.timesync_wait_s:
+            return                                         # the link delay the prediction covers
+        if params.airborne == "land":
+            ctx.land_requested = True                      # serve lands it too
+            if ctx.pending:
+                dropped = [p.name for p, _, _ in ctx.pending]
+                ctx.pending.clear()
+                flight.event(out, "dropped", f"{dropped} not flown: the vehicle is taken over to land")
+        ctx.took_over = True
+        p = np.round(sample.x[:3], 2).tolist()
+        flight.announce(out, "takeover", mm.SEVERITY_WARNING,
+                        f"vehicle found armed in the air at {p}, {height_m:.1f} m over the estimate's origin, "
+                        f"mode {ctx.vehicle_status.mode}; taking it over to hold, then "
+                        + ("fly the queued maneuver" if ctx.pending else "land"))
+        flight.note_action("took over an airborne vehicle")
+        parts.monitor.set_origin(np.array([sample.x[0], sample.x[1], ctx.ground_z_m], dtype=float))
+        flight.set_phase(out, Phase.TAKEOVER, "streaming the recovery controller's set-points before OFFBOARD")
 
     def _checks(self, sample, out) -> GateVerdict | None:
         """The checks before arming: the plan inside the envelope from here, gains this control
@@ -185,7 +228,7 @@ class Recover(_Handler):
         took_s = t - ctx.phase_start_vehicle_s
         flight.note_action(f"recovered after {took_s:.1f} s")
         ctx.s_m = math.nan
-        land = flight.lands_when_done()
+        land = flight.lands_when_done() and not ctx.pending   # pending: a takeover that flies it
         flight.announce(out, "recovered", mm.SEVERITY_WARNING, f"level and holding at {np.round(p, 2).tolist()} "
                         f"after {took_s:.1f} s; {'landing' if land else 'holding'}")
         if land:
@@ -194,9 +237,42 @@ class Recover(_Handler):
             flight.start_landing(p, yaw, t)
         else:
             flight.set_phase(out, Phase.HOLD, f"recovered at {np.round(p, 2).tolist()}; holding, "
-                             "waiting for an upload")
+                             + ("then the queued maneuver" if ctx.pending else "waiting for an upload"))
             flight.note_action("holding")
             flight.start_ramps([hold_ramp(p, yaw)], t)
+
+
+class Takeover(_Handler):
+    """A vehicle found armed in the air: the recovery controller's set-points (level, brake,
+    hold where it is) stream, restarted at every sample so that nothing integrates while the
+    autopilot still flies, until the autopilot grants OFFBOARD (asked for after
+    ``offboard_stream_min_s`` of them); then the recovery flies (phase recover) and, settled,
+    holds for the queued maneuver or lands (:meth:`Recover._recovered`). A vehicle that
+    disarms meanwhile (its own failsafe landed it) is on the ground: preflight again. The
+    ground is the estimate's origin (where its estimator started, on the ground)."""
+
+    def on_sample(self, sample, now_wall_s: float, out) -> None:
+        flight, ctx, parts = self.flight, self.flight.ctx, self.flight.parts
+        st = ctx.vehicle_status
+        if not st.armed:                                   # its own failsafe landed it meanwhile
+            ctx.took_over = False
+            ctx.stream_start_vehicle_s = None
+            if ctx.pending or not parts.params.land_when_done:
+                flight.set_phase(out, Phase.PREFLIGHT, "the vehicle disarmed before the takeover: on the ground")
+            else:
+                flight.set_phase(out, Phase.DISARMED, "the vehicle landed and disarmed before the takeover; "
+                                 "nothing to fly")
+            return
+        x = flight.controller_state(sample)
+        parts.recovery.start(x[:3], sample.velocity_ned_m_s, sample.rotation, ctx.ground_z_m)
+        rotors, record, _, _ = flight.recovery_step(sample, x)
+        flight.send_rotors(rotors, now_wall_s, out)
+        out.log = record
+        if st.offboard:
+            ctx.settled_since_vehicle_s = None
+            flight.set_phase(out, Phase.RECOVER, f"took over in {st.mode}: level, brake, hold")
+        elif sample.time_s - ctx.phase_start_vehicle_s >= parts.params.offboard_stream_min_s:
+            flight.command(out, parts.autopilot.set_offboard_mode())
 
 
 class Terminate(_Handler):
@@ -224,6 +300,7 @@ HANDLERS: dict = {
     Phase.ABORTED: Finished,
     Phase.RECOVER: Recover,
     Phase.TERMINATE: Terminate,
+    Phase.TAKEOVER: Takeover,
 }
 """Phase -> its handler class (airborne phases: ``control``; the others: ``on_sample``)."""
 

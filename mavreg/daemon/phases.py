@@ -38,6 +38,10 @@ class Phase(str, enum.Enum):
     """The recovery controller levels, brakes, climbs and holds."""
     TERMINATE = "terminate"
     """Motors stopped: forced disarm repeated until the vehicle reports disarmed; no stream."""
+    TAKEOVER = "takeover"
+    """The vehicle was found armed in the air (a restarted daemon, say): the recovery
+    controller's set-points stream, matching the vehicle's state, until the autopilot grants
+    OFFBOARD; then the recovery holds it (:class:`mavreg.daemon.handlers.Takeover`)."""
 
 
 PHASE_CODES = {p: i for i, p in enumerate(Phase)}
@@ -50,6 +54,10 @@ the daemon's signal handler through :attr:`Supervisor.airborne`)."""
 
 FREE_FLIGHT = frozenset({Phase.HOLD, Phase.RUN_IN, Phase.MANEUVER})
 """Airborne phases clear of the ground: the disturbance observer learns throughout them."""
+
+
+AIRBORNE_CHOICES = ("land", "fly")
+"""What a vehicle found armed in the air is taken over for (:attr:`SupervisorParams.airborne`)."""
 
 
 @dataclass(frozen=True)
@@ -112,6 +120,15 @@ class SupervisorParams:
     vehicle's failsafe is in charge, so a refusal ends ``fly`` within 2 s."""
     land_when_done: bool = True
     """Land after the last queued maneuver (``fly``); ``serve`` keeps holding."""
+    airborne: str = "land"
+    """A vehicle found armed in the air, not armed by this daemon (a restart after a crash): it
+    is taken over and held where it is, then ``land`` (the queued maneuver is dropped) or
+    ``fly`` (the queued maneuver is flown from the hold). It is never armed, disarmed or taken
+    off then (docs/safety.md, *Taking over an airborne vehicle*)."""
+    takeover_landed_state_wait_s: float = 1.5
+    """Vehicle time an armed vehicle that sends no landed state (EXTENDED_SYS_STATE) is given:
+    then it counts as airborne when it is more than ``touchdown_band_m`` above the estimate's
+    origin, else as armed on the ground (refused)."""
     gap_fill: bool = True
     """A vehicle in real time: when a sample is more than 1.5 control periods late, command
     from the prediction of the last one (:meth:`Supervisor.fill_gap`), as far as the
@@ -133,6 +150,10 @@ class SupervisorParams:
     """The identification flight's rate doublets in the hold before the first maneuver
     (``--identify-excitation``, :mod:`mavreg.daemon.excitation`; the rates output only).
     None (the default): no excitation."""
+
+    def __post_init__(self):
+        if self.airborne not in AIRBORNE_CHOICES:
+            raise ValueError(f"airborne must be one of {AIRBORNE_CHOICES}, not {self.airborne!r}")
 
 
 @dataclass(frozen=True)

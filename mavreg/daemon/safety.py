@@ -234,6 +234,9 @@ class SafetyPolicy:
         ctx.pending.clear()
         st = ctx.vehicle_status
         disarm = mm.arm_disarm(*flight.parts.ids.target, False) if st is not None else None
+        if st is not None and st.armed and not ctx.arm_requested:
+            flight.set_phase(out, Phase.DISARMED, f"{why}; the vehicle was armed by another and is left armed")
+            return
         if st is not None and st.armed:
             ctx.ground_end_wall_s = ctx.now_wall_s
             flight.event(out, "disarming", f"{why}; disarming on the ground")

@@ -200,6 +200,8 @@ class Supervisor:
             self.autopilot.param_value(msg)
         elif mtype == "COMMAND_ACK":
             self._on_ack(msg, out)
+        elif mtype == "EXTENDED_SYS_STATE":
+            self.ctx.landed_state = int(msg.landed_state)
         elif mtype == "TIMESYNC":
             if msg.tc1 != 0 and not self.timesync.reply(msg.tc1, msg.ts1, int(now_s * 1e9)):
                 self.counters.timesync_dropped += 1

@@ -21,7 +21,8 @@ def test_every_phase_has_one_handler_of_its_kind_and_keeps_its_log_code():
         assert callable(getattr(cls, kind, None)), (phase, cls)
     # old control logs decode with the same codes (new phases go at the end)
     assert [p.value for p in sorted(PHASE_CODES, key=PHASE_CODES.get)] == [
-        "preflight", "takeoff", "hold", "run_in", "maneuver", "land", "disarmed", "aborted", "recover", "terminate"]
+        "preflight", "takeoff", "hold", "run_in", "maneuver", "land", "disarmed", "aborted", "recover", "terminate",
+        "takeover"]
     assert f"[{Phase.RUN_IN}]" == "[run_in]" and Phase.HOLD == "hold"
 
 
