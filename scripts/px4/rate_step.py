@@ -2,7 +2,7 @@
 """Measure a stock PX4's (SIH) roll and pitch rate step as the emulator's --print-rate-response
 defines its own: from the SENT step to SIH's true body rate, averaged over repetitions.
 
-    python -m scripts.px4.rate_step [--reps 6] [--step-rad-s 1] [--step-s 0.25]
+    python -m scripts.px4.rate_step [--reps 6] [--step-rad-s 1] [--step-s 0.4]
                                     [--param NAME=VALUE ...] [--instance N] [--json FILE]
 
 PX4 hovers in OFFBOARD on body rates and thrust, levelled by the script's own small stabilizer;
@@ -10,7 +10,7 @@ each repetition steps one axis (a doublet: +-step, then -+step for as long) and 
 from firmware_sim.rate_response.step_figures (10/50/90 %, overshoot, final value over the last
 quarter of the step, first order + delay over 150 ms). tests/helpers/px4_rate_step.py says how.
 Needs the PX4 SITL (tests/helpers/px4_sitl.py says where it is looked for). Real time: under a
-minute. Run it alone (no other PX4 flight on the machine): times are wall-clock.
+minute. Run it alone (no other PX4 flight on the machine); times are on PX4's clock.
 """
 from __future__ import annotations
 
@@ -37,7 +37,7 @@ def main(argv=None) -> int:
     p.add_argument("--axes", default="roll,pitch", help="comma-separated: roll, pitch (default %(default)s)")
     p.add_argument("--reps", type=int, default=6, help="steps per axis, signs alternating (default %(default)s)")
     p.add_argument("--step-rad-s", type=float, default=1.0, help="step size, rad/s (default %(default)s)")
-    p.add_argument("--step-s", type=float, default=0.25,
+    p.add_argument("--step-s", type=float, default=0.4,
                    help="how long the step is held (the window measured; default %(default)s)")
     p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                    help="a PX4 parameter set before the flight (repeatable)")
