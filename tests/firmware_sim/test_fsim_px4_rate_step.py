@@ -5,16 +5,15 @@ measures PX4 again where its SITL is present."""
 from __future__ import annotations
 
 import math
-import re
 
 import pytest
 
-from firmware_sim.cli import build_parser, main
+from firmware_sim.cli import build_parser
 from firmware_sim.params import build_sim_params, load_sim_params
 from firmware_sim.physics import G
 from firmware_sim.px4_args import rate_loop_config
 from firmware_sim.sim import Simulation
-from tests.helpers.emulator_as_sih import PX4_RATE_DEFAULTS, VEHICLE, emulator_sih_args
+from tests.helpers.emulator_as_sih import PX4_RATE_DEFAULTS, VEHICLE, emulator_sih_args, printed_figures
 
 PX4_STEP = {"roll": {"t10": 26.8, "t50": 77.7, "t90": 144.3, "overshoot": 3.7, "final": 1.022, "tau": 64.5, "delay": 27.4},
             "pitch": {"t10": 27.1, "t50": 77.3, "t90": 141.9, "overshoot": 3.6, "final": 1.037, "tau": 63.1,
@@ -26,26 +25,8 @@ Measured 2026-11-29 with ``python -m scripts.px4.rate_step --json run2.json`` (a
 machine, under the PX4 lock)."""
 
 
-def _printed(argv) -> dict:
-    """``firmware-sim ARGV --print-rate-response``'s roll and pitch figures."""
-    import contextlib
-    import io
-    out = io.StringIO()
-    with contextlib.redirect_stdout(out):
-        assert main([*argv, "--print-rate-response"]) == 0
-    figures = {}
-    for axis in ("roll", "pitch"):
-        line = next(x for x in out.getvalue().splitlines() if f"rate response {axis} " in x)
-        t10, t50, t90, over, final, tau, delay = (float(v) for v in re.search(
-            r"at ([\d.]+)/([\d.]+)/([\d.]+) ms, overshoot ([\d.]+) %, final ([\d.]+); first order \+ delay: "
-            r"tau ([\d.]+) ms, delay ([\d.]+) ms", line).groups())
-        figures[axis] = {"t10": t10, "t50": t50, "t90": t90, "overshoot": over, "final": final, "tau": tau,
-                         "delay": delay}
-    return figures
-
-
 def test_the_emulator_as_sih_steps_as_the_measured_px4():
-    emu = _printed(emulator_sih_args())
+    emu = printed_figures(emulator_sih_args())
     for axis, px4 in PX4_STEP.items():
         e = emu[axis]
         assert e["t50"] == pytest.approx(px4["t50"], rel=0.10), axis           # the issue's bound
@@ -60,7 +41,7 @@ def test_in_the_old_torque_unit_px4s_gains_give_a_slower_step():
     f_max, 1/sqrt 2 of PX4's torque per unit) make the step a quarter slower at 50 % (96 ms)."""
     old = {name: PX4_RATE_DEFAULTS[name] / math.sqrt(2) for name in PX4_RATE_DEFAULTS
            if name.startswith(("MC_ROLLRATE_", "MC_PITCHRATE_", "MC_RR_", "MC_PR_")) and not name.endswith("_K")}
-    emu = _printed(emulator_sih_args(old))
+    emu = printed_figures(emulator_sih_args(old))
     assert emu["roll"]["t50"] > 1.15 * PX4_STEP["roll"]["t50"]
 
 

@@ -12,9 +12,14 @@
 """
 from __future__ import annotations
 
+import contextlib
+import io
+import re
 from pathlib import Path
 
-__all__ = ["PX4_RATE_DEFAULTS", "SIH_KDW", "VEHICLE", "emulator_sih_args"]
+from firmware_sim.cli import main
+
+__all__ = ["PX4_RATE_DEFAULTS", "SIH_KDW", "VEHICLE", "emulator_sih_args", "printed_figures"]
 
 VEHICLE = Path(__file__).resolve().parents[2] / "mavreg" / "params" / "vehicles" / "px4_sih.yaml"
 PX4_RATE_DEFAULTS = {
@@ -46,3 +51,19 @@ def emulator_sih_args(px4_params: dict | None = None) -> list[str]:
                  "THR_MDL_FAC"):
         args += ["--rate-param", f"{name}={p[name]:g}"]
     return args
+
+
+def printed_figures(argv) -> dict:
+    """``firmware-sim ARGV --print-rate-response``'s roll and pitch figures: ``{axis: {"t10",
+    "t50", "t90" (ms), "overshoot" (%), "final", "tau", "delay" (ms)}}``."""
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert main([*argv, "--print-rate-response"]) == 0
+    figures = {}
+    for axis in ("roll", "pitch"):
+        line = next(x for x in out.getvalue().splitlines() if f"rate response {axis} " in x)
+        values = (float(v) for v in re.search(
+            r"at ([\d.]+)/([\d.]+)/([\d.]+) ms, overshoot ([\d.]+) %, final ([\d.]+); first order \+ delay: "
+            r"tau ([\d.]+) ms, delay ([\d.]+) ms", line).groups())
+        figures[axis] = dict(zip(("t10", "t50", "t90", "overshoot", "final", "tau", "delay"), values))
+    return figures
