@@ -25,6 +25,8 @@ def test_px4s_rate_step_is_the_emulators_configured_as_sih():
     emu = printed_figures(emulator_sih_args(res["params"]))
     for axis, name in ((0, "roll"), (1, "pitch")):
         px4, e = res["truth"][axis], emu[name]
-        assert e["t50"] == pytest.approx(1e3 * px4.t50_s, rel=0.10), (name, px4, changed)
-        assert e["t90"] == pytest.approx(1e3 * px4.t90_s, rel=0.15), (name, px4, changed)
-        assert e["final"] == pytest.approx(px4.final, abs=0.08), (name, px4, changed)
+        why = (f"{name}: PX4 10/50/90 % at {1e3 * px4.t10_s:.1f}/{1e3 * px4.t50_s:.1f}/{1e3 * px4.t90_s:.1f} ms, "
+               f"final {px4.final:.3f}; emulator {e}; PX4's parameters off the defaults: {changed}")
+        assert e["t50"] == pytest.approx(1e3 * px4.t50_s, rel=0.10), why
+        assert e["t90"] == pytest.approx(1e3 * px4.t90_s, rel=0.15), why
+        assert e["final"] == pytest.approx(px4.final, abs=0.08), why
