@@ -22,7 +22,8 @@ as PX4's multicopter rate controller does, written for the emulator alone:
       I_state += I (1 - (e / 400 deg/s)^2)^+ e dt, clipped to +- *_INT_LIM, not integrated
                  further into an allocator saturation nor on the ground; 0 when the loop starts
 
-  The allocation limits ``u`` (roll and pitch to [-1, 1], yaw to the room left) and reports it.
+  The allocation limits ``u`` (roll and pitch to +-1/sqrt 2, where the axis' rotors span
+  ``f_max``; yaw to the room left) and reports it.
 - **Processing latency.** A set-point reaches the loop ``latency_s`` after it was received
   (the first loop tick at or after that; ``--rate-latency-ms``).
 - **Thrust model.** The collective of ``t`` is ``F = 4 f_max ((1 - e) t + e t^2)``,
@@ -33,11 +34,12 @@ as PX4's multicopter rate controller does, written for the emulator alone:
   as far as they need, and yaw gets what room is left; the collective is given up first,
   then yaw. The clipped axes are reported to the integrators (anti-windup).
 
-The gains are tuned for the bundled airframe (0.75 kg, 20 ms motor lag; they were 0.25, 0.2,
-0.003 and 1.5 in roll, pitch and yaw before the units became PX4's: the same torques), stable over the
-airframes ``--mismatch-seed`` draws (10-50 ms lag, inertia +-30 %) at 250 and 500 Hz: in the
-realistic world a 1 rad/s roll step reaches 10/50/90 % of the command about 11/27/47 ms after
-its receipt, 2 % overshoot (:mod:`firmware_sim.rate_response` gives the exact figures).
+The gains are tuned for the bundled airframe (0.75 kg, 20 ms motor lag; P 0.25, I 0.2, D
+0.003 in roll and pitch and P 1.5 in yaw in the former unit, f_max / 2 a rotor: the same
+torques, docs/firmware_sim.md, *Units*), stable over the airframes ``--mismatch-seed`` draws
+(10-50 ms lag, inertia +-30 %) at 250 and 500 Hz: in the realistic world a 1 rad/s roll step
+reaches 10/50/90 % of the command about 11/27/47 ms after its receipt, 2 % overshoot
+(:mod:`firmware_sim.rate_response` gives the exact figures).
 """
 from __future__ import annotations
 
