@@ -51,6 +51,8 @@ def main(argv=None) -> int:
         p.error(f"--axes: unknown axis {exc}")
     if not 1 <= args.reps <= 20 or not 0.05 <= args.step_s <= 0.4 or not 0.1 <= args.step_rad_s <= 3.0:
         p.error("want --reps 1..20, --step-s 0.05..0.4, --step-rad-s 0.1..3")
+    if args.instance is not None and not 0 <= args.instance <= 9:
+        p.error(f"--instance {args.instance}: want 0 to 9")
     res = measure_px4_rate_step(axes, args.reps, args.step_rad_s, args.step_s,
                                 params=parse_param_items(p, args.param), instance=args.instance)
     print("PX4 parameters read: " + ", ".join(f"{k} {v:g}" for k, v in res["params"].items() if v is not None))
