@@ -245,7 +245,7 @@ def measure_px4_rate_step(axes=(0, 1), reps: int = 6, step_rad_s: float = 1.0, s
         fl = _Flight(px4)
         log("PX4 ready: OFFBOARD, arm, climb")
         fl.take_off()
-        log(f"hovering at {-fl.hover.pos.z:.2f} m (NED z); {reps} steps per axis")
+        log(f"hovering {-fl.hover.pos.z:.2f} m above EKF2's origin; {reps} steps per axis")
         t_steps = len(fl.hover.boot)
         fl.steps_of(axes, reps, step_rad_s, step_s)
         boot = np.asarray(fl.hover.boot[t_steps:])
