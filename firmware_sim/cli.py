@@ -97,10 +97,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="control and telemetry rate (default %(default)s)"))
     a("--physics-hz", type=positive_int, default=1000,
       help="RK4 physics rate, an integer multiple of --control-rate-hz (default %(default)s)")
-    a("--lockstep", action="store_true",
-      help="advance one control period per offboard target, SET_ACTUATOR_CONTROL_TARGET or "
-           "SET_ATTITUDE_TARGET (deterministic) "
-           "instead of the wall clock")
+    a("--lockstep", action="store_true", help="advance one control period per offboard target, "
+      "SET_ACTUATOR_CONTROL_TARGET or SET_ATTITUDE_TARGET (deterministic) instead of the wall clock")
     add_deprecated_alias(p, "--lockstep-timeout", a(
         "--lockstep-timeout-s", dest="lockstep_timeout", type=positive_float, default=0.1, metavar="S",
         help="wall seconds to wait for a period's command before it counts as lost (default %(default)s)"))
@@ -138,6 +136,8 @@ def build_parser() -> argparse.ArgumentParser:
       help="add Gaussian noise of this SD to each principal moment (drawn from --seed)")
     a("--rotor-time-constant-s", type=nonneg_float, default=None, help="override the motor lag")
     a("--rotor-noise-sd-n", type=nonneg_float, default=None, metavar="SD", help="override the thrust noise SD, N")
+    a("--angular-drag-n-m-s-per-rad", type=nonneg_float, default=None, metavar="C",
+      help="angular damping, a body torque -C omega, 0..10 (PX4 SIH's SIH_KDW, 0.025; default 0)")
     a("--max-rotor-thrust-n", type=positive_float, default=None,
       help="override the rotor saturation and the thrust a control value of 1 asks for")
     a("--rotor-saturation-n", type=positive_float, default=None, metavar="F",
@@ -286,7 +286,8 @@ def _sim_params(args, vehicle):
     airframe mismatch of ``--mismatch-seed`` (the same object without one)."""
     nominal = build_sim_params(
         vehicle, rate_hz=args.rate_hz, physics_hz=args.physics_hz, seed=args.seed,
-        mass_kg=args.mass_kg, inertia_kg_m2=args.inertia_kg_m2, inertia_scale=args.inertia_scale,
+        angular_drag_n_m_s_per_rad=args.angular_drag_n_m_s_per_rad, mass_kg=args.mass_kg,
+        inertia_kg_m2=args.inertia_kg_m2, inertia_scale=args.inertia_scale,
         inertia_perturb_sd_kg_m2=args.inertia_perturb_sd_kg_m2,
         rotor_time_constant_s=args.rotor_time_constant_s, rotor_noise_sd_n=args.rotor_noise_sd_n,
         max_rotor_thrust_n=(args.max_rotor_thrust_n if args.rotor_saturation_n is None

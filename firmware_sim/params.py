@@ -48,6 +48,9 @@ class SimParams:
     """The :class:`firmware_sim.mismatch.MismatchDraw` applied, or ``None``."""
     mismatch_kept: tuple = ()
     """Parameters an explicit flag kept from the draw (``mass_kg``, ...)."""
+    angular_drag_n_m_s_per_rad: float = 0.0
+    """Angular damping: a body torque ``-c omega`` (``--angular-drag-n-m-s-per-rad``; PX4 SIH's
+    ``SIH_KDW``), held over each physics step as SIH holds it over its own."""
 
     @property
     def substeps(self) -> int:
@@ -69,15 +72,18 @@ def load_sim_params(vehicle_path: str | Path, rate_hz: int = 500, physics_hz: in
 
 
 def build_sim_params(vehicle: VehicleParams, rate_hz: int = 500, physics_hz: int = 1000,
-                     seed: int = 0, **overrides) -> SimParams:
+                     seed: int = 0, angular_drag_n_m_s_per_rad: float | None = None, **overrides) -> SimParams:
     """:class:`SimParams` from already loaded vehicle parameters (see :func:`load_sim_params`)."""
+    kw = 0.0 if angular_drag_n_m_s_per_rad is None else float(angular_drag_n_m_s_per_rad)
+    if not (math.isfinite(kw) and 0.0 <= kw <= 10.0):
+        raise ValueError("--angular-drag-n-m-s-per-rad must be in [0, 10]")
     if rate_hz <= 0 or physics_hz <= 0:
         raise ValueError("--rate-hz and --physics-hz must be positive")
     if physics_hz % rate_hz:
         raise ValueError(f"--physics-hz {physics_hz} must be an integer multiple of --rate-hz {rate_hz}")
     vehicle, diag = apply_overrides(vehicle, seed=seed, **overrides)
     J = inertia_matrix(diag, vehicle.emulator.inertia_offdiag_kg_m2)
-    return SimParams(vehicle, J, int(rate_hz), int(physics_hz), int(seed))
+    return SimParams(vehicle, J, int(rate_hz), int(physics_hz), int(seed), angular_drag_n_m_s_per_rad=kw)
 
 
 def apply_overrides(vehicle: VehicleParams, *, seed: int = 0, mass_kg: float | None = None,

@@ -9,7 +9,7 @@ import dataclasses
 from .argtypes import add_deprecated_alias, checked, nonneg_float, probability, sysid
 from .autopilot import AUTOPILOTS
 from .link import parse_remote_url
-from .px4 import Px4Config, Px4Services
+from .px4 import PARAMS, Px4Config, Px4Services
 from .rate_loop import RateLoopConfig
 
 __all__ = ["add_identity_args", "add_px4_args", "px4_services", "parse_home", "rate_loop_config",
@@ -76,6 +76,11 @@ def add_px4_args(p: argparse.ArgumentParser) -> None:
     r.add_argument("--thr-mdl-fac", type=probability, default=None, metavar="E",
                    help="thrust model: collective t gives F = 4 f_max ((1 - E) t + E t^2), E in 0..1 "
                    f"(parameter THR_MDL_FAC; default {RateLoopConfig.thr_mdl_fac:g})")
+    r.add_argument("--rate-param", action="append", default=[], type=_rate_param, metavar="NAME=VALUE",
+                   help="a rate loop parameter at start, as a PARAM_SET would set it (repeatable): "
+                   "MC_ROLLRATE_P, _I, _D, _FF (PITCH, YAW too), MC_RR_INT_LIM (PR, YR), IMU_GYRO_CUTOFF, "
+                   "IMU_DGYRO_CUTOFF, THR_MDL_FAC; e.g. a stock PX4's gains (docs/firmware_sim.md, 'PX4's "
+                   "SIH quadrotor')")
     r.add_argument("--print-rate-response", action="store_true",
                    help="print the true rate-mode figures and exit: the thrust map and the hover "
                    "collective (MPC_THR_HOVER), then for roll, pitch (1 rad/s steps) and yaw (0.1 rad/s) "
@@ -91,9 +96,28 @@ def _latency_ms(text: str) -> float:
     return v
 
 
+def _rate_param(text: str) -> tuple[str, float]:
+    """``NAME=VALUE`` of a rate loop parameter (:data:`firmware_sim.px4.PARAMS`, ``rates.``) ->
+    ``(RateLoopConfig field, value)``, within the parameter's bounds."""
+    name, _, value = text.partition("=")
+    params = {p.name: p for p in PARAMS if p.attribute.startswith("rates.")}
+    p = params.get(name.strip())
+    if p is None:
+        raise argparse.ArgumentTypeError(f"{name.strip()!r} is not a rate loop parameter: one of "
+                                         f"{', '.join(sorted(params))}")
+    try:
+        v = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: want NAME=VALUE with a number") from None
+    if not p.low <= v <= p.high:
+        raise argparse.ArgumentTypeError(f"{p.name} {v:g} out of [{p.low:g}, {p.high:g}]")
+    return p.attribute[len("rates."):], v
+
+
 def rate_loop_config(args) -> RateLoopConfig:
-    """The rate loop's settings of the parsed arguments (the defaults for the others)."""
-    changes = {}
+    """The rate loop's settings of the parsed arguments (the defaults for the others):
+    ``--rate-param`` in order, then ``--rate-latency-ms`` and ``--thr-mdl-fac``."""
+    changes = dict(getattr(args, "rate_param", None) or ())
     if getattr(args, "rate_latency_ms", None) is not None:
         changes["latency_s"] = args.rate_latency_ms * 1e-3
     if getattr(args, "thr_mdl_fac", None) is not None:

@@ -10,15 +10,20 @@ as PX4's multicopter rate controller does, written for the emulator alone:
   the difference of successive raw samples through a second-order low-pass of
   ``IMU_DGYRO_CUTOFF`` Hz (PX4's ``LowPassFilter2p``; a cutoff of 0 or at or above half the
   loop rate is no filter).
-- **Controller**, per axis, in PX4's normalized-torque units (1 = the torque of a rotor pair
-  differing by ``max_rotor_thrust_n`` of the file: ``l f_max`` in roll and pitch, ``2 k f_max``
-  in yaw)::
+- **Controller**, per axis, in PX4's normalized-torque units: those of its control allocator,
+  which scales the pseudo-inverse of the frame's effectiveness matrix so that a unit roll or
+  pitch torque moves each rotor acting on it by ``f_max / sqrt 2`` (its column's norm squared
+  is half the count of those rotors) and a unit yaw torque each rotor by ``f_max`` (the
+  column's largest entry is 1), ``f_max`` the file's ``max_rotor_thrust_n``: on this '+' frame
+  ``sqrt 2 l f_max`` in roll and pitch, ``4 k f_max`` in yaw (:data:`ROLL_PITCH_UNIT`,
+  :data:`YAW_UNIT`)::
 
       u = P e + I_state - D (d omega_f / dt) + FF omega_sp,      e = omega_sp - omega_f
       I_state += I (1 - (e / 400 deg/s)^2)^+ e dt, clipped to +- *_INT_LIM, not integrated
                  further into an allocator saturation nor on the ground; 0 when the loop starts
 
-  The allocation limits ``u`` (roll and pitch to [-1, 1], yaw to the room left) and reports it.
+  The allocation limits ``u`` (roll and pitch to +-1/sqrt 2, where the axis' rotors span
+  ``f_max``; yaw to the room left) and reports it.
 - **Processing latency.** A set-point reaches the loop ``latency_s`` after it was received
   (the first loop tick at or after that; ``--rate-latency-ms``).
 - **Thrust model.** The collective of ``t`` is ``F = 4 f_max ((1 - e) t + e t^2)``,
@@ -29,10 +34,12 @@ as PX4's multicopter rate controller does, written for the emulator alone:
   as far as they need, and yaw gets what room is left; the collective is given up first,
   then yaw. The clipped axes are reported to the integrators (anti-windup).
 
-The gains are tuned for the bundled airframe (0.75 kg, 20 ms motor lag), stable over the
-airframes ``--mismatch-seed`` draws (10-50 ms lag, inertia +-30 %) at 250 and 500 Hz: in the
-realistic world a 1 rad/s roll step reaches 10/50/90 % of the command about 11/27/47 ms after
-its receipt, 2 % overshoot (:mod:`firmware_sim.rate_response` gives the exact figures).
+The gains are tuned for the bundled airframe (0.75 kg, 20 ms motor lag; P 0.25, I 0.2, D
+0.003 in roll and pitch and P 1.5 in yaw in the former unit, f_max / 2 a rotor: the same
+torques, docs/firmware_sim.md, *Units*), stable over the airframes ``--mismatch-seed`` draws
+(10-50 ms lag, inertia +-30 %) at 250 and 500 Hz: in the realistic world a 1 rad/s roll step
+reaches 10/50/90 % of the command about 11/27/47 ms after its receipt, 2 % overshoot
+(:mod:`firmware_sim.rate_response` gives the exact figures).
 """
 from __future__ import annotations
 
@@ -41,10 +48,17 @@ from collections import deque
 from dataclasses import dataclass
 
 __all__ = ["RateLoopConfig", "RateLoop", "LowPass2p", "allocate", "collective_thrust_n",
-           "thrust_for_force", "hover_thrust"]
+           "thrust_for_force", "hover_thrust", "ROLL_PITCH_UNIT", "YAW_UNIT"]
 
 I_FACTOR_RATE_RAD_S = math.radians(400.0)
 """PX4's integrator fade-out: the I gain falls to 0 at this rate error."""
+ROLL_PITCH_UNIT = 1.0 / math.sqrt(2.0)
+"""Thrust change of each rotor acting on roll (pitch), a fraction of ``f_max``, per unit of
+normalized roll (pitch) torque: PX4's allocator normalization (module docstring)."""
+YAW_UNIT = 1.0
+"""The same per unit of normalized yaw torque."""
+_R = ROLL_PITCH_UNIT
+_Y = 0.5 / YAW_UNIT
 
 
 @dataclass(frozen=True)
@@ -54,21 +68,21 @@ class RateLoopConfig:
     Field ``roll_p`` is PX4's ``MC_ROLLRATE_P`` and so on (:data:`firmware_sim.px4.PARAMS`).
     """
 
-    roll_p: float = 0.25
-    roll_i: float = 0.20
-    roll_d: float = 0.003
+    roll_p: float = 0.25 * _R
+    roll_i: float = 0.20 * _R
+    roll_d: float = 0.003 * _R
     roll_ff: float = 0.0
-    pitch_p: float = 0.25
-    pitch_i: float = 0.20
-    pitch_d: float = 0.003
+    pitch_p: float = 0.25 * _R
+    pitch_i: float = 0.20 * _R
+    pitch_d: float = 0.003 * _R
     pitch_ff: float = 0.0
-    yaw_p: float = 1.5
-    yaw_i: float = 0.20
+    yaw_p: float = 1.5 * _Y
+    yaw_i: float = 0.20 * _Y
     yaw_d: float = 0.0
     yaw_ff: float = 0.0
-    roll_int_lim: float = 0.30
-    pitch_int_lim: float = 0.30
-    yaw_int_lim: float = 0.30
+    roll_int_lim: float = 0.30 * _R
+    pitch_int_lim: float = 0.30 * _R
+    yaw_int_lim: float = 0.30 * _Y
     gyro_cutoff_hz: float = 150.0
     dgyro_cutoff_hz: float = 40.0
     thr_mdl_fac: float = 0.3
@@ -137,22 +151,24 @@ def allocate(t: float, u, e: float, max_rotor_thrust_n: float):
     torques ``u`` (roll, pitch, yaw), and the axes clipped: ``(forces, saturation)`` with
     ``saturation[i]`` = +1 / -1 when axis i lost torque in that direction, else 0.
 
-    Roll and pitch first (clipped only beyond +-1, where no collective gives them), then the
-    collective, moved as far as roll and pitch need (airmode), then yaw in the room left.
+    Roll and pitch first (each rotor moved by ``u ROLL_PITCH_UNIT f_max``, clipped only beyond
+    ``f_max / 2``, where no collective gives them), then the collective, moved as far as roll and
+    pitch need (airmode), then yaw (``u YAW_UNIT f_max`` a rotor) in the room left.
     """
     fmax = max_rotor_thrust_n
     half = 0.5 * fmax
     sat = [0, 0, 0]
     d = []
     for i in (0, 1):
-        x = max(-1.0, min(1.0, u[i]))
-        if x != u[i]:
-            sat[i] = 1 if u[i] > 0 else -1
-        d.append(x * half)
+        want = u[i] * ROLL_PITCH_UNIT * fmax
+        x = max(-half, min(half, want))
+        if x != want:
+            sat[i] = 1 if want > 0 else -1
+        d.append(x)
     dr, dp = d
     m = max(abs(dr), abs(dp))
     c = max(m, min(fmax - m, 0.25 * collective_thrust_n(t, e, fmax)))
-    want = u[2] * half
+    want = u[2] * YAW_UNIT * fmax
     up = min(fmax - c - abs(dr), c - abs(dp))        # room for +yaw: rotors 2, 4 up, 1, 3 down
     down = min(c - abs(dr), fmax - c - abs(dp))
     dy = max(-max(0.0, down), min(max(0.0, up), want))

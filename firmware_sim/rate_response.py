@@ -37,7 +37,7 @@ from .stabilizer import Stabilizer
 from .world import LinkParams, WorldPreset
 
 __all__ = ["StepResponse", "step_response", "true_thrust_n", "true_hover_thrust", "fit_first_order_delay",
-           "describe_rate_mode", "AXES"]
+           "describe_rate_mode", "step_figures", "AXES"]
 
 AXES = ("roll", "pitch", "yaw")
 _FIT_WINDOW_S = 0.15
@@ -156,7 +156,7 @@ def step_response(params, world: WorldPreset, cfg: RateLoopConfig | None = None,
     runs = [_phase_response(params, nominal, world, cfg, fmax, axis, step_rad_s, settle_s, duration_s, j)
             for j in range(params.substeps)]
     t = runs[0][0]
-    return _figures(axis, step_rad_s, t, np.mean([w for _, w in runs], axis=0))
+    return step_figures(axis, step_rad_s, t, np.mean([w for _, w in runs], axis=0))
 
 
 def _crossing(t, y, level: float) -> float:
@@ -184,7 +184,9 @@ def fit_first_order_delay(t, y, final: float) -> tuple[float, float]:
     return float(fit.x[0]), float(fit.x[1])
 
 
-def _figures(axis, step, t, w) -> StepResponse:
+def step_figures(axis, step, t, w) -> StepResponse:
+    """The figures of the response ``w`` (rad/s) at ``t`` (s after the step) to a step of ``step``
+    rad/s on ``axis``: what :func:`step_response` reports, for a measured response too."""
     y = w / step
     final = float(np.mean(y[int(0.75 * len(y)):]))
     tau, delay = fit_first_order_delay(t, y, final)

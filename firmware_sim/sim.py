@@ -56,6 +56,7 @@ class Simulation:
         self.recorder = recorder
         self.arm_length_m = v.arm_length_m
         self.k_m = v.drag_torque_ratio_m
+        self.angular_drag = params.angular_drag_n_m_s_per_rad
         self.com_offset_m = tuple(float(c) for c in params.com_offset_m)
         self.state = tuple(float(x) for x in (state if state is not None else GROUND_STATE))
         self.step_count = 0
@@ -112,6 +113,9 @@ class Simulation:
             t0 = (n0 + i - 1) / pdt
             applied = rotors.step(cmd_n, armed)
             T, tx, ty, tz = mix(applied, l, k, cx, cy)
+            if self.angular_drag:
+                tx, ty, tz = (tx - self.angular_drag * s[10], ty - self.angular_drag * s[11],
+                              tz - self.angular_drag * s[12])
             w, f = wind.at(t0)
             if ground.on_ground and T < 1e-9 and not wind.items:
                 pass       # resting, nothing acts that could lift it

@@ -16,7 +16,7 @@ from pymavlink.dialects.v20 import common as M
 
 from firmware_sim import modes
 from firmware_sim.cli import build_parser, main
-from firmware_sim.rate_loop import allocate, collective_thrust_n
+from firmware_sim.rate_loop import ROLL_PITCH_UNIT, YAW_UNIT, allocate, collective_thrust_n
 
 from fsim_helpers import REPO, Client, Emulator, Vehicle, answer_samples
 
@@ -155,15 +155,46 @@ def test_yaw_rate_step_and_its_sign():
         assert np.max(np.abs(m["others"][:, :2])) < 0.1
 
 
+def _pair_units(u) -> tuple:
+    """Torques in units of a rotor pair differing by f_max (so roll ``u`` is ``u l f_max``) as
+    PX4's normalized torques of the allocation (a unit moves each rotor by ROLL_PITCH_UNIT f_max,
+    yaw by YAW_UNIT f_max)."""
+    return (u[0] / (2 * ROLL_PITCH_UNIT), u[1] / (2 * ROLL_PITCH_UNIT), u[2] / (2 * YAW_UNIT))
+
+
+def test_the_torque_units_are_px4s_normalized_allocation():
+    """PX4's allocator: the pseudo-inverse of the effectiveness matrix, its roll and pitch
+    columns scaled to a norm squared of half their nonzero entries, yaw's to a largest entry of
+    1 (ControlAllocationPseudoInverse); computed here for the emulator's '+' frame and for SIH's
+    X frame, where every rotor moves by 1/sqrt 2 of f_max per unit roll."""
+    for frame in ("+", "x"):
+        xy = [(1, 0), (0, 1), (-1, 0), (0, -1)] if frame == "+" else [(1, 1), (-1, 1), (-1, -1), (1, -1)]
+        B = np.array([[-y for x, y in xy], [x for x, y in xy], [-1, 1, -1, 1], [1, 1, 1, 1]], float)
+        mix = np.linalg.pinv(B)
+        for j in (0, 1):
+            mix[:, j] /= np.sqrt(np.sum(mix[:, j] ** 2) / (np.count_nonzero(np.abs(mix[:, j]) > 1e-3) / 2))
+        mix[:, 2] /= mix[:, 2].max()
+        moved = np.abs(mix[:, :3])
+        for j in (0, 1):
+            assert np.allclose(moved[moved[:, j] > 1e-3, j], ROLL_PITCH_UNIT)
+        assert np.allclose(moved[:, 2], YAW_UNIT)
+    base, _ = allocate(T_HOVER, (0.0, 0.0, 0.0), E, FMAX_N)
+    f, _ = allocate(T_HOVER, (0.2, 0.0, 0.0), E, FMAX_N)
+    assert f[3] - base[3] == pytest.approx(0.2 * ROLL_PITCH_UNIT * FMAX_N)        # left rotor up
+    assert f[1] - base[1] == pytest.approx(-0.2 * ROLL_PITCH_UNIT * FMAX_N)
+    f, _ = allocate(T_HOVER, (0.0, 0.0, 0.05), E, FMAX_N)
+    assert f[1] - base[1] == pytest.approx(0.05 * YAW_UNIT * FMAX_N)
+
+
 def test_a_large_roll_command_at_high_collective_keeps_its_roll_torque():
     for t, u in ((0.95, (0.6, 0.0, 0.5)), (0.02, (-0.6, 0.3, -0.4)), (T_HOVER, (1.5, 0.0, 0.0))):
-        f, sat = allocate(t, u, E, FMAX_N)
+        f, sat = allocate(t, _pair_units(u), E, FMAX_N)
         roll = min(1.0, max(-1.0, u[0]))
         assert all(0.0 <= x <= FMAX_N for x in f)
         assert L_M * (f[3] - f[1]) == pytest.approx(roll * L_M * FMAX_N)            # roll kept
         assert L_M * (f[0] - f[2]) == pytest.approx(u[1] * L_M * FMAX_N)            # pitch kept
         assert sat[0] == (0 if abs(u[0]) <= 1 else 1)
-    f, sat = allocate(0.95, (0.6, 0.0, 0.5), E, FMAX_N)
+    f, sat = allocate(0.95, _pair_units((0.6, 0.0, 0.5)), E, FMAX_N)
     assert sum(f) < collective_thrust_n(0.95, E, FMAX_N) and sat[2] == 1          # collective and yaw gave way
     # negative control: clipping each rotor of the plain mix loses most of the roll torque
     c, d = collective_thrust_n(0.95, E, FMAX_N) / 4, 0.6 * FMAX_N / 2

@@ -114,6 +114,7 @@ class TruthRecorder:
     Rows: the wall clock at arrival (s; SIH sends ``time_usec`` 0, and the daemon's tlog stamps
     its frames with the same clock, which maps them onto PX4's boot time), latitude
     and longitude (deg), altitude (m), the quaternion (w, x, y, z), NED velocity (m/s).
+    :attr:`rates`: the wall clock at arrival and the true body rates (rad/s, FRD) of each.
     """
 
     def __init__(self, instance: int, system_id: int, rate_hz: float = TRUTH_RATE_HZ, feed: bool = False):
@@ -129,6 +130,7 @@ class TruthRecorder:
         self.rows: list[tuple] = []
         self.feed_offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
         """Added to the position fed to EKF2 (NED, m): a fault test's glitch."""
+        self.rates: list[tuple] = []
         self._stop = threading.Event()
         self._conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{self.port}", source_system=255,
                                                 source_component=191, dialect="common")
@@ -152,6 +154,7 @@ class TruthRecorder:
                 row = (time.time(), m.lat * 1e-7, m.lon * 1e-7, m.alt * 1e-3,
                        *m.attitude_quaternion, m.vx * 0.01, m.vy * 0.01, m.vz * 0.01)
                 self.rows.append(row)
+                self.rates.append((row[0], m.rollspeed, m.pitchspeed, m.yawspeed))
                 if self.home is None:
                     self.home = row[1:4]
                 if self.feed:
