@@ -23,7 +23,6 @@ frame), ArduCopter by :func:`~tests.helpers.ardupilot_flight.true_errors_from_tl
 from __future__ import annotations
 
 import json
-import shutil
 import struct
 import time
 from collections import deque
@@ -252,11 +251,7 @@ def fly_px4_baseline(plan, maneuver: Path, out: Path, vehicle: Path, controller:
                "the disarm after AUTO.LAND")
         fl.event("disarmed", "PX4 disarmed itself after AUTO.LAND", kind="schedule")
         tlog.close()
-        px4.stop()
-        px4.truth.save(out / "truth.npz", px4.origin)
-        for ulg in px4.ulogs():
-            shutil.copy(ulg, out / ulg.name)
-        px4.cleanup()
+        px4.finish(out)
     summary = fl.finish({"autopilot": "px4", "feedforward": feedforward, "params_set": set_params, "params_read": read,
                          "maneuver_window_s": schedule.maneuver_window_s})
     summary["truth"] = px4_truth(out, maneuver, vehicle, controller)

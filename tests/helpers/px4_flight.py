@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import json
 import math
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -55,16 +54,10 @@ def fly_on_px4(maneuver: Path, out: Path, vehicle: Path = VEHICLE, controller: P
     out.mkdir(parents=True, exist_ok=True)
     with Px4Sitl(params=params, instance=instance, position_source=position_source) as px4:
         port = px4.release_link()          # the daemon takes the port; PX4 keeps sending there
-        cmd = [sys.executable, "-m", "mavreg.cli.main", "fly", str(maneuver), "--vehicle", f"udpin:127.0.0.1:{port}",
-               "--output", "rates", "--vehicle-params", str(vehicle), "--controller", str(controller),
-               "--control-rate-hz", f"{control_rate_hz:g}", "--out", str(out), "--timeout-s", f"{timeout_s:g}",
-               *extra_args]
+        cmd = _fly_cmd(port, maneuver, out, vehicle, controller, "--control-rate-hz", f"{control_rate_hz:g}",
+                       "--timeout-s", f"{timeout_s:g}", *extra_args)
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s + 60)
-        px4.stop()
-        px4.truth.save(out / "truth.npz", px4.origin)
-        for ulg in px4.ulogs():             # PX4's own log of the flight
-            shutil.copy(ulg, out / ulg.name)
-        px4.cleanup()
+        px4.finish(out)
     (out / "fly.log").write_text(proc.stdout + proc.stderr)
     summary = json.loads((out / "summary.json").read_text())
     summary["exit_code"] = proc.returncode
@@ -156,16 +149,20 @@ def truth_touchdowns(out: Path) -> list[tuple[float, float]]:
     return touchdowns(t, truth["velocity_ned_m_s"], on_ground)
 
 
+def _fly_cmd(port: int, maneuver: Path, out: Path, vehicle: Path, controller: Path, *extra: str) -> list[str]:
+    """``mavreg fly`` through body rates on PX4's offboard link (``udpin:`` on ``port``)."""
+    return [sys.executable, "-m", "mavreg.cli.main", "fly", str(maneuver), "--vehicle", f"udpin:127.0.0.1:{port}",
+            "--output", "rates", "--vehicle-params", str(vehicle), "--controller", str(controller),
+            "--out", str(out), *extra]
+
+
 def _fly_into_the_maneuver(px4: Px4Sitl, maneuver: Path, out: Path, vehicle: Path, controller: Path,
                            after_s: float, wait_s: float = 120.0):
     """Start ``mavreg fly`` on ``px4``'s offboard link (its output into ``out/fly.log``) and
     return it ``after_s`` (wall clock) after the daemon said the maneuver began; None where it
     ended or did not get there within ``wait_s``."""
     import time
-    port = px4.release_link()
-    cmd = [sys.executable, "-m", "mavreg.cli.main", "fly", str(maneuver), "--vehicle", f"udpin:127.0.0.1:{port}",
-           "--output", "rates", "--vehicle-params", str(vehicle), "--controller", str(controller),
-           "--control-rate-hz", "200", "--out", str(out / "flight")]
+    cmd = _fly_cmd(px4.release_link(), maneuver, out / "flight", vehicle, controller, "--control-rate-hz", "200")
     log = out / "fly.log"
     with open(log, "w") as f:
         proc = subprocess.Popen(cmd, stdout=f, stderr=subprocess.STDOUT, text=True)
@@ -191,8 +188,6 @@ def kill_mid_maneuver(maneuver: Path, out: Path, after_s: float = 2.0, params: d
     import signal
     import time
 
-    from mavreg.daemon.autopilots import PX4
-
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     result = {"modes": [], "disarmed": False, "killed_at_wall_s": None}
@@ -203,23 +198,62 @@ def kill_mid_maneuver(maneuver: Path, out: Path, after_s: float = 2.0, params: d
             result["killed_at_wall_s"] = time.time()
         proc.wait(timeout=10)
         px4.take_link()
-        end = time.monotonic() + wait_s
-        while time.monotonic() < end:
-            m = px4.recv(0.5)
-            if m is None or m.get_type() != "HEARTBEAT" or m.get_srcComponent() != 1:
-                continue
-            info = PX4.decode(m)
-            if not result["modes"] or result["modes"][-1] != info.mode:
-                result["modes"].append(info.mode)
-            if not info.armed:
-                result["disarmed"] = True
-                break
-        px4.stop()
-        px4.truth.save(out / "truth.npz", px4.origin)
-        px4.cleanup()
+        result["modes"], result["disarmed"] = _watch_modes(px4, wait_s)
+        px4.finish(out)
     result["touchdowns"] = truth_touchdowns(out)
     (out / "kill.json").write_text(json.dumps(result, indent=1))
     return result
+
+
+def _watch_modes(px4: Px4Sitl, wait_s: float) -> tuple[list[str], bool]:
+    """PX4's modes as its HEARTBEAT changes them, for ``wait_s`` (wall clock) or until it
+    disarms; (modes, disarmed)."""
+    import time
+
+    from mavreg.daemon.autopilots import PX4
+    modes, end = [], time.monotonic() + wait_s
+    while time.monotonic() < end:
+        m = px4.recv(0.5)
+        if m is None or m.get_type() != "HEARTBEAT" or m.get_srcComponent() != 1:
+            continue
+        info = PX4.decode(m)
+        if not modes or modes[-1] != info.mode:
+            modes.append(info.mode)
+        if not info.armed:
+            return modes, True
+    return modes, False
+
+
+def kill_and_restart(maneuver: Path, out: Path, after_s: float = 2.0, restart_after_s: float = 5.0,
+                     airborne: str = "land", params: dict | None = None, vehicle: Path = VEHICLE,
+                     controller: Path = CONTROLLER, timeout_s: float = 180.0) -> dict:
+    """Fly ``maneuver`` on a fresh PX4 on motion capture, SIGKILL the daemon ``after_s`` into the
+    maneuver, watch PX4's failsafe for ``restart_after_s``, then start ``mavreg fly`` again
+    (``--airborne``) and let it end the flight. Returns the second flight's summary with
+    ``modes_before_restart``, ``disarmed_before_restart``, ``exit_code`` and the truth's
+    ``touchdowns``."""
+    import os
+    import signal
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    with Px4Sitl(params=params, position_source="mocap") as px4:
+        proc, flying = _fly_into_the_maneuver(px4, maneuver, out, vehicle, controller, after_s)
+        if flying:
+            os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=10)
+        px4.take_link()
+        modes, disarmed = _watch_modes(px4, restart_after_s)
+        cmd = _fly_cmd(px4.release_link(), maneuver, out / "again", vehicle, controller, "--control-rate-hz", "200",
+                       "--airborne", airborne, "--timeout-s", f"{timeout_s:g}")
+        again = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s + 60)
+        (out / "again.log").write_text(again.stdout + again.stderr)
+        px4.finish(out)
+    path = out / "again" / "summary.json"
+    summary = json.loads(path.read_text()) if path.exists() else {}
+    summary.update(modes_before_restart=modes, disarmed_before_restart=disarmed, killed=flying,
+                   exit_code=again.returncode, touchdowns=truth_touchdowns(out))
+    (out / "restart.json").write_text(json.dumps(summary, indent=1, default=str))
+    return summary
 
 
 def glitch_mid_maneuver(maneuver: Path, out: Path, offset_m=(0.8, 0.0, 0.0), after_s: float = 2.0,
@@ -248,11 +282,7 @@ def glitch_mid_maneuver(maneuver: Path, out: Path, offset_m=(0.8, 0.0, 0.0), aft
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
-        px4.stop()
-        px4.truth.save(out / "truth.npz", px4.origin)
-        for ulg in px4.ulogs():
-            shutil.copy(ulg, out / ulg.name)
-        px4.cleanup()
+        px4.finish(out)
     summary_path = out / "flight" / "summary.json"
     summary = json.loads(summary_path.read_text()) if summary_path.exists() else {}
     summary.update(exit_code=proc.returncode, glitch_at_wall_s=glitch_at, touchdowns=truth_touchdowns(out))

@@ -308,6 +308,16 @@ class Px4Sitl(SitlLink):
             self.workdir.cleanup()
             self.workdir = None
 
+    def finish(self, out: Path) -> None:
+        """End the run into ``out``: stop PX4, write its truth (``truth.npz``), keep PX4's own
+        ``.ulg`` logs beside it, remove the working directory."""
+        import shutil
+        self.stop()
+        self.truth.save(Path(out) / "truth.npz", self.origin)
+        for ulg in self.ulogs():
+            shutil.copy(ulg, Path(out) / ulg.name)
+        self.cleanup()
+
     def ulogs(self) -> list[Path]:
         """PX4's own flight logs of this run (``.ulg``)."""
         if self.workdir is None:

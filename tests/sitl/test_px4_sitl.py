@@ -13,7 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from tests.helpers.px4_flight import fly_on_px4, glitch_mid_maneuver, kill_mid_maneuver, truth_touchdowns, ulog_texts
+from tests.helpers.px4_flight import (fly_on_px4, glitch_mid_maneuver, kill_and_restart, kill_mid_maneuver,
+                                     truth_touchdowns, ulog_texts)
 from tests.helpers.px4_sitl import require_px4
 
 HOP = Path(__file__).with_name("px4_hop.yaml")
@@ -82,3 +83,22 @@ def test_a_position_source_that_jumps_mid_maneuver_ends_safely_not_in_a_crash(tm
     phases = [e["phase"] for e in r["events"] if e["kind"] == "phase"]
     assert phases[-1] == "disarmed", phases
     _no_motor_stop_and_soft_touchdowns(tmp_path / "glitch")
+
+
+@pytest.mark.slow
+def test_a_restarted_mavreg_takes_px4_back_in_the_air_and_lands_it(tmp_path):
+    """SIGKILL the daemon 2 s into the maneuver with PX4's offboard-loss action Hold
+    (``COM_OBL_RC_ACT`` 5; the default, 0, is Position mode, which with no RC at all descends
+    and lands), start ``mavreg fly`` again 5 s later: it
+    finds PX4 armed in the air (its landed state), streams the recovery's set-points, gets
+    OFFBOARD back, holds and lands; never an ARM, no disarm in the air (the truth: one
+    touchdown, soft), PX4 disarmed at the end."""
+    require_px4()
+    r = kill_and_restart(HOP, tmp_path / "restart", after_s=2.0, restart_after_s=5.0, params={"COM_OBL_RC_ACT": 5})
+    assert r["killed"], "the daemon ended before it was killed"
+    assert not r["disarmed_before_restart"], r["modes_before_restart"]
+    phases = [e["phase"] for e in r["events"] if e["kind"] == "phase"]
+    assert phases == ["takeover", "recover", "land", "disarmed"], phases
+    assert not any(e["kind"] == "motors_stopped" for e in r["events"])
+    downs = _no_motor_stop_and_soft_touchdowns(tmp_path / "restart")
+    assert len(downs) == 1, downs                # one flight: never put down and taken off again
