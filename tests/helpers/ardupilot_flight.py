@@ -23,7 +23,7 @@ import numpy as np
 from .ardupilot_mocap import HOME, ned_m
 from .ardupilot_sitl import M, ArduPilotSitl
 
-__all__ = ["fly_on_ardupilot", "true_errors_from_tlog", "PILOT_PARAMS", "VEHICLE", "CONTROLLER", "CONTROLLERS"]
+__all__ = ["fly_on_ardupilot", "kill_and_restart_on_ardupilot", "true_errors_from_tlog", "PILOT_PARAMS", "VEHICLE", "CONTROLLER", "CONTROLLERS"]
 
 REPO = Path(__file__).resolve().parents[2]
 VEHICLE = REPO / "mavreg" / "params" / "vehicles" / "ardupilot_freestyle.yaml"
@@ -55,10 +55,8 @@ def fly_on_ardupilot(maneuver: Path, out: Path, control_rate_hz: float = 200.0, 
         port = sitl.port
         sitl.conn.close()                 # the daemon takes the port; the SITL keeps sending there
         sitl.conn = None
-        cmd = [sys.executable, "-m", "mavreg.cli.main", "fly", str(maneuver), "--vehicle", f"udpin:127.0.0.1:{port}",
-               "--vehicle-params", str(VEHICLE), "--controller", str(controller),
-               "--control-rate-hz", f"{control_rate_hz:g}", "--out", str(out),
-               "--timeout-s", f"{timeout_s:g}", *extra_args]
+        cmd = _fly_cmd(port, maneuver, out, controller, "--control-rate-hz", f"{control_rate_hz:g}",
+                       "--timeout-s", f"{timeout_s:g}", *extra_args)
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s + 60)
     out.mkdir(parents=True, exist_ok=True)
     (out / "fly.log").write_text(proc.stdout + proc.stderr)
@@ -68,6 +66,73 @@ def fly_on_ardupilot(maneuver: Path, out: Path, control_rate_hz: float = 200.0, 
     summary["exit_code"] = proc.returncode
     summary["ardupilot_truth"] = true_errors_from_tlog(out, maneuver, origin, controller)
     return summary
+
+
+def _fly_cmd(port: int, maneuver: Path, out: Path, controller: Path, *extra: str) -> list[str]:
+    """``mavreg fly`` on the SITL's link (``udpin:`` on ``port``) with the freestyle vehicle file."""
+    return [sys.executable, "-m", "mavreg.cli.main", "fly", str(maneuver), "--vehicle", f"udpin:127.0.0.1:{port}",
+            "--vehicle-params", str(VEHICLE), "--controller", str(controller), "--out", str(out), *extra]
+
+
+def kill_and_restart_on_ardupilot(maneuver: Path, out: Path, after_s: float = 2.0, restart_after_s: float = 3.0,
+                                  airborne: str = "land", timeout_s: float = 180.0) -> dict:
+    """Fly ``maneuver`` on a fresh SITL (GPS), SIGKILL the daemon ``after_s`` (wall clock) into the
+    maneuver, leave ArduCopter alone for ``restart_after_s`` (its GUIDED timeout holds it level,
+    its climb rate at zero), then start ``mavreg fly --airborne`` again on the same link and let
+    it end the flight. Returns the second flight's summary with ``killed``, ``exit_code`` and the
+    truth's touchdowns (``SIM_STATE`` in both daemons' tlogs: (wall s, down speed m/s))."""
+    import os
+    import signal
+    import time
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    with ArduPilotSitl(frame="freestyle", params=dict(PILOT_PARAMS)) as sitl:
+        sitl.set_rate(M.MAVLINK_MSG_ID_SIM_STATE, 50.0)
+        port = sitl.port
+        sitl.conn.close()
+        sitl.conn = None
+        log = out / "fly.log"
+        with open(log, "w") as f:
+            first = subprocess.Popen(_fly_cmd(port, maneuver, out / "flight", CONTROLLER), stdout=f,
+                                     stderr=subprocess.STDOUT, text=True)
+        end = time.monotonic() + 240.0
+        while "[maneuver] phase" not in log.read_text() and first.poll() is None and time.monotonic() < end:
+            time.sleep(0.05)
+        time.sleep(after_s)                  # the scenario's timing: the kill's moment
+        killed = first.poll() is None
+        if killed:
+            os.kill(first.pid, signal.SIGKILL)
+        first.wait(timeout=10)
+        time.sleep(restart_after_s)          # the vehicle alone, its failsafe in charge
+        again = subprocess.run(_fly_cmd(port, maneuver, out / "again", CONTROLLER, "--airborne", airborne,
+                                        "--timeout-s", f"{timeout_s:g}"),
+                               capture_output=True, text=True, timeout=timeout_s + 60)
+    (out / "again.log").write_text(again.stdout + again.stderr)
+    path = out / "again" / "summary.json"
+    summary = json.loads(path.read_text()) if path.exists() else {}
+    downs = _sim_touchdowns([out / "flight" / "flight.tlog", out / "again" / "flight.tlog"])
+    summary.update(killed=killed, exit_code=again.returncode, touchdowns=downs)
+    (out / "restart.json").write_text(json.dumps(summary, indent=1, default=str))
+    return summary
+
+
+def _sim_touchdowns(tlogs: list[Path]) -> list[tuple[float, float]]:
+    """(tlog time s, speed m/s) of each ground contact after a lift-off in the SITL's truth
+    (``SIM_STATE`` in the daemons' tlogs, in order): the ground is the first one's first
+    altitude (within 5 cm)."""
+    from pymavlink import mavutil
+
+    from mavreg.experiments.robustness_metrics import touchdowns
+    rows = []
+    for tlog in tlogs:
+        log = mavutil.mavlink_connection(str(tlog)) if Path(tlog).exists() else None
+        while log is not None and (m := log.recv_match(type="SIM_STATE")) is not None:
+            rows.append((m._timestamp, m.alt, m.vn, m.ve, m.vd))
+    if not rows:
+        return []
+    a = np.array(rows, dtype=float)
+    on_ground = a[:, 1] <= a[0, 1] + 0.05
+    return touchdowns(a[:, 0], a[:, 2:5], on_ground)
 
 
 def _ned(lat_deg, lon_deg, alt_m, origin) -> np.ndarray:
