@@ -170,8 +170,7 @@ def add_vehicle_identity_arguments(p: argparse.ArgumentParser) -> None:
 
 def add_airborne_argument(p: argparse.ArgumentParser) -> None:
     """``--airborne land|fly`` (fly, serve): a vehicle found armed in the air (docs/safety.md)."""
-    from ..daemon.phases import AIRBORNE_CHOICES
-    p.add_argument("--airborne", choices=AIRBORNE_CHOICES, default="land",
+    p.add_argument("--airborne", choices=("land", "fly"), default="land",   # phases.AIRBORNE_CHOICES (light import)
                    help="a vehicle found armed in the air (a daemon restarted mid-flight): it is taken "
                    "over where it is (set-points matching it stream before OFFBOARD is asked for; it is "
                    "never armed, disarmed or taken off), held, then 'land' (the queued maneuver is "

@@ -109,3 +109,16 @@ def test_a_vehicle_that_disarms_during_the_takeover_is_on_the_ground_again():
             return msgs
         events, _, _ = run(sup, veh, 3.0, on_step=disarm_at_2_5s)
         assert _phases(events)[:2] == [Phase.TAKEOVER, then], (airborne, _phases(events))
+
+
+def test_the_cli_offers_what_the_supervisor_takes():
+    import argparse
+
+    from mavreg.cli.common import add_airborne_argument
+    from mavreg.daemon.phases import AIRBORNE_CHOICES, SupervisorParams
+    p = argparse.ArgumentParser()
+    add_airborne_argument(p)
+    assert tuple(next(a for a in p._actions if a.dest == "airborne").choices) == AIRBORNE_CHOICES
+    import pytest
+    with pytest.raises(ValueError, match="airborne"):
+        SupervisorParams(airborne="hover")
