@@ -13,7 +13,7 @@ from .argtypes import (add_deprecated_alias, checked, input_file, nonneg_float, 
 from .autopilot import AUTOPILOTS, Autopilot, AutopilotConfig
 from .clock import StopRun, run_lockstep, run_realtime
 from .engine import Engine
-from .link import Link, parse_listen_url, parse_remote_url
+from .link import LISTEN_FORMS, open_link, parse_listen_url, parse_remote_url
 from .signing import Signing
 from .mismatch import BOUNDS, airframe_arrays, apply_mismatch, describe_airframe, draw_mismatch
 from mavreg.config.vehicle import EmulatorParams, load_vehicle
@@ -85,8 +85,10 @@ def build_parser() -> argparse.ArgumentParser:
                 formatter_class=argparse.RawDescriptionHelpFormatter)
     a = p.add_argument
     a("--listen", default="udpin:127.0.0.1:14540", metavar="URL", type=checked(parse_listen_url, "URL"),
-      help="UDP address to listen on, udpin:HOST:PORT; port 0 picks a free port "
-           "(default %(default)s)")
+      help=f"where to listen: {LISTEN_FORMS}. udpin: port 0 picks a free port; pty: a new "
+           "pseudo-terminal, announced as serial:/dev/pts/N (a flight controller's TELEM port); "
+           "serial: an existing device (baud 921600 if left out); tcpin: one TCP client at a time, "
+           "port 0 a free one (default %(default)s)")
     # Old spellings (--vehicle, --rate-hz, --lockstep-timeout, --offboard-loss-timeout, --preset)
     # are hidden aliases for one release; the dest names are kept (docs/cli.md).
     add_deprecated_alias(p, "--vehicle", a(
@@ -269,7 +271,7 @@ def _assemble(args, world, vehicle_path, vehicle, nominal, params, start, items)
     try:     # a bad --signing-key or --*-faults, a --listen that cannot be bound
         signing = Signing(args.signing_key, "firmware-sim") if args.signing_key is not None else None
         faults = link_faults_from_args(args.link_faults, args.uplink_faults, args.downlink_faults, args.seed)
-        link = Link(args.listen, args.system_id, cfg.component_id,
+        link = open_link(args.listen, args.system_id, cfg.component_id,
                     peer_system_ids=(args.system_id, *args.peer_system_ids), signing=signing,
                     remote=parse_remote_url(args.remote) if args.remote is not None else None)
     except ValueError as exc:
