@@ -136,9 +136,4 @@ def _valid(buf: bytearray, i: int, size: int) -> bool:
     extra = _CRC_EXTRA.get(mid)
     if extra is None:
         return False
-    view = memoryview(buf)
-    try:
-        crc = _crc(extra, _crc(view[i + 1:end]))
-    finally:
-        view.release()
-    return crc == buf[end] | (buf[end + 1] << 8)
+    return _crc(extra, _crc(buf[i + 1:end])) == buf[end] | (buf[end + 1] << 8)
