@@ -77,13 +77,14 @@ def link_budget(telemetry_rate_hz: float, output: str = "rotors", signed: bool =
 
 
 def _highest_rate_hz(baud_bps: int, output: str, signed: bool) -> float:
-    """The highest telemetry rate whose budget fits ``baud_bps`` (the budget is affine in it)."""
-    b0, b1 = link_budget(1.0, output, signed), link_budget(2.0, output, signed)
+    """The highest telemetry rate whose budget fits ``baud_bps`` (the budget is affine in the
+    rate above the 5 Hz of EXTENDED_SYS_STATE: fitted on 10 and 20 Hz)."""
+    b10, b20 = link_budget(10.0, output, signed), link_budget(20.0, output, signed)
     room = baud_bps * LINE_SHARE / UART_BITS_PER_BYTE
     best = math.inf
-    for lo, hi in ((b0.down_bytes_per_s, b1.down_bytes_per_s), (b0.up_bytes_per_s, b1.up_bytes_per_s)):
-        slope = hi - lo
-        best = min(best, (room - (lo - slope)) / slope)
+    for lo, hi in zip(b10, b20):
+        per_hz = (hi - lo) / 10.0
+        best = min(best, (room - (lo - 10.0 * per_hz)) / per_hz)
     return max(best, 0.0)
 
 
