@@ -15,7 +15,7 @@ from .clock import StopRun, run_lockstep, run_realtime
 from .engine import Engine
 from .link import LISTEN_FORMS, open_link, parse_listen_url, parse_remote_url
 from .signing import Signing
-from .mismatch import BOUNDS, airframe_arrays, apply_mismatch, describe_airframe, draw_mismatch
+from .mismatch import airframe_arrays, airframe_meta, apply_mismatch, describe_airframe, draw_mismatch
 from mavreg.config.vehicle import EmulatorParams, load_vehicle
 
 from .params import START_KEYS, build_sim_params, default_vehicle_path, parse_start
@@ -178,6 +178,9 @@ def _add_world_args(p: argparse.ArgumentParser) -> None:
                        help=f"link faults of {what} after the preset's link, in simulation time: "
                        "KEY=VALUE[,...], e.g. loss=0.1,jitter_ms=5,outage=15:0.5 (repeatable; "
                        "docs/reliability.md)")
+    w.add_argument("--serial-byte-loss", type=probability, default=0.0, metavar="P",
+                   help="a pty, serial or tcpin --listen: each byte lost with probability P, each way "
+                   "(seeded by --seed; a UART line that drops bytes)")
     add_deprecated_alias(w, "--preset", w.add_argument(
         "--world", dest="preset", choices=PRESET_NAMES, default="realistic",
         help="named world (default %(default)s; values below)"))
@@ -255,7 +258,7 @@ def _assemble(args, world, vehicle_path, vehicle, nominal, params, start, items)
                              rate_hz=args.rate_hz, physics_hz=args.physics_hz,
                              lockstep=args.lockstep, start=args.start, wind=args.wind,
                              command_scale_n=command_scale_n,
-                             world=dataclasses.asdict(world), airframe=_airframe_meta(params))
+                             world=dataclasses.asdict(world), airframe=airframe_meta(params))
         recorder.arrays.update(airframe_arrays(params))
     sim = Simulation(params, start, wind, recorder)
     n = nominal.vehicle        # the autopilot is tuned on the file, as the offboard controller
@@ -273,7 +276,8 @@ def _assemble(args, world, vehicle_path, vehicle, nominal, params, start, items)
         faults = link_faults_from_args(args.link_faults, args.uplink_faults, args.downlink_faults, args.seed)
         link = open_link(args.listen, args.system_id, cfg.component_id,
                     peer_system_ids=(args.system_id, *args.peer_system_ids), signing=signing,
-                    remote=parse_remote_url(args.remote) if args.remote is not None else None)
+                    remote=parse_remote_url(args.remote) if args.remote is not None else None,
+                    byte_loss=args.serial_byte_loss, seed=args.seed)
     except ValueError as exc:
         raise BadInput(str(exc)) from None
     engine = Engine(sim, ap, link, world, faults)
@@ -307,14 +311,6 @@ def _sim_params(args, vehicle):
         ("rotor_time_constant_s", args.rotor_time_constant_s is not None)) if given]
     draw = draw_mismatch(seed, 1.0 if scale is None else scale)
     return nominal, apply_mismatch(nominal, draw, kept)
-
-
-def _airframe_meta(params) -> dict:
-    """The recording's ``meta_json.airframe``: the true values, the draw, the bounds."""
-    true = {k[len("airframe_"):]: v.tolist() for k, v in airframe_arrays(params).items()}
-    draw = dataclasses.asdict(params.mismatch) if params.mismatch is not None else None
-    return {"true": true, "mismatch": draw, "kept": list(params.mismatch_kept),
-            "bounds": dataclasses.asdict(BOUNDS) if draw is not None else None}
 
 
 def _print_rate_response(args) -> int:

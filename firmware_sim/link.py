@@ -97,6 +97,9 @@ def open_link(url: str, system_id: int, component_id: int, **kwargs):
     if is_stream_url(url):
         from .stream_link import StreamLink
         return StreamLink(url, system_id, component_id, **kwargs)
+    if kwargs.pop("byte_loss", 0.0):
+        raise ValueError(f"--serial-byte-loss applies to a pty, serial or tcpin --listen, not to {url!r}")
+    kwargs.pop("seed", None)
     return Link(url, system_id, component_id, **kwargs)
 
 

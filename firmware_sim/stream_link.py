@@ -22,6 +22,7 @@ import time
 
 from pymavlink.dialects.v20 import common as mavlink2
 
+from mavreg.tools.faultlink.model import ByteLoss
 from mavreg.transport.framing import StreamFramer
 from mavreg.transport.tty import ByteStream, open_pty, open_serial, tcp_socket
 from mavreg.transport.urls import parse_stream_url
@@ -43,10 +44,11 @@ def parse_stream_listen_url(url: str):
 class StreamLink:
     """A byte-stream link speaking MAVLink 2 (see the module docstring); the parameters are
     :class:`firmware_sim.link.Link`'s (``io`` and ``remote`` do not apply: a stream is sent to
-    from the start)."""
+    from the start), and ``byte_loss``: each byte lost with that probability each way, from
+    ``seed`` (:class:`mavreg.tools.faultlink.ByteLoss`; ``--serial-byte-loss``)."""
 
     def __init__(self, url: str, system_id: int, component_id: int, io: str | None = None,
-                 peer_system_ids=None, signing=None, remote=None):
+                 peer_system_ids=None, signing=None, remote=None, byte_loss: float = 0.0, seed: int = 0):
         kind, where, number = parse_stream_listen_url(url)
         if remote is not None:
             raise ValueError(f"--remote applies to a udpin: --listen, not to {url!r} (a stream is sent to from "
@@ -83,6 +85,9 @@ class StreamLink:
         self.peers: list = self.filter.addresses
         self.bytes_in = 0
         self.send_errors = 0
+        self.line = ({"up": ByteLoss(byte_loss, seed, "up"), "down": ByteLoss(byte_loss, seed, "down")}
+                     if byte_loss > 0 else None)
+        """The line's byte loss each way (None: a clean line)."""
 
     # ------------------------------------------------------------------ TCP server
     def _accept(self) -> None:
@@ -123,6 +128,8 @@ class StreamLink:
         if not data:
             return None
         self.bytes_in += len(data)
+        if self.line is not None:
+            data = self.line["up"].apply(data)
         bad0 = self.framer.counters.bad_frames
         frames = self.framer.feed(data)
         msgs = self.wire.parse(frames) if frames else []
@@ -138,7 +145,10 @@ class StreamLink:
         frames = [pack(m) for m in msgs]
         if self.signing is not None:
             frames = [self.signing.sign(f) for f in frames]
-        if not self.stream.write(b"".join(frames)):
+        data = b"".join(frames)
+        if self.line is not None:
+            data = self.line["down"].apply(data)
+        if not self.stream.write(data):
             self.send_errors += 1
 
     def wait_readable(self, timeout_s: float) -> bool:

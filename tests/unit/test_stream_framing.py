@@ -137,3 +137,20 @@ def test_a_baud_too_slow_for_200_hz_is_refused_in_one_line_naming_the_baud_neede
     assert baud_refusal(230400, 200.0) is not None and baud_refusal(460800, 200.0) is None
     assert baud_refusal(921600, 500.0) is None and baud_refusal(921600, 1000.0) is not None
     assert baud_refusal(460800, 200.0, signed=True) is None
+
+
+def test_a_line_that_loses_bytes_is_seeded_and_loses_the_share_asked_for():
+    from mavreg.tools.faultlink import ByteLoss
+    data, _ = _stream(400)
+    a, b = ByteLoss(1e-3, seed=3), ByteLoss(1e-3, seed=3)
+    pieces = [data[i:i + 97] for i in range(0, len(data), 97)]
+    out_a = b"".join(a.apply(p) for p in pieces)
+    assert out_a == b.apply(data)                      # the same bytes lost however the reads cut
+    assert len(data) - len(out_a) == a.lost and a.bytes == len(data)
+    assert 0.5e-3 < a.lost / len(data) < 2e-3
+    framer = StreamFramer()
+    framer.feed(out_a)
+    assert 0 < framer.counters.bad_frames <= a.lost        # each lost byte costs at most its frame
+    assert ByteLoss(0.0).apply(data) == data
+    with pytest.raises(ValueError, match="byte loss"):
+        ByteLoss(1.0)

@@ -181,7 +181,9 @@ def test_bad_devices_and_urls_are_one_line_and_exit_2_before_anything_starts(tmp
                  "no device /dev/nonexistent-tty"),
                 (["mavreg.cli.main", "serve", "--vehicle", "serial:dev/ttyACM0"], "absolute device path"),
                 (["firmware_sim", "--listen", "serial:/dev/nonexistent-tty", "--quiet"], "No such file"),
-                (["firmware_sim", "--listen", "tcpout:1:2"], "udpin:HOST:PORT, pty, serial:PATH[:BAUD] or tcpin")):
+                (["firmware_sim", "--listen", "tcpout:1:2"], "udpin:HOST:PORT, pty, serial:PATH[:BAUD] or tcpin"),
+                (["firmware_sim", "--serial-byte-loss", "0.1", "--listen", "udpin:127.0.0.1:0"],
+                 "--serial-byte-loss applies to a pty, serial or tcpin --listen")):
             p = subprocess.run([sys.executable, "-m", *args], capture_output=True, text=True, timeout=120,
                                cwd=REPO, env=env)
             lines = p.stderr.strip().splitlines()
