@@ -38,7 +38,8 @@ class BadInput(ValueError):
     Any other exception while building or running is a bug (a traceback, exit 1)."""
 
 DESCRIPTION = """\
-A software-in-the-loop quadrotor that speaks MAVLink 2 over UDP: quaternion rigid body
+A software-in-the-loop quadrotor that speaks MAVLink 2 over UDP, a pseudo-terminal, a serial
+port or TCP (--listen): quaternion rigid body
 with the full inertia matrix (RK4), rotor lag, noise, saturation, drag, wind, ground
 contact, and a small autopilot (arming, HOLD/LAND/OFFBOARD modes, offboard-loss
 failsafe). SET_ACTUATOR_CONTROL_TARGET group 0 is a pass-through mixer: controls[0..3]
@@ -51,7 +52,8 @@ sent over a link with delay, jitter and loss, and commands arrive late (all in s
 seeded by --seed, deterministic in lockstep). --world ideal sends the exact true state
 with no delay and no loss. Motor lag and rotor noise come from the vehicle YAML in both.
 
-The first stdout line is 'firmware_sim listening on udpin:HOST:PORT'; the second one
+The first stdout line is 'firmware_sim listening on URL' (udpin:HOST:PORT with the real port,
+serial:/dev/pts/N for --listen pty, tcpin:HOST:PORT); the second one
 ('firmware_sim world: ...') names the world, its values and any overrides; with
 --mismatch-seed a third one ('firmware_sim airframe: key=value ...') gives the true
 airframe drawn around the vehicle file.
