@@ -12,6 +12,8 @@ environment for its children):
 
 - ``codec``: :mod:`benchmarks.codec` (pymavlink pack and parse of the hot messages, its fast
   CRC path; a warning if it is not in use);
+- ``serial``: :mod:`benchmarks.serial_io` (``serial_us.*``: a period's telemetry read off a tty
+  and a command written, against pyserial and pymavlink's serial connection);
 - ``plan``: :mod:`benchmarks.plan_bench` (``plan_s.*``);
 - ``step``: :mod:`benchmarks.step_bench` (``step_us.*``);
 - ``controller``: :mod:`benchmarks.controller_bench` (``controller_us.*``: the daemon's
@@ -39,7 +41,7 @@ from pathlib import Path
 
 from benchmarks.report import format_notes, format_table, format_targets
 
-SECTIONS = ("codec", "plan", "step", "controller", "monte_carlo", "sitl", "daemon_rt")
+SECTIONS = ("codec", "serial", "plan", "step", "controller", "monte_carlo", "sitl", "daemon_rt")
 
 
 def _section(name: str):
@@ -47,6 +49,9 @@ def _section(name: str):
     if name == "codec":
         from benchmarks.codec import run_codec
         return run_codec
+    if name == "serial":
+        from benchmarks.serial_io import run_serial
+        return run_serial
     if name == "plan":
         from benchmarks.plan_bench import run_plan
         return run_plan

@@ -1,4 +1,4 @@
-"""firmware_sim: a software-in-the-loop quadrotor that speaks MAVLink 2 over UDP.
+"""firmware_sim: a software-in-the-loop quadrotor that speaks MAVLink 2 over UDP, a pty, a serial port or TCP.
 
 Its own physics (quaternion rigid body with the full inertia matrix, RK4, rotor lag,
 noise, drag, wind, ground contact), a small sans-I/O autopilot (arming, modes,

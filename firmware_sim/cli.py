@@ -13,9 +13,9 @@ from .argtypes import (add_deprecated_alias, checked, input_file, nonneg_float, 
 from .autopilot import AUTOPILOTS, Autopilot, AutopilotConfig
 from .clock import StopRun, run_lockstep, run_realtime
 from .engine import Engine
-from .link import Link, parse_listen_url, parse_remote_url
+from .link import LISTEN_FORMS, open_link, parse_listen_url, parse_remote_url
 from .signing import Signing
-from .mismatch import BOUNDS, airframe_arrays, apply_mismatch, describe_airframe, draw_mismatch
+from .mismatch import airframe_arrays, airframe_meta, apply_mismatch, describe_airframe, draw_mismatch
 from mavreg.config.vehicle import EmulatorParams, load_vehicle
 
 from .params import START_KEYS, build_sim_params, default_vehicle_path, parse_start
@@ -38,7 +38,8 @@ class BadInput(ValueError):
     Any other exception while building or running is a bug (a traceback, exit 1)."""
 
 DESCRIPTION = """\
-A software-in-the-loop quadrotor that speaks MAVLink 2 over UDP: quaternion rigid body
+A software-in-the-loop quadrotor that speaks MAVLink 2 over UDP, a pseudo-terminal, a serial
+port or TCP (--listen): quaternion rigid body
 with the full inertia matrix (RK4), rotor lag, noise, saturation, drag, wind, ground
 contact, and a small autopilot (arming, HOLD/LAND/OFFBOARD modes, offboard-loss
 failsafe). SET_ACTUATOR_CONTROL_TARGET group 0 is a pass-through mixer: controls[0..3]
@@ -51,7 +52,8 @@ sent over a link with delay, jitter and loss, and commands arrive late (all in s
 seeded by --seed, deterministic in lockstep). --world ideal sends the exact true state
 with no delay and no loss. Motor lag and rotor noise come from the vehicle YAML in both.
 
-The first stdout line is 'firmware_sim listening on udpin:HOST:PORT'; the second one
+The first stdout line is 'firmware_sim listening on URL' (udpin:HOST:PORT with the real port,
+serial:/dev/pts/N for --listen pty, tcpin:HOST:PORT); the second one
 ('firmware_sim world: ...') names the world, its values and any overrides; with
 --mismatch-seed a third one ('firmware_sim airframe: key=value ...') gives the true
 airframe drawn around the vehicle file.
@@ -85,8 +87,10 @@ def build_parser() -> argparse.ArgumentParser:
                 formatter_class=argparse.RawDescriptionHelpFormatter)
     a = p.add_argument
     a("--listen", default="udpin:127.0.0.1:14540", metavar="URL", type=checked(parse_listen_url, "URL"),
-      help="UDP address to listen on, udpin:HOST:PORT; port 0 picks a free port "
-           "(default %(default)s)")
+      help=f"where to listen: {LISTEN_FORMS}. udpin: port 0 picks a free port; pty: a new "
+           "pseudo-terminal, announced as serial:/dev/pts/N (a flight controller's TELEM port); "
+           "serial: an existing device (baud 921600 if left out); tcpin: one TCP client at a time, "
+           "port 0 a free one (default %(default)s)")
     # Old spellings (--vehicle, --rate-hz, --lockstep-timeout, --offboard-loss-timeout, --preset)
     # are hidden aliases for one release; the dest names are kept (docs/cli.md).
     add_deprecated_alias(p, "--vehicle", a(
@@ -176,6 +180,9 @@ def _add_world_args(p: argparse.ArgumentParser) -> None:
                        help=f"link faults of {what} after the preset's link, in simulation time: "
                        "KEY=VALUE[,...], e.g. loss=0.1,jitter_ms=5,outage=15:0.5 (repeatable; "
                        "docs/reliability.md)")
+    w.add_argument("--serial-byte-loss", type=probability, default=0.0, metavar="P",
+                   help="a pty, serial or tcpin --listen: each byte lost with probability P, each way "
+                   "(seeded by --seed; a UART line that drops bytes)")
     add_deprecated_alias(w, "--preset", w.add_argument(
         "--world", dest="preset", choices=PRESET_NAMES, default="realistic",
         help="named world (default %(default)s; values below)"))
@@ -253,7 +260,7 @@ def _assemble(args, world, vehicle_path, vehicle, nominal, params, start, items)
                              rate_hz=args.rate_hz, physics_hz=args.physics_hz,
                              lockstep=args.lockstep, start=args.start, wind=args.wind,
                              command_scale_n=command_scale_n,
-                             world=dataclasses.asdict(world), airframe=_airframe_meta(params))
+                             world=dataclasses.asdict(world), airframe=airframe_meta(params))
         recorder.arrays.update(airframe_arrays(params))
     sim = Simulation(params, start, wind, recorder)
     n = nominal.vehicle        # the autopilot is tuned on the file, as the offboard controller
@@ -269,9 +276,10 @@ def _assemble(args, world, vehicle_path, vehicle, nominal, params, start, items)
     try:     # a bad --signing-key or --*-faults, a --listen that cannot be bound
         signing = Signing(args.signing_key, "firmware-sim") if args.signing_key is not None else None
         faults = link_faults_from_args(args.link_faults, args.uplink_faults, args.downlink_faults, args.seed)
-        link = Link(args.listen, args.system_id, cfg.component_id,
+        link = open_link(args.listen, args.system_id, cfg.component_id,
                     peer_system_ids=(args.system_id, *args.peer_system_ids), signing=signing,
-                    remote=parse_remote_url(args.remote) if args.remote is not None else None)
+                    remote=parse_remote_url(args.remote) if args.remote is not None else None,
+                    byte_loss=args.serial_byte_loss, seed=args.seed)
     except ValueError as exc:
         raise BadInput(str(exc)) from None
     engine = Engine(sim, ap, link, world, faults)
@@ -305,14 +313,6 @@ def _sim_params(args, vehicle):
         ("rotor_time_constant_s", args.rotor_time_constant_s is not None)) if given]
     draw = draw_mismatch(seed, 1.0 if scale is None else scale)
     return nominal, apply_mismatch(nominal, draw, kept)
-
-
-def _airframe_meta(params) -> dict:
-    """The recording's ``meta_json.airframe``: the true values, the draw, the bounds."""
-    true = {k[len("airframe_"):]: v.tolist() for k, v in airframe_arrays(params).items()}
-    draw = dataclasses.asdict(params.mismatch) if params.mismatch is not None else None
-    return {"true": true, "mismatch": draw, "kept": list(params.mismatch_kept),
-            "bounds": dataclasses.asdict(BOUNDS) if draw is not None else None}
 
 
 def _print_rate_response(args) -> int:

@@ -25,7 +25,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from .peers import PeerFilter
 from .wire import Wire
 
-__all__ = ["Link", "parse_listen_url", "parse_remote_url", "MAX_DATAGRAM_BYTES", "io_impl"]
+__all__ = ["Link", "open_link", "is_stream_url", "LISTEN_FORMS", "parse_listen_url", "parse_remote_url", "MAX_DATAGRAM_BYTES", "io_impl"]
 
 MAX_DATAGRAM_BYTES = 1400
 """Frames are packed together into datagrams up to this size (an Ethernet MTU with room)."""
@@ -67,15 +67,40 @@ def _parse_url(url: str, option: str, wanted: str, lowest_port: int) -> tuple[st
     return host, port
 
 
-def parse_listen_url(url: str) -> tuple[str, int]:
-    """``udpin:HOST:PORT`` -> ``(host, port)``; port 0 picks a free port.
+LISTEN_FORMS = "udpin:HOST:PORT, pty, serial:PATH[:BAUD] or tcpin:HOST:PORT"
+
+
+def parse_listen_url(url: str):
+    """``udpin:HOST:PORT`` -> ``(host, port)``, port 0 picking a free port; ``pty``,
+    ``serial:PATH[:BAUD]``, ``tcpin:HOST:PORT``: :func:`firmware_sim.stream_link.parse_stream_listen_url`.
 
     Raises
     ------
     ValueError
         For anything else.
     """
+    if is_stream_url(url):
+        from .stream_link import parse_stream_listen_url
+        return parse_stream_listen_url(url)
+    if not url.startswith("udpin:"):
+        raise ValueError(f"--listen {url!r}: expected {LISTEN_FORMS}")
     return _parse_url(url, "--listen", "udpin", 0)
+
+
+def is_stream_url(url: str) -> bool:
+    """Whether ``--listen url`` is a byte stream (:mod:`firmware_sim.stream_link`)."""
+    return url == "pty" or url.split(":", 1)[0] in ("serial", "tcpin")
+
+
+def open_link(url: str, system_id: int, component_id: int, **kwargs):
+    """A :class:`Link` (UDP) or a :class:`firmware_sim.stream_link.StreamLink` for ``url``."""
+    if is_stream_url(url):
+        from .stream_link import StreamLink
+        return StreamLink(url, system_id, component_id, **kwargs)
+    if kwargs.pop("byte_loss", 0.0):
+        raise ValueError(f"--serial-byte-loss applies to a pty, serial or tcpin --listen, not to {url!r}")
+    kwargs.pop("seed", None)
+    return Link(url, system_id, component_id, **kwargs)
 
 
 def parse_remote_url(url: str) -> tuple[str, int]:

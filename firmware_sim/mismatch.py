@@ -39,7 +39,7 @@ import numpy as np
 from .physics import inertia_matrix
 
 __all__ = ["MismatchBounds", "BOUNDS", "MismatchDraw", "draw_mismatch", "apply_mismatch",
-           "airframe_arrays", "describe_airframe", "MISMATCH_STREAM_KEY", "KEEPABLE"]
+           "airframe_arrays", "airframe_meta", "describe_airframe", "MISMATCH_STREAM_KEY", "KEEPABLE"]
 
 MISMATCH_STREAM_KEY = 18
 """Spawn key of the mismatch generator's seed sequence (issue 18): the stream
@@ -213,6 +213,14 @@ def airframe_arrays(params) -> dict:
 
 def _g(x: float) -> str:
     return f"{x:.6g}"
+
+
+def airframe_meta(params) -> dict:
+    """The recording's ``meta_json.airframe``: the true values, the draw, the bounds."""
+    true = {k[len("airframe_"):]: v.tolist() for k, v in airframe_arrays(params).items()}
+    draw = dataclasses.asdict(params.mismatch) if params.mismatch is not None else None
+    return {"true": true, "mismatch": draw, "kept": list(params.mismatch_kept),
+            "bounds": dataclasses.asdict(BOUNDS) if draw is not None else None}
 
 
 def describe_airframe(params) -> str:

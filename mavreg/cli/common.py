@@ -16,6 +16,7 @@ import os
 import sys
 from pathlib import Path
 
+from .vehicle_link import check_vehicle_link, vehicle_url, vehicle_url_help
 # The bundled parameter files have one home, mavreg.config.paths; re-exported for the commands.
 from ..config.paths import (DEFAULT_VEHICLE, DESIGN_CONTROLLER, PAPER_CONTROLLER,
                             PAPER_GOVERNED_CONTROLLER, PARAMS_DIR, REAL_CONTROLLER)
@@ -26,7 +27,7 @@ __all__ = ["PARAMS_DIR", "DEFAULT_VEHICLE", "PAPER_CONTROLLER", "PAPER_GOVERNED_
            "add_gcs_arguments", "gcs_config", "add_signing_argument", "add_output_argument",
            "add_excitation_argument", "excitation_params", "add_vehicle_identity_arguments", "add_airborne_argument", "system_id",
            "add_planner_arguments", "planner_bounds", "Parser", "positive_float", "nonneg_float",
-           "finite_float", "positive_int", "nonneg_int", "vehicle_url", "plot_file", "input_file",
+           "finite_float", "positive_int", "nonneg_int", "vehicle_url", "vehicle_url_help", "check_vehicle_link", "plot_file", "input_file",
            "output_file", "output_dir", "socket_path", "check_output_file", "check_output_dir",
            "DeprecatedAlias", "add_deprecated_alias"]
 
@@ -236,16 +237,6 @@ def gcs_config(args) -> dict:
     if args.gcs_allow_commands and not args.gcs:
         raise UsageError("--gcs-allow-commands needs a --gcs URL")
     return {"gcs_urls": tuple(args.gcs), "gcs": GcsParams(allow_commands=args.gcs_allow_commands)}
-def vehicle_url(text: str) -> str:
-    """udpin:HOST:PORT or udpout:HOST:PORT (mavreg.daemon.link.parse_url)."""
-    from ..daemon.link import parse_url
-    try:
-        parse_url(text)
-    except ValueError as exc:      # parse_url's only failure: the text is not such a URL
-        raise argparse.ArgumentTypeError(str(exc)) from None
-    return text
-
-
 PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
 
 

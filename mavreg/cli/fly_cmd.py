@@ -11,7 +11,7 @@ from .common import (REAL_CONTROLLER, add_entry_offset_argument, add_gcs_argumen
                      add_laps_argument, add_model_arguments, add_excitation_argument, add_output_argument,
                      add_planner_arguments, add_signing_argument, add_vehicle_identity_arguments, add_airborne_argument,
                      check_output_dir, excitation_params, gcs_config, input_file, load_maneuver_arg,
-                     output_dir, planner_bounds, positive_float, socket_path, vehicle_url)
+                     output_dir, planner_bounds, positive_float, socket_path, vehicle_url, vehicle_url_help, check_vehicle_link)
 
 MAX_ENTRY_OFFSET_M = 2.0
 """Longest --entry-offset: an experiment's start error, not a relocation of the maneuver."""
@@ -81,8 +81,7 @@ def add_arguments(p):
     p.add_argument("maneuver", metavar="FILE", type=input_file, help="maneuver YAML (kind: maneuver)")
     add_laps_argument(p)
     p.add_argument("--vehicle", metavar="URL", type=vehicle_url, default=None,
-                   help="vehicle connection, udpout:HOST:PORT or udpin:HOST:PORT "
-                   "(default: start the bundled firmware_sim on a free loopback port)")
+                   help=vehicle_url_help("start the bundled firmware_sim on a free loopback port"))
     p.add_argument("--out", metavar="DIR", type=output_dir, default=None,
                    help="output directory (default: flights/<timestamp>/)")
     p.add_argument("--socket", metavar="PATH", type=socket_path, default=None,
@@ -153,6 +152,7 @@ def run(args) -> int:
     vehicle = with_dialect(with_output(load_vehicle(args.vehicle_params), args.output),
                            args.dialect)    # a bad file: before anything starts
     excitation = excitation_params(args, vehicle.output)
+    check_vehicle_link(args.vehicle, args.control_rate_hz, vehicle.output, args.signing_key is not None)
     load_maneuver_arg(args)             # a bad maneuver file or --laps: before anything starts
     out = Path(args.out) if args.out else Path("flights") / time.strftime("%Y%m%d-%H%M%S")
     why = check_output_dir(str(out))    # the default --out too, before the flight

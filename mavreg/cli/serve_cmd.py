@@ -7,8 +7,9 @@ from pathlib import Path
 from ..config.defaults import CONTROL_RATE_HZ, STALE_TIMEOUT_S
 from .common import (REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, add_excitation_argument, add_output_argument,
                      add_planner_arguments,
-                     add_signing_argument, add_vehicle_identity_arguments, add_airborne_argument, excitation_params, gcs_config,
-                     output_file, planner_bounds, positive_float, socket_path, vehicle_url)
+                     add_signing_argument, add_vehicle_identity_arguments, add_airborne_argument, excitation_params,
+                     gcs_config, output_file, planner_bounds, positive_float, socket_path, vehicle_url,
+                     vehicle_url_help, check_vehicle_link)
 
 HELP = "run the offboard daemon: fly maneuvers uploaded on the control endpoint"
 DESCRIPTION = """\
@@ -40,7 +41,7 @@ on the socket.
 
 def add_arguments(p):
     p.add_argument("--vehicle", metavar="URL", type=vehicle_url, default="udpout:127.0.0.1:14540",
-                   help="vehicle connection, udpout:HOST:PORT or udpin:HOST:PORT (default: %(default)s)")
+                   help=vehicle_url_help("%(default)s"))
     p.add_argument("--socket", metavar="PATH", type=socket_path, default=None,
                    help="control endpoint (default: $MAVREG_SOCKET, $XDG_RUNTIME_DIR/mavreg.sock "
                    "or /tmp/mavreg-$UID/mavreg.sock)")
@@ -81,6 +82,7 @@ def run(args) -> int:
     signing = Signing(args.signing_key, "mavreg") if args.signing_key is not None else None
     gcs = gcs_config(args)
     vehicle = with_dialect(with_output(load_vehicle(args.vehicle_params), args.output), args.dialect)
+    check_vehicle_link(args.vehicle, args.control_rate_hz, vehicle.output, signing is not None)
     from ..config.controller import load_controller
     controller = load_controller(args.controller)
     config = DaemonConfig(args.vehicle, Path(args.vehicle_params), Path(args.controller),

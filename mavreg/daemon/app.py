@@ -253,7 +253,7 @@ class Daemon:
                 self._tlog = TlogWriter(self.config.tlog_path, self._tlog_clock())
             self.link = await open_link(self.config.vehicle_url, self.config.supervisor.vehicle_system_id,
                                         self.config.supervisor.vehicle_component_id, self._on_message, self._tlog,
-                                        signing=self.signing)
+                                        signing=self.signing, on_closed=self.log)
             if self.config.gcs_urls:
                 await self._open_gcs()
             self._tasks.append(asyncio.create_task(self._heartbeat_task(), name="heartbeat"))

@@ -42,9 +42,10 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from .peers import PeerFilter
 from .tlog import TlogWriter
+from .vehicle_url import VEHICLE_URL_FORMS, parse_url
 from .wire import Wire
 
-__all__ = ["parse_url", "LinkCounters", "MavlinkLink", "FastLink", "open_link", "OWN_COMPONENT_ID",
+__all__ = ["parse_url", "VEHICLE_URL_FORMS", "LinkCounters", "MavlinkLink", "FastLink", "open_link", "OWN_COMPONENT_ID",
            "IO_ENV", "io_impl"]
 
 IO_ENV = "MAVREG_IO"
@@ -55,23 +56,6 @@ ignores ATTITUDE): logged to the ``.tlog`` and counted under ``not_decoded`` onl
 _MAX_DATAGRAM = 65535
 
 OWN_COMPONENT_ID = mavlink2.MAV_COMP_ID_ONBOARD_COMPUTER
-
-
-def parse_url(url: str) -> tuple[str, str, int]:
-    """``udpin:HOST:PORT`` or ``udpout:HOST:PORT`` -> (kind, host, port).
-
-    Raises ValueError with a one-line reason on anything else.
-    """
-    parts = url.split(":")
-    if len(parts) != 3 or parts[0] not in ("udpin", "udpout"):
-        raise ValueError(f"vehicle URL {url!r}: expected udpin:HOST:PORT or udpout:HOST:PORT")
-    try:
-        port = int(parts[2])
-    except ValueError:
-        raise ValueError(f"vehicle URL {url!r}: port {parts[2]!r} is not a number") from None
-    if not 0 <= port <= 65535 or (parts[0] == "udpout" and port == 0):
-        raise ValueError(f"vehicle URL {url!r}: port out of range")
-    return parts[0], parts[1], port
 
 
 @dataclass
@@ -92,6 +76,9 @@ class LinkCounters:
     setup_signing: int = 0
     """With signing on: frames dropped as unsigned, wrongly signed, replayed; and
     SETUP_SIGNING frames, always dropped."""
+    garbage_bytes: int = 0
+    """A serial or TCP link: bytes that were no part of a valid frame (:mod:`mavreg.transport.framing`;
+    each broken frame also counts once under ``bad_data``)."""
 
 
 class _Writer:
@@ -336,14 +323,20 @@ class FastLink:
             frames = [sign(f) for f in frames]
         data = frames[0] if len(frames) == 1 else b"".join(frames)
         self.last_send_ns = time.perf_counter_ns()
-        try:
-            self.sock.sendto(data, self.vehicle_addr)
-        except (BlockingIOError, InterruptedError, OSError):
+        if not self._transmit(data):
             self.counters.send_errors += 1
             return False
         self.counters.messages_out += len(frames)
         if self.tlog is not None:
             self.tlog.write_many(frames)
+        return True
+
+    def _transmit(self, data: bytes) -> bool:
+        """Hand one datagram to the socket; False if it refused it."""
+        try:
+            self.sock.sendto(data, self.vehicle_addr)
+        except (BlockingIOError, InterruptedError, OSError):
+            return False
         return True
 
     def close(self) -> None:
@@ -358,17 +351,23 @@ class FastLink:
 
 
 async def open_link(url: str, system_id: int | None, vehicle_component_id: int, on_message: Callable,
-                    tlog: TlogWriter | None, impl: str | None = None, signing=None):
-    """Create the UDP endpoint for ``url`` and return its link.
+                    tlog: TlogWriter | None, impl: str | None = None, signing=None, on_closed=None):
+    """Create the UDP endpoint for ``url`` and return its link; or open the serial port or the
+    TCP connection (:func:`mavreg.daemon.stream_link.open_stream_link`; ``on_closed(line)`` is
+    told when that stream ends, and ``impl`` does not apply).
 
-    ``system_id``: the vehicle's; None only for ``udpin:`` (taken from its first autopilot
-    HEARTBEAT; on ``udpout:`` the daemon speaks first, so it must know it: ValueError).
+    ``system_id``: the vehicle's; None only for ``udpin:``, ``serial:`` and ``tcp:`` (taken
+    from its first autopilot HEARTBEAT; on ``udpout:`` the daemon speaks first, so it must
+    know it: ValueError).
 
     ``impl``: ``fast`` (:class:`FastLink`) or ``reference`` (:class:`MavlinkLink`);
     default: :func:`io_impl` (the :envvar:`MAVREG_IO` environment variable).
     ``signing``: a :class:`mavreg.daemon.signing.Signing`, or None (signing off).
     """
     kind, host, port = parse_url(url)
+    if kind in ("serial", "tcp"):
+        from .stream_link import open_stream_link
+        return await open_stream_link(url, system_id, vehicle_component_id, on_message, tlog, signing, on_closed)
     if system_id is None and kind != "udpin":
         raise ValueError(f"vehicle URL {url!r}: on udpout the vehicle's system id must be given")
     impl = io_impl() if impl is None else impl

@@ -27,6 +27,8 @@ from __future__ import annotations
 
 from pymavlink.dialects.v20 import common as mavlink2
 
+from .vehicle_url import learns_system_id
+
 __all__ = ["PeerFilter", "VehicleIds", "HeardSystems", "DROP_REASONS", "frame_ids", "heartbeat_fields",
            "check_system_id", "system_id_to_use", "VEHICLE_COMPONENT_ID", "SILENCE_NOTICE_S"]
 
@@ -65,12 +67,12 @@ def check_system_id(system_id) -> int:
 
 def system_id_to_use(vehicle_url: str | None, pinned: int | None) -> int | None:
     """The vehicle's system id the daemon starts with: ``pinned`` (``--vehicle-system-id``) if
-    given; else None on ``udpin:`` (taken from the vehicle's first autopilot HEARTBEAT), and 1
-    on ``udpout:`` or the bundled emulator (``vehicle_url`` None), where the daemon speaks
-    first and the vehicle takes only its own system id's frames."""
+    given; else None on ``udpin:``, ``serial:`` and ``tcp:`` (taken from the vehicle's first
+    autopilot HEARTBEAT), and 1 on ``udpout:`` or the bundled emulator (``vehicle_url`` None),
+    where the daemon speaks first and the vehicle takes only its own system id's frames."""
     if pinned is not None:
         return check_system_id(pinned)
-    return None if vehicle_url is not None and vehicle_url.startswith("udpin:") else 1
+    return None if learns_system_id(vehicle_url) else 1
 
 
 class VehicleIds:

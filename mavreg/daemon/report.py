@@ -31,9 +31,14 @@ def controller_metrics(ctrl: dict, plan, max_rotor_thrust_n: float) -> dict:
     t = ctrl["t_s"][m]
     dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
     rotors = ctrl["rotor_cmd_n"][m].astype(float)
+    if not dt > 0.0:     # one step (the link lost as the maneuver began): no time to count saturation in
+        out = tracking_metrics(ctrl["s_m"][m].astype(float), ctrl["w"][m].astype(float), plan.segments,
+                               rotor_forces_n=rotors)
+        out["rotor_jitter_n"] = None
+        return out
     out = tracking_metrics(ctrl["s_m"][m].astype(float), ctrl["w"][m].astype(float), plan.segments,
                            rotor_forces_n=rotors, max_rotor_thrust_n=max_rotor_thrust_n, dt_s=dt)
-    out["rotor_jitter_n"] = rotor_jitter_n(rotors, 1.0 / dt) if dt > 0 else None
+    out["rotor_jitter_n"] = rotor_jitter_n(rotors, 1.0 / dt)
     return out
 
 

@@ -45,7 +45,7 @@ def _one_error_line(capsys, prog: str) -> str:
     (["plan", BARREL, "--controller", "{tmp}"], "--controller: "),
     (["plan", BARREL, "--laps", "0"], "--laps: must be at least 1"),
     (["fly", BARREL, "--out", "{file}"], "--out: {file}: exists and is not a directory"),
-    (["fly", BARREL, "--vehicle", "udp:1"], "expected udpin:HOST:PORT or udpout:HOST:PORT"),
+    (["fly", BARREL, "--vehicle", "udp:1"], "expected udpin:HOST:PORT, udpout:HOST:PORT, serial:PATH[:BAUD]"),
     (["fly", BARREL, "--timeout-s", "-1"], "--timeout-s: expected a number > 0"),
     (["fly", BARREL, "--vehicle-system-id", "0"], "--vehicle-system-id: must be at least 1, got 0"),
     (["fly", BARREL, "--vehicle-system-id", "256"], "--vehicle-system-id: a MAVLink system id is at most 255"),

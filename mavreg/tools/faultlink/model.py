@@ -121,6 +121,44 @@ def flip_bits(data: bytes, rng: random.Random, max_bits: int, start: int = 0) ->
     return bytes(out)
 
 
+class ByteLoss:
+    """A serial line that loses bytes: each byte lost with probability ``loss``, independently,
+    from the seeded stream of ``seed`` and ``direction`` (sans-I/O: bytes in, bytes out; the
+    same bytes in give the same bytes out, so a lockstep flight stays deterministic)."""
+
+    def __init__(self, loss: float, seed: int = 0, direction: str = "down"):
+        if not 0.0 <= loss < 1.0:
+            raise ValueError(f"byte loss must be in [0, 1), got {loss!r}")
+        self.loss = float(loss)
+        self._rng = _rng(seed, direction, "byte_loss")
+        self.bytes = 0
+        self.lost = 0
+        self._next = self._gap()
+
+    def _gap(self) -> int:
+        """Bytes passed before the next one lost (geometric)."""
+        if self.loss <= 0.0:
+            return 1 << 62
+        return int(math.log(1.0 - self._rng.random()) / math.log1p(-self.loss))
+
+    def apply(self, data: bytes) -> bytes:
+        """What of ``data`` the line delivers."""
+        self.bytes += len(data)
+        if self._next >= len(data):
+            self._next -= len(data)
+            return data
+        kept, i = [], 0
+        while self._next < len(data) - i:
+            j = i + self._next
+            kept.append(data[i:j])
+            self.lost += 1
+            i = j + 1
+            self._next = self._gap()
+        self._next -= len(data) - i
+        kept.append(data[i:])
+        return b"".join(kept)
+
+
 def _rng(seed: int, direction: str, effect: str) -> random.Random:
     return random.Random(f"faultlink:{seed}:{direction}:{effect}")
 

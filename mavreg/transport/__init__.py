@@ -1,0 +1,15 @@
+"""Byte-stream links to a vehicle: a serial port (a UART, a USB CDC device, a pseudo-terminal)
+or a TCP connection, beside the daemon's UDP sockets.
+
+- :mod:`.urls`: ``serial:PATH[:BAUD]``, ``tcp:HOST:PORT``, ``tcpin:HOST:PORT`` parsed, one
+  line on anything else;
+- :mod:`.framing`: the sans-I/O frame splitter: bytes in, whole CRC-checked MAVLink frames
+  out, garbage and broken frames skipped and counted;
+- :mod:`.budget`: the bytes per second a stream set-up needs against what a UART of a given
+  baud carries (pure);
+- :mod:`.tty`: a serial device or a new pseudo-terminal in raw mode (termios), a TCP
+  socket, as one non-blocking :class:`~.tty.ByteStream`.
+
+Shared by the daemon (``mavreg fly``/``serve --vehicle serial:...``) and the emulator
+(``firmware-sim --listen pty``): a transport, not vehicle behaviour (docs/architecture.md).
+"""
