@@ -65,14 +65,18 @@ class Preflight(_Handler):
         if ctx.stream_start_vehicle_s is None:
             ctx.stream_start_vehicle_s = t
         st = ctx.vehicle_status
-        if st.armed and not ctx.arm_requested:             # armed by another: never idle, arm or disarm it
+        by_another = st.armed and not ctx.arm_requested    # it may be flying: never idled, armed or disarmed
+        on_ground = ctx.landed_state == mm.mavlink2.MAV_LANDED_STATE_ON_GROUND
+        if ctx.land_requested:                             # the flight ends on the ground
+            if not by_another:
+                flight.send_rotors(np.zeros(4), now_wall_s, out)
+            if st.armed and (on_ground or not by_another):
+                flight.command(out, mm.arm_disarm(sysid, compid, False))
+            return
+        if by_another:
             self._armed_by_another(sample, out)
             return
         flight.send_rotors(np.zeros(4), now_wall_s, out)
-        if ctx.land_requested:
-            if ctx.vehicle_status.armed:
-                flight.command(out, mm.arm_disarm(sysid, compid, False))
-            return
         if not ctx.pending:
             return
         if not st.armed:

@@ -13,7 +13,7 @@ from mavreg.config.envelope import EnvelopeParams
 from mavreg.config.vehicle import with_dialect, with_output
 from mavreg.daemon.phases import Phase
 from mavreg.daemon.supervisor import Supervisor, SupervisorParams
-from tests.helpers.supervisor_harness import VEHICLE, FakePlan, FakeRegulator, SimVehicle, make_supervisor, run
+from tests.helpers.supervisor_harness import VEHICLE, FakePlan, FakeRegulator, SimVehicle, make_supervisor, run, wire
 
 STEP_S = SimVehicle().dt
 
@@ -117,13 +117,15 @@ def test_a_land_request_before_take_off_ends_the_flight_the_same_way():
 
 
 def test_a_land_request_before_the_first_sample_still_retries_the_disarm():
-    """Armed (by someone else) and no state sample yet, so no vehicle time: the disarm goes out
-    at once, and is repeated once samples come (a retry timer started without a vehicle time
-    must not block them)."""
+    """Armed (by someone else) on the ground, as its landed state says, and no state sample yet,
+    so no vehicle time: the disarm goes out at once, and is repeated once samples come (a retry
+    timer started without a vehicle time must not block them). Without the landed state the
+    vehicle may be flying: it is left armed (tests/unit/test_takeover.py)."""
     sup = make_supervisor(FakePlan())
     veh = SimVehicle(ignore_disarm=10_000)
     veh.armed = True
     sup.handle(veh.heartbeat(), 0.0)
+    sup.handle(wire(mavlink2.MAVLink_extended_sys_state_message(0, mavlink2.MAV_LANDED_STATE_ON_GROUND)), 0.0)
     out = sup.request_land(0.0)
     assert [m.command for m in out.messages if m.get_type() == "COMMAND_LONG"] == [400]
     _, _, sent = run(sup, veh, 0.9)

@@ -72,15 +72,24 @@ def test_airborne_fly_flies_the_queued_maneuver_from_the_hold():
     assert not any(m.param1 == 1.0 for _, m in _commands(sent, mavlink2.MAV_CMD_COMPONENT_ARM_DISARM))
 
 
-def test_armed_on_the_ground_by_another_is_refused_and_left_armed():
+def test_armed_on_the_ground_by_another_is_refused_and_never_armed_or_flown():
+    """On the ground by its landed state: refused, never armed or switched to OFFBOARD, and
+    disarmed as any refusal on the ground is; by the height rule alone (no landed state) it
+    may be flying after all: left armed."""
     veh = _airborne(0.0)
     sup = make_supervisor(FakePlan())
     events, _, sent = run(sup, veh, 5.0, on_step=_landed_state(mavlink2.MAV_LANDED_STATE_ON_GROUND))
     assert sup.finished and not sup.succeeded
     assert Phase.TAKEOVER not in _phases(events)
-    assert _commands(sent, mavlink2.MAV_CMD_COMPONENT_ARM_DISARM) == []   # neither armed nor disarmed
+    arms = [m for _, m in _commands(sent, mavlink2.MAV_CMD_COMPONENT_ARM_DISARM)]
+    assert arms and all(m.param1 == 0.0 for m in arms) and not veh.armed   # disarmed, never armed
     assert _commands(sent, mavlink2.MAV_CMD_DO_SET_MODE) == []
-    assert "armed_by_another" in sup.reason or sup.failure.bound == "armed_by_another"
+    assert sup.failure.bound == "armed_by_another"
+    veh = _airborne(0.2)
+    sup = make_supervisor(FakePlan())
+    _, _, sent = run(sup, veh, 5.0)
+    assert sup.finished and sup.failure.bound == "armed_by_another"
+    assert _commands(sent, mavlink2.MAV_CMD_COMPONENT_ARM_DISARM) == [] and veh.armed
 
 
 def test_the_landed_state_decides_before_the_height():
