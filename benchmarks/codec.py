@@ -4,7 +4,7 @@
 
 - ``codec_us.pack.<MESSAGE>`` / ``codec_us.parse.<MESSAGE>`` for the hot messages
   (ATTITUDE, ATTITUDE_QUATERNION, LOCAL_POSITION_NED, SET_ACTUATOR_CONTROL_TARGET,
-  TIMESYNC, HEARTBEAT): microseconds per message with :class:`mavreg.daemon.wire.Wire`
+  TIMESYNC, HEARTBEAT): microseconds per message with :class:`mavreg.transport.wire.Wire`
   (value) and with pymavlink's generated codec, ``msg.pack(mav)`` and
   ``MAVLink.parse_buffer`` with robust parsing (baseline); median of 5 runs;
 - ``pymavlink_fast_crc``: 1 when pymavlink computes its CRC with the compiled ``fastcrc``
@@ -24,7 +24,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from benchmarks.report import standalone
 from benchmarks.io_helpers import figure
-from mavreg.daemon import wire as wire_mod
+from mavreg.transport import wire as wire_mod
 
 __all__ = ["run_codec", "hot_messages", "pymavlink_crc_is_fast"]
 
@@ -72,7 +72,7 @@ def run_codec(quick: bool) -> dict:
         reader = wire_mod.Wire(1, 191)
         fig[f"codec_us.pack.{name}"] = figure(
             _per_call_us(lambda: wire.pack(msg), n), _per_call_us(lambda: msg.pack(mav), n), unit="us",
-            higher_is_better=False, note="mavreg.daemon.wire.Wire.pack against pymavlink msg.pack(mav)")
+            higher_is_better=False, note="mavreg.transport.wire.Wire.pack against pymavlink msg.pack(mav)")
         fig[f"codec_us.parse.{name}"] = figure(
             _per_call_us(lambda: reader.parse(frame), n), _per_call_us(lambda: parser.parse_buffer(frame), n),
             unit="us", higher_is_better=False,

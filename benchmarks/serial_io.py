@@ -7,7 +7,7 @@ UART's, without the wire's speed):
 - ``serial_us.read_bundle``: microseconds from "a period's telemetry (ATTITUDE_QUATERNION +
   LOCAL_POSITION_NED, 100 bytes) is waiting in the tty" to both messages decoded, with the
   daemon's way (``os.read`` on the raw non-blocking descriptor,
-  :class:`mavreg.transport.framing.StreamFramer`, :class:`mavreg.daemon.wire.Wire`); baseline:
+  :class:`mavreg.transport.framing.StreamFramer`, :class:`mavreg.transport.wire.Wire`); baseline:
   pyserial's ``Serial.read(in_waiting)`` feeding the same framer and codec;
 - ``serial_us.read_bundle_pymavlink``: pymavlink's own serial connection
   (``mavutil.mavlink_connection(PATH, baud)``, ``recv_msg`` until both came) against the same
@@ -34,7 +34,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from benchmarks.io_helpers import figure
 from benchmarks.report import standalone
-from mavreg.daemon.wire import Wire
+from mavreg.transport.wire import Wire
 from mavreg.transport.framing import StreamFramer
 from mavreg.transport.tty import ByteStream, open_pty, open_serial
 

@@ -6,7 +6,7 @@
   --lockstep`` (500 Hz control, 1 kHz physics, in flight at hover, the default realistic
   world) against a trivial controller in this process that answers every
   LOCAL_POSITION_NED with a hover SET_ACTUATOR_CONTROL_TARGET. Fast path: the emulator's
-  default I/O and a controller on :class:`mavreg.daemon.wire.Wire`. Baseline, same run:
+  default I/O and a controller on :class:`mavreg.transport.wire.Wire`. Baseline, same run:
   ``MAVREG_IO=reference`` (one message per datagram, pymavlink's codec) and a pymavlink
   controller, what ``benchmarks/bench_firmware_sim.py`` used to measure;
 - ``sitl_periods_per_s.trivial_ideal``: the same in the ideal world;
@@ -63,7 +63,7 @@ def trivial_lockstep(io: str, periods: int, preset: str = "realistic") -> dict:
         sock.settimeout(5.0)
         controls = [HOVER] * 4 + [0.0] * 4
         if io == "fast":
-            from mavreg.daemon.wire import Wire
+            from mavreg.transport.wire import Wire
             wire = Wire(1, 191)
             parse, pack = wire.parse, wire.pack
         else:

@@ -14,7 +14,7 @@ from .autopilot import AUTOPILOTS, Autopilot, AutopilotConfig
 from .clock import StopRun, run_lockstep, run_realtime
 from .engine import Engine
 from .link import LISTEN_FORMS, open_link, parse_listen_url, parse_remote_url
-from .signing import Signing
+from mavreg.transport.signing import Signing
 from .mismatch import airframe_arrays, airframe_meta, apply_mismatch, describe_airframe, draw_mismatch
 from mavreg.config.vehicle import EmulatorParams, load_vehicle
 

@@ -2,7 +2,7 @@
 
 Received messages pass :class:`firmware_sim.peers.PeerFilter` (configured peer systems,
 their component and address learned from their HEARTBEAT; with a signing key, validly
-signed and not replayed, :mod:`firmware_sim.signing`); telemetry goes to the learned
+signed and not replayed, :mod:`mavreg.transport.signing`); telemetry goes to the learned
 peers' addresses only, signed when signing is on. Each datagram is parsed on its own: bytes of a datagram that do not form a complete message are counted
 as malformed and discarded, so one peer's garbage never corrupts another's message.
 
@@ -10,7 +10,7 @@ Everything one :meth:`Link.send` is given (a control period's telemetry bundle, 
 replies to a command) leaves in **one** datagram per peer, as PX4 fills its network
 buffer and flushes it once per loop (datagrams stay under :data:`MAX_DATAGRAM_BYTES`);
 the hot messages are packed and parsed by the precompiled codec of
-:mod:`firmware_sim.wire`. With ``MAVREG_IO=reference`` in the environment the link
+:mod:`mavreg.transport.wire`. With ``MAVREG_IO=reference`` in the environment the link
 works as it did before (one message per datagram, pymavlink's codec, sequence number
 always 0): the benchmarks' baseline.
 """
@@ -23,7 +23,7 @@ import socket
 from pymavlink.dialects.v20 import common as mavlink2
 
 from .peers import PeerFilter
-from .wire import Wire
+from mavreg.transport.wire import Wire
 
 __all__ = ["Link", "open_link", "is_stream_url", "LISTEN_FORMS", "parse_listen_url", "parse_remote_url", "MAX_DATAGRAM_BYTES", "io_impl"]
 

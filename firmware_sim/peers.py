@@ -10,7 +10,7 @@ Each decoded message of a datagram is taken, or dropped and counted under the fi
 that applies:
 
 - ``unsigned``, ``bad_signature``, ``replayed``: signing is on and
-  :class:`firmware_sim.signing.Signing` refuses the frame;
+  :class:`mavreg.transport.signing.Signing` refuses the frame;
 - ``foreign_system``: its system id is not a peer's;
 - ``foreign_component``: another component than the one the peer's HEARTBEAT named, or the
   vehicle's own ids (a reflected frame);

@@ -28,7 +28,7 @@ from mavreg.transport.tty import ByteStream, open_pty, open_serial, tcp_socket
 from mavreg.transport.urls import parse_stream_url
 
 from .peers import PeerFilter
-from .wire import Wire
+from mavreg.transport.wire import Wire
 
 __all__ = ["StreamLink", "parse_stream_listen_url"]
 

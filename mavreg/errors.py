@@ -86,6 +86,7 @@ class ManeuverError(UserError, ValueError):
 REGISTERED: dict[str, int] = {
     "mavreg.config.loader.ConfigError": EXIT_USAGE,
     "mavreg.identify.regressors.IdentifyError": EXIT_USAGE,
+    "mavreg.transport.signing.SigningError": EXIT_USAGE,
 }
 """Anticipated exceptions defined elsewhere, by ``module.QualName``, and their status
 (a subclass of one is anticipated too)."""

@@ -204,7 +204,7 @@ def excitation_params(args, output: str):
 
 
 def add_signing_argument(p: argparse.ArgumentParser, bundled_emulator: bool = False) -> None:
-    """``--signing-key FILE`` (fly, serve): MAVLink 2 signing, :mod:`mavreg.daemon.signing`."""
+    """``--signing-key FILE`` (fly, serve): MAVLink 2 signing, :mod:`mavreg.transport.signing`."""
     also = "; the bundled emulator gets the same key" if bundled_emulator else ""
     p.add_argument("--signing-key", metavar="FILE", default=None,
                    help="MAVLink 2 signing: sign every message and accept only validly signed ones "

@@ -136,7 +136,7 @@ def add_arguments(p):
 def run(args) -> int:
     from ..config.vehicle import load_vehicle, with_dialect, with_output
     from ..daemon.fly import FlyOptions, fly
-    from ..daemon.signing import load_key
+    from ..transport.signing import load_key
     maneuver = Path(args.maneuver)
     if args.signing_key is not None:
         load_key(args.signing_key)      # a bad key file: one line before anything starts

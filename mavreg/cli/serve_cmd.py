@@ -78,7 +78,7 @@ def run(args) -> int:
     from ..daemon.endpoint import default_socket_path
     from ..daemon.peers import system_id_to_use
     from ..daemon.supervisor import Phase, SupervisorParams
-    from ..daemon.signing import Signing
+    from ..transport.signing import Signing
     signing = Signing(args.signing_key, "mavreg") if args.signing_key is not None else None
     gcs = gcs_config(args)
     vehicle = with_dialect(with_output(load_vehicle(args.vehicle_params), args.output), args.dialect)

@@ -42,7 +42,7 @@ HEARTBEAT_S = 1.0
 class Daemon:
     """One vehicle, one supervisor, optional control endpoint.
 
-    ``signing`` (a :class:`mavreg.daemon.signing.Signing`, or None): sign every frame sent
+    ``signing`` (a :class:`mavreg.transport.signing.Signing`, or None): sign every frame sent
     and take only validly signed ones; its drop counters are in :meth:`status`.
     """
 

@@ -41,7 +41,7 @@ from .gcs import GcsParams
 from .lifeline import wrap_command
 from .link import io_impl
 from .peers import system_id_to_use
-from .signing import Signing
+from ..transport.signing import Signing
 from .report import controller_metrics, format_summary, ground_truth_errors, plot_flight
 from .records import Outcome
 from .planner_pool import PlannerBounds
@@ -77,7 +77,7 @@ class FlyOptions:
     """The run-in ends this far (NED) from the maneuver's entry: the regulator takes over off
     the path (experiments; :attr:`mavreg.daemon.phases.SupervisorParams.entry_offset_m`)."""
     signing_key: Path | None = None
-    """MAVLink 2 signing key file (:mod:`mavreg.daemon.signing`); the bundled emulator gets
+    """MAVLink 2 signing key file (:mod:`mavreg.transport.signing`); the bundled emulator gets
     the same file. None: signing off."""
     gcs_urls: tuple[str, ...] = ()
     gcs: GcsParams = GcsParams()

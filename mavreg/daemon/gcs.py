@@ -33,7 +33,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from . import messages as mm
 from .gcs_policy import FORWARD, LAND, NEVER_FORWARDED, REFUSE, judge
 from .phases import PHASE_CODES
-from .wire import Wire
+from ..transport.wire import Wire
 
 __all__ = ["GCS_DEFAULT_PORT", "GcsParams", "GcsCounters", "GcsForwarder", "GcsHub", "Received",
            "parse_gcs_url"]

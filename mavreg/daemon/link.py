@@ -5,7 +5,7 @@ No flight logic here. Two implementations with one interface (``send``, ``send_m
 
 - :class:`FastLink` (default): a non-blocking socket watched with ``loop.add_reader``; each
   wake-up reads every waiting datagram (``recvfrom`` until it would block) and decodes it
-  with the precompiled codec of :mod:`mavreg.daemon.wire`; the messages of one output
+  with the precompiled codec of :mod:`mavreg.transport.wire`; the messages of one output
   (a rotor command and the TIMESYNC request that travels with it) leave in **one**
   datagram, one ``sendto``. Once the vehicle has sent an ATTITUDE_QUATERNION, its
   ATTITUDE frames (which the state assembler then ignores) are logged but not decoded.
@@ -22,7 +22,7 @@ Both
   system/component id (the system id pinned, or on ``udpin:`` taken from its first
   autopilot HEARTBEAT), from the vehicle's address (fixed for ``udpout:HOST:PORT``,
   learned from the vehicle's first HEARTBEAT for ``udpin:HOST:PORT``), and, with a
-  signing key (:mod:`mavreg.daemon.signing`), validly signed and not replayed; everything
+  signing key (:mod:`mavreg.transport.signing`), validly signed and not replayed; everything
   else is dropped and counted, and neither logged nor handed on;
 - sign every frame they send when signing is on;
 - pack outgoing messages with the vehicle's system id and component id 191
@@ -43,7 +43,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from .peers import PeerFilter
 from .tlog import TlogWriter
 from .vehicle_url import VEHICLE_URL_FORMS, parse_url
-from .wire import Wire
+from ..transport.wire import Wire
 
 __all__ = ["parse_url", "VEHICLE_URL_FORMS", "LinkCounters", "MavlinkLink", "FastLink", "open_link", "OWN_COMPONENT_ID",
            "IO_ENV", "io_impl"]
@@ -362,7 +362,7 @@ async def open_link(url: str, system_id: int | None, vehicle_component_id: int, 
 
     ``impl``: ``fast`` (:class:`FastLink`) or ``reference`` (:class:`MavlinkLink`);
     default: :func:`io_impl` (the :envvar:`MAVREG_IO` environment variable).
-    ``signing``: a :class:`mavreg.daemon.signing.Signing`, or None (signing off).
+    ``signing``: a :class:`mavreg.transport.signing.Signing`, or None (signing off).
     """
     kind, host, port = parse_url(url)
     if kind in ("serial", "tcp"):

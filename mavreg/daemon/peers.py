@@ -12,7 +12,7 @@ In order, each received frame is dropped, and counted by the link under the reas
 
 1. it is a SETUP_SIGNING (``setup_signing``): a key never travels over the link, and such a
    frame is not even logged;
-2. signing is on and :class:`mavreg.daemon.signing.Signing` refuses it (``unsigned``,
+2. signing is on and :class:`mavreg.transport.signing.Signing` refuses it (``unsigned``,
    ``bad_signature``, ``replayed``);
 3. its system id and component id are not the vehicle's, or the vehicle's system id is not
    known yet and it is no autopilot HEARTBEAT (``foreign_system``); such frames are kept

@@ -3,6 +3,8 @@ or a TCP connection, beside the daemon's UDP sockets.
 
 - :mod:`.urls`: ``serial:PATH[:BAUD]``, ``tcp:HOST:PORT``, ``tcpin:HOST:PORT`` parsed, one
   line on anything else;
+- :mod:`.wire`: the MAVLink 2 codec of the hot messages (precompiled structs, pymavlink's
+  fast CRC; byte-identical to pymavlink), the daemon's and the emulator's;
 - :mod:`.framing`: the sans-I/O frame splitter: bytes in, whole CRC-checked MAVLink frames
   out, garbage and broken frames skipped and counted;
 - :mod:`.budget`: the bytes per second a stream set-up needs against what a UART of a given

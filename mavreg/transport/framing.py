@@ -9,7 +9,7 @@ frame and never the ones after it. A frame of a message id the dialect does not 
 cannot be checked and is skipped as garbage (pymavlink's parser would refuse it too).
 
 What it hands on is whole, valid frames, concatenated: the datagram parsers of the daemon
-(:meth:`mavreg.daemon.wire.Wire.parse`) and of the emulator take them as they take a datagram.
+(:meth:`mavreg.transport.wire.Wire.parse`) and of the emulator take them as they take a datagram.
 """
 from __future__ import annotations
 

@@ -10,7 +10,7 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
 from firmware_sim.cli import build_engine, build_parser, main
-from firmware_sim.signing import now_ticks
+from mavreg.transport.signing import now_ticks
 
 KEY = bytes(range(7, 39))
 ARM, FORCE = 400, 21196

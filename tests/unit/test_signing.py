@@ -1,6 +1,6 @@
-"""MAVLink 2 signing (mavreg.daemon.signing, .peers): sans-I/O, no sockets.
+"""MAVLink 2 signing (mavreg.transport.signing, .peers): sans-I/O, no sockets.
 
-The verifier tests run on the emulator's own implementation too (firmware_sim.signing, which
+The verifier tests run on the emulator's own implementation too (mavreg.transport.signing, which
 shares no code with mavreg's), with frames signed by the daemon's signer and by pymavlink."""
 from __future__ import annotations
 
@@ -9,12 +9,11 @@ import os
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from firmware_sim import signing as fsim_signing
 from mavreg.config.paths import maneuver_file
-from mavreg.daemon import signing as sg
+from mavreg.transport import signing as sg
 from mavreg.daemon.peers import PeerFilter
 from mavreg.daemon.tlog import TlogWriter
-from mavreg.daemon.wire import Wire
+from mavreg.transport.wire import Wire
 
 KEY = bytes(range(1, 33))
 T0 = 10**13                     # a signing timestamp (10 µs units since 2015)
@@ -39,10 +38,10 @@ def forged(msg, ts, sysid=1, compid=1):
     return signed(msg, ts, sysid, compid, key=os.urandom(32))
 
 
-@pytest.fixture(params=["mavreg", "firmware_sim"])
-def mod(request):
-    """The daemon's signing module, or the emulator's."""
-    return sg if request.param == "mavreg" else fsim_signing
+@pytest.fixture
+def mod():
+    """The signing module (the daemon's and the emulator's: one implementation)."""
+    return sg
 
 
 def write_key(path, text, mode=0o600):

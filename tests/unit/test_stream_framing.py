@@ -10,7 +10,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from mavreg.daemon.link_budget import LINE_SHARE, baud_refusal, frame_bytes, link_budget
 from mavreg.daemon.peers import system_id_to_use
 from mavreg.daemon.vehicle_url import parse_url
-from mavreg.daemon.wire import Wire
+from mavreg.transport.wire import Wire
 from mavreg.transport.framing import StreamFramer
 from mavreg.transport.urls import DEFAULT_BAUD, parse_stream_url
 

@@ -6,11 +6,11 @@ from __future__ import annotations
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavreg.daemon import signing as sg
+from mavreg.transport import signing as sg
 from mavreg.daemon.peers import (SILENCE_NOTICE_S, PeerFilter, VehicleIds, check_system_id, heartbeat_fields,
                                  system_id_to_use)
 from mavreg.daemon.phases import Phase
-from mavreg.daemon.wire import Wire
+from mavreg.transport.wire import Wire
 from tests.helpers.supervisor_harness import FakePlan, SimVehicle, make_supervisor, run, wire
 
 M = mavlink2

@@ -7,10 +7,9 @@ import struct
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-import firmware_sim.wire
-import mavreg.daemon.wire
+import mavreg.transport.wire
 
-CODECS = pytest.mark.parametrize("wire_mod", [mavreg.daemon.wire, firmware_sim.wire], ids=["daemon", "firmware_sim"])
+CODECS = pytest.mark.parametrize("wire_mod", [mavreg.transport.wire], ids=["wire"])
 
 
 def _random_messages(rng: random.Random, n: int) -> list:
@@ -144,5 +143,5 @@ def test_skipped_ids_come_back_as_their_wire_bytes_in_place():
     frames = [m.pack(src) for m in (mavlink2.MAVLink_attitude_message(1, 0.1, 0.2, 0.3, 0, 0, 0),
                                     mavlink2.MAVLink_local_position_ned_message(1, 1, 2, 3, 4, 5, 6),
                                     mavlink2.MAVLink_attitude_message(2, 0.1, 0.2, 0.3, 0, 0, 0))]
-    got = mavreg.daemon.wire.Wire(1, 191).parse(b"".join(frames), {mavlink2.MAVLINK_MSG_ID_ATTITUDE})
+    got = mavreg.transport.wire.Wire(1, 191).parse(b"".join(frames), {mavlink2.MAVLINK_MSG_ID_ATTITUDE})
     assert got[0] == frames[0] and got[2] == frames[2] and got[1].get_type() == "LOCAL_POSITION_NED"

@@ -45,9 +45,8 @@ from typing import Callable
 from pymavlink.dialects.v20 import common as mavlink2
 
 from .wire import mcrf4xx
-from ..errors import UsageError
 
-__all__ = ["load_key", "now_ticks", "Verifier", "Signer", "Signing", "REASONS", "MAX_STREAMS",
+__all__ = ["SigningError", "load_key", "now_ticks", "Verifier", "Signer", "Signing", "REASONS", "MAX_STREAMS",
            "ALLOWED_UNSIGNED", "SETUP_SIGNING_ID", "TICKS_PER_S", "state_path"]
 
 TICKS_PER_S = 100_000
@@ -68,6 +67,11 @@ _SIG_LEN = 13
 _MAX_KEY_FILE_BYTES = 4096
 
 
+class SigningError(ValueError):
+    """A key or state file that cannot be used: one line naming the file (mavreg's commands exit 2
+    on it, :data:`mavreg.errors.REGISTERED`; the emulator's too)."""
+
+
 def load_key(path) -> bytes:
     """The 32-byte key in ``path`` (64 hex characters or base64).
 
@@ -80,14 +84,14 @@ def load_key(path) -> bytes:
     try:
         st = p.stat()
         if not stat.S_ISREG(st.st_mode):
-            raise UsageError(f"signing key {p}: not a regular file")
+            raise SigningError(f"signing key {p}: not a regular file")
         if st.st_mode & 0o077:
-            raise UsageError(f"signing key {p}: group or others may read or write it (mode "
+            raise SigningError(f"signing key {p}: group or others may read or write it (mode "
                              f"{stat.S_IMODE(st.st_mode):04o}); chmod 600 {p}")
         with open(p, "rb") as f:
             raw = f.read(_MAX_KEY_FILE_BYTES + 1)
     except OSError as exc:
-        raise UsageError(f"signing key {p}: {exc.strerror or exc}") from None
+        raise SigningError(f"signing key {p}: {exc.strerror or exc}") from None
     text = raw.strip() if len(raw) <= _MAX_KEY_FILE_BYTES else b""
     key = None
     if len(text) == 64:
@@ -101,9 +105,9 @@ def load_key(path) -> bytes:
         except (binascii.Error, ValueError):
             key = None
     if key is None or len(key) != 32:
-        raise UsageError(f"signing key {p}: expected 32 bytes as 64 hex characters or base64")
+        raise SigningError(f"signing key {p}: expected 32 bytes as 64 hex characters or base64")
     if not any(key):
-        raise UsageError(f"signing key {p}: the all-zero key is not a key")
+        raise SigningError(f"signing key {p}: the all-zero key is not a key")
     return key
 
 
@@ -261,13 +265,13 @@ class Signing:
         except FileNotFoundError:
             return 0, {}
         except OSError as exc:
-            raise UsageError(f"signing state {self.path}: {exc.strerror or exc}") from None
+            raise SigningError(f"signing state {self.path}: {exc.strerror or exc}") from None
         try:
             d = json.loads(text)
             streams = {(int(a), int(b), int(c)): int(t) for a, b, c, t in d.get("streams", [])}
             return int(d["timestamp"]), streams
         except (ValueError, KeyError, TypeError, AttributeError):
-            raise UsageError(f"signing state {self.path}: unreadable; it guards against replays, "
+            raise SigningError(f"signing state {self.path}: unreadable; it guards against replays, "
                              "remove it only if you know why it is broken") from None
 
     def check(self, frame) -> str | None:
@@ -309,4 +313,4 @@ class Signing:
         except OSError as exc:
             self.save_errors += 1
             if not self._saved:
-                raise UsageError(f"signing state {self.path}: cannot write: {exc.strerror or exc}") from None
+                raise SigningError(f"signing state {self.path}: cannot write: {exc.strerror or exc}") from None
