@@ -9,6 +9,8 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 
+from .ranges import ROTOR_THRUST_N
+
 __all__ = ["AllocationParams", "SpeedGovernorParams", "ALLOCATION_METHODS", "told_rotor_limit"]
 
 ALLOCATION_METHODS = ("torques_first", "per_rotor_clip")
@@ -23,7 +25,7 @@ class AllocationParams:
     """The regulator's map from the wrench u = (f, gamma) to the four rotor forces."""
 
     method: str = field(default="torques_first", metadata={"choices": ALLOCATION_METHODS})
-    max_rotor_thrust_n: float | None = field(default=None, metadata={"min_exclusive": 0.0})
+    max_rotor_thrust_n: float | None = field(default=None, metadata=ROTOR_THRUST_N)
     """The rotor force the allocation (and the speed governor) may count on; None: the vehicle
     file's ``max_rotor_thrust_n``. A vehicle whose rotors give less than its file says (a
     saturation experiment, a derated motor) is told here, while the plan keeps the file's."""
