@@ -11,7 +11,6 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
-import types
 import typing
 from typing import NamedTuple
 
@@ -20,6 +19,7 @@ import yaml
 
 from mavreg.config.controller import ControllerParams, load_controller
 from mavreg.config.loader import ConfigError, load_text
+from mavreg.config.loader import _unwrap_optional, _yaml_key as _key     # the loader's own rules
 from mavreg.config.maneuver import load_maneuver
 from mavreg.config.paths import controller_file, maneuver_files, params_dir, vehicle_file
 from mavreg.config.vehicle import VehicleParams, load_vehicle
@@ -36,22 +36,12 @@ class Number(NamedTuple):
     is_int: bool
 
 
-def _strip_optional(tp):
-    """``T`` of ``T | None``."""
-    args = [a for a in typing.get_args(tp) if a is not type(None)]
-    return args[0] if typing.get_origin(tp) in (typing.Union, types.UnionType) and len(args) == 1 else tp
-
-
-def _key(f: dataclasses.Field) -> str:
-    return f.name[: -len("_rad")] + "_deg" if f.metadata.get("deg") else f.name
-
-
 def numbers(schema, prefix: tuple[str, ...] = ()) -> list[Number]:
     """Every numeric field of ``schema`` and its nested sections, with its range."""
     out = []
     hints = typing.get_type_hints(schema)
     for f in dataclasses.fields(schema):
-        tp, path, meta = _strip_optional(hints[f.name]), prefix + (_key(f),), f.metadata
+        tp, path, meta = _unwrap_optional(hints[f.name])[0], prefix + (_key(f),), f.metadata
         if dataclasses.is_dataclass(tp):
             out += numbers(tp, path)
             continue
