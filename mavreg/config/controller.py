@@ -10,11 +10,10 @@ from .defaults import MAX_PREDICTION_S
 from .disturbance import DisturbanceParams
 from .envelope import EnvelopeParams
 from .loader import load_file
+from .ranges import LQR_WEIGHT, LQR_WEIGHT_OR_ZERO
 from .regulation import AllocationParams, SpeedGovernorParams
 
 __all__ = ["ControllerParams", "load_controller", "MIN_RICCATI_STEP_S"]
-
-_W = {"min_exclusive": 0.0}
 
 MIN_RICCATI_STEP_S = 1e-4
 """0.1 ms: RK4's error at the 2 ms default is already far below the gains' meaning (O(h^4));
@@ -32,11 +31,11 @@ class ControllerParams:
     (10, 10, 10), rates (3, 3, 3); docs/transverse.md gives the reasoning and the check.
     """
 
-    q_position: tuple[float, ...] = field(metadata={"length": 2, **_W})
-    q_attitude: tuple[float, ...] = field(metadata={"length": 3, **_W})
-    q_velocity: tuple[float, ...] = field(metadata={"length": 3, **_W})
-    q_rate: tuple[float, ...] = field(metadata={"length": 3, **_W})
-    r_input: tuple[float, ...] = field(metadata={"length": 4, **_W})
+    q_position: tuple[float, ...] = field(metadata={"length": 2, **LQR_WEIGHT})
+    q_attitude: tuple[float, ...] = field(metadata={"length": 3, **LQR_WEIGHT})
+    q_velocity: tuple[float, ...] = field(metadata={"length": 3, **LQR_WEIGHT})
+    q_rate: tuple[float, ...] = field(metadata={"length": 3, **LQR_WEIGHT})
+    r_input: tuple[float, ...] = field(metadata={"length": 4, **LQR_WEIGHT})
     """Weights on (f, gamma1, gamma2, gamma3)."""
     riccati_step_s: float = field(default=0.002, metadata={"min": MIN_RICCATI_STEP_S, "max": 0.01})
     """Step of the RK4 Riccati sweep, in nominal time (the s-step is speed times this); the
@@ -55,7 +54,7 @@ class ControllerParams:
     :mod:`mavreg.control.actuator`). False: the paper's design, which assumes the commanded
     wrench acts at once."""
     q_wrench: tuple[float, ...] = field(default=(0.0, 0.0, 0.0, 0.0),
-                                        metadata={"length": 4, "min": 0.0})
+                                        metadata={"length": 4, **LQR_WEIGHT_OR_ZERO})
     """With ``rotor_lag_in_design``: weights on the achieved wrench's deviation from the
     nominal, (f, gamma1, gamma2, gamma3)."""
     predict_delay: bool = False
@@ -73,11 +72,11 @@ class ControllerParams:
     speed_governor: SpeedGovernorParams = field(default_factory=SpeedGovernorParams)
     """The speed the regulator regulates to (:mod:`mavreg.config.regulation`); off by default."""
     hover_q: tuple[float, ...] = field(default=(20.0, 20.0, 30.0, 4.0, 4.0, 4.0, 6.0, 6.0, 8.0, 0.5, 0.5, 0.5),
-                                       metadata={"length": 12, "min": 0.0})
+                                       metadata={"length": 12, **LQR_WEIGHT})
     """The hover LQR's state weights over x = (p, roll pitch yaw, v_body, w_body): take-off,
     holds, landing (:class:`mavreg.control.hover.HoverParams`)."""
     hover_r_input: tuple[float, ...] = field(default=(0.1, 4.0, 4.0, 1.0),
-                                             metadata={"length": 4, "min_exclusive": 0.0})
+                                             metadata={"length": 4, **LQR_WEIGHT})
     """The hover LQR's input weights over (f, gamma1, gamma2, gamma3). Roll and pitch at 4:
     through the 20 ms rotor lag the hold keeps 29 ms of delay margin on the paper's airframe
     (17 ms at 1; docs/robustness.md, *Margins*); a lighter airframe needs larger torque weights

@@ -155,18 +155,25 @@ def _describe(node: yaml.Node) -> str:
     return "null" if value is None else f"{type(value).__name__} {_excerpt(value)}"
 
 
+def _range(meta: dict) -> str:
+    """The field's whole range, `` (range [lo, hi])``, where it has both ends ("" otherwise)."""
+    lo, lo_x, hi, hi_x = (meta.get(k) for k in ("min", "min_exclusive", "max", "max_exclusive"))
+    low = f"[{lo:g}" if lo is not None and (lo_x is None or lo > lo_x) else (
+        f"({lo_x:g}" if lo_x is not None else None)
+    high = f"{hi:g}]" if hi is not None and (hi_x is None or hi < hi_x) else (
+        f"{hi_x:g})" if hi_x is not None else None)
+    return f" (range {low}, {high})" if low and high else ""
+
+
 def _check_range(ctx: _Ctx, node, key: str, value: float, meta: dict) -> None:
     lo, hi = meta.get("min"), meta.get("max")
-    lo_x = meta.get("min_exclusive")
-    if lo_x is not None and not value > lo_x:
-        ctx.fail(node, key, f"expected a value > {lo_x}, got {_excerpt(value)}")
-    if lo is not None and value < lo:
-        ctx.fail(node, key, f"expected a value >= {lo}, got {_excerpt(value)}")
-    if hi is not None and value > hi:
-        ctx.fail(node, key, f"expected a value <= {hi}, got {_excerpt(value)}")
-    hi_x = meta.get("max_exclusive")
-    if hi_x is not None and not value < hi_x:
-        ctx.fail(node, key, f"expected a value < {hi_x}, got {_excerpt(value)}")
+    lo_x, hi_x = meta.get("min_exclusive"), meta.get("max_exclusive")
+    for bad, bound in ((lo_x is not None and not value > lo_x, f"> {lo_x}"),
+                       (lo is not None and value < lo, f">= {lo}"),
+                       (hi is not None and value > hi, f"<= {hi}"),
+                       (hi_x is not None and not value < hi_x, f"< {hi_x}")):
+        if bad:
+            ctx.fail(node, key, f"expected a value {bound}, got {_excerpt(value)}{_range(meta)}")
 
 
 _EXPONENT = re.compile(r"[-+]?[0-9]+(\.[0-9]*)?[eE][-+]?[0-9]+")

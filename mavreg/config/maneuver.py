@@ -17,8 +17,8 @@ from pathlib import Path
 
 import yaml
 
-from .envelope import MAX_GEOFENCE_M
 from .loader import load_file, load_text
+from .ranges import MAX_GEOFENCE_M, MAX_SPEED_M_S
 
 __all__ = ["ManeuverSpec", "SegmentSpec", "load_maneuver", "load_maneuver_text", "maneuver_text_with_laps", "MAX_EXTENT_M",
            "MAX_SPEED_M_S", "MAX_TURN_DEG", "MIN_LENGTH_M", "MIN_SPEED_M_S"]
@@ -26,8 +26,6 @@ __all__ = ["ManeuverSpec", "SegmentSpec", "load_maneuver", "load_maneuver_text",
 MAX_EXTENT_M = MAX_GEOFENCE_M
 """1 km: the largest start position, waypoint offset, segment length, radius or pitch. No
 part of a maneuver can lie farther from the take-off point than the widest geofence."""
-MAX_SPEED_M_S = 50.0
-"""180 km/h: above any quadrotor's top speed."""
 MIN_LENGTH_M = 1e-3
 """1 mm: the shortest segment, radius or speed change (shorter ones ask for unbounded
 curvature or acceleration; the path is integrated on 5 mm nodes)."""

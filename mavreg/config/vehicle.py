@@ -5,14 +5,15 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from .loader import ConfigError, load_file
+from .ranges import (ARM_M, BODY_RATE_RAD_S, DRAG_TORQUE_RATIO_M, INERTIA_KG_M2, INERTIA_PRODUCT_KG_M2,
+                     LINEAR_DRAG_N_S_PER_M, MASS_KG, PARASITIC_DRAG_N_S2_PER_M2, ROTOR_THRUST_N,
+                     ROTOR_TIME_CONSTANT_S, within)
 
 __all__ = ["EmulatorParams", "RateInterfaceParams", "VehicleParams", "load_vehicle", "G", "OUTPUTS", "with_output",
            "DIALECTS", "with_dialect"]
 
 G = 9.81
 """Gravity (m/s^2), along +z (down) of NED."""
-
-_POS = {"min_exclusive": 0.0}
 
 OUTPUTS = ("rotors", "rates")
 """What the daemon commands: rotor forces (SET_ACTUATOR_CONTROL_TARGET), or body rates and
@@ -28,25 +29,28 @@ ArduPilot are known from their HEARTBEAT (docs/autopilots.md, *Which dialect*)."
 class EmulatorParams:
     """Physics that only firmware_sim models; the controller is never designed on it."""
 
-    rotor_time_constant_s: float = field(default=0.02, metadata={"min": 0.0, "max": 1.0})
+    rotor_time_constant_s: float = field(default=0.02, metadata=ROTOR_TIME_CONSTANT_S)
     """First-order motor lag of each rotor's thrust (0: ideal actuators)."""
-    rotor_noise_sd_n: float = field(default=0.0, metadata={"min": 0.0})
-    """Standard deviation of the Gaussian noise on each rotor's thrust."""
+    rotor_noise_sd_n: float = field(default=0.0, metadata=within(0.0, 50.0))
+    """Standard deviation of the Gaussian noise on each rotor's thrust (at most a tenth of the
+    largest rotor's 500 N)."""
     linear_drag_n_s_per_m: tuple[float, ...] = field(
-        default=(0.0, 0.0, 0.0), metadata={"length": 3, "min": 0.0}
+        default=(0.0, 0.0, 0.0), metadata={"length": 3, **LINEAR_DRAG_N_S_PER_M}
     )
     """Body-frame linear drag coefficients (force = -c * v_air_body, per axis)."""
     parasitic_drag_n_s2_per_m2: tuple[float, ...] = field(
-        default=(0.0, 0.0, 0.0), metadata={"length": 3, "min": 0.0}
+        default=(0.0, 0.0, 0.0), metadata={"length": 3, **PARASITIC_DRAG_N_S2_PER_M2}
     )
     """Body-frame quadratic (parasitic) drag: force = -c * |v_air| * v_air_body, per axis."""
     thrust_scale: float = field(default=1.0, metadata={"min": 0.5, "max": 1.5})
     """Thrust each rotor gives per unit commanded (0.9: a battery sagged to 90 %); the
     saturation scales with it."""
-    inertia_offdiag_kg_m2: tuple[float, ...] = field(default=(0.0, 0.0, 0.0), metadata={"length": 3})
+    inertia_offdiag_kg_m2: tuple[float, ...] = field(default=(0.0, 0.0, 0.0),
+                                                 metadata={"length": 3, **INERTIA_PRODUCT_KG_M2})
     """Products of inertia (Jxy, Jxz, Jyz) the design model neglects."""
-    crash_speed_m_s: float = field(default=3.0, metadata=_POS)
-    """Touching the ground faster than this is a crash."""
+    crash_speed_m_s: float = field(default=3.0, metadata=within(0.1, 100.0))
+    """Touching the ground faster than this is a crash (0.1 m/s is a landing; 100 m/s: no crash
+    detection, for a test of the daemon's own impact detector)."""
 
 
 @dataclass(frozen=True)
@@ -61,8 +65,9 @@ class RateInterfaceParams:
     thrust: :math:`m g = F_{max}((1 - e) t_h + e t_h^2)`.
     """
 
-    hover_thrust: float = field(metadata={"min_exclusive": 0.0, "max_exclusive": 1.0})
-    """Normalized thrust t_h that holds the file's ``mass_kg`` in a level hover."""
+    hover_thrust: float = field(metadata=within(0.02, 0.95))
+    """Normalized thrust t_h that holds the file's ``mass_kg`` in a level hover (0.02: a
+    thrust-to-weight of 50 on a linear map; 0.95: 5 % of the thrust left to climb and steer)."""
     thrust_expo: float = field(default=0.0, metadata={"min": 0.0, "max": 1.0})
     """e of the thrust map: the curvature the autopilot leaves in its thrust command (0: the
     autopilot linearizes its motors' thrust, as ArduPilot with ``MOT_THST_EXPO`` does)."""
@@ -77,7 +82,7 @@ class RateInterfaceParams:
     """d: from the command's arrival to the start of the rates' response (added to the
     link delay the state is predicted across)."""
     max_body_rate_rad_s: tuple[float, ...] = field(
-        default=(12.0, 12.0, 6.0), metadata={"length": 3, "min_exclusive": 0.0})
+        default=(12.0, 12.0, 6.0), metadata={"length": 3, **BODY_RATE_RAD_S})
     """Largest roll, pitch and yaw rate commanded (the autopilot's own limits or lower)."""
     attitude_gain_rad_s: tuple[float, ...] = field(
         default=(0.0, 0.0, 0.0), metadata={"length": 3, "min": 0.0, "max": 50.0})
@@ -93,21 +98,22 @@ class VehicleParams:
     """The design model's parameters (paper eqs 6-17 and 34), SI units."""
 
     name: str
-    mass_kg: float = field(metadata=_POS)
-    inertia_kg_m2: tuple[float, ...] = field(metadata={"length": 3, "min_exclusive": 0.0})
+    mass_kg: float = field(metadata=MASS_KG)
+    inertia_kg_m2: tuple[float, ...] = field(metadata={"length": 3, **INERTIA_KG_M2})
     """Diagonal of J: (jx, jy, jz)."""
-    arm_length_m: float = field(metadata=_POS)
-    drag_torque_ratio_m: float = field(metadata=_POS)
+    arm_length_m: float = field(metadata=ARM_M)
+    drag_torque_ratio_m: float = field(metadata=DRAG_TORQUE_RATIO_M)
     """k of eq 34: rotor drag torque per unit thrust."""
-    max_rotor_thrust_n: float = field(metadata=_POS)
-    rotor_time_constant_s: float = field(default=0.0, metadata={"min": 0.0, "max": 1.0})
+    max_rotor_thrust_n: float = field(metadata=ROTOR_THRUST_N)
+    rotor_time_constant_s: float = field(default=0.0, metadata=ROTOR_TIME_CONSTANT_S)
     """The controller's estimate of the rotors' first-order thrust lag. The design model
     (eq 34) has ideal rotors; the regulator leads its feedforward by this much. The
     emulator's true lag is ``emulator.rotor_time_constant_s``."""
-    rotor_drag_n_s_per_m: tuple[float, ...] = field(default=(0.0, 0.0), metadata={"length": 2, "min": 0.0})
+    rotor_drag_n_s_per_m: tuple[float, ...] = field(default=(0.0, 0.0),
+                                                metadata={"length": 2, **LINEAR_DRAG_N_S_PER_M})
     """Linear drag of the body, (c_xy, c_z): c_xy in the rotor plane, c_z along the thrust
     axis (force = -C v_body). Known drag is fed forward by the nominal (0: the paper's model)."""
-    parasitic_drag_n_s2_per_m2: float = field(default=0.0, metadata={"min": 0.0})
+    parasitic_drag_n_s2_per_m2: float = field(default=0.0, metadata=PARASITIC_DRAG_N_S2_PER_M2)
     """Quadratic parasitic drag: force = -c |v| v."""
     rotor_drag_thrust_exponent: float = field(default=0.0, metadata={"min": 0.0, "max": 2.0})
     """e in c_xy(T) = c_xy (T / (m g))^e: the rotor-plane drag grows with the collective thrust

@@ -31,11 +31,12 @@ import numpy as np
 
 from ..blas import one_blas_thread
 from ..config.vehicle import VehicleParams
+from ..errors import ManeuverError
 from ..control.actuator import augmented_jacobians
 from ..model.rotor_lag import lag_augment
 from ..control.hover import HoverController, HoverParams
-from ..control.margins import (LoopMargins, ScheduleMargins, lag_model_loop, loop_margins, node_margins,
-                               rotor_loop, schedule_margins)
+from ..control.margins import (FastLoopError, LoopMargins, ScheduleMargins, lag_model_loop, loop_margins,
+                               node_margins, rotor_loop, schedule_margins)
 from ..control.transverse import transverse_jacobians
 from ..model.mixer import mixer_matrix
 from ..model.quadrotor import QuadrotorModel
@@ -150,10 +151,25 @@ def plan_margins(plan: Plan, hover: HoverParams = HoverParams()) -> PlanMargins:
     """The margins of ``plan``'s regulator and of the hover LQR (``hover``'s weights) at the
     plan's entry yaw."""
     with one_blas_thread():
-        h, h_rotor = hover_margins(plan.vehicle, hover, float(plan.x[0, 5]))
+        try:
+            h, h_rotor = hover_margins(plan.vehicle, hover, float(plan.x[0, 5]))
+        except FastLoopError as exc:
+            raise _too_fast("the hover LQR", "hover_q, hover_r_input", exc) from None
         feasible = plan.feasibility.feasible
         tau = plan.rotor_time_constant_s if plan.rotor_time_constant_s > 0 else plan.vehicle.rotor_time_constant_s
-        return PlanMargins(maneuver_margins(plan) if feasible else None, h, h_rotor, float(tau))
+        try:
+            maneuver = maneuver_margins(plan) if feasible else None
+        except FastLoopError as exc:
+            raise _too_fast("the maneuver regulator", "q_*, r_input", exc) from None
+        return PlanMargins(maneuver, h, h_rotor, float(tau))
+
+
+def _too_fast(loop: str, weights: str, exc: FastLoopError) -> ManeuverError:
+    """The one-line refusal of weights that no control rate can fly on this vehicle."""
+    return ManeuverError(f"{loop} cannot be flown on this vehicle: {exc}, a delay margin under "
+                         f"0.6 ms (shorter than any control period); weigh the torques more or the "
+                         f"states less ({weights} of the controller file), or check the vehicle "
+                         f"file's mass, inertia and arm")
 
 
 def with_margins(plan: Plan, hover: HoverParams = HoverParams()) -> Plan:

@@ -86,7 +86,7 @@ def test_negative_mass_is_out_of_range(tmp_path):
     text = VEHICLE.replace("mass_kg: 0.749", "mass_kg: -0.749")
     err = _vehicle_error(tmp_path, text)
     assert err.key == "mass_kg" and err.line == _line_of(text, "mass_kg")
-    assert "expected a value > 0" in str(err) and "-0.749" in str(err)
+    assert "expected a value >= 0.01" in str(err) and "-0.749" in str(err) and "range [0.01, 100]" in str(err)
 
 
 def test_physically_impossible_inertia_is_rejected(tmp_path):
