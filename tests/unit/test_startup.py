@@ -1,0 +1,125 @@
+"""The start says what it does before doing it (mavreg.daemon.startup, mavreg fly's first line),
+by the order of events and an injected clock, never by wall-clock limits."""
+from __future__ import annotations
+
+import asyncio
+import types
+
+import pytest
+
+from mavreg import accel
+from mavreg.config.paths import maneuver_file
+from mavreg.daemon import startup
+from mavreg.daemon.startup import PreflightWatch, compile_kernels, preflight_wait
+from mavreg.planning.cache import PlanCache
+from mavreg.planning.plan_io import text_in_cache
+from mavreg.progress import Progress
+
+
+def test_the_compile_is_announced_with_an_estimate_before_it_starts(monkeypatch):
+    monkeypatch.setattr(startup, "kernels_cold", lambda: True)
+    monkeypatch.setattr(startup, "cpu_speed_factor", lambda: 2.0)
+    lines: list[str] = []
+    seen_when_compiling: list[str] = []
+    progress = Progress(lines.append, every_s=1e6)
+    asyncio.run(compile_kernels(progress, lambda: seen_when_compiling.extend(lines)))
+    assert len(seen_when_compiling) == 1
+    assert seen_when_compiling[0].endswith(
+        "compiling the controller's kernels (first run on this machine, about 50 s) ...")
+    assert lines[-1].split("setup: ")[1].startswith("compiled the controller's kernels in ")
+
+
+def test_a_warm_cache_loads_without_a_line_and_an_error_reaches_the_caller(monkeypatch):
+    monkeypatch.setattr(startup, "kernels_cold", lambda: False)
+    lines: list[str] = []
+    progress = Progress(lines.append, every_s=1e6)
+    asyncio.run(compile_kernels(progress, lambda: None))
+    assert lines == []
+
+    def broken():
+        raise RuntimeError("no LLVM")
+    with pytest.raises(RuntimeError, match="no LLVM"):
+        asyncio.run(compile_kernels(progress, broken))
+
+
+@pytest.mark.parametrize("heard, sample, armed, queued, words", [
+    (False, False, None, True, "no message from it yet"),
+    (True, False, False, True, "position estimate"),
+    (True, True, False, True, "to arm"),
+    (True, True, False, False, None),           # serve, no upload yet: the endpoint says that
+    (True, True, True, True, None),
+])
+def test_what_the_preflight_waits_for(heard, sample, armed, queued, words):
+    what = preflight_wait(heard, sample, armed, queued)
+    assert (what is None) if words is None else (words in what)
+
+
+def test_a_wait_is_said_when_it_lasts_and_again_every_period():
+    said: list[str] = []
+    watch = PreflightWatch(said.append, late_s=1.0, every_s=10.0)
+    watch.update("waiting for A", 0.0)
+    watch.update("waiting for A", 0.5)
+    watch.update(None, 0.8)                      # over before it mattered: nothing said
+    assert said == []
+    watch.update("waiting for B", 1.0)
+    watch.update("waiting for B", 2.0)
+    watch.update("waiting for B", 2.1)
+    watch.update("waiting for B", 12.0)
+    assert said == ["waiting for B", "waiting for B (11 s so far)"]
+
+
+def _fake_kernel(load_index):
+    file = types.SimpleNamespace(_load_index=load_index)
+    return types.SimpleNamespace(dispatcher=types.SimpleNamespace(_cache=types.SimpleNamespace(_cache_file=file)))
+
+
+def test_kernel_cached_reads_the_index_without_compiling(monkeypatch):
+    monkeypatch.setattr(accel, "ACCELERATED", True)
+    monkeypatch.setattr(accel, "materialize", lambda: None)
+    assert accel.kernel_cached(_fake_kernel(lambda: {"sig": 1})) is True
+    assert accel.kernel_cached(_fake_kernel(lambda: {})) is False         # missing or stale
+
+    def unreadable():
+        raise EOFError
+    assert accel.kernel_cached(_fake_kernel(unreadable)) is False
+    assert accel.kernel_cached(types.SimpleNamespace()) is None           # another layout
+    monkeypatch.setattr(accel, "ACCELERATED", False)
+    assert accel.kernel_cached(_fake_kernel(lambda: {"sig": 1})) is None
+
+
+def test_the_plan_cache_tells_a_hit_before_planning(tmp_path, monkeypatch, vehicle, realistic_controller):
+    cache = PlanCache(tmp_path)
+    assert not cache.has(("a", 1))
+    cache.get_or_plan(("a", 1), lambda: "entry")
+    assert cache.has(("a", 1)) and not cache.has(("a", 2))
+    text = maneuver_file("barrel_roll").read_text()
+    monkeypatch.setenv("MAVREG_PLAN_CACHE", str(tmp_path / "plans"))
+    assert text_in_cache(text, "x.yaml", vehicle, realistic_controller) is False
+    assert text_in_cache("kind: [", "bad.yaml", vehicle, realistic_controller) is None
+    monkeypatch.setenv("MAVREG_PLAN_CACHE", "off")
+    assert text_in_cache(text, "x.yaml", vehicle, realistic_controller) is None
+
+
+def test_fly_says_its_first_line_before_the_daemon_is_imported_or_started(monkeypatch, capsys, tmp_path):
+    from mavreg.cli.main import main
+    from mavreg.daemon import fly as fly_module
+    seen = {}
+
+    def fake_fly(opts):
+        seen["err"] = capsys.readouterr().err
+        seen["progress"] = opts.progress
+        return 0
+    monkeypatch.setattr(fly_module, "fly", fake_fly)
+    out = tmp_path / "out"
+    assert main(["fly", str(maneuver_file("barrel_roll")), "--lockstep", "--out", str(out)]) == 0
+    first = seen["err"].splitlines()
+    assert len(first) == 1 and first[0].endswith(
+        f"setup: starting: barrel_roll.yaml on the bundled emulator (lockstep); outputs in {out}/")
+    assert seen["progress"] is not None         # the daemon goes on with the same clock
+
+
+def test_a_bad_option_after_the_first_line_is_still_one_error_line(capsys, tmp_path):
+    from mavreg.cli.main import main
+    status = main(["fly", str(maneuver_file("barrel_roll")), "--gcs", "nonsense", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err.splitlines()
+    assert status == 2 and len(err) == 2 and "starting:" in err[0] and err[1].startswith("mavreg fly: error: ")
