@@ -70,6 +70,9 @@ def add_arguments(p):
 
 
 def run(args) -> int:
+    from ..progress import Progress
+    progress = Progress()
+    progress.line(f"serving {args.vehicle}")       # the first line, at once
     import asyncio
 
     from ..config.vehicle import load_vehicle, with_dialect, with_output
@@ -79,6 +82,7 @@ def run(args) -> int:
     from ..daemon.peers import system_id_to_use
     from ..daemon.supervisor import Phase, SupervisorParams
     from ..daemon.signing import Signing
+    from ..daemon.sdnotify import Notifier
     signing = Signing(args.signing_key, "mavreg") if args.signing_key is not None else None
     gcs = gcs_config(args)
     vehicle = with_dialect(with_output(load_vehicle(args.vehicle_params), args.output), args.dialect)
@@ -98,8 +102,10 @@ def run(args) -> int:
                           control_rate_hz=args.control_rate_hz, **gcs, planner=planner_bounds(args),
                           tlog_clock="vehicle" if args.vehicle_lockstep else "wall")
     make_regulator = regulator_factory(vehicle, args.control_rate_hz, controller.disturbance,
-                                      controller.allocation, controller.speed_governor)
-    daemon = Daemon(config, vehicle, make_regulator, signing=signing)
+                                      controller.allocation, controller.speed_governor, warm=False)
+    notifier = Notifier()       # systemd's Type=notify (deploy/mavreg.service); nothing outside it
+    progress.write = _with_status(progress.write, notifier)
+    daemon = Daemon(config, vehicle, make_regulator, signing=signing, progress=progress, notifier=notifier)
     asyncio.run(daemon.run())
     if args.control_log:
         daemon.ctrl_log.save(args.control_log)
@@ -108,3 +114,14 @@ def run(args) -> int:
         print(f"mavreg serve: {failure.line()}", file=sys.stderr, flush=True)
         return 1
     return 1 if daemon.supervisor.phase == Phase.ABORTED else 0
+
+
+def _with_status(write, notifier):
+    """``write``, each line also systemd's STATUS (``systemctl status`` shows the start)."""
+    if not notifier.enabled:
+        return write
+
+    def both(line: str) -> None:
+        write(line)
+        notifier.status(line.split("setup: ", 1)[-1])
+    return both
