@@ -186,13 +186,9 @@ class Daemon:
     def _watch_preflight(self) -> None:
         """Say what the start waits for when it lasts (:class:`~.startup.PreflightWatch`)."""
         sup = self.supervisor
-        if sup.phase != Phase.PREFLIGHT:
-            what = None
-        else:
-            status = sup.status()
-            what = preflight_wait(self._heard, sup.last_sample is not None, status["vehicle_armed"],
-                                  bool(status["pending"]))
-        self._watch.update(what, self.clock_s())
+        status = sup.status() if sup.phase == Phase.PREFLIGHT else None
+        self._watch.update(None if status is None else preflight_wait(
+            self._heard, sup.last_sample is not None, status["vehicle_armed"], bool(status["pending"])), self.clock_s())
 
     # ---------------------------------------------------------------- requests
     async def offer_text(self, yaml_text: str, source: str) -> dict:

@@ -123,3 +123,21 @@ def test_a_bad_option_after_the_first_line_is_still_one_error_line(capsys, tmp_p
     status = main(["fly", str(maneuver_file("barrel_roll")), "--gcs", "nonsense", "--out", str(tmp_path / "o")])
     err = capsys.readouterr().err.splitlines()
     assert status == 2 and len(err) == 2 and "starting:" in err[0] and err[1].startswith("mavreg fly: error: ")
+
+
+def test_plan_and_simulate_say_a_cache_miss_before_planning(monkeypatch, capsys, tmp_path, vehicle,
+                                                            realistic_controller):
+    from mavreg.cli import plan_progress
+    from mavreg.config.maneuver import load_maneuver
+    from mavreg.planning import plan_io
+    seen = []
+    monkeypatch.setattr(plan_io, "plan_cached", lambda *a: seen.append(capsys.readouterr().err) or "plan")
+    monkeypatch.setenv("MAVREG_PLAN_CACHE", str(tmp_path))
+    spec = load_maneuver(maneuver_file("barrel_roll"))
+    assert plan_progress.plan_saying("plan", spec, vehicle, realistic_controller) == "plan"
+    assert seen[0].startswith("mavreg plan ") and seen[0].rstrip().endswith(
+        "planning barrel_roll (not in the plan cache yet) ...")
+    assert "planned barrel_roll in " in capsys.readouterr().err
+    monkeypatch.setenv("MAVREG_PLAN_CACHE", "off")          # no cache: quick unless it lasts
+    plan_progress.plan_saying("simulate", spec, vehicle, realistic_controller)
+    assert seen[1] == "" and capsys.readouterr().err == ""
