@@ -24,7 +24,7 @@ import threading
 import time
 from typing import Callable
 
-__all__ = ["Progress", "Stage", "cpu_speed_factor", "REFERENCE_LOOP_S"]
+__all__ = ["Progress", "Stage", "cpu_speed_factor", "stderr_line", "REFERENCE_LOOP_S"]
 
 REFERENCE_LOOP_S = 0.058
 """Seconds a 1-million-iteration empty Python loop took on the machine the stage estimates
@@ -55,7 +55,7 @@ class Progress:
     def __init__(self, write: Callable[[str], None] | None = None, clock_s: Callable[[], float] = time.monotonic,
                  start_s: float | None = None, every_s: float = 10.0, quiet: bool = False,
                  tag: str | None = None):
-        self.write = write if write is not None else _stderr
+        self.write = write if write is not None else stderr_line
         self.clock_s = clock_s
         self.start_s = clock_s() if start_s is None else start_s
         self.every_s = float(every_s)
@@ -138,5 +138,8 @@ class Stage:
             wait_s = p.every_s
 
 
-def _stderr(text: str) -> None:
-    print(text, file=sys.stderr, flush=True)
+def stderr_line(text: str) -> None:
+    """``text`` and its newline in one write (a stage line comes from another thread: two
+    writes could interleave with the main thread's), flushed."""
+    sys.stderr.write(text + "\n")
+    sys.stderr.flush()

@@ -13,7 +13,6 @@ import collections
 import dataclasses
 import math
 import signal
-import sys
 import time
 from typing import Awaitable, Callable
 
@@ -24,7 +23,7 @@ from ..control.forecast import Forecaster
 from ..config.vehicle import VehicleParams
 from ..errors import EXIT_FAILED, UserError
 from ..planning.plan_io import text_in_cache
-from ..progress import Progress
+from ..progress import Progress, stderr_line
 from .ctrllog import ControlLog
 from .daemon_config import DaemonConfig, regulator_factory
 from .daemon_status import latency_summary, status_report
@@ -57,7 +56,7 @@ class Daemon:
         self.signing = signing
         self.vehicle = vehicle
         self.clock_s = clock_s
-        self.log = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
+        self.log = log if log is not None else stderr_line       # one write: stage lines come from threads
         self.progress = progress if progress is not None else Progress(self.log, clock_s)
         """The start's stage lines (:mod:`.startup`); its start is the daemon's (a command
         that printed before the daemon existed passes its own)."""
