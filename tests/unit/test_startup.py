@@ -3,6 +3,7 @@ by the order of events and an injected clock, never by wall-clock limits."""
 from __future__ import annotations
 
 import asyncio
+import threading
 import types
 
 import pytest
@@ -141,3 +142,65 @@ def test_plan_and_simulate_say_a_cache_miss_before_planning(monkeypatch, capsys,
     monkeypatch.setenv("MAVREG_PLAN_CACHE", "off")          # no cache: quick unless it lasts
     plan_progress.plan_saying("simulate", spec, vehicle, realistic_controller)
     assert seen[1] == "" and capsys.readouterr().err == ""
+
+
+class _FakePool:
+    """The planner worker, answering at once; it notes what had been said when it was asked."""
+
+    def __init__(self, log: list, result):
+        self.log, self.result, self.controller, self.asked_after = log, result, None, None
+
+    async def warm_up(self):
+        return None
+
+    async def plan(self, text, source):
+        self.asked_after = list(self.log)
+        return self.result
+
+
+def _daemon_starting(monkeypatch, result, compile_gate: threading.Event | None = None):
+    from pathlib import Path
+
+    from mavreg.daemon import app
+    from mavreg.daemon.app import Daemon, DaemonConfig
+    from mavreg.daemon.phases import SupervisorParams
+    from tests.helpers.supervisor_harness import VEHICLE, FakeRegulator
+    order: list[str] = []
+    lines: list[str] = []
+
+    def fake_compile(*args):
+        if compile_gate is not None:
+            compile_gate.wait(60.0)
+        order.append("compiled")
+    monkeypatch.setattr(app, "warm_daemon_kernels", fake_compile)
+    monkeypatch.setattr(app, "text_in_cache", lambda *a: False)
+    monkeypatch.setattr(startup, "kernels_cold", lambda: False)
+    cfg = DaemonConfig("udpout:127.0.0.1:1", Path("v"), Path("c"), None, None, SupervisorParams())
+    d = Daemon(cfg, VEHICLE, lambda p: FakeRegulator(p), log=lines.append)
+    d.pool = _FakePool(lines, result)
+    real_offer = d.supervisor.offer_plan
+    monkeypatch.setattr(d.supervisor, "offer_plan", lambda *a: (order.append("queued"), real_offer(*a))[1])
+    return d, order, lines
+
+
+def test_the_daemon_says_planning_before_it_plans_and_queues_only_once_compiled(monkeypatch):
+    from mavreg.daemon.planner_pool import PlanResult
+    from tests.helpers.supervisor_harness import FakePlan
+    d, order, lines = _daemon_starting(monkeypatch, PlanResult(FakePlan()))
+    asyncio.run(d._start([("kind: maneuver", "some/dir/line.yaml")]))
+    assert d.pool.asked_after[-1].endswith("setup: planning line.yaml (not in the plan cache yet) ...")
+    assert order == ["compiled", "queued"]
+    assert any("setup: planned line.yaml in " in line for line in lines)
+
+
+def test_a_refused_maneuver_ends_the_start_without_waiting_for_the_compile(monkeypatch):
+    from mavreg.daemon.app import _InitialRejected
+    from mavreg.daemon.planner_pool import PlanResult
+    gate = threading.Event()
+    d, order, _ = _daemon_starting(monkeypatch, PlanResult(None, "line.yaml: too fast", 1), gate)
+    try:
+        with pytest.raises(_InitialRejected, match="too fast"):
+            asyncio.run(d._start([("kind: maneuver", "line.yaml")]))
+        assert order == []                      # the compile was still under way
+    finally:
+        gate.set()
