@@ -26,14 +26,15 @@ from typing import Callable
 
 __all__ = ["Progress", "Stage", "cpu_speed_factor", "stderr_line", "REFERENCE_LOOP_S"]
 
-REFERENCE_LOOP_S = 0.058
-"""Seconds a 1-million-iteration empty Python loop took on the machine the stage estimates
-were measured on (the developers' 2-core machine): :func:`cpu_speed_factor`'s reference."""
+REFERENCE_LOOP_S = 0.030
+"""Seconds a 1-million-iteration empty Python loop took (CPython 3.11, ``nice -n 19``, a load
+average of 3) on the machine the stage estimates were measured on, the developers' 2-core
+machine: :func:`cpu_speed_factor`'s reference."""
 
 
 def cpu_speed_factor(iterations: int = 100_000, clock_s: Callable[[], float] = time.perf_counter) -> float:
     """How many times slower than the reference machine this one runs Python now (load
-    included): the median of three empty loops of ``iterations`` (6 ms each there) timed
+    included): the median of three empty loops of ``iterations`` (3 ms each there) timed
     against :data:`REFERENCE_LOOP_S`. At least 0.25: a fast machine still takes seconds."""
     took = []
     for _ in range(3):

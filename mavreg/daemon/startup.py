@@ -31,10 +31,10 @@ from ..progress import Progress, cpu_speed_factor
 
 __all__ = ["compile_kernels", "kernels_cold", "PreflightWatch", "preflight_wait", "COMPILE_S"]
 
-COMPILE_S = 25.0
+COMPILE_S = 32.0
 """Seconds the daemon's kernels took to compile from a cold cache on the reference machine
-(:data:`mavreg.progress.REFERENCE_LOOP_S`): scaled by :func:`mavreg.progress.cpu_speed_factor`
-for the estimate said before compiling."""
+(:data:`mavreg.progress.REFERENCE_LOOP_S`, measured in the same conditions): scaled by
+:func:`mavreg.progress.cpu_speed_factor` for the estimate said before compiling."""
 
 
 def _loop_kernels() -> tuple:

@@ -5,7 +5,7 @@ import threading
 
 import pytest
 
-from mavreg.progress import Progress, cpu_speed_factor
+from mavreg.progress import REFERENCE_LOOP_S, Progress, cpu_speed_factor
 
 
 class FakeClock:
@@ -95,7 +95,8 @@ def test_end_is_idempotent_and_an_error_in_the_stage_propagates():
 
 
 def test_the_cpu_speed_factor_compares_the_median_loop_with_the_reference():
-    ticks = iter([0.0, 0.0058, 1.0, 1.0116, 2.0, 2.0174])     # 1x, 2x, 3x the reference
+    ref = REFERENCE_LOOP_S / 10                                # 100,000 iterations
+    ticks = iter([0.0, ref, 1.0, 1.0 + 2 * ref, 2.0, 2.0 + 3 * ref])     # 1x, 2x, 3x the reference
     assert abs(cpu_speed_factor(100_000, lambda: next(ticks)) - 2.0) < 1e-6
     fast = iter([0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
     assert cpu_speed_factor(100_000, lambda: next(fast)) == 0.25

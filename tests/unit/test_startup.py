@@ -26,7 +26,7 @@ def test_the_compile_is_announced_with_an_estimate_before_it_starts(monkeypatch)
     asyncio.run(compile_kernels(progress, lambda: seen_when_compiling.extend(lines)))
     assert len(seen_when_compiling) == 1
     assert seen_when_compiling[0].endswith(
-        "compiling the controller's kernels (first run on this machine, about 50 s) ...")
+        "compiling the controller's kernels (first run on this machine, about 65 s) ...")
     assert lines[-1].split("setup: ")[1].startswith("compiled the controller's kernels in ")
 
 
