@@ -138,8 +138,6 @@ def run(args) -> int:
     progress = Progress()       # the daemon's clock starts with the command
     maneuver = Path(args.maneuver)
     out = Path(args.out) if args.out else Path("flights") / time.strftime("%Y%m%d-%H%M%S")
-    where = args.vehicle or ("the bundled emulator" + (" (lockstep)" if args.lockstep else ""))
-    progress.line(f"starting: {maneuver.name} on {where}; outputs in {out}/")  # at once: the checks import
     from ..config.vehicle import load_vehicle, with_dialect, with_output
     if args.signing_key is not None:
         from ..daemon.signing import load_key
@@ -161,6 +159,10 @@ def run(args) -> int:
     why = check_output_dir(str(out))    # the default --out too, before the flight
     if why is not None:
         raise UsageError(f"--out {why}")
+    # checked (a refusal is one line and no other; the checks import no MAVLink, scipy or
+    # numba): the first line, before the daemon's imports and everything slow
+    where = args.vehicle or ("the bundled emulator" + (" (lockstep)" if args.lockstep else ""))
+    progress.line(f"starting: {maneuver.name} on {where}; outputs in {out}/")
     from ..daemon.fly import FlyOptions, fly
     opts = FlyOptions(maneuver, args.vehicle, Path(args.vehicle_params), Path(args.controller), out,
                       Path(args.socket) if args.socket else None, args.timeout_s, args.lockstep,

@@ -71,24 +71,28 @@ def add_arguments(p):
 
 def run(args) -> int:
     from ..progress import Progress
-    progress = Progress()
-    progress.line(f"serving {args.vehicle}")       # the first line, at once
+    progress = Progress()       # the daemon's clock starts with the command
+    from ..config.controller import load_controller
+    from ..config.vehicle import load_vehicle, with_dialect, with_output
+    if args.signing_key is not None:
+        from ..daemon.signing import load_key
+        load_key(args.signing_key)      # a bad key file: one line, and no other before it
+    gcs = gcs_config(args)
+    vehicle = with_dialect(with_output(load_vehicle(args.vehicle_params), args.output), args.dialect)
+    check_vehicle_link(args.vehicle, args.control_rate_hz, vehicle.output, args.signing_key is not None)
+    controller = load_controller(args.controller)
+    excitation = excitation_params(args, vehicle.output)
+    progress.line(f"serving {args.vehicle}")       # checked: the first line, before the daemon's imports
     import asyncio
 
-    from ..config.vehicle import load_vehicle, with_dialect, with_output
     from ..control.hover import HoverParams
     from ..daemon.app import Daemon, DaemonConfig, regulator_factory
     from ..daemon.endpoint import default_socket_path
     from ..daemon.peers import system_id_to_use
-    from ..daemon.supervisor import Phase, SupervisorParams
-    from ..daemon.signing import Signing
     from ..daemon.sdnotify import Notifier
+    from ..daemon.signing import Signing
+    from ..daemon.supervisor import Phase, SupervisorParams
     signing = Signing(args.signing_key, "mavreg") if args.signing_key is not None else None
-    gcs = gcs_config(args)
-    vehicle = with_dialect(with_output(load_vehicle(args.vehicle_params), args.output), args.dialect)
-    check_vehicle_link(args.vehicle, args.control_rate_hz, vehicle.output, signing is not None)
-    from ..config.controller import load_controller
-    controller = load_controller(args.controller)
     config = DaemonConfig(args.vehicle, Path(args.vehicle_params), Path(args.controller),
                           Path(args.socket) if args.socket else default_socket_path(),
                           Path(args.tlog) if args.tlog else None,
@@ -97,7 +101,7 @@ def run(args) -> int:
                                            stale_timeout_s=args.stale_timeout_s,
                                            gap_fill=not args.vehicle_lockstep, lockstep=args.vehicle_lockstep,
                                            hover=HoverParams.from_controller(controller),
-                                           excitation=excitation_params(args, vehicle.output)),
+                                           excitation=excitation),
                           envelope=controller.envelope, controller=controller,
                           control_rate_hz=args.control_rate_hz, **gcs, planner=planner_bounds(args),
                           tlog_clock="vehicle" if args.vehicle_lockstep else "wall")

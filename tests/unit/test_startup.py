@@ -119,29 +119,47 @@ def test_fly_says_its_first_line_before_the_daemon_is_imported_or_started(monkey
     assert seen["progress"] is not None         # the daemon goes on with the same clock
 
 
-def test_a_bad_option_after_the_first_line_is_still_one_error_line(capsys, tmp_path):
+@pytest.mark.parametrize("argv", [["fly", str(maneuver_file("barrel_roll")), "--gcs", "nonsense"],
+                                  ["fly", str(maneuver_file("barrel_roll")), "--vehicle-params", "{file}"],
+                                  ["serve", "--gcs", "nonsense"]])
+def test_a_refusal_is_one_line_with_no_starting_line_before_it(argv, capsys, tmp_path):
     from mavreg.cli.main import main
-    status = main(["fly", str(maneuver_file("barrel_roll")), "--gcs", "nonsense", "--out", str(tmp_path / "o")])
+    from mavreg.config.paths import DEFAULT_VEHICLE
+    file = tmp_path / "vehicle.yaml"                    # a vehicle file with an unknown dialect
+    file.write_text(DEFAULT_VEHICLE.read_text() + "\ndialect: inav\n")
+    status = main([a.format(file=file) for a in argv] + ["--out", str(tmp_path / "o")] * (argv[0] == "fly"))
     err = capsys.readouterr().err.splitlines()
-    assert status == 2 and len(err) == 2 and "starting:" in err[0] and err[1].startswith("mavreg fly: error: ")
+    assert status == 2 and len(err) == 1 and err[0].startswith(f"mavreg {argv[0]}: error: "), err
 
 
-def test_plan_and_simulate_say_a_cache_miss_before_planning(monkeypatch, capsys, tmp_path, vehicle,
-                                                            realistic_controller):
-    from mavreg.cli import plan_progress
-    from mavreg.config.maneuver import load_maneuver
-    from mavreg.planning import plan_io
-    seen = []
-    monkeypatch.setattr(plan_io, "plan_cached", lambda *a: seen.append(capsys.readouterr().err) or "plan")
-    monkeypatch.setenv("MAVREG_PLAN_CACHE", str(tmp_path))
-    spec = load_maneuver(maneuver_file("barrel_roll"))
-    assert plan_progress.plan_saying("plan", spec, vehicle, realistic_controller) == "plan"
-    assert seen[0].startswith("mavreg plan ") and seen[0].rstrip().endswith(
-        "planning barrel_roll (not in the plan cache yet) ...")
-    assert "planned barrel_roll in " in capsys.readouterr().err
-    monkeypatch.setenv("MAVREG_PLAN_CACHE", "off")          # no cache: quick unless it lasts
-    plan_progress.plan_saying("simulate", spec, vehicle, realistic_controller)
-    assert seen[1] == "" and capsys.readouterr().err == ""
+def test_the_checks_before_the_first_line_import_no_mavlink_scipy_or_numba(tmp_path):
+    """What fly and serve check before their first line is light (a fresh interpreter's
+    modules), so that the line comes within a second of the command, not after the imports."""
+    import json
+    import subprocess
+    import sys
+    from tests.helpers.repo import ROOT
+    probe = (
+        "import json, sys\n"
+        "from mavreg.cli import fly_cmd, serve_cmd\n"
+        "from mavreg.cli.main import build_parser\n"
+        "parser = build_parser()[0]\n"
+        "heavy = []\n"
+        "class Stop(Exception): pass\n"
+        "def first_line(text):\n"
+        "    heavy.append(sorted({k.split('.')[0] for k in sys.modules} & {'pymavlink', 'scipy', 'numba'}))\n"
+        "    raise Stop\n"
+        "import mavreg.progress as p\n"
+        "p.Progress.line = lambda self, text: first_line(text)\n"
+        "for argv in (['fly', sys.argv[1], '--out', sys.argv[2]], ['serve']):\n"
+        "    try:\n"
+        "        (fly_cmd if argv[0] == 'fly' else serve_cmd).run(parser.parse_args(argv))\n"
+        "    except Stop:\n"
+        "        pass\n"
+        "print(json.dumps(heavy))\n")
+    out = subprocess.run([sys.executable, "-c", probe, str(maneuver_file("barrel_roll")), str(tmp_path / "o")],
+                         capture_output=True, text=True, timeout=120, cwd=ROOT, check=True)
+    assert json.loads(out.stdout.strip().splitlines()[-1]) == [[], []], out.stderr
 
 
 class _FakePool:
