@@ -162,6 +162,31 @@ def test_the_checks_before_the_first_line_import_no_mavlink_scipy_or_numba(tmp_p
     assert json.loads(out.stdout.strip().splitlines()[-1]) == [[], []], out.stderr
 
 
+def test_plan_and_simulate_say_a_cache_miss_before_planning_on_a_terminal(monkeypatch, capsys, tmp_path, vehicle,
+                                                                         realistic_controller):
+    import sys
+
+    from mavreg.cli import plan_progress
+    from mavreg.config.maneuver import load_maneuver
+    from mavreg.planning import plan_io
+    seen = []
+    monkeypatch.setattr(plan_io, "plan_cached", lambda *a: seen.append(capsys.readouterr().err) or "plan")
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    monkeypatch.setenv("MAVREG_PLAN_CACHE", str(tmp_path))
+    spec = load_maneuver(maneuver_file("barrel_roll"))
+    assert plan_progress.plan_saying("plan", spec, vehicle, realistic_controller) == "plan"
+    assert seen[0].startswith("mavreg plan ") and seen[0].rstrip().endswith(
+        "planning barrel_roll (not in the plan cache yet) ...")
+    assert "planned barrel_roll in " in capsys.readouterr().err
+    monkeypatch.setenv("MAVREG_PLAN_CACHE", "off")          # no cache: quick unless it lasts
+    plan_progress.plan_saying("simulate", spec, vehicle, realistic_controller)
+    assert seen[1] == "" and capsys.readouterr().err == ""
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: False)    # piped: an error stays one line
+    monkeypatch.setenv("MAVREG_PLAN_CACHE", str(tmp_path / "other"))
+    plan_progress.plan_saying("plan", spec, vehicle, realistic_controller)
+    assert capsys.readouterr().err == ""
+
+
 class _FakePool:
     """The planner worker, answering at once; it notes what had been said when it was asked."""
 
