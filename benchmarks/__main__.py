@@ -21,7 +21,10 @@ environment for its children):
 - ``monte_carlo``: :mod:`benchmarks.monte_carlo` (``monte_carlo_s.*``);
 - ``sitl``: :mod:`benchmarks.sitl` (``sitl_periods_per_s.*``: lockstep firmware_sim);
 - ``daemon_rt``: :mod:`benchmarks.daemon_rt` (``daemon_latency_us.*``, ``daemon_cpu_pct``,
-  deadline misses: the daemon at 500 Hz in real time, one barrel-roll flight per I/O path).
+  deadline misses: the daemon at 500 Hz in real time, one barrel-roll flight per I/O path);
+- ``first_run``: :mod:`benchmarks.first_run` (``first_run_s.*``: ``mavreg fly``'s first line
+  and arming, on cold and warm caches, against the code before the start's stage lines);
+  only with ``--only first_run`` (:data:`OPT_IN`: two cold starts take minutes).
 
 ``--quick`` shortens every section (a smoke test, well under a minute without ``sitl`` and
 ``daemon_rt``); the full run takes about 4 minutes on a quiet 2-core machine and under 5 at
@@ -41,7 +44,9 @@ from pathlib import Path
 
 from benchmarks.report import format_notes, format_table, format_targets
 
-SECTIONS = ("codec", "serial", "plan", "step", "controller", "monte_carlo", "sitl", "daemon_rt")
+SECTIONS = ("codec", "serial", "plan", "step", "controller", "monte_carlo", "sitl", "daemon_rt", "first_run")
+OPT_IN = ("first_run",)
+"""Sections run only when named in ``--only`` (a cold start takes minutes, twice)."""
 
 
 def _section(name: str):
@@ -67,6 +72,9 @@ def _section(name: str):
     if name == "sitl":
         from benchmarks.sitl import run_sitl
         return run_sitl
+    if name == "first_run":
+        from benchmarks.first_run import run_first_run
+        return run_first_run
     from benchmarks.daemon_rt import run_daemon_rt
     return run_daemon_rt
 
@@ -95,7 +103,7 @@ def main(argv=None) -> int:
                     help=f"run only these sections ({', '.join(SECTIONS)})")
     ap.add_argument("--json", metavar="FILE", default=None, help="also write the figures as JSON")
     args = ap.parse_args(argv)
-    chosen = [s for s in SECTIONS if args.only is None or s in args.only]
+    chosen = [s for s in SECTIONS if (s not in OPT_IN if args.only is None else s in args.only)]
     info = machine()
     print("machine: " + ", ".join(f"{k} {v}" for k, v in info.items() if k != "load_average"), flush=True)
     figs: dict = {}

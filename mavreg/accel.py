@@ -34,7 +34,7 @@ import threading
 from functools import lru_cache, update_wrapper
 from pathlib import Path
 
-__all__ = ["ACCELERATED", "njit", "reason", "materialize", "use_compiled"]
+__all__ = ["ACCELERATED", "njit", "reason", "materialize", "use_compiled", "kernel_cached"]
 
 
 def _find():
@@ -177,3 +177,22 @@ def njit(func):
         kernel = _Kernel(func)
         _pending.append(kernel)
         return kernel
+
+
+def kernel_cached(kernel) -> bool | None:
+    """Whether numba's on-disk cache holds a fresh compiled ``kernel`` (an :func:`njit`
+    function), read without compiling it: True, False (its first call compiles: a cold cache,
+    or a kernel source edited since), or None where that cannot be told (numba not in use,
+    or a cache layout other than the one this reads: numba's internal
+    ``_cache._cache_file._load_index``, which gives nothing for a missing or stale index)."""
+    if not ACCELERATED:
+        return None
+    materialize()
+    dispatcher = getattr(kernel, "dispatcher", kernel)
+    load_index = getattr(getattr(getattr(dispatcher, "_cache", None), "_cache_file", None), "_load_index", None)
+    if load_index is None:
+        return None
+    try:
+        return bool(load_index())
+    except Exception:       # an unreadable index: its first call compiles
+        return False

@@ -7,6 +7,8 @@
 #     install. ('.' is satisfied by any install from the same pyproject.toml.)
 # Otherwise nothing is downloaded. MAVREG_REINSTALL=1 forces the install. To add an extra
 # (e.g. gcs), change the SPEC passed by the calling script: '.[test,gcs]'.
+# After an install MAVREG_INSTALLED_NOW is 1 (scripts/fly.sh then runs `mavreg warm-up`).
+MAVREG_INSTALLED_NOW=0
 ensure_venv() {
     local spec="$1" marker=.venv/.mavreg-installed hash line
     hash="$(python3 -c 'import hashlib, sys; print(hashlib.sha256(open(sys.argv[1], "rb").read()).hexdigest())' pyproject.toml)"
@@ -18,6 +20,7 @@ ensure_venv() {
         return 0
     fi
     .venv/bin/python -m pip install --quiet -e "$spec"
+    MAVREG_INSTALLED_NOW=1
     # keep what was installed from this pyproject.toml (another SPEC may be there too)
     { grep -s "^$hash " "$marker" | grep -vxF -- "$line"; echo "$line"; } > "$marker.new" || true
     mv "$marker.new" "$marker"

@@ -227,7 +227,7 @@ def add_gcs_arguments(p: argparse.ArgumentParser) -> None:
 
 def gcs_config(args) -> dict:
     """The DaemonConfig fields of ``--gcs`` and ``--gcs-allow-commands``; UsageError on a bad URL."""
-    from ..daemon.gcs import GcsParams, parse_gcs_url
+    from ..daemon.gcs_params import GcsParams, parse_gcs_url     # no MAVLink: checked before the imports
     from ..errors import UsageError
     for url in args.gcs:
         try:

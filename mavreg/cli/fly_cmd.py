@@ -134,11 +134,13 @@ def add_arguments(p):
 
 
 def run(args) -> int:
-    from ..config.vehicle import load_vehicle, with_dialect, with_output
-    from ..daemon.fly import FlyOptions, fly
-    from ..transport.signing import load_key
+    from ..progress import Progress
+    progress = Progress()       # the daemon's clock starts with the command
     maneuver = Path(args.maneuver)
+    out = Path(args.out) if args.out else Path("flights") / time.strftime("%Y%m%d-%H%M%S")
+    from ..config.vehicle import load_vehicle, with_dialect, with_output
     if args.signing_key is not None:
+        from ..transport.signing import load_key
         load_key(args.signing_key)      # a bad key file: one line before anything starts
     if args.vehicle is not None:
         if args.lockstep or args.emulator_arg or args.world != "realistic":
@@ -154,10 +156,14 @@ def run(args) -> int:
     excitation = excitation_params(args, vehicle.output)
     check_vehicle_link(args.vehicle, args.control_rate_hz, vehicle.output, args.signing_key is not None)
     load_maneuver_arg(args)             # a bad maneuver file or --laps: before anything starts
-    out = Path(args.out) if args.out else Path("flights") / time.strftime("%Y%m%d-%H%M%S")
     why = check_output_dir(str(out))    # the default --out too, before the flight
     if why is not None:
         raise UsageError(f"--out {why}")
+    # checked (a refusal is one line and no other; the checks import no MAVLink, scipy or
+    # numba): the first line, before the daemon's imports and everything slow
+    where = args.vehicle or ("the bundled emulator" + (" (lockstep)" if args.lockstep else ""))
+    progress.line(f"starting: {maneuver.name} on {where}; outputs in {out}/")
+    from ..daemon.fly import FlyOptions, fly
     opts = FlyOptions(maneuver, args.vehicle, Path(args.vehicle_params), Path(args.controller), out,
                       Path(args.socket) if args.socket else None, args.timeout_s, args.lockstep,
                       tuple(args.emulator_arg), args.control_rate_hz, args.vehicle_lockstep, args.world,
@@ -166,5 +172,5 @@ def run(args) -> int:
                       gcs_urls=gcs["gcs_urls"], gcs=gcs["gcs"], tlog_clock=args.tlog_clock,
                       argv=tuple(getattr(args, "command_line", ())), planner=planner_bounds(args), output=args.output,
                       laps=args.laps, excitation=excitation, dialect=args.dialect,
-                      vehicle_system_id=args.vehicle_system_id, airborne=args.airborne)
+                      vehicle_system_id=args.vehicle_system_id, airborne=args.airborne, progress=progress)
     return fly(opts)

@@ -29,6 +29,7 @@ SUBCOMMANDS = {
     "upload": "mavreg.cli.upload_cmd",
     "identify": "mavreg.cli.identify_cmd",
     "experiment": "mavreg.cli.experiment_cmd",
+    "warm-up": "mavreg.cli.warm_up_cmd",
 }
 
 BUG_REPORT = "this is a bug in mavreg: please report it with the command line and the traceback above"

@@ -6,6 +6,7 @@ import json
 
 from .common import (add_laps_argument, add_model_arguments, input_file, load_maneuver_arg, load_model_params,
                      output_file, plot_file)
+from .plan_progress import plan_saying
 
 HELP = "validate a maneuver YAML, check feasibility, build the gain schedule (nothing flies)"
 DESCRIPTION = """\
@@ -60,10 +61,8 @@ def run(args) -> int:
     vehicle, controller = load_model_params(args)
     spec = load_maneuver_arg(args)            # the files first: the planner's imports are heavy
     from ..control.hover import HoverParams
-    from ..planning.cache import default_cache
-    from ..planning.plan_io import plan_cached
     from ..maneuver.plan_margins import with_margins
-    plan = with_margins(plan_cached(spec, vehicle, controller, strict=False, cache=default_cache()),
+    plan = with_margins(plan_saying("plan", spec, vehicle, controller, strict=False),
                         HoverParams.from_controller(controller))
     summary = plan.summary()
     _check_envelope(plan, controller.envelope, summary)

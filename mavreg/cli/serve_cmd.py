@@ -70,21 +70,29 @@ def add_arguments(p):
 
 
 def run(args) -> int:
+    from ..progress import Progress
+    progress = Progress()       # the daemon's clock starts with the command
+    from ..config.controller import load_controller
+    from ..config.vehicle import load_vehicle, with_dialect, with_output
+    if args.signing_key is not None:
+        from ..transport.signing import load_key
+        load_key(args.signing_key)      # a bad key file: one line, and no other before it
+    gcs = gcs_config(args)
+    vehicle = with_dialect(with_output(load_vehicle(args.vehicle_params), args.output), args.dialect)
+    check_vehicle_link(args.vehicle, args.control_rate_hz, vehicle.output, args.signing_key is not None)
+    controller = load_controller(args.controller)
+    excitation = excitation_params(args, vehicle.output)
+    progress.line(f"serving {args.vehicle}")       # checked: the first line, before the daemon's imports
     import asyncio
 
-    from ..config.vehicle import load_vehicle, with_dialect, with_output
     from ..control.hover import HoverParams
     from ..daemon.app import Daemon, DaemonConfig, regulator_factory
     from ..daemon.endpoint import default_socket_path
     from ..daemon.peers import system_id_to_use
+    from ..daemon.sdnotify import Notifier
     from ..daemon.supervisor import Phase, SupervisorParams
     from ..transport.signing import Signing
     signing = Signing(args.signing_key, "mavreg") if args.signing_key is not None else None
-    gcs = gcs_config(args)
-    vehicle = with_dialect(with_output(load_vehicle(args.vehicle_params), args.output), args.dialect)
-    check_vehicle_link(args.vehicle, args.control_rate_hz, vehicle.output, signing is not None)
-    from ..config.controller import load_controller
-    controller = load_controller(args.controller)
     config = DaemonConfig(args.vehicle, Path(args.vehicle_params), Path(args.controller),
                           Path(args.socket) if args.socket else default_socket_path(),
                           Path(args.tlog) if args.tlog else None,
@@ -93,13 +101,15 @@ def run(args) -> int:
                                            stale_timeout_s=args.stale_timeout_s,
                                            gap_fill=not args.vehicle_lockstep, lockstep=args.vehicle_lockstep,
                                            hover=HoverParams.from_controller(controller),
-                                           excitation=excitation_params(args, vehicle.output)),
+                                           excitation=excitation),
                           envelope=controller.envelope, controller=controller,
                           control_rate_hz=args.control_rate_hz, **gcs, planner=planner_bounds(args),
                           tlog_clock="vehicle" if args.vehicle_lockstep else "wall")
     make_regulator = regulator_factory(vehicle, args.control_rate_hz, controller.disturbance,
-                                      controller.allocation, controller.speed_governor)
-    daemon = Daemon(config, vehicle, make_regulator, signing=signing)
+                                      controller.allocation, controller.speed_governor, warm=False)
+    notifier = Notifier()       # systemd's Type=notify (deploy/mavreg.service); nothing outside it
+    progress.write = _with_status(progress.write, notifier)
+    daemon = Daemon(config, vehicle, make_regulator, signing=signing, progress=progress, notifier=notifier)
     asyncio.run(daemon.run())
     if args.control_log:
         daemon.ctrl_log.save(args.control_log)
@@ -108,3 +118,14 @@ def run(args) -> int:
         print(f"mavreg serve: {failure.line()}", file=sys.stderr, flush=True)
         return 1
     return 1 if daemon.supervisor.phase == Phase.ABORTED else 0
+
+
+def _with_status(write, notifier):
+    """``write``, each line also systemd's STATUS (``systemctl status`` shows the start)."""
+    if not notifier.enabled:
+        return write
+
+    def both(line: str) -> None:
+        write(line)
+        notifier.status(line.split("setup: ", 1)[-1])
+    return both

@@ -8,6 +8,7 @@ from ..errors import UsageError
 from .common import (add_deprecated_alias, add_entry_offset_argument, add_laps_argument, add_model_arguments,
                      finite_float, input_file, load_maneuver_arg, load_model_params, nonneg_float, nonneg_int,
                      plot_file, positive_float)
+from .plan_progress import plan_saying
 
 PHYSICS_STEP_S = 1e-3
 """The design model's RK4 step (mavreg.sim.maneuver_run): --control-rate-hz divides its rate."""
@@ -79,10 +80,8 @@ def run(args) -> int:
     vehicle, controller = load_model_params(args)
     spec = load_maneuver_arg(args)            # the files first: the planner's imports are heavy
     from ..config.regulation import told_rotor_limit
-    from ..planning.cache import default_cache
-    from ..planning.plan_io import plan_cached
     from ..sim.maneuver_run import fly_on_design_model
-    plan = plan_cached(spec, vehicle, controller, cache=default_cache())
+    plan = plan_saying("simulate", spec, vehicle, controller)
     print(f"{plan.name}: planned, {plan.length_m:.1f} m in {plan.duration_s:.1f} s; simulating",
           file=sys.stderr, flush=True)
     run_ = fly_on_design_model(plan, offset_m=args.entry_offset, inertia_kg_m2=args.inertia_kg_m2,

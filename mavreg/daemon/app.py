@@ -11,18 +11,19 @@ from __future__ import annotations
 import asyncio
 import collections
 import dataclasses
+import math
 import signal
-import sys
 import time
-from typing import Callable
+from typing import Awaitable, Callable
 
 from ..blas import one_blas_thread
 from ..config.controller import load_controller
 from ..config.defaults import MAX_PREDICTION_S
 from ..control.forecast import Forecaster
 from ..config.vehicle import VehicleParams
-from ..control.sample_warmup import warm_up_sample_kernels
 from ..errors import EXIT_FAILED, UserError
+from ..planning.plan_io import text_in_cache
+from ..progress import Progress, stderr_line
 from .ctrllog import ControlLog
 from .daemon_config import DaemonConfig, regulator_factory
 from .daemon_status import latency_summary, status_report
@@ -30,6 +31,8 @@ from .endpoint import EndpointServer
 from .gcs_link import GcsLink
 from .link import FastLink, MavlinkLink, open_link
 from .planner_pool import PlannerDied, PlannerPool
+from .sdnotify import Notifier
+from .startup import PreflightWatch, compile_kernels, preflight_wait, warm_daemon_kernels
 from .supervisor import Output, Phase, Supervisor
 from .tlog import TlogWriter, VehicleClock
 
@@ -48,12 +51,20 @@ class Daemon:
 
     def __init__(self, config: DaemonConfig, vehicle: VehicleParams, regulator_factory: Callable,
                  log: Callable[[str], None] | None = None, clock_s: Callable[[], float] = time.monotonic,
-                 signing=None):
+                 signing=None, progress: Progress | None = None, notifier: Notifier | None = None):
         self.config = config
         self.signing = signing
         self.vehicle = vehicle
         self.clock_s = clock_s
-        self._start_s = clock_s()
+        self.log = log if log is not None else stderr_line       # one write: stage lines come from threads
+        self.progress = progress if progress is not None else Progress(self.log, clock_s)
+        """The start's stage lines (:mod:`.startup`); its start is the daemon's (a command
+        that printed before the daemon existed passes its own)."""
+        self.notifier = notifier
+        """systemd's (:mod:`.sdnotify`): READY=1 once the link is open and the endpoint
+        listens, WATCHDOG=1 from the tick task (the loop itself), STOPPING=1 at the end."""
+        self._watchdog_due_s = -math.inf
+        self._start_s = self.progress.start_s
         """The injected clock when the daemon started: events carry the time since."""
         ctl = config.controller
         forecaster = Forecaster(vehicle, 1.0 / config.control_rate_hz,
@@ -64,7 +75,6 @@ class Daemon:
                                      forecaster=forecaster,
                                      fixed_delay_s=None if ctl is None else ctl.fixed_delay_s)
         self.ctrl_log = ControlLog()
-        self.log = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
         self.latency_ns: collections.deque = collections.deque(maxlen=200_000)
         self.maneuver_latency_ns: collections.deque = collections.deque(maxlen=200_000)
         self.uploads = {"accepted": 0, "rejected": 0}
@@ -80,6 +90,8 @@ class Daemon:
         self._signals = 0
         self._greeted = False
         """Our HEARTBEAT has answered the vehicle's first message (:meth:`_on_message`)."""
+        self._heard = False
+        self._watch = PreflightWatch(self.progress.line)
         self.max_tick_gap_s = 0.0
         self.max_tick_gap_phase = ""
         self.max_tick_cpu_s = 0.0
@@ -115,6 +127,7 @@ class Daemon:
             self.ctrl_log.clock_anchor = (daemon_s, self.supervisor.last_sample.time_s)
 
     def _on_message(self, msg, t_recv_ns: int) -> None:
+        self._heard = True
         if not self._greeted:
             # on udpin: nothing could be sent before the vehicle was heard; our HEARTBEAT goes
             # first, so a vehicle that takes commands only from a known peer (the emulator)
@@ -162,16 +175,29 @@ class Daemon:
             self.max_tick_cpu_s = max(self.max_tick_cpu_s, cpu - last_cpu)
             last, last_cpu = now, cpu
             self._emit(self.supervisor.tick(self.clock_s()))
+            self._watch_preflight()
+            if self.notifier is not None and self.notifier.watchdog_s is not None and now >= self._watchdog_due_s:
+                self.notifier.watchdog()        # fed by the loop: a loop stalled longer goes unfed
+                self._watchdog_due_s = now + self.notifier.watchdog_s
             if self.link is not None and (line := self.link.peer.silence_notice(self.clock_s())) is not None:
                 self.log(f"link: {line}")
+
+    def _watch_preflight(self) -> None:
+        """Say what the start waits for when it lasts (:class:`~.startup.PreflightWatch`)."""
+        sup = self.supervisor
+        status = sup.status() if sup.phase == Phase.PREFLIGHT else None
+        self._watch.update(None if status is None else preflight_wait(
+            self._heard, sup.last_sample is not None, status["vehicle_armed"], bool(status["pending"])), self.clock_s())
 
     # ---------------------------------------------------------------- requests
     async def offer_text(self, yaml_text: str, source: str) -> dict:
         """Plan an upload in the worker and queue it; a rejection changes nothing."""
         return (await self._offer(yaml_text, source))[0]
 
-    async def _offer(self, yaml_text: str, source: str) -> tuple[dict, int]:
-        """(the response, the exit status a rejection means: :mod:`mavreg.errors`)."""
+    async def _offer(self, yaml_text: str, source: str,
+                     before_queue: Callable[[], Awaitable] | None = None) -> tuple[dict, int]:
+        """(the response, the exit status a rejection means: :mod:`mavreg.errors`); an accepted
+        plan awaits ``before_queue()`` (the start: the kernels its regulator runs) first."""
         if self.supervisor.finished:
             return ({"ok": False, "verdict": "rejected", "reason": f"the flight is over ({self.supervisor.phase})"},
                     EXIT_FAILED)
@@ -184,6 +210,8 @@ class Daemon:
             self.uploads["rejected"] += 1
             self.log(f"upload {source!r} rejected: {result.reason}")
             return {"ok": False, "verdict": "rejected", "reason": result.reason}, result.status
+        if before_queue is not None:
+            await before_queue()
         if self.supervisor.finished or self.supervisor.phase == Phase.TERMINATE:   # ended while planning
             return ({"ok": False, "verdict": "rejected", "reason": f"the flight is over ({self.supervisor.phase})"},
                     EXIT_FAILED)
@@ -240,15 +268,7 @@ class Daemon:
         self.pool = PlannerPool(self.vehicle, controller, self.config.planner)
         blas = one_blas_thread()        # at once, for the loop's small products (mavreg/blas.py)
         try:
-            await self.pool.warm_up()
-            ctl = self.config.controller        # compiled now, not in the take-off's first period
-            warm_up_sample_kernels(self.vehicle, 1.0 / self.config.control_rate_hz,
-                                   MAX_PREDICTION_S if ctl is None else ctl.max_prediction_s,
-                                   None if ctl is None else ctl.disturbance, self.config.supervisor.hover)
-            for text, source in initial or []:
-                verdict, status = await self._offer(text, source)
-                if not verdict["ok"]:
-                    raise _InitialRejected(verdict["reason"] if "reason" in verdict else verdict["error"], status)
+            await self._start(initial or [])
             if self.config.tlog_path is not None:
                 self._tlog = TlogWriter(self.config.tlog_path, self._tlog_clock())
             self.link = await open_link(self.config.vehicle_url, self.config.supervisor.vehicle_system_id,
@@ -263,6 +283,9 @@ class Daemon:
                 await self.endpoint.start()
                 self.log(f"control endpoint: {self.config.socket_path}")
             self.log(f"link: {self.config.vehicle_url}")
+            if self.notifier is not None:
+                self.notifier.ready(f"flying from {self.config.vehicle_url}" + (
+                    f"; uploads on {self.config.socket_path}" if self.config.socket_path is not None else ""))
             try:
                 await asyncio.wait_for(self._stop.wait(), timeout_s)
             except asyncio.TimeoutError:
@@ -270,6 +293,41 @@ class Daemon:
         finally:
             await self._shutdown(loop, install_signals)
             blas.__exit__(None, None, None)
+
+    async def _start(self, initial: list[tuple[str, str]]) -> None:
+        """Start the planner worker and plan the command line's maneuvers while the kernels
+        compile (a thread; the worker is another process), each a stage of :attr:`progress`.
+        A rejected maneuver ends the start at once, without waiting for the compile."""
+        with self.progress.stage("starting the planner", "started the planner", announce=False):
+            warm = asyncio.ensure_future(self.pool.warm_up())
+            await asyncio.sleep(0)          # the worker is being started: now the compile
+            compiled = asyncio.ensure_future(compile_kernels(self.progress, lambda: warm_daemon_kernels(
+                self.vehicle, self.config.control_rate_hz, self.config.controller, self.config.supervisor.hover)))
+            try:
+                await warm
+            except BaseException:
+                compiled.cancel()
+                raise
+        try:
+            for text, source in initial:
+                cached = text_in_cache(text, source, self.vehicle, self.pool.controller)
+                name = source.rsplit("/", 1)[-1]
+                doing = f"planning {name}" + ("" if cached is not False else " (not in the plan cache yet)")
+                stage = self.progress.stage(doing, f"planned {name}", announce=cached is not True).begin()
+
+                async def planned(stage=stage) -> None:     # the stage ends with the plan, not the compile
+                    stage.end()
+                    await compiled
+                try:
+                    verdict, status = await self._offer(text, source, planned)
+                finally:
+                    stage.end()
+                if not verdict["ok"]:
+                    raise _InitialRejected(verdict["reason"] if "reason" in verdict else verdict["error"], status)
+            await compiled
+        except BaseException:
+            compiled.cancel()
+            raise
 
     async def _open_gcs(self) -> None:
         """The ground-station endpoints: the vehicle's telemetry and the daemon's messages out,
@@ -289,6 +347,8 @@ class Daemon:
         return VehicleClock(lambda: None if sup.last_sample is None else sup.last_sample.time_s)
 
     async def _shutdown(self, loop, signals_installed: bool) -> None:
+        if self.notifier is not None:
+            self.notifier.stopping(f"stopping in phase {self.supervisor.phase}")
         if self._gap_timer is not None:
             self._gap_timer.cancel()
         for task in self._tasks:

@@ -27,16 +27,19 @@ __all__ = ["DaemonConfig", "regulator_factory"]
 def regulator_factory(vehicle: VehicleParams, control_rate_hz: float,
                       disturbance: DisturbanceParams | None = None,
                       allocation: AllocationParams | None = None,
-                      speed_governor: SpeedGovernorParams | None = None) -> Callable:
+                      speed_governor: SpeedGovernorParams | None = None, warm: bool = True) -> Callable:
     """plan -> ManeuverRegulator at the vehicle's control rate (for its feedforward lead), its
     disturbance compensation bounded by ``disturbance``, its allocation and speed governor
     ``allocation`` and ``speed_governor`` (the controller file's sections; None: the paper's).
     The regulator's compiled step is compiled (or loaded from numba's cache) here, so that a
-    maneuver uploaded in flight does not stall the loop for it."""
+    maneuver uploaded in flight does not stall the loop for it; ``warm=False`` leaves that to
+    the caller (:class:`~mavreg.daemon.app.Daemon` compiles every kernel as a stage of its start,
+    said on the terminal: :mod:`mavreg.daemon.startup`)."""
     if not control_rate_hz > 0:
         raise ValueError(f"control rate must be positive, got {control_rate_hz} Hz")
     d = disturbance if disturbance is not None else DisturbanceParams()
-    fastpath.warm_up()      # the compiled step now, before the link: a later upload builds at once
+    if warm:
+        fastpath.warm_up()      # the compiled step now, before the link: a later upload builds at once
 
     def make(plan) -> ManeuverRegulator:
         return ManeuverRegulator(plan, vehicle, control_period_s=1.0 / control_rate_hz,

@@ -34,6 +34,7 @@ from ..config.defaults import CONTROL_RATE_HZ, STALE_TIMEOUT_S
 from ..config.maneuver import maneuver_text_with_laps
 from ..config.vehicle import load_vehicle, with_dialect, with_output
 from ..control.hover import HoverParams
+from ..progress import Progress
 from .app import Daemon, DaemonConfig, regulator_factory
 from .ctrllog import load_control_log
 from .excitation import ExcitationParams
@@ -100,6 +101,9 @@ class FlyOptions:
     dialect: str | None = None
     """The mode layout of a vehicle that announces GENERIC (``--dialect``); None: the vehicle
     file's (:func:`mavreg.daemon.autopilots.choose_dialect`)."""
+    progress: Progress | None = None
+    """The start's stage lines (:mod:`mavreg.progress`); None: the daemon's own, from when it
+    is built. The command line passes the one it printed its first line with."""
     vehicle_system_id: int | None = None
     """The vehicle's system id (``--vehicle-system-id``); None: taken from its first autopilot
     HEARTBEAT on ``udpin:``, 1 otherwise (:func:`mavreg.daemon.peers.system_id_to_use`). The
@@ -188,9 +192,10 @@ def fly(opts: FlyOptions) -> int:
                                                          else "wall"),
                           planner=opts.planner)
     make_regulator = regulator_factory(vehicle, opts.control_rate_hz, controller.disturbance,
-                                      controller.allocation, controller.speed_governor)
+                                      controller.allocation, controller.speed_governor, warm=False)
     signing = Signing(opts.signing_key, "mavreg") if opts.signing_key is not None else None
-    daemon = Daemon(config, vehicle, make_regulator, signing=signing)
+    daemon = Daemon(config, vehicle, make_regulator, signing=signing, progress=opts.progress)
+    progress = daemon.progress
     extra = tuple(opts.emulator_args)
     if opts.vehicle_system_id is not None:
         extra = ("--vehicle-system-id", str(opts.vehicle_system_id)) + extra
@@ -203,9 +208,10 @@ def fly(opts: FlyOptions) -> int:
         async def main():
             nonlocal proc
             if opts.vehicle_url is None:
-                proc, url = spawn_emulator(opts.vehicle_path, record_path, opts.lockstep,
-                                           extra, rate_hz=opts.control_rate_hz,
-                                           preset=opts.world)
+                with progress.stage("starting the bundled emulator", "started the emulator", announce=False):
+                    proc, url = spawn_emulator(opts.vehicle_path, record_path, opts.lockstep,
+                                               extra, rate_hz=opts.control_rate_hz,
+                                               preset=opts.world)
                 daemon.config = replace(config, vehicle_url=url)
             await daemon.run([(text, str(opts.maneuver_path))], timeout_s=opts.timeout_s)
         asyncio.run(main())
@@ -213,12 +219,17 @@ def fly(opts: FlyOptions) -> int:
         if proc is not None:
             emulator_code = stop_process(proc)
     wall_s = time.monotonic() - t0
-    daemon.ctrl_log.save(opts.out_dir / "control.npz")
-    ctrl = load_control_log(opts.out_dir / "control.npz")
-    return _finish(opts, daemon, ctrl, record_path if proc is not None else None, emulator_code, wall_s)
+    with progress.stage("writing the outputs (summary.json, flight.png)", "wrote the outputs", announce=False):
+        daemon.ctrl_log.save(opts.out_dir / "control.npz")
+        ctrl = load_control_log(opts.out_dir / "control.npz")
+        summary, lines = _finish(opts, daemon, ctrl, record_path if proc is not None else None, emulator_code,
+                                 wall_s)
+    print("\n".join(lines))
+    return 0 if summary["result"] == "ok" else 1
 
 
-def _finish(opts, daemon, ctrl, record_path, emulator_code, wall_s) -> int:
+def _finish(opts, daemon, ctrl, record_path, emulator_code, wall_s) -> tuple[dict, list[str]]:
+    """Write summary.json and flight.png; (the summary, the lines to print)."""
     sup = daemon.supervisor
     plan = daemon.plans[0] if daemon.plans else None
     failure = outcome(sup, emulator_code, opts.timeout_s)
@@ -259,12 +270,12 @@ def _finish(opts, daemon, ctrl, record_path, emulator_code, wall_s) -> int:
         plot_flight(opts.out_dir / "flight.png", ctrl, plan, record, summary,
                     f"{plan.name} flown by mavreg fly on {where}{', lockstep' if opts.lockstep else ''}, "
                     f"controller {opts.controller_path.name}")
-    print(format_summary(summary))
-    print(f"outputs: {opts.out_dir}/ (summary.json, flight.png, flight.tlog, control.npz"
-          f"{', groundtruth.npz' if record_path is not None else ''})")
+    lines = [format_summary(summary),
+             f"outputs: {opts.out_dir}/ (summary.json, flight.png, flight.tlog, control.npz"
+             f"{', groundtruth.npz' if record_path is not None else ''})"]
     if not ok:
-        print(f"flight failed: {failure.line()}")
-    return 0 if ok else 1
+        lines.append(f"flight failed: {failure.line()}")
+    return summary, lines
 
 
 def _provenance(opts: FlyOptions) -> dict:

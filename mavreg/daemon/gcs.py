@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 from pymavlink.dialects.v20 import common as mavlink2
 
 from . import messages as mm
+from .gcs_params import GCS_DEFAULT_PORT, GcsParams, parse_gcs_url
 from .gcs_policy import FORWARD, LAND, NEVER_FORWARDED, REFUSE, judge
 from .phases import PHASE_CODES
 from ..transport.wire import Wire
@@ -38,8 +39,6 @@ from ..transport.wire import Wire
 __all__ = ["GCS_DEFAULT_PORT", "GcsParams", "GcsCounters", "GcsForwarder", "GcsHub", "Received",
            "parse_gcs_url"]
 
-GCS_DEFAULT_PORT = 14550
-"""The UDP port QGroundControl listens on, and MAVProxy's usual ground-station port."""
 OWN_COMPONENT_ID = mavlink2.MAV_COMP_ID_ONBOARD_COMPUTER
 
 EVENT_TYPES = frozenset({
@@ -51,56 +50,6 @@ parameter list or a mode change must arrive whole), only by the queue and token 
 
 NOT_SHOWN = frozenset({"TIMESYNC"})
 """The vehicle's messages not forwarded: its TIMESYNC answers belong to the daemon's link."""
-
-def parse_gcs_url(url: str) -> tuple[str, str, int]:
-    """``udpout:HOST[:PORT]`` or ``udpin:HOST[:PORT]`` -> (kind, host, port); port 14550 if omitted
-    (``udpin`` port 0: any free port, logged when opened).
-
-    Raises ValueError with a one-line reason on anything else.
-    """
-    parts = url.split(":")
-    if len(parts) == 2:
-        parts.append(str(GCS_DEFAULT_PORT))
-    why = f"--gcs {url!r}: expected udpout:HOST[:PORT] or udpin:HOST[:PORT] (default port {GCS_DEFAULT_PORT})"
-    if len(parts) != 3 or parts[0] not in ("udpin", "udpout") or not parts[1]:
-        raise ValueError(why)
-    try:
-        port = int(parts[2])
-    except ValueError:
-        raise ValueError(f"{why}; port {parts[2]!r} is not a number") from None
-    if not 0 <= port <= 65535 or (parts[0] == "udpout" and port == 0):
-        raise ValueError(f"{why}; port {port} out of range")
-    return parts[0], parts[1], port
-
-
-@dataclass(frozen=True)
-class GcsParams:
-    """Forwarding limits and the command policy of the ground-station endpoints."""
-
-    allow_commands: bool = False
-    """Forward the ground station's messages to the vehicle (:func:`judge`); default read-only."""
-    stream_rate_hz: float = 20.0
-    """Most messages of one streamed type per second, per endpoint (wall time)."""
-    max_messages_per_s: float = 300.0
-    """Token bucket of each endpoint: messages sent per second, on average..."""
-    burst_messages: int = 100
-    """...and at once."""
-    queue_len: int = 256
-    """Messages waiting for an endpoint; more are dropped and counted."""
-    max_datagram_bytes: int = 1400
-    """Frames are packed into datagrams of at most this size (one Ethernet MTU)."""
-    notice_interval_s: float = 5.0
-    """At most one STATUSTEXT per this many seconds explains refused messages to a ground station."""
-
-    def __post_init__(self):
-        for name in ("stream_rate_hz", "max_messages_per_s", "notice_interval_s"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"GcsParams.{name} must be a positive number, got {v}")
-        if self.burst_messages < 1 or self.queue_len < 1 or self.max_datagram_bytes < 280:
-            raise ValueError("GcsParams: burst_messages and queue_len must be >= 1, "
-                             "max_datagram_bytes >= 280 (one MAVLink 2 frame)")
-
 
 @dataclass
 class GcsCounters:

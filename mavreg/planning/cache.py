@@ -69,6 +69,11 @@ class PlanCache:
             h.update(b"\0")
         return h.hexdigest()
 
+    def has(self, inputs: tuple) -> bool:
+        """Whether an entry of ``inputs`` is stored (a :meth:`get_or_plan` that will, unless
+        the entry is unreadable, not plan)."""
+        return (self.directory / (self.key(*inputs) + _SUFFIX)).is_file()
+
     def get_or_plan(self, inputs: tuple, plan: Callable[[], object]):
         """The cached plan of ``inputs``, or ``plan()`` stored under their key."""
         entry = self.directory / (self.key(*inputs) + _SUFFIX)

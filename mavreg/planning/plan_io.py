@@ -17,7 +17,7 @@ from ..maneuver.plan import Plan, plan_from_entry, plan_spec
 from ..maneuver.plan_entry import PlanEntry
 from .cache import PlanCache, default_cache
 
-__all__ = ["plan_cached", "plan_file", "plan_text"]
+__all__ = ["plan_cached", "plan_file", "plan_text", "text_in_cache"]
 
 
 def plan_cached(spec: ManeuverSpec, vehicle: VehicleParams, controller: ControllerParams,
@@ -59,3 +59,18 @@ def plan_text(text: str, source: str, vehicle: VehicleParams, controller: Contro
     """Load and plan maneuver YAML text (an upload); errors name ``source``."""
     return plan_cached(load_maneuver_text(text, source), vehicle, controller, strict,
                        default_cache() if use_cache else None)
+
+
+def text_in_cache(text: str, source: str, vehicle: VehicleParams, controller: ControllerParams,
+                  strict: bool = True) -> bool | None:
+    """Whether :func:`plan_text` of these would be served from the plan cache (True), plan
+    (False), or there is no cache or no plan (None: the cache is off, or the text does not
+    load; planning then says why)."""
+    cache = default_cache()
+    if cache is None:
+        return None
+    try:
+        spec = load_maneuver_text(text, source)
+    except Exception:       # the planner's rejection says it, in its own words
+        return None
+    return cache.has((spec, vehicle, controller, strict))

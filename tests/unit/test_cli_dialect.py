@@ -18,13 +18,14 @@ VEHICLE = str(PARAMS_DIR / "vehicles" / "mk_quadro.yaml")
 DIALECT = {
     # concept: (option, unit, the commands that take it)
     "vehicle parameter file": ("--vehicle-params", "YAML file",
-                               {"plan", "simulate", "fly", "serve", "identify", "firmware-sim"}),
+                               {"plan", "simulate", "fly", "serve", "identify", "warm-up", "firmware-sim"}),
     "vehicle connection": ("--vehicle", "udpin:/udpout: URL", {"fly", "serve"}),
     "the vehicle's system id": ("--vehicle-system-id", "1..255", {"fly", "serve", "firmware-sim"}),
     "custom firmware's mode layout": ("--dialect", "px4 or ardupilot", {"fly", "serve"}),
-    "controller file": ("--controller", "YAML file", {"plan", "simulate", "fly", "serve"}),
+    "controller file": ("--controller", "YAML file", {"plan", "simulate", "fly", "serve", "warm-up"}),
     "emulator world": ("--world", "preset name", {"fly", "firmware-sim"}),
-    "control and telemetry rate": ("--control-rate-hz", "Hz", {"simulate", "fly", "serve", "firmware-sim"}),
+    "control and telemetry rate": ("--control-rate-hz", "Hz", {"simulate", "fly", "serve", "warm-up",
+                                                                "firmware-sim"}),
     "rotor force noise": ("--rotor-noise-sd-n", "N (SD)", {"simulate", "firmware-sim"}),
     "rotor force limit": ("--rotor-saturation-n", "N", {"simulate", "firmware-sim"}),
     "start off the entry": ("--entry-offset", "m, NED", {"simulate", "fly"}),
