@@ -41,15 +41,15 @@ def test_barrel_roll_on_a_stock_arducopter(tmp_path, position_source, loop_max_m
 
 @pytest.mark.slow
 def test_a_restarted_mavreg_takes_the_arducopter_back_in_the_air_and_lands_it(tmp_path):
-    """SIGKILL the daemon 2 s into a 4 m hop; ArduCopter stays in GUIDED, its ``GUID_TIMEOUT``
-    holding it level at zero climb rate; ``mavreg fly`` started again 3 s later finds it armed
-    in the air, takes it over (GUIDED is its offboard mode: the recovery flies at once), holds
-    and lands it: never an ARM, one soft touchdown on SIM_STATE, disarmed at the end."""
-    from pathlib import Path
+    """SIGKILL the daemon 1 s into the barrel roll's run-up; ArduCopter stays in GUIDED, its
+    ``GUID_TIMEOUT`` holding it level at zero climb rate; ``mavreg fly`` started again 3 s later
+    finds it armed in the air, takes it over (GUIDED is its offboard mode: the recovery flies at
+    once), brakes, holds and lands it: never an ARM, one soft touchdown on SIM_STATE, disarmed
+    at the end."""
     from tests.helpers.ardupilot_flight import kill_and_restart_on_ardupilot
     require_ardupilot()
-    hop = Path(__file__).with_name("px4_hop.yaml")
-    r = kill_and_restart_on_ardupilot(hop, tmp_path / "restart", after_s=2.0, restart_after_s=3.0)
+    r = kill_and_restart_on_ardupilot(maneuver_file("barrel_roll"), tmp_path / "restart", after_s=1.0,
+                                      restart_after_s=3.0)
     assert r["killed"], "the daemon ended before it was killed"
     phases = [e["phase"] for e in r["events"] if e["kind"] == "phase"]
     assert phases[:3] == ["takeover", "recover", "land"] and phases[-1] == "disarmed", phases
