@@ -6,6 +6,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from ..transport.urls import parse_udp_url
+
 __all__ = ["GCS_DEFAULT_PORT", "GcsParams", "parse_gcs_url"]
 
 GCS_DEFAULT_PORT = 14550
@@ -18,19 +20,8 @@ def parse_gcs_url(url: str) -> tuple[str, str, int]:
 
     Raises ValueError with a one-line reason on anything else.
     """
-    parts = url.split(":")
-    if len(parts) == 2:
-        parts.append(str(GCS_DEFAULT_PORT))
     why = f"--gcs {url!r}: expected udpout:HOST[:PORT] or udpin:HOST[:PORT] (default port {GCS_DEFAULT_PORT})"
-    if len(parts) != 3 or parts[0] not in ("udpin", "udpout") or not parts[1]:
-        raise ValueError(why)
-    try:
-        port = int(parts[2])
-    except ValueError:
-        raise ValueError(f"{why}; port {parts[2]!r} is not a number") from None
-    if not 0 <= port <= 65535 or (parts[0] == "udpout" and port == 0):
-        raise ValueError(f"{why}; port {port} out of range")
-    return parts[0], parts[1], port
+    return parse_udp_url(url, why, default_port=GCS_DEFAULT_PORT)
 
 
 @dataclass(frozen=True)

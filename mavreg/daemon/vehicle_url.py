@@ -1,7 +1,7 @@
 """The vehicle's URL (``--vehicle``): its forms, parsed, and what each implies (no I/O)."""
 from __future__ import annotations
 
-from ..transport.urls import parse_stream_url
+from ..transport.urls import parse_stream_url, parse_udp_url
 
 __all__ = ["parse_url", "VEHICLE_URL_FORMS", "STREAM_KINDS", "learns_system_id"]
 
@@ -18,18 +18,9 @@ def parse_url(url: str) -> tuple[str, str, int]:
 
     Raises ValueError with a one-line reason on anything else.
     """
-    parts = url.split(":")
-    if parts[0] in STREAM_KINDS:
+    if url.split(":", 1)[0] in STREAM_KINDS:
         return tuple(parse_stream_url(url, STREAM_KINDS))
-    if len(parts) != 3 or parts[0] not in ("udpin", "udpout"):
-        raise ValueError(f"vehicle URL {url!r}: expected {VEHICLE_URL_FORMS}")
-    try:
-        port = int(parts[2])
-    except ValueError:
-        raise ValueError(f"vehicle URL {url!r}: port {parts[2]!r} is not a number") from None
-    if not 0 <= port <= 65535 or (parts[0] == "udpout" and port == 0):
-        raise ValueError(f"vehicle URL {url!r}: port out of range")
-    return parts[0], parts[1], port
+    return parse_udp_url(url, f"vehicle URL {url!r}: expected {VEHICLE_URL_FORMS}")
 
 
 def learns_system_id(url: str | None) -> bool:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-__all__ = ["StreamUrl", "parse_stream_url", "DEFAULT_BAUD", "STREAM_KINDS", "STREAM_FORMS"]
+__all__ = ["StreamUrl", "parse_stream_url", "parse_udp_url", "DEFAULT_BAUD", "STREAM_KINDS", "STREAM_FORMS"]
 
 DEFAULT_BAUD = 921600
 """The usual companion-computer UART speed (PX4 ``SER_TEL2_BAUD``, ArduPilot ``SERIAL2_BAUD`` 921)."""
@@ -33,6 +33,28 @@ class StreamUrl(NamedTuple):
 
     def __str__(self) -> str:
         return f"{self.kind}:{self.where}:{self.number}"
+
+
+def parse_udp_url(url: str, why: str, default_port: int | None = None) -> tuple[str, str, int]:
+    """``udpin:HOST:PORT`` or ``udpout:HOST:PORT`` -> (kind, host, port); the port may be left out
+    where there is a ``default_port``, and is 0 (any free port) only on ``udpin``. Raises
+    ValueError with ``why`` (the option and its forms), and what is wrong, in one line.
+
+    >>> parse_udp_url("udpout:127.0.0.1", "--gcs", default_port=14550)
+    ('udpout', '127.0.0.1', 14550)
+    """
+    parts = url.split(":")
+    if default_port is not None and len(parts) == 2:
+        parts.append(str(default_port))
+    if len(parts) != 3 or parts[0] not in ("udpin", "udpout") or not parts[1]:
+        raise ValueError(why)
+    try:
+        port = int(parts[2])
+    except ValueError:
+        raise ValueError(f"{why}; port {parts[2]!r} is not a number") from None
+    if not 0 <= port <= 65535 or (parts[0] == "udpout" and port == 0):
+        raise ValueError(f"{why}; port {port} out of range")
+    return parts[0], parts[1], port
 
 
 def parse_stream_url(url: str, kinds=STREAM_KINDS, option: str = "vehicle URL") -> StreamUrl:
