@@ -7,8 +7,8 @@ and the field's ``metadata`` may add a range and a unit conversion:
 - ``tuple[float, ...]`` with ``metadata["length"]`` for a fixed-length vector, and
   ``tuple[tuple[float, ...], ...]`` with ``metadata["item_length"]`` for a list of them;
 - a nested schema (another dataclass), or ``tuple[Schema, ...]`` for a list of them;
-- ``Optional[T]`` (``T | None``): the key may be left out or be ``null``;
-- a field with a default may be left out; one without is required;
+- ``Optional[T]`` (``T | None``): the key may be left out or be ``null``; a field with a
+  default may be left out, one without is required;
 - ``metadata["min"]``, ``["max"]``, ``["min_exclusive"]``, ``["max_exclusive"]`` bound numbers (each element of a vector);
 - ``metadata["choices"]`` restricts strings, ``metadata["max_length"]`` bounds their length
   (default :data:`MAX_STRING_CHARS`), and ``metadata["max_items"]`` the length of a list;
@@ -17,9 +17,8 @@ and the field's ``metadata`` may add a range and a unit conversion:
 - ``metadata["union"] = {"line": LineSpec, ...}`` on a field annotated ``object``: the
   value is a mapping with exactly one of those keys, whose value is loaded as that schema.
 
-Every error is a :class:`ConfigError` whose message names the file, the line, the key
-path and what was expected, in one line, quoting at most :data:`EXCERPT_CHARS` characters of
-the file.
+Every error is a :class:`ConfigError`: one line naming the file, the line, the key path and
+what was expected (a number's whole range too), quoting at most :data:`EXCERPT_CHARS` characters.
 
 Hostile files are refused with bounded work (docs/reliability.md, "Hostile files"): a file
 larger than :data:`MAX_FILE_BYTES` is not read past its limit; a file that is not UTF-8 is
@@ -158,16 +157,13 @@ def _describe(node: yaml.Node) -> str:
 def _range(meta: dict) -> str:
     """The field's whole range, `` (range [lo, hi])``, where it has both ends ("" otherwise)."""
     lo, lo_x, hi, hi_x = (meta.get(k) for k in ("min", "min_exclusive", "max", "max_exclusive"))
-    low = f"[{lo:g}" if lo is not None and (lo_x is None or lo > lo_x) else (
-        f"({lo_x:g}" if lo_x is not None else None)
-    high = f"{hi:g}]" if hi is not None and (hi_x is None or hi < hi_x) else (
-        f"{hi_x:g})" if hi_x is not None else None)
+    low = f"[{lo:g}" if lo is not None and (lo_x is None or lo > lo_x) else lo_x is not None and f"({lo_x:g}"
+    high = f"{hi:g}]" if hi is not None and (hi_x is None or hi < hi_x) else hi_x is not None and f"{hi_x:g})"
     return f" (range {low}, {high})" if low and high else ""
 
 
 def _check_range(ctx: _Ctx, node, key: str, value: float, meta: dict) -> None:
-    lo, hi = meta.get("min"), meta.get("max")
-    lo_x, hi_x = meta.get("min_exclusive"), meta.get("max_exclusive")
+    lo, lo_x, hi, hi_x = (meta.get(k) for k in ("min", "min_exclusive", "max", "max_exclusive"))
     for bad, bound in ((lo_x is not None and not value > lo_x, f"> {lo_x}"),
                        (lo is not None and value < lo, f">= {lo}"),
                        (hi is not None and value > hi, f"<= {hi}"),

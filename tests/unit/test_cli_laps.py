@@ -48,8 +48,10 @@ def _fly_until_the_daemon_starts(monkeypatch, tmp_path, argv) -> list:
     handed = []
 
     class Daemon:
-        def __init__(self, config, *args, **kwargs):
+        def __init__(self, config, *args, progress=None, **kwargs):
+            from mavreg.progress import Progress
             self.config = config
+            self.progress = progress if progress is not None else Progress(quiet=True)
 
         async def run(self, initial, timeout_s=None):
             handed.extend(initial)
