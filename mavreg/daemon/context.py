@@ -98,8 +98,6 @@ class FlightContext:
     # the landing
     landed_state: int | None = None
     """The autopilot's MAV_LANDED_STATE (EXTENDED_SYS_STATE; None: none heard)."""
-    took_over: bool = False
-    """The vehicle was found armed in the air and taken over (phase takeover)."""
     land_requested: bool = False
     arm_requested: bool = False
     """An ARM request went out (a refusal on the ground then sends one more disarm)."""

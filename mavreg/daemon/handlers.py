@@ -102,7 +102,8 @@ class Preflight(_Handler):
         """The vehicle is armed and this daemon did not arm it (a restart after a crash, a pilot's
         take-off): airborne by its landed state (EXTENDED_SYS_STATE), or with none heard within
         ``takeover_landed_state_wait_s``, by its height over the estimate's origin, it is taken
-        over (:class:`Takeover`); armed on the ground, it is refused and left armed."""
+        over (:class:`Takeover`); armed on the ground, it is refused (and disarmed only where its
+        autopilot says it is on the ground: :meth:`~mavreg.daemon.safety.SafetyPolicy.end_on_ground`)."""
         flight, ctx, parts = self.flight, self.flight.ctx, self.flight.parts
         params = parts.params
         waited = sample.time_s - ctx.stream_start_vehicle_s
@@ -128,7 +129,6 @@ class Preflight(_Handler):
                 dropped = [p.name for p, _, _ in ctx.pending]
                 ctx.pending.clear()
                 flight.event(out, "dropped", f"{dropped} not flown: the vehicle is taken over to land")
-        ctx.took_over = True
         p = np.round(sample.x[:3], 2).tolist()
         flight.announce(out, "takeover", mm.SEVERITY_WARNING,
                         f"vehicle found armed in the air at {p}, {height_m:.1f} m over the estimate's origin, "
@@ -259,7 +259,6 @@ class Takeover(_Handler):
         flight, ctx, parts = self.flight, self.flight.ctx, self.flight.parts
         st = ctx.vehicle_status
         if not st.armed:                                   # its own failsafe landed it meanwhile
-            ctx.took_over = False
             ctx.stream_start_vehicle_s = None
             if ctx.pending or not parts.params.land_when_done:
                 flight.set_phase(out, Phase.PREFLIGHT, "the vehicle disarmed before the takeover: on the ground")
