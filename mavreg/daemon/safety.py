@@ -225,11 +225,11 @@ class SafetyPolicy:
     def end_on_ground(self, out, why: str) -> None:
         """The flight ends before take-off (a refusal, or a land request): at once when the
         vehicle is disarmed (after one more ARM_DISARM 0 when an arm request may still be on
-        its way), or has never been spoken to (no dialect: nothing was sent to it), or was
-        armed by another and its autopilot does not say it is on the ground (it may be flying:
-        left armed). An armed vehicle is disarmed first: the preflight handler repeats ARM_DISARM 0, its HEARTBEAT
-        ends the flight, or after ``ground_disarm_timeout_s`` (injected clock) the stream is
-        left to its failsafe (:meth:`ground_disarm_timeout`)."""
+        its way), or has never been spoken to (no dialect: nothing was sent to it); aborted when
+        it was armed by another and its autopilot does not say it is on the ground (it may be
+        flying: left armed). An armed vehicle is disarmed first: the preflight handler repeats
+        ARM_DISARM 0, its HEARTBEAT ends the flight, or after ``ground_disarm_timeout_s``
+        (injected clock) the stream is left to its failsafe (:meth:`ground_disarm_timeout`)."""
         flight, ctx = self.flight, self.flight.ctx
         ctx.land_requested = True
         ctx.pending.clear()
@@ -238,8 +238,8 @@ class SafetyPolicy:
         if (st is not None and st.armed and not ctx.arm_requested
                 and ctx.landed_state != mm.mavlink2.MAV_LANDED_STATE_ON_GROUND):
             # armed by another and not known to be on the ground: it may be flying
-            flight.set_phase(out, Phase.DISARMED, f"{why}; the vehicle was armed by another and is not known "
-                             "to be on the ground: left armed")
+            flight.set_phase(out, Phase.ABORTED, f"{why}; the vehicle was armed by another and is not known "
+                             "to be on the ground: left armed, to its pilot and its failsafe")
             return
         if st is not None and st.armed:
             ctx.ground_end_wall_s = ctx.now_wall_s
