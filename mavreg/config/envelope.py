@@ -183,9 +183,10 @@ class EnvelopeParams:
     """A position change that the reported velocity does not explain, beyond what the
     largest acceleration could add: a jump of the estimate."""
     thrust_window_s: float = field(default=0.1, metadata=DURATION_S)
-    thrust_check_min_ratio: float = field(default=1.2, metadata=within(0.1, 10.0))  # of the weight
+    thrust_check_min_ratio: float = field(default=1.2, metadata=within(0.1, 100.0))  # of the weight
     """The thrust check applies while the mean collective command is above this
-    multiple of the design weight."""
+    multiple of the design weight; above the vehicle's thrust-to-weight it never applies (the
+    experiments' saturation runs turn it off with 100, :data:`mavreg.experiments.via_sitl.EXPERIMENT_ENVELOPE`)."""
     min_thrust_ratio: float = field(default=0.5, metadata=SHARE)
     """Measured thrust (design mass x specific force along body -z) below this share of
     the commanded: the rotors are not doing what they are told, or the telemetry lies."""
