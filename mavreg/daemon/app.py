@@ -185,9 +185,10 @@ class Daemon:
     def _watch_preflight(self) -> None:
         """Say what the start waits for when it lasts (:class:`~.startup.PreflightWatch`)."""
         sup = self.supervisor
-        status = sup.status() if sup.phase == Phase.PREFLIGHT else None
-        self._watch.update(None if status is None else preflight_wait(
-            self._heard, sup.last_sample is not None, status["vehicle_armed"], bool(status["pending"])), self.clock_s())
+        st = sup.vehicle_status         # read directly: no status report built at every tick
+        self._watch.update(None if sup.phase != Phase.PREFLIGHT else preflight_wait(
+            self._heard, sup.last_sample is not None, None if st is None else st.armed,
+            bool(sup.ctx.pending)), self.clock_s())
 
     # ---------------------------------------------------------------- requests
     async def offer_text(self, yaml_text: str, source: str) -> dict:
