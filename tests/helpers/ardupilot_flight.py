@@ -22,6 +22,7 @@ import numpy as np
 
 from .ardupilot_mocap import HOME, ned_m
 from .ardupilot_sitl import M, ArduPilotSitl
+from .sitl_link import fly_into_the_maneuver
 
 __all__ = ["fly_on_ardupilot", "kill_and_restart_on_ardupilot", "true_errors_from_tlog", "PILOT_PARAMS", "VEHICLE", "CONTROLLER", "CONTROLLERS"]
 
@@ -52,9 +53,7 @@ def fly_on_ardupilot(maneuver: Path, out: Path, control_rate_hz: float = 200.0, 
         if position_source != "gps":          # the EKF's local frame is the vision frame, about HOME
             origin = SimpleNamespace(latitude=round(HOME[0] * 1e7), longitude=round(HOME[1] * 1e7),
                                      altitude=round(HOME[2] * 1e3))
-        port = sitl.port
-        sitl.conn.close()                 # the daemon takes the port; the SITL keeps sending there
-        sitl.conn = None
+        port = sitl.release_link()        # the daemon takes the port; the SITL keeps sending there
         cmd = _fly_cmd(port, maneuver, out, controller, "--control-rate-hz", f"{control_rate_hz:g}",
                        "--timeout-s", f"{timeout_s:g}", *extra_args)
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s + 60)
@@ -88,18 +87,9 @@ def kill_and_restart_on_ardupilot(maneuver: Path, out: Path, after_s: float = 2.
     out.mkdir(parents=True, exist_ok=True)
     with ArduPilotSitl(frame="freestyle", params=dict(PILOT_PARAMS)) as sitl:
         sitl.set_rate(M.MAVLINK_MSG_ID_SIM_STATE, 50.0)
-        port = sitl.port
-        sitl.conn.close()
-        sitl.conn = None
-        log = out / "fly.log"
-        with open(log, "w") as f:
-            first = subprocess.Popen(_fly_cmd(port, maneuver, out / "flight", CONTROLLER), stdout=f,
-                                     stderr=subprocess.STDOUT, text=True)
-        end = time.monotonic() + 240.0
-        while "[maneuver] phase" not in log.read_text() and first.poll() is None and time.monotonic() < end:
-            time.sleep(0.05)
-        time.sleep(after_s)                  # the scenario's timing: the kill's moment
-        killed = first.poll() is None
+        port = sitl.release_link()
+        first, killed = fly_into_the_maneuver(_fly_cmd(port, maneuver, out / "flight", CONTROLLER),
+                                              out / "fly.log", after_s, wait_s=240.0)
         if killed:
             os.kill(first.pid, signal.SIGKILL)
         first.wait(timeout=10)

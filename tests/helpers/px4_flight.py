@@ -28,6 +28,7 @@ import numpy as np
 from mavreg.experiments.via_sitl import maneuver_window
 
 from .px4_sitl import Px4Sitl
+from .sitl_link import fly_into_the_maneuver
 
 __all__ = ["fly_on_px4", "px4_truth", "VEHICLE", "AGGRESSIVE_VEHICLE", "CONTROLLER", "AGGRESSIVE_PARAMS"]
 
@@ -158,23 +159,10 @@ def _fly_cmd(port: int, maneuver: Path, out: Path, vehicle: Path, controller: Pa
 
 def _fly_into_the_maneuver(px4: Px4Sitl, maneuver: Path, out: Path, vehicle: Path, controller: Path,
                            after_s: float, wait_s: float = 120.0):
-    """Start ``mavreg fly`` on ``px4``'s offboard link (its output into ``out/fly.log``) and
-    return it ``after_s`` (wall clock) after the daemon said the maneuver began; None where it
-    ended or did not get there within ``wait_s``."""
-    import time
+    """``mavreg fly`` on ``px4``'s offboard link (:func:`~tests.helpers.sitl_link.fly_into_the_maneuver`,
+    its output into ``out/fly.log``)."""
     cmd = _fly_cmd(px4.release_link(), maneuver, out / "flight", vehicle, controller, "--control-rate-hz", "200")
-    log = out / "fly.log"
-    with open(log, "w") as f:
-        proc = subprocess.Popen(cmd, stdout=f, stderr=subprocess.STDOUT, text=True)
-    end = time.monotonic() + wait_s
-    while "[maneuver] phase" not in log.read_text():    # the daemon's own word that the maneuver began
-        if proc.poll() is not None or time.monotonic() > end:
-            return proc, False
-        time.sleep(0.05)
-    deadline = time.monotonic() + after_s
-    while time.monotonic() < deadline and proc.poll() is None:
-        time.sleep(0.05)                  # the scenario's timing (the fault's moment), not a wait for a state
-    return proc, proc.poll() is None
+    return fly_into_the_maneuver(cmd, out / "fly.log", after_s, wait_s)
 
 
 def kill_mid_maneuver(maneuver: Path, out: Path, after_s: float = 2.0, params: dict | None = None,

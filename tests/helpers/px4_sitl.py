@@ -329,12 +329,6 @@ class Px4Sitl(SitlLink):
         self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{self.port}", source_system=255,
                                                source_component=190, dialect="common")
 
-    def release_link(self) -> int:
-        """Close the harness's offboard link so mavreg can take the port; the port."""
-        self.conn.close()
-        self.conn = None
-        return self.port
-
     def _check_alive(self, what: str) -> None:
         if self.pid is not None and not _alive(self.pid):
             self.pid = None

@@ -141,6 +141,13 @@ class SitlLink:
         return self.wait_for(lambda m: m.get_type() == "COMMAND_ACK" and m.command == command,
                              timeout_s, f"COMMAND_ACK of command {command}")
 
+    def release_link(self) -> int:
+        """Close the harness's link so mavreg can take its port (the SITL keeps sending there);
+        the port."""
+        self.conn.close()
+        self.conn = None
+        return self.port
+
     def set_rate(self, msg_id: int, hz: float) -> int:
         """MAV_CMD_SET_MESSAGE_INTERVAL; returns the ACK's result."""
         ack = self.command_long(M.MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, 1e6 / hz if hz > 0 else -1)
@@ -186,3 +193,21 @@ class SitlLink:
     def output_tail(self, lines: int = 3) -> str:
         """The last lines the autopilot printed."""
         return "(none)"
+
+
+def fly_into_the_maneuver(cmd: list[str], log: Path, after_s: float, wait_s: float = 120.0):
+    """Start ``cmd`` (a ``mavreg fly``; its output into ``log``, never a pipe that could fill)
+    and return (process, still flying) ``after_s`` (wall clock) after the daemon said the
+    maneuver began, or at once where it ended or did not get there within ``wait_s``."""
+    import subprocess
+    with open(log, "w") as f:
+        proc = subprocess.Popen(cmd, stdout=f, stderr=subprocess.STDOUT, text=True)
+    end = time.monotonic() + wait_s
+    while "[maneuver] phase" not in Path(log).read_text():    # the daemon's own word that it began
+        if proc.poll() is not None or time.monotonic() > end:
+            return proc, False
+        time.sleep(0.05)
+    deadline = time.monotonic() + after_s
+    while time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.05)                  # the scenario's timing (the fault's moment), not a wait for a state
+    return proc, proc.poll() is None
