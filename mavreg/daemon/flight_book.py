@@ -68,6 +68,8 @@ class FlightRecord:
     """Datagram-to-command latency over the flight (median, p99, samples)."""
     ended_daemon_s: float
     """When it ended, in seconds since the daemon started."""
+    counters: dict
+    """The supervisor's counters over the flight (samples, commands, gaps, ...)."""
 
     @classmethod
     def of(cls, number: int, sup, latency_ms: dict, ended_daemon_s: float,
@@ -87,7 +89,7 @@ class FlightRecord:
         td = ctx.touchdown_speed_m_s
         return cls(number, result, str(sup.phase), detail, tuple(ctx.maneuvers_done), int(ctx.recoveries),
                    None if td is None or not math.isfinite(td) else float(td), dict(latency_ms),
-                   float(ended_daemon_s))
+                   float(ended_daemon_s), dict(sup.counters.__dict__))
 
     def line(self) -> str:
         td = "" if self.touchdown_speed_m_s is None else f", touchdown {self.touchdown_speed_m_s:.2f} m/s"
