@@ -99,14 +99,14 @@ class Daemon(FlightSequence):
         self._greeted = False
         """Our HEARTBEAT has answered the vehicle's first message (:meth:`_on_message`)."""
         self._heard = False
+        self._last_heartbeat = None
         self._watch = PreflightWatch(self.progress.line)
-        self.max_tick_gap_s = 0.0
-        self.max_tick_gap_phase = ""
+        self.max_tick_gap_s, self.max_tick_gap_phase = 0.0, ""
+        """Longest wall time between two runs of the tick task (the event loop's worst stall
+        plus TICK_S, and the phase it was in): what a slow request or upload costs the loop."""
         self.max_tick_cpu_s = 0.0
         """Most CPU the loop's thread used between two ticks: the gap is this plus the time the
         process waited for a CPU (a loaded machine) or for events."""
-        """Longest wall time between two runs of the tick task (the event loop's worst stall
-        plus TICK_S): what a slow request or upload costs the control loop."""
 
     # ------------------------------------------------------------------ wiring
     def _emit(self, out: Output) -> bool:
@@ -136,6 +136,8 @@ class Daemon(FlightSequence):
 
     def _on_message(self, msg, t_recv_ns: int) -> None:
         self._heard = True
+        if msg.get_type() == "HEARTBEAT":
+            self._last_heartbeat = msg      # a new flight's supervisor starts from it
         if not self._greeted:
             # on udpin: nothing could be sent before the vehicle was heard; our HEARTBEAT goes
             # first, so a vehicle that takes commands only from a known peer (the emulator)

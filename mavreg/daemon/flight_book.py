@@ -70,6 +70,8 @@ class FlightRecord:
     """When it ended, in seconds since the daemon started."""
     counters: dict
     """The supervisor's counters over the flight (samples, commands, gaps, ...)."""
+    vehicle_span_s: tuple[float | None, float | None] = (None, None)
+    """The vehicle's time of the flight's first and last sample (None: no sample)."""
 
     @classmethod
     def of(cls, number: int, sup, latency_ms: dict, ended_daemon_s: float,
@@ -89,7 +91,8 @@ class FlightRecord:
         td = ctx.touchdown_speed_m_s
         return cls(number, result, str(sup.phase), detail, tuple(ctx.maneuvers_done), int(ctx.recoveries),
                    None if td is None or not math.isfinite(td) else float(td), dict(latency_ms),
-                   float(ended_daemon_s), dict(sup.counters.__dict__))
+                   float(ended_daemon_s), dict(sup.counters.__dict__),
+                   (ctx.stream_start_vehicle_s, None if ctx.last_sample is None else ctx.last_sample.time_s))
 
     def line(self) -> str:
         td = "" if self.touchdown_speed_m_s is None else f", touchdown {self.touchdown_speed_m_s:.2f} m/s"
@@ -98,6 +101,7 @@ class FlightRecord:
     def as_dict(self) -> dict:
         d = asdict(self)
         d["maneuvers"] = list(self.maneuvers)
+        d["vehicle_span_s"] = list(self.vehicle_span_s)
         return d
 
 

@@ -72,6 +72,8 @@ class FlightSequence:
         if self._tlog is not None:
             self._open_tlog()
         self.log(f"flight {self.flight_number}: waiting for an upload")
+        if self._last_heartbeat is not None:    # the vehicle's status now, not at its next HEARTBEAT:
+            self._emit(self.supervisor.handle(self._last_heartbeat, self.clock_s()))   # no sample unanswered
 
     def _save_control_log(self) -> None:
         if self._ctrl_files is None:

@@ -202,8 +202,8 @@ def fly_campaign(draws: list[FlightDraw], out_dir: Path, rate_hz: float = 250.0,
                  flight_timeout_s: float = 900.0, say=print, judge=None) -> dict:
     """Fly ``draws`` through one ``serve``; the rows, the resource samples and the daemon's exit.
 
-    ``judge(row, record_path)`` (chaos) judges a flight on the emulator's recording once the
-    emulator has saved it (at its restart for the next flight, or at the end).
+    ``judge(rows, record_path)`` (chaos) judges the flights of one world on the emulator's
+    recording once the emulator has saved it (at its restart into the next world, or at the end).
     """
     out_dir = Path(out_dir)
     runs = out_dir / "runs"
@@ -213,7 +213,7 @@ def fly_campaign(draws: list[FlightDraw], out_dir: Path, rate_hz: float = 250.0,
     rig = ServeRig(out_dir, rate_hz, ("--tlog", str(logs / "flight.tlog"), "--control-log",
                                       str(logs / "control.npz"), "--keep-logs", str(KEEP_LOGS)))
     rows: list[dict] = []
-    pending_judge: tuple[dict, Path] | None = None
+    pending_judge: tuple[list[dict], Path] | None = None
     t0 = time.monotonic()
     code = None
     try:
@@ -224,10 +224,10 @@ def fly_campaign(draws: list[FlightDraw], out_dir: Path, rate_hz: float = 250.0,
         for draw in draws:
             if draw.restart and draw.number != first.number:
                 truth = runs / f"{draw.number:04d}-truth.npz" if judge else None
-                rig.start_emulator(draw.world, truth)
-            if pending_judge is not None:
-                judge(*pending_judge)
-                pending_judge = None
+                rig.start_emulator(draw.world, truth)       # the last world's recording is saved
+                if pending_judge is not None:
+                    judge(*pending_judge)
+                    pending_judge = None
             if rig.serve.poll() is not None:
                 rows.append({"flight": draw.number, "draw": draw.describe(), "record": None,
                              "lost": f"mavreg serve exited ({rig.serve.returncode})"})
@@ -237,7 +237,8 @@ def fly_campaign(draws: list[FlightDraw], out_dir: Path, rate_hz: float = 250.0,
             row["resources"] = rig.resources() if rig.serve.poll() is None else None
             rows.append(row)
             if judge and truth is not None:
-                pending_judge = (row, truth)
+                pending_judge = (pending_judge or ([], truth))
+                pending_judge[0].append(row)
             rec = row["record"]
             say(f"flight {draw.number}/{len(draws)} ({draw.describe()}): "
                 + (rec["result"] if rec else f"no record ({row.get('upload_reason') or 'lost'})")

@@ -14,6 +14,8 @@ Definitions (docs/reliability.md):
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from .robustness_metrics import IMPACT_SPEED_M_S, altitude_above_takeoff, motors_stopped_in_air, touchdowns
@@ -23,26 +25,39 @@ __all__ = ["judge_truth", "summarize", "markdown", "GROWTH_FROM"]
 GROWTH_FROM = 20
 
 
-def judge_truth(row: dict, record_path) -> None:
-    """Add the truth's verdict of a flight to ``row`` (and delete the recording unless unsafe)."""
+def judge_truth(rows: list[dict], record_path) -> None:
+    """Add the truth's verdict to each of ``rows``, the flights of one emulator run, from its
+    recording over each flight's span of vehicle time (the recording is deleted unless some
+    flight was unsafe)."""
     try:
         with np.load(record_path) as z:
             t, pos, vel = z["t_s"], z["position_ned_m"], z["velocity_ned_m_s"]
             applied, armed, ground = z["rotor_applied_n"], z["armed"], z["on_ground"]
     except (OSError, KeyError, ValueError) as exc:
-        row["truth"] = {"error": f"{type(exc).__name__}: {exc}"}
+        for row in rows:
+            row["truth"] = {"error": f"{type(exc).__name__}: {exc}"}
         return
-    downs = touchdowns(t, vel, ground)
-    top = max((v for _, v in downs), default=None)
-    stopped = motors_stopped_in_air(t, altitude_above_takeoff(pos), applied, armed, ground)
-    asked = row.get("upload") == "accepted"
-    truth = {"max_touchdown_speed_m_s": top, "touchdowns": len(downs),
-             "ground_impact": bool(top is not None and top > IMPACT_SPEED_M_S),
-             "motors_stopped_in_air": stopped is not None,
-             "arm_not_asked": bool(np.any(armed)) and not asked}
-    row["truth"] = truth
-    if not (truth["ground_impact"] or truth["motors_stopped_in_air"] or truth["arm_not_asked"]):
-        record_path.unlink(missing_ok=True)
+    alt = altitude_above_takeoff(pos)
+    unsafe = False
+    for row in rows:
+        span = (row.get("record") or {}).get("vehicle_span_s") or [None, None]
+        if span[0] is None or span[1] is None:
+            row["truth"] = {"error": "no flight: no span of vehicle time to judge"}
+            continue
+        lo, hi = span[0] - 0.5, span[1] + 2.0
+        sel = (t >= lo) & (t <= hi)
+        downs = touchdowns(t[sel], vel[sel], ground[sel])
+        top = max((v for _, v in downs), default=None)
+        stopped = motors_stopped_in_air(t[sel], alt[sel], applied[sel], armed[sel], ground[sel])
+        truth = {"max_touchdown_speed_m_s": top, "touchdowns": len(downs),
+                 "ground_impact": bool(top is not None and top > IMPACT_SPEED_M_S),
+                 "motors_stopped_in_air": stopped is not None,
+                 "arm_not_asked": bool(np.any(armed[sel])) and row.get("upload") != "accepted",
+                 "recording": str(record_path)}
+        row["truth"] = truth
+        unsafe |= truth["ground_impact"] or truth["motors_stopped_in_air"] or truth["arm_not_asked"]
+    if not unsafe:
+        Path(record_path).unlink(missing_ok=True)
 
 
 def _unsafe(row: dict) -> list[str]:

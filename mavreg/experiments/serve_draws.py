@@ -5,10 +5,10 @@ Two campaigns (docs/reliability.md, "Days, not minutes"):
 - **soak**: one emulator, never restarted, the bundled airframe in the ideal world; flight
   after flight of library maneuvers, laps and a short hop, with a rejected upload now and
   then. What it measures is the daemon over time: memory, descriptors, threads, latency.
-- **chaos**: every flight in a world of its own, so the emulator restarts before each (a
+- **chaos**: every five flights a world of their own, into which the emulator restarts (a
   vehicle reboot between flights, as the daemon sees it): link faults (loss, bursts,
-  reordering, outages), gusts, an airframe drawn around the vehicle file, the host loaded on
-  every core, and hostile uploads before the flight's own.
+  reordering, outages), gusts, an airframe drawn around the vehicle file; and per flight, the
+  host loaded on every core, and hostile uploads before the flight's own.
 
 Pure: a seed in, a list of :class:`FlightDraw` out (no processes, no files).
 """
@@ -60,6 +60,9 @@ HOSTILE_UPLOADS = {
 SOAK_MANEUVERS = (("hop", None, 0.7), ("slalom", None, 0.1), ("figure_eight", None, 0.05),
                   ("barrel_roll", None, 0.1), ("barrel_roll", 2, 0.05))
 """(maneuver, laps, probability) of a soak flight: the hop, library maneuvers, and laps."""
+WORLD_FLIGHTS = 5
+"""Chaos: a world (link faults, gust, airframe) is drawn for this many flights in a row; the
+emulator restarts into each new one (a vehicle reboot between flights)."""
 CHAOS_MANEUVERS = (("hop", None, 0.6), ("slalom", None, 0.15), ("figure_eight", None, 0.1),
                    ("barrel_roll", None, 0.15))
 
@@ -107,8 +110,9 @@ def _link_faults(rng) -> tuple[str, ...]:
         return (f"--link-faults=loss=0.01,burst_enter={rng.uniform(0.005, 0.02):.3f},burst_exit=0.25",)
     if kind == "reorder":
         return (f"--link-faults=reorder={rng.uniform(0.01, 0.05):.3f},reorder_ms=10,jitter_ms=3",)
-    if kind == "outage":    # sim seconds from the emulator's start: in the take-off, hold or maneuver
-        return (f"--downlink-faults=outage={rng.uniform(8.0, 30.0):.1f}:{rng.uniform(0.05, 0.3):.2f}",)
+    if kind == "outage":    # telemetry outages at sim times over the world's flights (about 40 s each)
+        starts = np.sort(rng.uniform(8.0, 40.0 * WORLD_FLIGHTS, size=WORLD_FLIGHTS))
+        return ("--downlink-faults=" + ",".join(f"outage={t:.1f}:{rng.uniform(0.05, 0.3):.2f}" for t in starts),)
     return ()
 
 
@@ -131,9 +135,9 @@ def draw_flights(kind: str, seed: int, flights: int) -> list[FlightDraw]:
 
     Examples
     --------
-    >>> a = draw_flights("chaos", 7, 3)
-    >>> a == draw_flights("chaos", 7, 3) and all(f.restart for f in a)
-    True
+    >>> a = draw_flights("chaos", 7, 6)
+    >>> a == draw_flights("chaos", 7, 6), [f.restart for f in a]
+    (True, [True, False, False, False, False, True])
     >>> [f.world for f in draw_flights("soak", 0, 2)]
     [(), ()]
     """
@@ -153,6 +157,8 @@ def draw_flights(kind: str, seed: int, flights: int) -> list[FlightDraw]:
         name, laps = _pick(rng, CHAOS_MANEUVERS)
         k = int(rng.choice([0, 1, 2], p=[0.6, 0.3, 0.1]))
         hostile = tuple(hostile_names[int(i)] for i in rng.choice(len(hostile_names), size=k, replace=False))
-        world = _chaos_world(rng, int(rng.integers(1 << 31)))
-        out.append(FlightDraw(n, name, laps, hostile, world, bool(rng.random() < 0.2), True))
+        restart = (n - 1) % WORLD_FLIGHTS == 0
+        if restart:
+            world = _chaos_world(rng, int(rng.integers(1 << 31)))
+        out.append(FlightDraw(n, name, laps, hostile, world, bool(rng.random() < 0.2), restart))
     return out
