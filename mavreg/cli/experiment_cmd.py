@@ -54,6 +54,20 @@ Experiments (NAME):
                 cells it can represent (not wind, loss, no-timesync), judged by the truth's
                 errors and whether the maneuver reached its end.
 
+  soak          one 'mavreg serve' against the emulator in lockstep flies --flights flights
+                (default 200) back to back, uploaded through its endpoint: the hop, library
+                maneuvers and laps, a rejected upload every fifth flight. Measures the serve's
+                and its planner worker's memory, descriptors and threads after each flight
+                (their growth from flight 20 on), the latency and every flight's outcome.
+  chaos         --flights (default 300) through one serve, each in a world drawn from --seed:
+                link faults (loss, bursts, reordering, outages), gusts, an airframe drawn
+                around the vehicle file, the host loaded on every core, hostile uploads; the
+                emulator restarts before each flight (a vehicle reboot between flights). Counts
+                each outcome, unsafe events on the emulator's truth (touchdown over 1 m/s,
+                motors stopped in the air, an arm not asked for) and lost results.
+                soak and chaos take --jobs N (N serves, the flights dealt out; default 1) or
+                --dask; they write campaign.json and campaign.md (docs/reliability.md).
+
 --via sim (default) flies the design model (RK4 at 1 ms, regulator at 1 kHz; about 5 s of CPU
 a run). --via sitl flies each run with 'mavreg fly --lockstep --world ideal' against the
 bundled firmware_sim over MAVLink (about 15-40 s a run): the plant's inertia, rotor noise and
@@ -92,7 +106,8 @@ def add_arguments(p):
                    help="sim: the design model (default; robustness: sitl); sitl: the daemon and "
                    "firmware_sim in lockstep")
     p.add_argument("--flights", metavar="N", default=None,
-                   help="robustness: flights (seeds) per cell (default 2)")
+                   help="robustness: flights (seeds) per cell (default 2); soak, chaos: flights in all "
+                   "(default 200, 300)")
     p.add_argument("--cells", metavar="LIST", default=None,
                    help="robustness: only these cells or groups, comma-separated (default: all; groups: "
                    "baseline, wind3, wind6, thrust90, gust, rotors, mismatch, delay, loss, timesync, "
@@ -115,9 +130,42 @@ def _whole(text: str, what: str, minimum: int) -> int:
     return n
 
 
+SERVE_CAMPAIGNS = ("soak", "chaos")
+
+
 def _names() -> list[str]:
     from ..experiments.definitions import EXPERIMENTS
-    return [*EXPERIMENTS, "robustness"]
+    return [*EXPERIMENTS, "robustness", *SERVE_CAMPAIGNS]
+
+
+def _serve_campaign(args) -> int:
+    """``soak`` and ``chaos``: flights through one ``serve`` (:mod:`mavreg.experiments.serve_run`)."""
+    from ..experiments.serve_run import DEFAULT_FLIGHTS, run_serve_campaign
+    if args.via is not None or args.cells is not None or args.keep_flight_files:
+        raise UsageError(f"{args.name} flies through mavreg serve: --via, --cells and --keep-flight-files "
+                         "do not apply")
+    if args.dask is not None and args.jobs is not None:
+        raise UsageError("--jobs sizes the local process pool; with --dask the cluster's workers fly the serves")
+    seed = _whole(args.seed, "--seed", 0)
+    flights = DEFAULT_FLIGHTS[args.name] if args.flights is None else _whole(args.flights, "--flights", 1)
+    jobs = 1 if args.jobs is None else _whole(args.jobs, "--jobs", 1)
+    if args.dask is not None:
+        from ..experiments.on_dask import require_dask
+        require_dask()
+    out = Path(args.out) if args.out else Path("experiments") / f"{args.name}-{time.strftime('%Y%m%d-%H%M%S')}"
+    why = check_output_dir(str(out))
+    if why is not None:
+        raise UsageError(f"--out {why}")
+    out.mkdir(parents=True, exist_ok=True)
+    command = (f"mavreg experiment {args.name} --seed {seed} --flights {flights} "
+               + (f"--dask {shlex.quote(args.dask)} " if args.dask else f"--jobs {jobs} ")
+               + f"--out {shlex.quote(str(out))}")
+    sm = run_serve_campaign(args.name, seed, flights, out, jobs, args.dask, command=command)
+    ok = sm["outcomes"].get("ok", 0)
+    print(f"{args.name}: {ok} of {sm['flights']} flights ok, {len(sm['unsafe'])} unsafe, "
+          f"{len(sm['lost_results'])} results lost, {sm['hostile_not_rejected']} hostile uploads not rejected")
+    print(f"outputs: {out}/ (campaign.json, campaign.md)")
+    return 0 if not sm["unsafe"] and not sm["lost_results"] and not sm["hostile_not_rejected"] else 1
 
 
 def _build(args, seed: int):
@@ -140,6 +188,8 @@ def run(args) -> int:
     from ..experiments.runner import VIAS
     if args.name not in _names():
         raise UsageError(f"unknown experiment {args.name!r}; choose one of {', '.join(_names())}")
+    if args.name in SERVE_CAMPAIGNS:
+        return _serve_campaign(args)
     robust = args.name == "robustness"
     if args.via is None:
         args.via = "sitl" if robust else "sim"

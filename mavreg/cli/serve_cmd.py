@@ -8,7 +8,7 @@ from ..config.defaults import CONTROL_RATE_HZ, STALE_TIMEOUT_S
 from .common import (REAL_CONTROLLER, add_gcs_arguments, add_model_arguments, add_excitation_argument, add_output_argument,
                      add_planner_arguments,
                      add_signing_argument, add_vehicle_identity_arguments, add_airborne_argument, excitation_params,
-                     gcs_config, output_file, planner_bounds, positive_float, socket_path, vehicle_url,
+                     gcs_config, output_file, planner_bounds, positive_float, positive_int, socket_path, vehicle_url,
                      vehicle_url_help, check_vehicle_link)
 
 HELP = "run the offboard daemon: fly maneuvers uploaded on the control endpoint"
@@ -18,24 +18,31 @@ Connect to the vehicle over MAVLink 2 (heartbeat as MAV_TYPE_ONBOARD_CONTROLLER,
 Unix domain socket of mode 0600. Default location: $MAVREG_SOCKET, else
 $XDG_RUNTIME_DIR/mavreg.sock, else /tmp/mavreg-$UID/mavreg.sock.
 
-The first accepted upload arms the vehicle, takes off to the hold point before its entry
-and flies it; afterwards the daemon holds at the exit and flies later uploads from there.
-Uploads are planned in a worker process (the control loop keeps its rate) and start only at
-a safe point (hold); a rejected upload changes nothing. `mavreg upload FILE --laps N` flies
-FILE's laps segment N times. `mavreg upload --land` lands and disarms; the daemon then exits.
+A flight: the first accepted upload arms the vehicle, takes off to the hold point before its
+entry and flies it; afterwards the daemon holds at the exit and flies later uploads from
+there. Uploads are planned in a worker process (the control loop keeps its rate) and start
+only at a safe point (hold); a rejected upload changes nothing. `mavreg upload FILE --laps N`
+flies FILE's laps segment N times. `mavreg upload --land` lands and disarms: the flight ends.
+
+Flight after flight: when a flight ends, its outcome is a line on stderr and in the endpoint's
+status (`mavreg upload --status`), and the next upload begins a new flight, with no restart:
+at once after a landing and disarm, and after a flight that ended otherwise (aborted: the
+link lost, the vehicle taken out of OFFBOARD) once the vehicle reports itself disarmed, so a
+vehicle its pilot or its failsafe flies is never taken back. --once stops after the first
+flight instead. A vehicle refused as such (its autopilot, its parameters) stops the daemon.
 
 SIGINT/SIGTERM: the first lands (when airborne) and then exits; a second one exits at once,
 which stops the command stream so that the vehicle's own failsafe lands it.
 
 Writes a .tlog of every MAVLink message (--tlog, default none) and the controller log
-(--control-log, default none).
+(--control-log, default none): one file per flight, numbered (flight.tlog: flight-0001.tlog,
+...), of which the newest --keep-logs stay (with --once: the name as given).
 
-Exit status: 0 landed and disarmed or stopped on request; 1 the flight was aborted (stale
-state, non-finite output, the vehicle left OFFBOARD) or refused before take-off (a vehicle
-mavreg does not fly, a parameter, the plan outside the envelope, the link: the daemon ends
-at once, the cause in one line); 2 bad arguments or files (--tlog,
---control-log and --socket are checked before the daemon starts), or another daemon serves
-on the socket.
+Exit status: 0 stopped on request, or landed and disarmed (--once); 1 the last flight was
+aborted (stale state, non-finite output, the vehicle left OFFBOARD) or the vehicle was
+refused before take-off (a vehicle mavreg does not fly, a parameter, the link: the daemon
+ends at once, the cause in one line); 2 bad arguments or files (--tlog, --control-log and
+--socket are checked before the daemon starts), or another daemon serves on the socket.
 """
 
 
@@ -49,6 +56,10 @@ def add_arguments(p):
                    "here (stamped with the vehicle's clock with --vehicle-lockstep, else the wall clock)")
     p.add_argument("--control-log", metavar="FILE.npz", type=output_file, default=None,
                    help="write the controller log (s, w, u, phase) here on exit")
+    p.add_argument("--once", action="store_true",
+                   help="stop after the first flight ends (default: fly flight after flight until stopped)")
+    p.add_argument("--keep-logs", type=positive_int, default=20, metavar="N",
+                   help="the newest N per-flight .tlog and controller logs stay on disk (default %(default)s)")
     p.add_argument("--control-rate-hz", type=positive_float, default=CONTROL_RATE_HZ, metavar="HZ",
                    help="the vehicle's telemetry/control rate; the regulator leads its "
                    "feedforward by half its period (default %(default)s)")
@@ -104,15 +115,16 @@ def run(args) -> int:
                                            excitation=excitation),
                           envelope=controller.envelope, controller=controller,
                           control_rate_hz=args.control_rate_hz, **gcs, planner=planner_bounds(args),
-                          tlog_clock="vehicle" if args.vehicle_lockstep else "wall")
+                          tlog_clock="vehicle" if args.vehicle_lockstep else "wall",
+                          flights=1 if args.once else None,
+                          control_log_path=Path(args.control_log) if args.control_log else None,
+                          keep_control_log=args.control_log is not None, keep_logs=args.keep_logs)
     make_regulator = regulator_factory(vehicle, args.control_rate_hz, controller.disturbance,
                                       controller.allocation, controller.speed_governor, warm=False)
     notifier = Notifier()       # systemd's Type=notify (deploy/mavreg.service); nothing outside it
     progress.write = _with_status(progress.write, notifier)
     daemon = Daemon(config, vehicle, make_regulator, signing=signing, progress=progress, notifier=notifier)
     asyncio.run(daemon.run())
-    if args.control_log:
-        daemon.ctrl_log.save(args.control_log)
     failure = daemon.supervisor.failure
     if failure is not None and failure.phase == Phase.PREFLIGHT:      # refused before take-off
         print(f"mavreg serve: {failure.line()}", file=sys.stderr, flush=True)

@@ -12,7 +12,8 @@ DESCRIPTION = """\
 Send FILE to the daemon's control endpoint and print its verdict: "accepted" (the maneuver
 was planned and is queued; it starts at the next safe point, a hold) or "rejected" with the
 loader's or the feasibility check's reasons. Planning takes a few seconds; the daemon keeps
-flying meanwhile. --land asks the daemon to land and disarm at the next safe point;
+flying meanwhile. --land asks the daemon to land and disarm at the next safe point (the flight
+ends; the next upload begins a new one);
 --status prints its status as JSON. --laps N sends FILE with its laps segment flown N times
 (the file is rewritten here, as YAML without its comments; the daemon plans what it gets).
 

@@ -18,13 +18,13 @@ from typing import Awaitable, Callable
 
 from ..blas import one_blas_thread
 from ..config.controller import load_controller
-from ..config.defaults import MAX_PREDICTION_S
-from ..control.forecast import Forecaster
 from ..config.vehicle import VehicleParams
 from ..errors import EXIT_FAILED, UserError
 from ..planning.plan_io import text_in_cache
 from ..progress import Progress, stderr_line
 from .ctrllog import ControlLog
+from .flight_book import FlightBook, NumberedFiles
+from .flight_sequence import FlightSequence
 from .daemon_config import DaemonConfig, regulator_factory
 from .daemon_status import latency_summary, status_report
 from .endpoint import EndpointServer
@@ -33,8 +33,8 @@ from .link import FastLink, MavlinkLink, open_link
 from .planner_pool import PlannerDied, PlannerPool
 from .sdnotify import Notifier
 from .startup import PreflightWatch, compile_kernels, preflight_wait, warm_daemon_kernels
-from .supervisor import Output, Phase, Supervisor
-from .tlog import TlogWriter, VehicleClock
+from .supervisor import Output, Phase
+from .tlog import TlogWriter
 
 __all__ = ["DaemonConfig", "Daemon", "regulator_factory"]
 
@@ -42,7 +42,7 @@ TICK_S = 0.02
 HEARTBEAT_S = 1.0
 
 
-class Daemon:
+class Daemon(FlightSequence):
     """One vehicle, one supervisor, optional control endpoint.
 
     ``signing`` (a :class:`mavreg.transport.signing.Signing`, or None): sign every frame sent
@@ -66,14 +66,22 @@ class Daemon:
         self._watchdog_due_s = -math.inf
         self._start_s = self.progress.start_s
         """The injected clock when the daemon started: events carry the time since."""
-        ctl = config.controller
-        forecaster = Forecaster(vehicle, 1.0 / config.control_rate_hz,
-                                predict=ctl is not None and ctl.predict_delay,
-                                max_horizon_s=MAX_PREDICTION_S if ctl is None else ctl.max_prediction_s,
-                                disturbance=None if ctl is None else ctl.disturbance)
-        self.supervisor = Supervisor(vehicle, config.supervisor, regulator_factory, envelope=config.envelope,
-                                     forecaster=forecaster,
-                                     fixed_delay_s=None if ctl is None else ctl.fixed_delay_s)
+        self.regulator_factory = regulator_factory
+        self.supervisor = self._new_supervisor()
+        self.book = FlightBook()
+        """The outcomes of the flights flown (:mod:`.flight_book`)."""
+        self.flight_number = 1
+        """The flight under way (or the next one, between flights)."""
+        self._flight_closed = False
+        """The current supervisor's flight has ended and is in :attr:`book`."""
+        self._waiting_disarm = False
+        """Between flights after one that did not end disarmed: the next begins once the
+        vehicle reports itself disarmed (a failsafe landed it, or its pilot flies it)."""
+        many = config.flights != 1
+        self._tlog_files = None if config.tlog_path is None else NumberedFiles(
+            config.tlog_path, config.keep_logs, numbered=many)
+        self._ctrl_files = None if config.control_log_path is None else NumberedFiles(
+            config.control_log_path, config.keep_logs, numbered=many)
         self.ctrl_log = ControlLog()
         self.latency_ns: collections.deque = collections.deque(maxlen=200_000)
         self.maneuver_latency_ns: collections.deque = collections.deque(maxlen=200_000)
@@ -110,12 +118,12 @@ class Daemon:
         for ev in out.events:
             self.ctrl_log.events.append(ev)
             self.log(ev.line())
-        if out.log is not None:
+        if out.log is not None and self.config.keep_control_log:
             self.ctrl_log.append(out.log)
         if self.gcs is not None:
             self.gcs.daemon_output(out)
-        if self.supervisor.finished:
-            self._stop.set()
+        if self.supervisor.finished and not self._flight_closed:
+            self._close_flight()
         return sent_actuator
 
     def _stamp_events(self, out: Output) -> None:
@@ -175,6 +183,7 @@ class Daemon:
             self.max_tick_cpu_s = max(self.max_tick_cpu_s, cpu - last_cpu)
             last, last_cpu = now, cpu
             self._emit(self.supervisor.tick(self.clock_s()))
+            self._between_flights()
             self._watch_preflight()
             if self.notifier is not None and self.notifier.watchdog_s is not None and now >= self._watchdog_due_s:
                 self.notifier.watchdog()        # fed by the loop: a loop stalled longer goes unfed
@@ -200,8 +209,7 @@ class Daemon:
         """(the response, the exit status a rejection means: :mod:`mavreg.errors`); an accepted
         plan awaits ``before_queue()`` (the start: the kernels its regulator runs) first."""
         if self.supervisor.finished:
-            return ({"ok": False, "verdict": "rejected", "reason": f"the flight is over ({self.supervisor.phase})"},
-                    EXIT_FAILED)
+            return {"ok": False, "verdict": "rejected", "reason": self._no_flight_reason()}, EXIT_FAILED
         try:
             result = await self.pool.plan(yaml_text, source)
         except PlannerDied as exc:
@@ -214,8 +222,7 @@ class Daemon:
         if before_queue is not None:
             await before_queue()
         if self.supervisor.finished or self.supervisor.phase == Phase.TERMINATE:   # ended while planning
-            return ({"ok": False, "verdict": "rejected", "reason": f"the flight is over ({self.supervisor.phase})"},
-                    EXIT_FAILED)
+            return {"ok": False, "verdict": "rejected", "reason": self._no_flight_reason()}, EXIT_FAILED
         self._emit(self.supervisor.offer_plan(result.plan, self.clock_s()))
         self.uploads["accepted"] += 1
         self.plans.append(result.plan)
@@ -270,8 +277,8 @@ class Daemon:
         blas = one_blas_thread()        # at once, for the loop's small products (mavreg/blas.py)
         try:
             await self._start(initial or [])
-            if self.config.tlog_path is not None:
-                self._tlog = TlogWriter(self.config.tlog_path, self._tlog_clock())
+            if self._tlog_files is not None:
+                self._open_tlog()
             self.link = await open_link(self.config.vehicle_url, self.config.supervisor.vehicle_system_id,
                                         self.config.supervisor.vehicle_component_id, self._on_message, self._tlog,
                                         signing=self.signing, on_closed=self.log)
@@ -340,13 +347,6 @@ class Daemon:
                            self.clock_s, lambda: not self.supervisor.finished,
                            lambda msg: self.link is not None and self.link.send(msg), land, self.log)
         await self.gcs.open()
-    def _tlog_clock(self) -> Callable[[], float] | None:
-        """The ``.tlog``'s clock (:attr:`DaemonConfig.tlog_clock`); None: the wall clock."""
-        if self.config.tlog_clock == "wall":
-            return None
-        sup = self.supervisor
-        return VehicleClock(lambda: None if sup.last_sample is None else sup.last_sample.time_s)
-
     async def _shutdown(self, loop, signals_installed: bool) -> None:
         if self.notifier is not None:
             self.notifier.stopping(f"stopping in phase {self.supervisor.phase}")
@@ -366,6 +366,8 @@ class Daemon:
             self.link.close()
         if self._tlog is not None:
             self._tlog.close()
+        if not self._flight_closed and self.config.flights != 1:
+            self._close_flight_on_stop()
         if self.pool is not None:
             self.pool.shutdown()
         if signals_installed:

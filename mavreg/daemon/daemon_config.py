@@ -76,7 +76,23 @@ class DaemonConfig:
     :class:`mavreg.daemon.tlog.VehicleClock`)."""
     planner: PlannerBounds = field(default_factory=PlannerBounds)
     """What one upload may cost the planner worker (memory, CPU, wall clock)."""
+    flights: int | None = 1
+    """Flights to fly before the daemon stops: 1 (``fly``, ``serve --once``); None: until it is
+    stopped (``serve``: after each flight ends on the ground, the next upload starts a new one;
+    :mod:`mavreg.daemon.flight_book`)."""
+    control_log_path: Path | None = None
+    """Save each flight's controller log here when it ends (numbered per flight when
+    ``flights`` is not 1). None: the caller saves :attr:`Daemon.ctrl_log` itself (``fly``)."""
+    keep_control_log: bool = True
+    """Keep the controller log in memory; off for a ``serve`` that writes none (about 65 kB
+    a second at 500 Hz, forever)."""
+    keep_logs: int = 20
+    """Numbered logs (``.tlog``, controller log) of a many-flight daemon: the newest this many stay."""
 
     def __post_init__(self):
         if self.tlog_clock not in ("wall", "vehicle"):
             raise ValueError(f"tlog clock {self.tlog_clock!r}: expected 'wall' or 'vehicle'")
+        if self.flights is not None and self.flights < 1:
+            raise ValueError(f"flights must be at least 1 (or None: until stopped), got {self.flights}")
+        if self.keep_logs < 1:
+            raise ValueError(f"keep_logs must be at least 1, got {self.keep_logs}")

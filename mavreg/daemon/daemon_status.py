@@ -38,6 +38,8 @@ def status_report(daemon, tick_s: float) -> dict:
     st["signing"] = None if sg is None else {"accepted": sg.accepted, **sg.drops,
                                              "state_file": str(sg.path)}
     st["uploads"] = dict(daemon.uploads)
+    st["flights"] = {"current": daemon.flight_number, "waiting_for_disarm": daemon._waiting_disarm,
+                     **daemon.book.status()}
     if daemon.gcs is not None:
         st["gcs"] = daemon.gcs.status()
     st["latency_ms"] = latency_summary(daemon.latency_ns)

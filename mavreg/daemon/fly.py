@@ -44,7 +44,7 @@ from .link import io_impl
 from .peers import system_id_to_use
 from ..transport.signing import Signing
 from .report import controller_metrics, format_summary, ground_truth_errors, plot_flight
-from .records import Outcome
+from .flight_book import outcome
 from .planner_pool import PlannerBounds
 from .supervisor import Phase, SupervisorParams
 
@@ -287,33 +287,6 @@ def _provenance(opts: FlyOptions) -> dict:
                           *opts.emulator_args])
     return provenance(opts.argv or sys.argv, {"maneuver": opts.maneuver_path, "vehicle": opts.vehicle_path,
                                               "controller": opts.controller_path}, world)
-
-
-_EMULATOR_EXIT = {1: "internal error", 3: "crash", 4: "non-finite state", 5: "speed or body rate limit"}
-
-
-def outcome(sup, emulator_code: int | None, timeout_s: float) -> Outcome | None:
-    """None for a flight flown within its envelope and landed; else the cause.
-
-    The supervisor's first violated bound wins; otherwise the emulator's exit (a crash the
-    daemon did not see), a timeout, or a flight that ended without flying its maneuver.
-    """
-    if sup.failure is not None:
-        return sup.failure
-    nan = float("nan")
-    t = sup.last_sample.time_s if sup.last_sample is not None else nan
-    if emulator_code not in (None, 0):
-        why = _EMULATOR_EXIT.get(emulator_code, "unknown")
-        return Outcome("emulator_exit", sup.phase, t, nan, float(emulator_code), 0.0, "code",
-                       f"the emulator stopped: {why} (exit {emulator_code})", "none")
-    if not sup.finished:
-        return Outcome("timeout", sup.phase, t, nan, timeout_s, timeout_s, "s",
-                       f"the flight did not end within --timeout-s {timeout_s:g}",
-                       "command stream stopped (vehicle failsafe)")
-    if not sup.succeeded:
-        return Outcome("not_flown", sup.phase, t, nan, nan, nan, "",
-                       sup.reason or f"ended in phase {sup.phase} without flying the maneuver", "none")
-    return None
 
 
 def _plain(obj):

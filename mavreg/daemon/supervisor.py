@@ -138,6 +138,14 @@ class Supervisor:
                 and bool(ctx.maneuvers_done))
 
     @property
+    def vehicle_refused(self) -> bool:
+        """The flight ended before take-off because of the vehicle itself (its autopilot, its
+        parameters, armed by another on the ground), with no maneuver queued: no later upload
+        would fly either (:meth:`SafetyPolicy.refuse <mavreg.daemon.safety.SafetyPolicy.refuse>`)."""
+        f = self.ctx.failure
+        return f is not None and f.phase == Phase.PREFLIGHT and f.action.startswith("vehicle refused")
+
+    @property
     def airborne(self) -> bool:
         """Rotor commands are streamed to an armed vehicle (:data:`~mavreg.daemon.phases.AIRBORNE`)."""
         return self.ctx.phase in AIRBORNE

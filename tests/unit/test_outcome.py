@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from types import SimpleNamespace
 
-from mavreg.daemon.fly import outcome
+from mavreg.daemon.flight_book import outcome
 from mavreg.daemon.phases import Phase
 from mavreg.daemon.records import Outcome
 
