@@ -39,6 +39,7 @@ from .px4 import Px4Services
 from .rate_loop import RateLoop, RateLoopConfig
 from .setpoints import take_setpoint, take_target, target_content_reason
 from .px4_commands import HANDLED, CommandInt, handle_command, handle_param
+from .reboot import handle_reboot_command
 from .stabilizer import Stabilizer
 
 __all__ = ["AutopilotConfig", "Autopilot", "FORCE_DISARM_MAGIC", "DROP_REASONS", "OFFBOARD_TARGETS",
@@ -63,7 +64,8 @@ _DENIED = mavlink2.MAV_RESULT_DENIED
 _TEMP_REJECTED = mavlink2.MAV_RESULT_TEMPORARILY_REJECTED
 _UNSUPPORTED = mavlink2.MAV_RESULT_UNSUPPORTED
 _COMMAND_PARAMS = {mavlink2.MAV_CMD_COMPONENT_ARM_DISARM: ("param1",),
-                   mavlink2.MAV_CMD_DO_SET_MODE: ("param1", "param2", "param3")}
+                   mavlink2.MAV_CMD_DO_SET_MODE: ("param1", "param2", "param3"),
+                   mavlink2.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN: ("param1",)}
 """The parameters each handled command reads: a non-finite one is ``non_finite``, denied."""
 
 
@@ -140,6 +142,8 @@ class Autopilot:
         self._last_state = None
         self.setpoint = None
         """The last offboard position/velocity set-point; an actuator target clears it."""
+        self.reboot_requested = False
+        """A reboot command was accepted (the engine takes it: :mod:`firmware_sim.reboot`)."""
 
     # ---------------------------------------------------------------- state
     def start_in_flight(self, t_s: float) -> list:
@@ -274,6 +278,8 @@ class Autopilot:
             self._do_set_mode(msg, t_s, state, on_ground)
         elif msg.command in HANDLED:
             handle_command(self, msg, t_s, state, on_ground)
+        elif msg.command == mavlink2.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN:
+            handle_reboot_command(self, msg)
         else:
             self.drops["unsupported"] += 1
             self._ack(msg, _UNSUPPORTED)

@@ -27,6 +27,7 @@ from .status import ExitCode, SimStop
 from .wind import Wind, WindItem, parse_wind
 from .faults import link_faults_from_args
 from .px4_args import add_identity_args, add_px4_args, print_rate_response, px4_services, rate_loop_config
+from .reboot import Reboots, add_reboot_args
 from .world import PRESET_NAMES, PRESETS, build_world
 
 __all__ = ["main", "build_parser", "build_engine", "BadInput"]
@@ -153,6 +154,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_mismatch_args(p)
     _add_world_args(p)
     add_px4_args(p)
+    add_reboot_args(p)
     return p
 
 
@@ -282,7 +284,8 @@ def _assemble(args, world, vehicle_path, vehicle, nominal, params, start, items)
                     byte_loss=args.serial_byte_loss, seed=args.seed)
     except ValueError as exc:
         raise BadInput(str(exc)) from None
-    engine = Engine(sim, ap, link, world, faults)
+    engine = Engine(sim, ap, link, world, faults, Reboots(args.reboot_time_s, tuple(args.reboot_at_s)),
+                    log=lambda line: print(f"firmware_sim: {line}", file=sys.stderr, flush=True))
     if start is not None:
         link.send(ap.start_in_flight(0.0))
     sim.record_initial(ap.armed, ap.mode)
@@ -388,8 +391,7 @@ def _main(argv: list[str] | None) -> int:
         for s, h in old.items():
             signal.signal(s, h)
         if recorder is not None:
-            recorder.meta.update(stop_reason=reason, exit_code=int(code),
-                                 drops=engine.drops(), counters=engine.all_counters())
+            recorder.meta.update(stop_reason=reason, exit_code=int(code), **engine.run_meta())
             recorder.save()
         engine.link.close()
     if not args.quiet:

@@ -23,12 +23,14 @@ from .estimator import Estimator
 from .faults import FaultyDownlink, FaultyUplink
 from .link import Link
 from .px4 import STATE_IDS, Px4Services
+from .reboot import Reboots, fresh_autopilot
 from .sim import Simulation
 from .world import PRESETS, WorldPreset
 
 __all__ = ["Engine"]
 
 _UNDELAYED = ("HEARTBEAT", "BAD_DATA")
+_IDLE = (0.0, 0.0, 0.0, 0.0)
 
 
 class Engine:
@@ -43,6 +45,10 @@ class Engine:
         Default: the ideal world.
     link_faults : firmware_sim.faults.LinkFaults, optional
         Faults after the world's link model, in simulation time (``--link-faults``).
+    reboots : Reboots, optional
+        The autopilot's reboots (:mod:`firmware_sim.reboot`); default: by command only, 1.5 s.
+    log : callable, optional
+        ``log(line)``: what happens to the autopilot (its reboots), as it happens.
 
     Attributes
     ----------
@@ -53,10 +59,14 @@ class Engine:
         The body rates published last (the estimate's): what the autopilot's rate loop flies on.
     complete_released : int
         Complete state bundles the last :meth:`begin_period` released to the peers.
+    boot_t_s : float
+        Sim time of the autopilot's last boot: its clock (``time_boot_ms``, TIMESYNC, its
+        timeouts) is sim time less this.
     """
 
     def __init__(self, sim: Simulation, autopilot: Autopilot, link: Link,
-                 world: WorldPreset | None = None, link_faults=None):
+                 world: WorldPreset | None = None, link_faults=None, reboots: Reboots | None = None,
+                 log=None):
         self.sim = sim
         self.ap = autopilot
         if autopilot.px4.rate_hz != sim.params.rate_hz:     # the streams count control periods
@@ -81,7 +91,10 @@ class Engine:
         self.estimating = self.estimator is not None or latency_steps > 0
         if latency_steps > 0:
             sim.keep_history(latency_steps)
-        self.counters = {"lockstep_timeouts": 0, "overruns": 0}
+        self.counters = {"lockstep_timeouts": 0, "overruns": 0, "dropped_rebooting": 0}
+        self.reboots = reboots if reboots is not None else Reboots()
+        self.boot_t_s = 0.0
+        self.log = log
         self.targets_received = 0
         self.complete_released = 0
         self.gyro_rad_s = None
@@ -104,6 +117,10 @@ class Engine:
         """Take the decoded messages of one datagram received now (sim time ``sim.t_s``)."""
         step = self.sim.step_count
         ap = self.ap
+        if self.reboots.down:                # nobody listens: lost (targets still pace lockstep)
+            self.counters["dropped_rebooting"] += len(msgs)
+            self.targets_received += sum(1 for m in msgs if m.get_type() in OFFBOARD_TARGETS)
+            return
         if self.uplink.ideal:                # handled now: the autopilot counts valid targets
             n0 = ap.target_count
             self._handle(msgs, step)
@@ -130,9 +147,16 @@ class Engine:
     def _handle(self, msgs, step: int) -> None:
         """The autopilot handles ``msgs`` at physics step ``step``; replies go down the link."""
         sim, ap = self.sim, self.ap
+        if self.reboots.down:
+            self.counters["dropped_rebooting"] += len(msgs)
+            return
         t = step / self._physics_hz
+        tb = t - self.boot_t_s
         for msg in msgs:
-            out = ap.handle(msg, t, sim.state, sim.on_ground)
+            out = ap.handle(msg, tb, sim.state, sim.on_ground)
+            if ap.reboot_requested:
+                ap.reboot_requested = False
+                self.reboots.request(t)
             if out:
                 if self._direct:
                     self.downlink.sent += len(out)
@@ -158,7 +182,11 @@ class Engine:
             for due in self.uplink.pop_due(step):
                 self._handle(due, step)
         t = sim.t_s
-        out = self.ap.update(t, sim.state, sim.on_ground)
+        self._reboot_step(t)
+        if self.reboots.down:                # silent; what was already on the wire still arrives
+            self.complete_released = 0 if self._direct else self._send_due()
+            return
+        out = self.ap.update(t - self.boot_t_s, sim.state, sim.on_ground)
         state = self._state_messages(t, step // self._substeps)
         out.extend(self._status)
         if self._direct:
@@ -187,10 +215,10 @@ class Engine:
         rec = sim.recorder
         if rec is not None:
             rec.record_estimate(t, pos, vel, q, rates)
-        px4 = self.ap.px4
-        self._status = px4.periodic(period, t, pos, vel, q, rates, self.ap, sim.on_ground, sim.applied_n)
+        px4, tb = self.ap.px4, t - self.boot_t_s
+        self._status = px4.periodic(period, tb, pos, vel, q, rates, self.ap, sim.on_ground, sim.applied_n)
         return tuple(m if px4.due(i, period) else None
-                     for i, m in zip(STATE_IDS, state_messages(t, pos, vel, q, rates)))
+                     for i, m in zip(STATE_IDS, state_messages(tb, pos, vel, q, rates)))
 
     def step(self) -> None:
         """Advance the physics one control period with the autopilot's rotor command.
@@ -200,17 +228,52 @@ class Engine:
         """
         sim, ap, up = self.sim, self.ap, self.uplink
         end = sim.step_count + self._substeps
+        down = self.reboots.down          # no command, recorded as mode 0
+        armed, mode = ap.armed and not down, 0 if down else ap.mode
         while True:
-            cmd = ap.rotor_command_n(sim.state, sim.on_ground, sim.t_s, self.gyro_rad_s)
+            cmd = _IDLE if down else ap.rotor_command_n(sim.state, sim.on_ground, sim.t_s - self.boot_t_s,
+                                                         self.gyro_rad_s)
             due = up.next_due()
             if due is None or due >= end:
-                sim.advance(cmd, ap.armed, ap.mode, end - sim.step_count)
+                sim.advance(cmd, armed, mode, end - sim.step_count)
                 return
             if due > sim.step_count:
-                sim.advance(cmd, ap.armed, ap.mode, due - sim.step_count)
+                sim.advance(cmd, armed, mode, due - sim.step_count)
             step = sim.step_count
             for msgs in up.pop_due(step):
                 self._handle(msgs, step)
+
+    # ---------------------------------------------------------------- reboots
+    def _reboot_step(self, t: float) -> None:
+        """The autopilot goes down or comes back at ``t`` when due (:mod:`firmware_sim.reboot`)."""
+        due = self.reboots.due(t)
+        if due == "down":
+            rec, sim = self.reboots.records[-1], self.sim
+            rec.armed, rec.on_ground = self.ap.armed, sim.on_ground
+            sim.ground.survive_impact = not sim.on_ground      # its fall is the fault's, not a crash exit
+            self.ap = fresh_autopilot(self.ap)                  # disarmed: the rotors get nothing
+            link_filter = getattr(self.link, "filter", None)
+            if link_filter is not None:
+                link_filter.forget()
+            self._say(f"autopilot down at t={t:.3f} s ({rec.why})" + (
+                "; armed in the air: the motors stop, the vehicle falls" if rec.armed and not rec.on_ground else ""))
+        elif due == "up":
+            while (got := self.link.recv_datagram()) is not None:    # sent while it was down: lost
+                self.counters["dropped_rebooting"] += len(got[0])
+            self.boot_t_s = t
+            if self.estimator is not None:
+                p = self.sim.params
+                self.estimator = Estimator(self.world.estimator, 1.0 / p.rate_hz, p.seed)
+            self._say(f"autopilot up again at t={t:.3f} s: time_boot_ms from 0, disarmed, HOLD")
+
+    def _say(self, line: str) -> None:
+        if self.log is not None:
+            self.log(line)
+
+    def run_meta(self) -> dict:
+        """The run's drop counters, counters, reboots and the impacts of falls they caused."""
+        return {"drops": self.drops(), "counters": self.all_counters(),
+                "reboots": [r.as_dict() for r in self.reboots.records], "reboot_impacts": self.sim.ground.impacts}
 
     # ---------------------------------------------------------------- reporting
     def drops(self) -> dict:

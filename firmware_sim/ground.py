@@ -31,6 +31,11 @@ class Ground:
         self.crash_speed_m_s = float(crash_speed_m_s)
         self.cos_crash_tilt = math.cos(crash_tilt_rad)
         self.on_ground = False
+        self.survive_impact = False
+        """The next touchdown, however hard, is recorded in :attr:`impacts`, not a crash (the
+        fall of an injected in-air reboot, :mod:`firmware_sim.reboot`); cleared by any touchdown."""
+        self.impacts: list = []
+        """``{"t_s", "speed_m_s", "tilt_deg"}`` of the hard touchdowns survived."""
 
     def apply(self, s, t_s: float):
         """Return the state after ground contact (``s`` itself when airborne)."""
@@ -40,13 +45,16 @@ class Ground:
         (px, py, _, qw, qx, qy, qz, vx, vy, vz, _, _, _) = s
         if not self.on_ground:
             speed = math.sqrt(vx * vx + vy * vy + vz * vz)
-            if speed > self.crash_speed_m_s:
+            up = 1.0 - 2.0 * (qx * qx + qy * qy)       # R22: cosine of the tilt
+            tilt_deg = math.degrees(math.acos(max(-1.0, min(1.0, up))))
+            survive, self.survive_impact = self.survive_impact, False
+            if survive and (speed > self.crash_speed_m_s or up < self.cos_crash_tilt):
+                self.impacts.append({"t_s": t_s, "speed_m_s": speed, "tilt_deg": tilt_deg})
+            elif speed > self.crash_speed_m_s:
                 raise SimStop(ExitCode.CRASH, f"crash at t={t_s:.3f} s: touched down at "
                               f"{speed:.2f} m/s (limit {self.crash_speed_m_s:g} m/s)")
-            up = 1.0 - 2.0 * (qx * qx + qy * qy)       # R22: cosine of the tilt
-            if up < self.cos_crash_tilt:
-                raise SimStop(ExitCode.CRASH, f"crash at t={t_s:.3f} s: touched down tilted "
-                              f"{math.degrees(math.acos(max(-1.0, min(1.0, up)))):.0f} deg")
+            elif up < self.cos_crash_tilt:
+                raise SimStop(ExitCode.CRASH, f"crash at t={t_s:.3f} s: touched down tilted {tilt_deg:.0f} deg")
         self.on_ground = True
         yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
         return (px, py, 0.0, math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2),

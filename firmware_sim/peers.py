@@ -54,6 +54,12 @@ class PeerFilter:
         """Where telemetry goes: the learned peers' addresses, and ``remote``."""
         self.drops = dict.fromkeys(LINK_DROP_REASONS, 0)
 
+    def forget(self) -> None:
+        """Forget every learned peer (a reboot): telemetry goes to ``remote`` only until a
+        peer's HEARTBEAT is heard again."""
+        self.peers.clear()
+        self.addresses[:] = [] if self.remote is None else [self.remote]
+
     def admit(self, msgs, addr) -> list:
         """The messages of one datagram from ``addr`` that are taken (drops counted)."""
         kept = []

@@ -33,6 +33,7 @@ from .output import RateOutput, RotorOutput, command_output
 from .peers import VehicleIds
 from .phases import Counters, Phase, SupervisorParams
 from .preflight import AutopilotSetup
+from .reboot import RebootDetector
 from .records import Outcome
 from .state import StateAssembler, StateSample
 from .timesync import TimesyncEstimator
@@ -147,6 +148,8 @@ class FlightParts:
     ids: VehicleIds
     """The vehicle's system and component id (pinned, or fixed by its first autopilot HEARTBEAT):
     every command and set-point is addressed to :attr:`VehicleIds.target`."""
+    reboots: RebootDetector
+    """Sees the vehicle reboot (:mod:`mavreg.daemon.reboot`)."""
 
     @classmethod
     def build(cls, vehicle: VehicleParams, params: SupervisorParams, regulator_factory,
@@ -173,4 +176,4 @@ class FlightParts:
                             link_health if link_health is not None else delay.measured_link),
             autopilot=AutopilotSetup(ids, params.telemetry_rate_hz, params.parameter_timeout_s,
                                      choice=vehicle.dialect, output=vehicle.output),
-            counters=Counters(), ids=ids)
+            counters=Counters(), ids=ids, reboots=RebootDetector(params.reboot_back_s))

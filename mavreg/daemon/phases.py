@@ -69,6 +69,9 @@ class SupervisorParams:
     (:class:`mavreg.daemon.peers.VehicleIds`; ``udpin:`` without ``--vehicle-system-id``)."""
     vehicle_component_id: int = 1
     stale_timeout_s: float = STALE_TIMEOUT_S
+    reboot_back_s: float = 1.0
+    """A state part this much older (vehicle time) than the newest one is a new boot's: the
+    vehicle rebooted (:mod:`mavreg.daemon.reboot`)."""
     """No complete sample for this long (injected clock) while armed: the link is lost, the
     stream stops for good and the vehicle's failsafe takes over (docs/safety.md, gaps)."""
     tick_stall_s: float = 0.05
@@ -220,4 +223,6 @@ class Counters:
     timesync_dropped: int = 0
     """TIMESYNC replies that answered no request of ours, or implied an implausible delay."""
     unsupported_heartbeats: int = 0
+    reboots: int = 0
+    """Reboots of the vehicle seen (its ``time_boot_ms`` went back, :mod:`mavreg.daemon.reboot`)."""
     """HEARTBEATs of an autopilot mavreg does not speak to (:mod:`mavreg.daemon.preflight`)."""

@@ -74,6 +74,13 @@ class AutopilotSetup:
             messages.extend(self.dialect.telemetry_requests(*self.ids.target, self.telemetry_rate_hz))
         return self.dialect.decode(msg)
 
+    def restart(self) -> None:
+        """The parameters are checked again, from the next :meth:`ready` (the vehicle rebooted);
+        the dialect is kept."""
+        self.checker = None
+        self._t0 = math.nan
+        self._sent_t = -math.inf
+
     def param_value(self, msg) -> None:
         """Take a PARAM_VALUE (ignored unless a check is under way)."""
         if self.checker is not None:

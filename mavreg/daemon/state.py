@@ -86,6 +86,11 @@ class StateAssembler:
         self._last_ms = -1
         self.quaternion_seen = False
 
+    def restart(self) -> None:
+        """Forget the parts and the last sample's time (the vehicle rebooted: its clock starts
+        again); the counters are kept."""
+        self.__post_init__()
+
     @property
     def last_time_boot_ms(self) -> int:
         """``time_boot_ms`` of the last complete sample (-1 before the first)."""

@@ -47,6 +47,7 @@ from .flight import Flight
 from .gate import nominal_points
 from .handlers import make_handlers
 from .phases import AIRBORNE, PHASE_CODES, Event, LogRecord, Output, Phase, SupervisorParams
+from .reboot import STATE_PARTS, on_reboot
 from .records import Outcome
 from .safety import SafetyPolicy
 from .state import StateSample
@@ -202,6 +203,8 @@ class Supervisor:
         if not self._vehicle_ids(msg, mtype, out):
             self.counters.foreign_dropped += 1
             return out
+        if mtype in STATE_PARTS and (seen := self.reboots.part(msg, now_s)) is not None:
+            on_reboot(self.flight, self.safety, seen, out)
         if mtype == "HEARTBEAT":
             self._heartbeat(msg, out)
         elif mtype == "PARAM_VALUE":
@@ -289,8 +292,13 @@ class Supervisor:
     def _heartbeat(self, msg, out: Output) -> None:
         """A vehicle HEARTBEAT: the dialect (its notice), then the vehicle's status; a vehicle
         mavreg does not fly is refused on the ground at once."""
-        autopilot = self.autopilot
-        st = autopilot.heartbeat(msg, out.messages, self.ctx.last_sample is not None)
+        autopilot, ctx = self.autopilot, self.ctx
+        self.reboots.heartbeat(ctx.now_wall_s)
+        # the telemetry is asked for until samples stream: from the start, and on the ground when
+        # they stopped (a rebooted ArduCopter sends none until asked again)
+        streaming = ctx.last_sample_wall_s is not None and (
+            ctx.phase in AIRBORNE or ctx.now_wall_s - ctx.last_sample_wall_s <= self.params.stale_timeout_s)
+        st = autopilot.heartbeat(msg, out.messages, streaming)
         if autopilot.notice is not None:
             self.flight.announce(out, "dialect", mm.SEVERITY_WARNING, autopilot.notice)
             autopilot.notice = None

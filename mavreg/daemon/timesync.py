@@ -71,6 +71,15 @@ class TimesyncEstimator:
         self.dropped = 0
         self._estimate: LinkDelay | None = None     # recomputed only when a reply changes it
 
+    def restart(self) -> None:
+        """Forget the requests in flight and the delay samples (the vehicle rebooted: its clock
+        starts again, and the delay is measured again); ``dropped`` is kept."""
+        self._in_flight.clear()
+        self._delays.clear()
+        self._rtts.clear()
+        self._last_request_t = -np.inf
+        self._estimate = None
+
     def due(self, sample_time_s: float) -> bool:
         """Whether a request should go out after answering the sample of this vehicle time."""
         return sample_time_s - self._last_request_t >= self.request_period_s - 1e-9 or \

@@ -206,11 +206,12 @@ def make_supervisor(plan=None, regulator=None, envelope=None, link_health=None, 
     return sup
 
 
-def run(sup, veh, seconds, on_step=None):
-    """Drive supervisor and vehicle in lockstep; the injected clock follows vehicle time."""
+def run(sup, veh, seconds, on_step=None, clock=None):
+    """Drive supervisor and vehicle in lockstep; the injected clock follows vehicle time, or
+    ``clock(veh)`` (a vehicle whose clock goes back, e.g. a reboot)."""
     events, logs, sent = [], [], []
     for _ in range(int(round(seconds / veh.dt))):
-        now = veh.t_ms / 1000.0
+        now = veh.t_ms / 1000.0 if clock is None else clock(veh)
         due = veh.t_ms % 1000 == 0 or veh.heartbeat_due
         veh.heartbeat_due = False
         msgs = ([veh.heartbeat()] if due else []) + veh.outbox + veh.telemetry()
