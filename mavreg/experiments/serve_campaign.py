@@ -174,6 +174,18 @@ def _wait_record(rig: ServeRig, flown_before: int, timeout_s: float) -> dict | N
     return None
 
 
+def _wait_ready(rig: ServeRig, timeout_s: float) -> int | None:
+    """Wait, as a user would, until the daemon takes a new flight (after an aborted one it waits
+    for the vehicle to disarm); the flights flown so far, or None (timeout, daemon gone)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline and rig.serve.poll() is None:
+        flights = rig.status()["flights"]
+        if not flights["waiting_for_disarm"]:
+            return flights["flown"]
+        time.sleep(POLL_S)
+    return None
+
+
 def fly_one(rig: ServeRig, draw: FlightDraw, timeout_s: float) -> dict:
     """One flight of the campaign (see the module docstring); its row."""
     row: dict = {"flight": draw.number, "draw": draw.describe(), "maneuver": draw.maneuver, "laps": draw.laps}
@@ -181,7 +193,12 @@ def fly_one(rig: ServeRig, draw: FlightDraw, timeout_s: float) -> dict:
     for name in draw.hostile:
         reply = rig.upload(f"{name}.yaml", HOSTILE_UPLOADS[name])
         row["hostile"][name] = "rejected" if reply.get("verdict") == "rejected" else f"NOT rejected: {reply}"
-    flown_before = rig.status()["flights"]["flown"]
+    flown_before = _wait_ready(rig, timeout_s)
+    if flown_before is None:
+        row.update(record=None, upload="not sent",
+                   lost="the daemon did not become ready for a new flight (the vehicle never reported "
+                   "itself disarmed after an aborted flight, or the daemon is gone)")
+        return row
     load = _Load()
     try:
         reply = rig.upload(f"{draw.maneuver}.yaml", upload_text(draw))

@@ -113,7 +113,7 @@ def summarize(kind: str, result: dict) -> dict:
     rows = result["rows"]
     outcomes: dict[str, int] = {}
     for r in rows:
-        key = r["record"]["result"] if r.get("record") else ("rejected" if r.get("upload") == "rejected"
+        key = r["record"]["result"] if r.get("record") else ("upload rejected" if r.get("upload") == "rejected"
                                                              else "lost")
         outcomes[key] = outcomes.get(key, 0) + 1
     lost = [r["flight"] for r in rows if r.get("record") is None and r.get("upload") != "rejected"]

@@ -63,8 +63,8 @@ SOAK_MANEUVERS = (("hop", None, 0.7), ("slalom", None, 0.1), ("figure_eight", No
 WORLD_FLIGHTS = 5
 """Chaos: a world (link faults, gust, airframe) is drawn for this many flights in a row; the
 emulator restarts into each new one (a vehicle reboot between flights)."""
-CHAOS_MANEUVERS = (("hop", None, 0.6), ("slalom", None, 0.15), ("figure_eight", None, 0.1),
-                   ("barrel_roll", None, 0.15))
+CHAOS_MANEUVERS = (("hop", None, 0.75), ("slalom", None, 0.08), ("figure_eight", None, 0.07),
+                   ("barrel_roll", None, 0.1))
 
 
 @dataclass(frozen=True)
