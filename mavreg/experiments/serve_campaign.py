@@ -216,11 +216,12 @@ def fly_one(rig: ServeRig, draw: FlightDraw, timeout_s: float) -> dict:
 
 
 def fly_campaign(draws: list[FlightDraw], out_dir: Path, rate_hz: float = 250.0,
-                 flight_timeout_s: float = 900.0, say=print, judge=None) -> dict:
+                 flight_timeout_s: float = 900.0, say=print, judge=None, on_row=None) -> dict:
     """Fly ``draws`` through one ``serve``; the rows, the resource samples and the daemon's exit.
 
     ``judge(rows, record_path)`` (chaos) judges the flights of one world on the emulator's
     recording once the emulator has saved it (at its restart into the next world, or at the end).
+    ``on_row(rows)`` is called after each flight (the campaign so far, written as it goes).
     """
     out_dir = Path(out_dir)
     runs = out_dir / "runs"
@@ -257,6 +258,8 @@ def fly_campaign(draws: list[FlightDraw], out_dir: Path, rate_hz: float = 250.0,
                 pending_judge = (pending_judge or ([], truth))
                 pending_judge[0].append(row)
             rec = row["record"]
+            if on_row is not None:
+                on_row(rows)
             say(f"flight {draw.number}/{len(draws)} ({draw.describe()}): "
                 + (rec["result"] if rec else f"no record ({row.get('upload_reason') or 'lost'})")
                 + f"; {row['wall_s']:.0f} s")

@@ -29,10 +29,18 @@ class Shard:
 
 
 def fly_shard(shard: Shard) -> dict:
-    """One shard, flown (in this process: a local worker or a Dask worker)."""
+    """One shard, flown (in this process: a local worker or a Dask worker); its rows so far are
+    in ``rows.jsonl`` of its directory after each flight, so a campaign cut short keeps them."""
     judge = judge_truth if shard.kind == "chaos" else None
-    result = fly_campaign(list(shard.draws), Path(shard.out_dir), shard.rate_hz, judge=judge,
-                          say=lambda line: print(f"[{Path(shard.out_dir).name}] {line}", flush=True))
+    out = Path(shard.out_dir)
+
+    def keep(rows: list[dict]) -> None:
+        (out / "rows.jsonl").write_text("".join(json.dumps(r, default=str) + "\n" for r in rows))
+        partial = summarize(shard.kind, {"rows": rows, "serve_exit": None, "wall_s": rows[-1].get("wall_s", 0.0)})
+        (out / "so-far.md").write_text(markdown(partial, f"(so far, {len(rows)} of {len(shard.draws)} flights)"))
+    result = fly_campaign(list(shard.draws), out, shard.rate_hz, judge=judge, on_row=keep,
+                          say=lambda line: print(f"[{out.name}] {line}", flush=True))
+    keep(result["rows"])                        # with the last world's truth
     for n, row in enumerate(result["rows"], 1):
         row["shard"], row["in_shard"] = Path(shard.out_dir).name, n
     return result
