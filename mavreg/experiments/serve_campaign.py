@@ -30,6 +30,7 @@ from ..config.maneuver import maneuver_text_with_laps
 from ..config.paths import DEFAULT_VEHICLE, maneuver_file
 from ..daemon.endpoint import request
 from ..daemon.fly import spawn_emulator, stop_process
+from ..daemon.lifeline import wrap_command
 from .serve_draws import HOP_YAML, HOSTILE_UPLOADS, FlightDraw
 
 __all__ = ["ServeRig", "fly_campaign", "process_sample"]
@@ -85,7 +86,8 @@ class ServeRig:
         cmd = [sys.executable, "-m", "mavreg.cli.main", "serve", "--vehicle", self.url, "--vehicle-lockstep",
                "--socket", str(self.socket), "--control-rate-hz", f"{self.rate_hz:g}",
                "--stale-timeout-s", "5", *self.serve_args]
-        self.serve = subprocess.Popen(cmd, stdout=self._serve_log, stderr=subprocess.STDOUT,
+        # bound to this process (the parent-death signal): a campaign killed leaves no serve behind
+        self.serve = subprocess.Popen(wrap_command(cmd), stdout=self._serve_log, stderr=subprocess.STDOUT,
                                       start_new_session=True)
         deadline = time.monotonic() + REQUEST_TIMEOUT_S
         while time.monotonic() < deadline and self.serve.poll() is None:
