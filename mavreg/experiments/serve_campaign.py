@@ -149,7 +149,7 @@ class _Load:
 
     def start(self) -> None:
         for _ in range(os.cpu_count() or 1):
-            self.procs.append(subprocess.Popen([sys.executable, "-c", "while True: pass"],
+            self.procs.append(subprocess.Popen(wrap_command([sys.executable, "-c", "while True: pass"]),
                                                start_new_session=True))
 
     def stop(self) -> None:
