@@ -111,8 +111,10 @@ def run(args) -> int:
     progress.write = _with_status(progress.write, notifier)
     daemon = Daemon(config, vehicle, make_regulator, signing=signing, progress=progress, notifier=notifier)
     asyncio.run(daemon.run())
-    if args.control_log:
-        daemon.ctrl_log.save(args.control_log)
+    if args.control_log:        # a full disk: said once, the exit status still the flight's
+        from ..daemon.outputs import write_or_say
+        write_or_say("control log", args.control_log, lambda: daemon.ctrl_log.save(args.control_log), daemon.log,
+                     "the flight's outcome is in the exit status")
     failure = daemon.supervisor.failure
     if failure is not None and failure.phase == Phase.PREFLIGHT:      # refused before take-off
         print(f"mavreg serve: {failure.line()}", file=sys.stderr, flush=True)

@@ -34,7 +34,7 @@ from .planner_pool import PlannerDied, PlannerPool
 from .sdnotify import Notifier
 from .startup import PreflightWatch, compile_kernels, preflight_wait, warm_daemon_kernels
 from .supervisor import Output, Phase, Supervisor
-from .tlog import TlogWriter, VehicleClock
+from .tlog import TlogWriter, tlog_clock
 
 __all__ = ["DaemonConfig", "Daemon", "regulator_factory"]
 
@@ -51,8 +51,11 @@ class Daemon:
 
     def __init__(self, config: DaemonConfig, vehicle: VehicleParams, regulator_factory: Callable,
                  log: Callable[[str], None] | None = None, clock_s: Callable[[], float] = time.monotonic,
-                 signing=None, progress: Progress | None = None, notifier: Notifier | None = None):
+                 signing=None, progress: Progress | None = None, notifier: Notifier | None = None,
+                 wall_s: Callable[[], float] = time.time):
         self.config = config
+        self.wall_s = wall_s
+        """The wall clock: read once, for the ``.tlog``'s first stamp; nothing that steers reads it."""
         self.signing = signing
         self.vehicle = vehicle
         self.clock_s = clock_s
@@ -271,7 +274,9 @@ class Daemon:
         try:
             await self._start(initial or [])
             if self.config.tlog_path is not None:
-                self._tlog = TlogWriter(self.config.tlog_path, self._tlog_clock())
+                sup = self.supervisor
+                self._tlog = TlogWriter(self.config.tlog_path, tlog_clock(self.config.tlog_clock, lambda: (
+                    None if sup.last_sample is None else sup.last_sample.time_s), self.wall_s), self.log)
             self.link = await open_link(self.config.vehicle_url, self.config.supervisor.vehicle_system_id,
                                         self.config.supervisor.vehicle_component_id, self._on_message, self._tlog,
                                         signing=self.signing, on_closed=self.log)
@@ -340,13 +345,6 @@ class Daemon:
                            self.clock_s, lambda: not self.supervisor.finished,
                            lambda msg: self.link is not None and self.link.send(msg), land, self.log)
         await self.gcs.open()
-    def _tlog_clock(self) -> Callable[[], float] | None:
-        """The ``.tlog``'s clock (:attr:`DaemonConfig.tlog_clock`); None: the wall clock."""
-        if self.config.tlog_clock == "wall":
-            return None
-        sup = self.supervisor
-        return VehicleClock(lambda: None if sup.last_sample is None else sup.last_sample.time_s)
-
     async def _shutdown(self, loop, signals_installed: bool) -> None:
         if self.notifier is not None:
             self.notifier.stopping(f"stopping in phase {self.supervisor.phase}")

@@ -38,6 +38,8 @@ def status_report(daemon, tick_s: float) -> dict:
     st["signing"] = None if sg is None else {"accepted": sg.accepted, **sg.drops,
                                              "state_file": str(sg.path)}
     st["uploads"] = dict(daemon.uploads)
+    tlog = getattr(daemon, "_tlog", None)
+    st["tlog"] = None if tlog is None else tlog.status()
     if daemon.gcs is not None:
         st["gcs"] = daemon.gcs.status()
     st["latency_ms"] = latency_summary(daemon.latency_ns)
