@@ -207,9 +207,10 @@ class Daemon:
                     EXIT_FAILED)
         try:
             result = await self.pool.plan(yaml_text, source)
-        except PlannerDied as exc:
-            self.log(f"upload {source!r} failed: {exc}")
-            return {"ok": False, "error": str(exc)}, EXIT_FAILED
+        except PlannerDied as exc:        # refused with its cause; nothing else changes
+            self.uploads["rejected"] += 1
+            self.log(f"upload {source!r} refused: {exc}")
+            return {"ok": False, "verdict": "refused", "reason": str(exc)}, EXIT_FAILED
         if not result.accepted:
             self.uploads["rejected"] += 1
             self.log(f"upload {source!r} rejected: {result.reason}")

@@ -44,6 +44,9 @@ def status_report(daemon, tick_s: float) -> dict:
         st["gcs"] = daemon.gcs.status()
     st["latency_ms"] = latency_summary(daemon.latency_ns)
     st["planning"] = 0 if daemon.pool is None else daemon.pool.busy
+    pool = daemon.pool
+    st["planner"] = None if pool is None else {"worker_pid": pool.worker_pid, "busy": pool.busy,
+                                               "restarts": pool.restarts, "timeouts": pool.timeouts}
     st["loop"] = {"max_tick_gap_ms": daemon.max_tick_gap_s * 1e3, "max_tick_gap_phase": daemon.max_tick_gap_phase,
                   "max_tick_cpu_ms": daemon.max_tick_cpu_s * 1e3,
                   "tick_ms": tick_s * 1e3,

@@ -13,6 +13,8 @@ load), judged on the emulator's recorded truth:
 from __future__ import annotations
 
 import json
+import os
+import signal
 import subprocess
 import sys
 import time
@@ -124,3 +126,86 @@ def test_wall_clock_jumps_of_an_hour_mid_flight_change_nothing(tmp_path, monkeyp
     print(f"\n{len(b['t_s'])} samples against {len(a['t_s'])}; largest distance {dist:.3g} m; flight "
           f"{jumped['summary']['flight_time_s']:.3f} s against {ref['summary']['flight_time_s']:.3f} s")
     assert dist < 1e-3 and abs(len(a["t_s"]) - len(b["t_s"])) <= 5
+
+
+def _status(sock) -> dict:
+    from mavreg.daemon.endpoint import request
+    return request(sock, {"op": "status"}, 60)["status"]
+
+
+def _wait(cond, what: str, timeout_s: float = 600.0, poll_s: float = 0.05):
+    """``cond()``'s first truthy value (polled; the bound is for a broken run, not relied on)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if (v := cond()):
+            return v
+        time.sleep(poll_s)
+    raise AssertionError(f"{what}: not within {timeout_s} s")
+
+
+@pytest.mark.skipif(not FULL.exists(), reason="no /dev/full on this system")
+def test_serve_worker_killed_mid_plan_refuses_that_upload_and_flies_the_next(tmp_path):
+    """``serve`` (its .tlog and control log on a full disk too) flies a hop and holds; a barrel
+    roll is uploaded and its planner worker SIGKILLed while it plans: that upload is refused
+    with the cause in one line, the vehicle holds on, and the next upload plans and flies."""
+    import threading
+    from mavreg.config.paths import maneuver_file
+    from mavreg.daemon.endpoint import request
+    from sitl_helpers import Proc, mavreg
+    sock, record = tmp_path / "d.sock", tmp_path / "groundtruth.npz"
+    ctl = tmp_path / "control.npz"
+    ctl.symlink_to(FULL)
+    # a name of its own: never in the plan cache, so planning lasts seconds of the worker's CPU
+    roll = maneuver_file("barrel_roll").read_text().replace("name: barrel_roll", f"name: roll_{time.time_ns()}")
+    emu = Proc([sys.executable, "-m", "firmware_sim", "--listen", "udpin:127.0.0.1:0", "--quiet", "--lockstep",
+                "--lockstep-timeout-s", "30", "--record", str(record)])
+    serve = None
+    try:
+        url = emu.wait_line("firmware_sim listening on", 60).split()[-1].replace("udpin:", "udpout:")
+        serve = mavreg("serve", "--vehicle", url, "--vehicle-lockstep", "--socket", str(sock),
+                       "--stale-timeout-s", "30", "--tlog", str(FULL), "--control-log", str(ctl))
+        serve.wait_line("control endpoint", 300)
+        assert request(sock, {"op": "upload", "name": "hop1", "yaml": HOP.read_text()}, 900)["ok"]
+        _wait(lambda: _status(sock)["done"] == ["hop"] and _status(sock)["phase"] == "hold", "first hop flown")
+        answer: dict = {}
+        client = threading.Thread(target=lambda: answer.update(
+            request(sock, {"op": "upload", "name": "roll.yaml", "yaml": roll}, 900)), daemon=True)
+        client.start()
+        # the pool's own record of its worker, read while the upload is in it: no race with a restart
+        st = _wait(lambda: (s := _status(sock))["planner"]["busy"] and s, "the roll being planned")
+        victim = st["planner"]["worker_pid"]
+        os.kill(victim, signal.SIGKILL)
+        client.join(600)
+        after = _status(sock)
+        second = subprocess.run([sys.executable, "-m", "mavreg.cli.main", "upload", str(HOP), "--socket", str(sock)],
+                                cwd=ROOT, capture_output=True, text=True, timeout=900)
+        _wait(lambda: _status(sock)["done"] == ["hop", "hop"] and _status(sock)["phase"] == "hold",
+              "second hop flown")
+        final = _status(sock)
+        assert request(sock, {"op": "land"}, 60)["ok"]
+        serve.wait_line("disarmed", 600)
+        code = serve.wait(120) if serve.p.poll() is not None else serve.stop(signal.SIGINT, 120)
+    finally:
+        if serve is not None:
+            serve.stop()
+        emu.stop()
+    print(f"\nrefusal: {answer}\nnext: {second.stdout.strip()}")
+    assert answer["ok"] is False and answer["verdict"] == "refused"
+    assert answer["reason"].startswith("the planner worker process died while planning 'roll.yaml' "
+                                       "(killed by SIGKILL)") and "\n" not in answer["reason"]
+    assert after["phase"] == "hold" and after["vehicle_armed"] and after["planner"]["restarts"] == 1
+    assert after["planner"]["worker_pid"] != victim
+    assert second.returncode == 0 and second.stdout.startswith("accepted:")
+    assert final["uploads"] == {"accepted": 2, "rejected": 1}
+    said = [ln for ln in serve.lines if "refused: the planner worker process died" in ln]
+    assert len(said) == 1
+    stopped = [ln for ln in serve.lines if ln.startswith("tlog: stopped writing /dev/full")]
+    assert len(stopped) == 1 and final["tlog"]["stopped"] == stopped[0]
+    assert len([ln for ln in serve.lines if ln.startswith(f"control log: stopped writing {ctl}")]) == 1
+    assert code == 0, serve.lines[-20:]
+    rec = load_record(record)
+    _landed_ok(rec)
+    # held between the two hops: one take-off, one landing (airborne from the first lift-off on)
+    z = rec["position_ned_m"][:, 2]
+    up = np.flatnonzero(z < -0.5)
+    assert np.all(z[up[0]:up[-1]] < -0.3)
