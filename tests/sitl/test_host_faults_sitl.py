@@ -209,3 +209,46 @@ def test_serve_worker_killed_mid_plan_refuses_that_upload_and_flies_the_next(tmp
     z = rec["position_ned_m"][:, 2]
     up = np.flatnonzero(z < -0.5)
     assert np.all(z[up[0]:up[-1]] < -0.3)
+
+
+@pytest.mark.slow       # a real-time flight (about 25 s of wall time after the start) with both cores saturated
+def test_real_time_flight_with_both_cores_saturated_mid_flight_lands(tmp_path):
+    """The hop in real time on the bundled emulator (realistic world); as the maneuver begins
+    four busy loops saturate both cores until the flight lands or ends. The flight completes
+    ``ok`` or recovers, and lands; no motor is stopped in the air.
+
+    The daemon runs as docs/deployment.md says a service should, ahead of other user processes
+    (``nice -n -10``; its emulator, the vehicle's own computer, inherits it); the busy loops at
+    the default priority. At equal priority the daemon gets a sixth of a core and cannot fly
+    (docs/reliability.md, *Host faults*). Run it alone (``flock /tmp/px4.lock``): it is the load."""
+    from sitl_helpers import Proc
+    if os.geteuid() != 0:
+        pytest.skip("raising the daemon's priority (nice -10) takes root or CAP_SYS_NICE")
+    out = tmp_path / "out"
+    fly = Proc(["nice", "-n", "-10", sys.executable, "-m", "mavreg.cli.main", "fly", str(HOP), "--out", str(out),
+                "--timeout-s", "300"])
+    hogs: list[subprocess.Popen] = []
+    try:
+        fly.wait_line("maneuver 'hop' begins", 600)
+        hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(4)]
+        _wait(lambda: fly.p.poll() is not None or any(w in ln for ln in fly.lines[-50:] for w in
+                                                     ("landing from", "[aborted]", "touched down")),
+              "the landing", 300)
+    finally:
+        for h in hogs:
+            h.kill()
+            h.wait()
+        code = fly.wait(600)
+    summary = json.loads((out / "summary.json").read_text())
+    kinds = [e["kind"] for e in summary["events"]]
+    st = summary["status"]
+    print(f"\nresult {summary['result']} ({summary['reason'] or 'ok'}); touchdown "
+          f"{summary['touchdown_speed_m_s']}; gaps {st['counters'].get('gaps')}, gap commands "
+          f"{st['counters'].get('gap_commands')}; maneuver latency {summary['maneuver_latency_ms']}; longest tick "
+          f"gap {st['loop']['max_tick_gap_ms']:.0f} ms in {st['loop']['max_tick_gap_phase']}; true max error "
+          f"{(summary['ground_truth'] or {}).get('max_m')}")
+    assert "motors_stopped" not in kinds
+    assert summary["result"] == "ok" or "recovered" in kinds, summary["reason"]
+    assert code == (0 if summary["result"] == "ok" else 1)
+    assert summary["touchdown_speed_m_s"] < 1.0
+    _landed_ok(load_record(out / "groundtruth.npz"))
