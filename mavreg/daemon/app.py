@@ -275,9 +275,9 @@ class Daemon:
         try:
             await self._start(initial or [])
             if self.config.tlog_path is not None:
-                sup = self.supervisor
                 self._tlog = TlogWriter(self.config.tlog_path, tlog_clock(self.config.tlog_clock, lambda: (
-                    None if sup.last_sample is None else sup.last_sample.time_s), self.wall_s), self.log)
+                    None if self.supervisor.last_sample is None else self.supervisor.last_sample.time_s),
+                    self.wall_s), self.log)
             self.link = await open_link(self.config.vehicle_url, self.config.supervisor.vehicle_system_id,
                                         self.config.supervisor.vehicle_component_id, self._on_message, self._tlog,
                                         signing=self.signing, on_closed=self.log)
