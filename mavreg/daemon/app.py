@@ -51,8 +51,11 @@ class Daemon(FlightSequence):
 
     def __init__(self, config: DaemonConfig, vehicle: VehicleParams, regulator_factory: Callable,
                  log: Callable[[str], None] | None = None, clock_s: Callable[[], float] = time.monotonic,
-                 signing=None, progress: Progress | None = None, notifier: Notifier | None = None):
+                 signing=None, progress: Progress | None = None, notifier: Notifier | None = None,
+                 wall_s: Callable[[], float] = time.time):
         self.config = config
+        self.wall_s = wall_s
+        """The wall clock: read once, for the ``.tlog``'s first stamp; nothing that steers reads it."""
         self.signing = signing
         self.vehicle = vehicle
         self.clock_s = clock_s
@@ -214,9 +217,10 @@ class Daemon(FlightSequence):
             return {"ok": False, "verdict": "rejected", "reason": self._no_flight_reason()}, EXIT_FAILED
         try:
             result = await self.pool.plan(yaml_text, source)
-        except PlannerDied as exc:
-            self.log(f"upload {source!r} failed: {exc}")
-            return {"ok": False, "error": str(exc)}, EXIT_FAILED
+        except PlannerDied as exc:        # refused with its cause; nothing else changes
+            self.uploads["rejected"] += 1
+            self.log(f"upload {source!r} refused: {exc}")
+            return {"ok": False, "verdict": "refused", "reason": str(exc)}, EXIT_FAILED
         if not result.accepted:
             self.uploads["rejected"] += 1
             self.log(f"upload {source!r} rejected: {result.reason}")

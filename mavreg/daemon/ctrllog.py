@@ -29,7 +29,7 @@ import numpy as np
 
 from .supervisor import PHASE_CODES, LogRecord
 
-__all__ = ["ControlLog", "load_control_log"]
+__all__ = ["ControlLog", "load_control_log", "decoded"]
 
 
 class ControlLog:
@@ -74,9 +74,17 @@ class ControlLog:
         daemon_s, vehicle_s = self.clock_anchor
         return vehicle_s - (daemon_s - e.daemon_s)
 
-    def save(self, path: str | Path) -> Path:
+    def save(self, path: str | Path, arrays: dict | None = None) -> Path:
+        """Write the log (``arrays``: :meth:`arrays` already built) as a compressed npz.
+
+        Raises
+        ------
+        OSError
+            The file could not be written (a full disk); callers say so once
+            (:func:`mavreg.daemon.outputs.write_or_say`), the log stays in memory.
+        """
         path = Path(path)
-        np.savez_compressed(path, **self.arrays())
+        np.savez_compressed(path, **(self.arrays() if arrays is None else arrays))
         return path
 
 
@@ -87,7 +95,14 @@ def _num(x: float) -> float | None:
 def load_control_log(path: str | Path) -> dict:
     """The arrays of a saved log, with ``phase_names`` and ``events`` decoded."""
     with np.load(path) as z:
-        out = {k: z[k] for k in z.files}
+        return decoded({k: z[k] for k in z.files})
+
+
+def decoded(arrays: dict) -> dict:
+    """The arrays of a log (:meth:`ControlLog.arrays`, or as saved) with ``phase_names`` and
+    ``events`` decoded: what :func:`load_control_log` returns, from memory when the file could
+    not be written."""
+    out = dict(arrays)
     out["phase_names"] = json.loads(str(out["phase_names"]))
     out["events"] = json.loads(str(out.pop("events_json")))
     return out

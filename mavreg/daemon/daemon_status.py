@@ -40,10 +40,15 @@ def status_report(daemon, tick_s: float) -> dict:
     st["uploads"] = dict(daemon.uploads)
     st["flights"] = {"current": daemon.flight_number, "waiting_for_disarm": daemon._waiting_disarm,
                      **daemon.book.status()}
+    tlog = getattr(daemon, "_tlog", None)
+    st["tlog"] = None if tlog is None else tlog.status()
     if daemon.gcs is not None:
         st["gcs"] = daemon.gcs.status()
     st["latency_ms"] = latency_summary(daemon.latency_ns)
     st["planning"] = 0 if daemon.pool is None else daemon.pool.busy
+    pool = daemon.pool
+    st["planner"] = None if pool is None else {"worker_pid": pool.worker_pid, "busy": pool.busy,
+                                               "restarts": pool.restarts, "timeouts": pool.timeouts}
     st["loop"] = {"max_tick_gap_ms": daemon.max_tick_gap_s * 1e3, "max_tick_gap_phase": daemon.max_tick_gap_phase,
                   "max_tick_cpu_ms": daemon.max_tick_cpu_s * 1e3,
                   "tick_ms": tick_s * 1e3,

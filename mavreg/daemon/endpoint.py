@@ -28,7 +28,7 @@ Who may ask, and what a client may cost (docs/reliability.md):
   refused at once, without reading it.
 
 Every request is answered before its connection is closed. A handler that raises (a
-daemon bug, or the planner worker dying) yields ``{"ok": false, "error": "<one line>"}``
+daemon bug) yields ``{"ok": false, "error": "<one line>"}``
 and its traceback in the daemon's log; a request still in progress when the daemon stops
 (e.g. an upload being planned when the flight aborts) yields ``{"ok": false, "error":
 "<why the daemon is stopping>; the request was not completed"}``.

@@ -18,7 +18,8 @@ from .ctrllog import ControlLog
 from .flight_book import FlightRecord
 from .phases import Phase
 from .supervisor import Supervisor
-from .tlog import TlogWriter, VehicleClock
+from .outputs import write_or_say
+from .tlog import TlogWriter, tlog_clock
 
 __all__ = ["FlightSequence"]
 
@@ -79,16 +80,14 @@ class FlightSequence:
         if self._ctrl_files is None:
             return
         path = self._ctrl_files.begin(self.flight_number)
-        try:
-            self.ctrl_log.save(path)
-        except OSError as exc:
-            self.log(f"control log: not written to {path}: {exc}; the flights go on")
+        write_or_say("control log", path, lambda: self.ctrl_log.save(path), self.log,
+                     "the flight's outcome is in the status and on the log")
 
     def _open_tlog(self) -> None:
         """The current flight's ``.tlog`` (the previous one closed), handed to the link."""
         if self._tlog is not None:
             self._tlog.close()
-        self._tlog = TlogWriter(self._tlog_files.begin(self.flight_number), self._tlog_clock())
+        self._tlog = TlogWriter(self._tlog_files.begin(self.flight_number), self._tlog_clock(), self.log)
         if self.link is not None:
             self.link.tlog = self._tlog
 
@@ -117,12 +116,11 @@ class FlightSequence:
         self.log(record.line())
         self._save_control_log()
 
-    def _tlog_clock(self) -> Callable[[], float] | None:
-        """The ``.tlog``'s clock (:attr:`DaemonConfig.tlog_clock`); None: the wall clock."""
-        if self.config.tlog_clock == "wall":
-            return None
-        def vehicle_s() -> float | None:      # the supervisor of the flight under way
+    def _tlog_clock(self) -> Callable[[], float]:
+        """The ``.tlog``'s clock (:attr:`DaemonConfig.tlog_clock`, :func:`~.tlog.tlog_clock`) on
+        the vehicle time of the flight under way."""
+        def vehicle_s() -> float | None:
             sample = self.supervisor.last_sample
             return None if sample is None else sample.time_s
 
-        return VehicleClock(vehicle_s)
+        return tlog_clock(self.config.tlog_clock, vehicle_s, self.wall_s)

@@ -26,6 +26,7 @@ import sys
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -36,7 +37,7 @@ from ..config.vehicle import load_vehicle, with_dialect, with_output
 from ..control.hover import HoverParams
 from ..progress import Progress
 from .app import Daemon, DaemonConfig, regulator_factory
-from .ctrllog import load_control_log
+from .ctrllog import decoded
 from .excitation import ExcitationParams
 from .gcs import GcsParams
 from .lifeline import wrap_command
@@ -45,6 +46,7 @@ from .peers import system_id_to_use
 from ..transport.signing import Signing
 from .report import controller_metrics, format_summary, ground_truth_errors, plot_flight
 from .flight_book import outcome
+from .outputs import write_or_say
 from .planner_pool import PlannerBounds
 from .supervisor import Phase, SupervisorParams
 
@@ -108,6 +110,10 @@ class FlyOptions:
     """The vehicle's system id (``--vehicle-system-id``); None: taken from its first autopilot
     HEARTBEAT on ``udpin:``, 1 otherwise (:func:`mavreg.daemon.peers.system_id_to_use`). The
     bundled emulator is started with it."""
+    wall_s: Callable[[], float] = time.time
+    """The wall clock (injected: tests step it mid-flight). Only the signing timestamps and the
+    ``.tlog``'s first stamp read it; steering and safety run on the monotonic and the
+    vehicle's clocks."""
     airborne: str = "land"
     """A vehicle found armed in the air: taken over, then ``land`` or ``fly`` (``--airborne``,
     :attr:`mavreg.daemon.phases.SupervisorParams.airborne`)."""
@@ -193,8 +199,8 @@ def fly(opts: FlyOptions) -> int:
                           planner=opts.planner)
     make_regulator = regulator_factory(vehicle, opts.control_rate_hz, controller.disturbance,
                                       controller.allocation, controller.speed_governor, warm=False)
-    signing = Signing(opts.signing_key, "mavreg") if opts.signing_key is not None else None
-    daemon = Daemon(config, vehicle, make_regulator, signing=signing, progress=opts.progress)
+    signing = Signing(opts.signing_key, "mavreg", opts.wall_s) if opts.signing_key is not None else None
+    daemon = Daemon(config, vehicle, make_regulator, signing=signing, progress=opts.progress, wall_s=opts.wall_s)
     progress = daemon.progress
     extra = tuple(opts.emulator_args)
     if opts.vehicle_system_id is not None:
@@ -220,16 +226,22 @@ def fly(opts: FlyOptions) -> int:
             emulator_code = stop_process(proc)
     wall_s = time.monotonic() - t0
     with progress.stage("writing the outputs (summary.json, flight.png)", "wrote the outputs", announce=False):
-        daemon.ctrl_log.save(opts.out_dir / "control.npz")
-        ctrl = load_control_log(opts.out_dir / "control.npz")
-        summary, lines = _finish(opts, daemon, ctrl, record_path if proc is not None else None, emulator_code,
-                                 wall_s)
-    print("\n".join(lines))
+        arrays = daemon.ctrl_log.arrays()
+        written = write_or_say("control log", opts.out_dir / "control.npz",
+                               lambda: daemon.ctrl_log.save(opts.out_dir / "control.npz", arrays), daemon.log,
+                               "the flight's outcome is printed below")
+        summary, lines = _finish(opts, daemon, decoded(arrays), record_path if proc is not None else None,
+                                 emulator_code, wall_s, {"control.npz": written})
+    print("\n".join(lines), flush=True)
     return 0 if summary["result"] == "ok" else 1
 
 
-def _finish(opts, daemon, ctrl, record_path, emulator_code, wall_s) -> tuple[dict, list[str]]:
-    """Write summary.json and flight.png; (the summary, the lines to print)."""
+def _finish(opts, daemon, ctrl, record_path, emulator_code, wall_s, written) -> tuple[dict, list[str]]:
+    """Write summary.json and flight.png; (the summary, the lines to print).
+
+    ``written``: whether each output written before (``control.npz``) made it. A file that
+    cannot be written is said once (:func:`mavreg.daemon.outputs.write_or_say`) and left out
+    of the ``outputs:`` line; a summary that cannot be written is printed whole instead."""
     sup = daemon.supervisor
     plan = daemon.plans[0] if daemon.plans else None
     failure = outcome(sup, emulator_code, opts.timeout_s)
@@ -264,15 +276,25 @@ def _finish(opts, daemon, ctrl, record_path, emulator_code, wall_s) -> tuple[dic
     if record is not None and man:
         t_end = after[0]["time_s"] if after else float(record["t_s"][-1])
         summary["ground_truth"] = ground_truth_errors(record, plan, man[0]["time_s"], t_end)
-    (opts.out_dir / "summary.json").write_text(json.dumps(summary, indent=1, default=_plain))
+    text = json.dumps(summary, indent=1, default=_plain)
+    written["summary.json"] = write_or_say("summary", opts.out_dir / "summary.json",
+                                           lambda: (opts.out_dir / "summary.json").write_text(text), daemon.log,
+                                           "the summary is printed on standard output instead")
     if plan is not None and ctrl["t_s"].size:
         where = f"the bundled emulator's {opts.world} world" if opts.vehicle_url is None else opts.vehicle_url
-        plot_flight(opts.out_dir / "flight.png", ctrl, plan, record, summary,
-                    f"{plan.name} flown by mavreg fly on {where}{', lockstep' if opts.lockstep else ''}, "
-                    f"controller {opts.controller_path.name}")
+        written["flight.png"] = write_or_say("plot", opts.out_dir / "flight.png", lambda: plot_flight(
+            opts.out_dir / "flight.png", ctrl, plan, record, summary,
+            f"{plan.name} flown by mavreg fly on {where}{', lockstep' if opts.lockstep else ''}, "
+            f"controller {opts.controller_path.name}"), daemon.log, "the flight's outcome is printed below")
+    written["flight.tlog"] = not (summary["status"].get("tlog") or {}).get("stopped")
+    files = ["summary.json", "flight.png", "flight.tlog", "control.npz"] + (
+        ["groundtruth.npz"] if record_path is not None else [])
+    missing = [f for f in files if not written.get(f, True)]
     lines = [format_summary(summary),
-             f"outputs: {opts.out_dir}/ (summary.json, flight.png, flight.tlog, control.npz"
-             f"{', groundtruth.npz' if record_path is not None else ''})"]
+             f"outputs: {opts.out_dir}/ ({', '.join(f for f in files if f not in missing)})"
+             + (f"; not written: {', '.join(missing)}" if missing else "")]
+    if not written["summary.json"]:
+        lines.append("summary.json: " + json.dumps(summary, default=_plain, separators=(",", ":")))
     if not ok:
         lines.append(f"flight failed: {failure.line()}")
     return summary, lines

@@ -252,6 +252,26 @@ def limit_address_space(extra_bytes: int) -> int | None:
     return limit
 
 
+def _how_it_ended(pool: ProcessPoolExecutor) -> str:
+    """How the broken executor's worker ended: ``killed by SIGKILL``, ``exit status 1``; what is
+    known (CPython keeps the workers in ``_processes``)."""
+    code = None
+    for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        try:
+            proc.join(1.0)          # broken: it is dead or dying (its pipe closed first)
+            code = proc.exitcode if proc.exitcode is not None else code
+        except (OSError, ValueError, AssertionError, AttributeError):
+            pass
+    if code is None:
+        return "killed or out of memory"
+    if code < 0:
+        try:
+            return f"killed by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"killed by signal {-code}"
+    return f"exit status {code}"
+
+
 class PlannerPool:
     """One planning worker process shared by every upload.
 
@@ -339,9 +359,11 @@ class PlannerPool:
         except BrokenProcessPool as exc:
             if self._closed:
                 raise PlannerDied("the planner was shut down while planning (the daemon is stopping)") from exc
+            how = _how_it_ended(self._pool)
             self._restart()
-            raise PlannerDied(f"the planner worker process died while planning {source!r} "
-                              f"(killed or out of memory); a new worker was started: upload again") from exc
+            raise PlannerDied(f"the planner worker process died while planning {source!r} ({how}); "
+                              "the upload is refused and nothing else changed; a new worker was started: "
+                              "upload again") from exc
 
     def _restart(self) -> None:
         self._stop(self._pool)

@@ -6,10 +6,17 @@ wire. ``mavlogdump.py``, MAVProxy and ``mavutil.mavlink_connection(path)`` read 
 Messages in and out are both logged; the writer is buffered and flushed on close.
 A SETUP_SIGNING frame (it carries a signing key) is never written, whichever way it went.
 
-The timestamps come from an injected clock: the wall clock for a vehicle in real time,
-:class:`VehicleClock` for a lockstep simulator, whose flight runs faster (or slower) than
-the wall clock: there the log spans the flight's own (vehicle) time, so that log tools
-(MAVExplorer, ``mavflightmodes.py``) show its real durations.
+The timestamps come from an injected clock (:func:`tlog_clock`): for a vehicle in real time
+:class:`SteadyWallClock`, the wall clock read once when the log opens and advanced by the
+monotonic clock, so that a step of the host's clock mid-flight (NTP, an operator, ±1 h)
+steps no stamp; :class:`VehicleClock` for a lockstep simulator, whose flight runs faster (or
+slower) than the wall clock: there the log spans the flight's own (vehicle) time, so that
+log tools (MAVExplorer, ``mavflightmodes.py``) show its real durations.
+
+A write error (a full disk: ``ENOSPC``, ``EDQUOT``, ``EIO``) stops the log: the writer says
+so once in one line (:func:`mavreg.daemon.outputs.stopped_line`), keeps what it wrote, and
+drops every later frame (counted in :attr:`TlogWriter.dropped`); the flight goes on. It never
+raises into the link that calls it.
 """
 from __future__ import annotations
 
@@ -18,7 +25,10 @@ import time
 from pathlib import Path
 from typing import Callable
 
-__all__ = ["TlogWriter", "VehicleClock"]
+from ..progress import stderr_line
+from .outputs import stopped_line
+
+__all__ = ["TlogWriter", "VehicleClock", "SteadyWallClock", "tlog_clock"]
 
 _TS = struct.Struct(">Q")
 _SETUP_SIGNING = 256
@@ -63,6 +73,36 @@ class VehicleClock:
         return self._last_s
 
 
+class SteadyWallClock:
+    """Seconds since the epoch: the wall clock read once, advanced by a monotonic clock.
+
+    A step of the wall clock after the start (±1 h) changes nothing: the stamps keep the
+    spacing of real time and never go back.
+
+    Parameters
+    ----------
+    wall_s, monotonic_s : callable, optional
+        The wall clock (read once) and the monotonic clock (``time.time``, ``time.monotonic``).
+    """
+
+    def __init__(self, wall_s: Callable[[], float] = time.time,
+                 monotonic_s: Callable[[], float] = time.monotonic):
+        self._mono = monotonic_s
+        self._offset_s = float(wall_s()) - float(monotonic_s())
+
+    def __call__(self) -> float:
+        return self._offset_s + self._mono()
+
+
+def tlog_clock(kind: str, vehicle_time_s: Callable[[], float | None],
+               wall_s: Callable[[], float] = time.time) -> Callable[[], float]:
+    """The ``.tlog``'s clock: ``"vehicle"`` a :class:`VehicleClock` on ``vehicle_time_s``,
+    ``"wall"`` a :class:`SteadyWallClock`; both start at ``wall_s()``."""
+    if kind == "vehicle":
+        return VehicleClock(vehicle_time_s, wall_s)
+    return SteadyWallClock(wall_s)
+
+
 class TlogWriter:
     """Append MAVLink message bytes with a timestamp.
 
@@ -72,34 +112,74 @@ class TlogWriter:
         File to create (truncated if it exists).
     clock_s : callable, optional
         Seconds since the epoch: ``time.time`` (the wall clock) by default, a
-        :class:`VehicleClock` for a lockstep vehicle, any callable in tests.
+        :class:`SteadyWallClock` or :class:`VehicleClock` in the daemon (:func:`tlog_clock`),
+        any callable in tests.
+    log : callable, optional
+        Where the one line about a write error goes (stderr by default; the daemon's log).
     """
 
-    def __init__(self, path: str | Path, clock_s: Callable[[], float] | None = None):
+    def __init__(self, path: str | Path, clock_s: Callable[[], float] | None = None,
+                 log: Callable[[str], None] | None = None):
         self.path = Path(path)
         self._clock = time.time if clock_s is None else clock_s
-        self._f = open(self.path, "wb", buffering=1 << 16)
+        self._log = stderr_line if log is None else log
         self.count = 0
+        """Frames written (handed to the file's buffer)."""
+        self.dropped = 0
+        """Frames not written because the log stopped."""
+        self.error: str | None = None
+        """The line said when the log stopped (None while it writes)."""
+        try:
+            self._f = open(self.path, "wb", buffering=1 << 16)
+        except OSError as exc:
+            self._f = None
+            self._stop(exc)
 
     def write(self, msgbuf: bytes) -> None:
         """Log one message's wire bytes (one MAVLink frame)."""
-        if self._f.closed or _carries_key(msgbuf):
+        if _carries_key(msgbuf):
             return
-        self._f.write(_TS.pack(int(self._clock() * 1e6)) + bytes(msgbuf))
-        self.count += 1
+        self._put(_TS.pack(int(self._clock() * 1e6)) + bytes(msgbuf), 1)
 
     def write_many(self, frames) -> None:
         """Log frames that went over the wire together (one datagram): one time stamp, one write."""
         frames = [f for f in frames if not _carries_key(f)]
-        if self._f.closed or not frames:
+        if not frames:
             return
         ts = _TS.pack(int(self._clock() * 1e6))
-        self._f.write(b"".join(ts + bytes(f) for f in frames))
-        self.count += len(frames)
+        self._put(b"".join(ts + bytes(f) for f in frames), len(frames))
+
+    def _put(self, data: bytes, n: int) -> None:
+        if self._f is None or self._f.closed:
+            self.dropped += n if self.error is not None else 0
+            return
+        try:
+            self._f.write(data)
+            self.count += n
+        except OSError as exc:
+            self.dropped += n
+            self._stop(exc)
+
+    def _stop(self, exc: OSError) -> None:
+        """Stop for good after a write error: said once, the file closed as far as it can be."""
+        self.error = stopped_line("tlog", self.path, exc, "the flight goes on")
+        if self._f is not None:
+            try:
+                self._f.close()         # flushes what it can; the descriptor is closed either way
+            except OSError:
+                pass
+        self._log(self.error)
+
+    def status(self) -> dict:
+        """``{"path", "frames", "dropped", "stopped"}`` for the daemon's status."""
+        return {"path": str(self.path), "frames": self.count, "dropped": self.dropped, "stopped": self.error}
 
     def close(self) -> None:
-        if not self._f.closed:
-            self._f.close()
+        if self._f is not None and not self._f.closed:
+            try:
+                self._f.close()
+            except OSError as exc:      # the last buffer did not fit: said like any other write
+                self._stop(exc)
 
     def __enter__(self) -> "TlogWriter":
         return self

@@ -32,11 +32,13 @@ from __future__ import annotations
 
 import base64
 import binascii
+import errno
 import hashlib
 import hmac
 import json
 import os
 import stat
+import sys
 import time
 from collections import OrderedDict
 from pathlib import Path
@@ -221,6 +223,11 @@ class Signer:
         return bytes(body + h.digest()[:6])
 
 
+def _stderr_line(text: str) -> None:
+    sys.stderr.write(text + "\n")
+    sys.stderr.flush()
+
+
 def state_path(key_path, role: str) -> Path:
     """Where :class:`Signing` keeps its state: beside the key, ``KEY.ROLE-state.json``."""
     p = Path(key_path)
@@ -236,7 +243,14 @@ class Signing:
     role : str
         Names the state file (:func:`state_path`); each process holding the key has its own.
     wall_s : callable
-        Wall clock (seconds since the epoch), injected for tests.
+        Wall clock (seconds since the epoch), injected for tests. A step back of it (an NTP
+        correction, an operator) never makes a timestamp go back: :class:`Signer` sends the
+        larger of the clock and its last timestamp plus one, as the specification asks
+        (pymavlink reads the clock once and adds one per frame; the C library likewise).
+    log : callable, optional
+        Where the one line about a state file that could not be rewritten during the flight
+        goes (stderr by default). The flight goes on: the state is kept in memory and the
+        next save tries again.
 
     Raises
     ------
@@ -244,8 +258,10 @@ class Signing:
         Bad key file, or a state file that cannot be read or written (one line).
     """
 
-    def __init__(self, key_path, role: str, wall_s: Callable[[], float] = time.time):
+    def __init__(self, key_path, role: str, wall_s: Callable[[], float] = time.time,
+                 log: Callable[[str], None] | None = None):
         key = load_key(key_path)
+        self._log = log
         self.path = state_path(key_path, role)
         self._wall = wall_s
         saved, streams = self._load()
@@ -297,7 +313,8 @@ class Signing:
         """Write the newest timestamp and the stream table (atomically, mode 0600).
 
         Raises ValueError on a write error only before the first save succeeded; later
-        errors are counted (:attr:`save_errors`) and the flight goes on.
+        errors are counted (:attr:`save_errors`), the first one is said in one line, and the
+        flight goes on.
         """
         newest = max(self.signer.timestamp, self.verifier.newest_ticks)
         data = {"timestamp": newest,
@@ -312,5 +329,14 @@ class Signing:
             self._saved = True
         except OSError as exc:
             self.save_errors += 1
+            try:
+                os.unlink(tmp)          # a partial temporary file would only hold the space
+            except OSError:
+                pass
             if not self._saved:
                 raise SigningError(f"signing state {self.path}: cannot write: {exc.strerror or exc}") from None
+            if self.save_errors == 1:
+                code = f"[Errno {exc.errno} {errno.errorcode.get(exc.errno, '?')}] " if exc.errno else ""
+                line = (f"signing: cannot write {self.path}: {code}{exc.strerror or exc}; the flight goes on "
+                        f"(the state is kept in memory, saving is tried again every {SAVE_EVERY_S:g} s)")
+                (self._log or _stderr_line)(line)
