@@ -127,7 +127,8 @@ class NumberedFiles:
     """A log file per flight: ``flight.tlog`` -> ``flight-0001.tlog``, ``flight-0002.tlog``, ...
     of which the newest ``keep`` stay (older ones are deleted as new ones begin).
 
-    With ``numbered=False`` (a daemon of one flight) every flight's file is ``path`` itself.
+    With ``numbered=False`` (a daemon of one flight), or a ``path`` that exists and is not a
+    regular file (a device such as ``/dev/null``, a pipe), every flight's file is ``path`` itself.
 
     Examples
     --------
@@ -141,7 +142,7 @@ class NumberedFiles:
             raise ValueError(f"keep must be at least 1, got {keep}")
         self.base = Path(path)
         self.keep = int(keep)
-        self.numbered = numbered
+        self.numbered = numbered and not (self.base.exists() and not self.base.is_file())
 
     def path(self, number: int) -> Path:
         if not self.numbered:

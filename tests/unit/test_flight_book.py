@@ -2,6 +2,8 @@
 rule as ``fly``'s), the bounded book, and the numbered logs of which only the newest stay."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from mavreg.daemon.flight_book import FlightBook, FlightRecord, NumberedFiles
@@ -53,5 +55,6 @@ def test_numbered_files_keep_the_newest_and_a_single_flight_keeps_its_name(tmp_p
     assert sorted(p.name for p in tmp_path.iterdir()) == ["flight-0004.tlog", "flight-0005.tlog"]
     once = NumberedFiles(tmp_path / "one.npz", keep=1, numbered=False)
     assert once.begin(1) == once.begin(7) == tmp_path / "one.npz"
+    assert NumberedFiles(Path("/dev/null"), keep=3).begin(5) == Path("/dev/null")    # a device is no log to number
     with pytest.raises(ValueError, match="at least 1"):
         NumberedFiles(tmp_path / "x", keep=0)
