@@ -27,7 +27,7 @@ from .flight_book import FlightBook, NumberedFiles
 from .flight_sequence import FlightSequence
 from .daemon_config import DaemonConfig, regulator_factory
 from .daemon_status import latency_summary, status_report
-from .endpoint import EndpointServer
+from .endpoint import EndpointServer, jsonable
 from .gcs_link import GcsLink
 from .link import FastLink, MavlinkLink, open_link
 from .planner_pool import PlannerDied, PlannerPool
@@ -233,7 +233,7 @@ class Daemon(FlightSequence):
         self.uploads["accepted"] += 1
         self.plans.append(result.plan)
         where = "now (at a safe point)" if self.supervisor.at_safe_point() else "at the next safe point (hold)"
-        return {"ok": True, "verdict": "accepted", "plan": _jsonable(result.plan.summary()),
+        return {"ok": True, "verdict": "accepted", "plan": jsonable(result.plan.summary()),
                 "detail": f"{result.plan.name!r} queued; it starts {where}"}, 0
 
     async def handle_request(self, req: dict) -> dict:
@@ -389,16 +389,3 @@ class _InitialRejected(UserError):
         super().__init__(reason)
         self.exit_status = status
 
-
-def _jsonable(obj):
-    """Plan summaries may hold numpy scalars and arrays."""
-    import numpy as np
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, np.generic):
-        return obj.item()
-    return obj

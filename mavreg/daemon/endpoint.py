@@ -49,7 +49,7 @@ from typing import Awaitable, Callable
 from ..errors import UsageError, one_line
 
 __all__ = ["MAX_REQUEST_BYTES", "MAX_CONNECTIONS", "READ_TIMEOUT_S", "default_socket_path",
-           "validate_request", "EndpointServer", "request", "RequestError", "peer_uid"]
+           "validate_request", "EndpointServer", "request", "RequestError", "peer_uid", "jsonable"]
 
 MAX_REQUEST_BYTES = 256 * 1024
 READ_TIMEOUT_S = 10.0
@@ -252,6 +252,20 @@ async def _read_request(reader: asyncio.StreamReader, timeout_s: float = READ_TI
     except (ConnectionError, OSError) as exc:   # the client went away: nobody to answer, not a bug
         raise RequestError(f"connection lost before a complete request ({exc.__class__.__name__})") from None
     return validate_request(line)
+
+
+def jsonable(obj):
+    """``obj`` with numpy scalars and arrays made plain (a plan's summary holds them)."""
+    import numpy as np
+    if isinstance(obj, dict):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    return obj
 
 
 def _dump(resp: dict) -> bytes:
