@@ -102,6 +102,7 @@ def _fly_in_process(tmp_path: Path, jumps: bool, monkeypatch) -> dict:
             "signed_ahead_s": saved / 1e5 + 1_420_070_400 - started_s}
 
 
+@pytest.mark.slow       # two lockstep flights (about 75 s); the writers' and clocks' unit tests are in the suite
 def test_wall_clock_jumps_of_an_hour_mid_flight_change_nothing(tmp_path, monkeypatch):
     from mavreg.daemon.supervisor import Phase
     ref = _fly_in_process(tmp_path / "steady", False, monkeypatch)
@@ -143,6 +144,7 @@ def _wait(cond, what: str, timeout_s: float = 600.0, poll_s: float = 0.05):
     raise AssertionError(f"{what}: not within {timeout_s} s")
 
 
+@pytest.mark.slow       # a cold barrel-roll plan killed, then two hops (one to five minutes)
 @pytest.mark.skipif(not FULL.exists(), reason="no /dev/full on this system")
 def test_serve_worker_killed_mid_plan_refuses_that_upload_and_flies_the_next(tmp_path):
     """``serve`` (its .tlog and control log on a full disk too) flies a hop and holds; a barrel
