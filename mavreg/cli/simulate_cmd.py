@@ -20,7 +20,9 @@ the paper's quadrotor model (eqs 6-17, RK4, 1 ms) in closed loop with the s-sche
 regulator run at --control-rate-hz with zero-order hold. Rotor forces may carry Gaussian
 noise (--rotor-noise-sd-n) and saturate per rotor (--rotor-saturation-n); the plant's
 inertia may differ from the design (--inertia-kg-m2); a gust (--gust-n, --gust-window) may
-push the vehicle. The regulator allocates and governs its speed as the controller file's
+push the vehicle. The gains are those of the controller file (default: mavreg fly's,
+params/controller/realistic.yaml, designed for the vehicle's rotor lag; the paper's design is
+--controller params/controller/paper_lqr.yaml). The regulator allocates and governs its speed as the controller file's
 allocation: and speed_governor: sections say (docs/governor.md), knowing the
 --rotor-saturation-n limit.
 Reports, overall and per named segment: transverse position error (max, RMS; mm in the
