@@ -48,6 +48,7 @@ _LAZY = {
 
 
 def __getattr__(name: str):
+    """The API's names, each imported from its module at its first use (PEP 562)."""
     if name in _LAZY:
         value = getattr(_importlib.import_module(_LAZY[name]), name)
         globals()[name] = value          # once: later lookups do not come here
@@ -59,4 +60,5 @@ def __getattr__(name: str):
 
 
 def __dir__() -> list[str]:
+    """The module's names and the API's, imported or not."""
     return sorted(set(globals()) | set(__all__))
