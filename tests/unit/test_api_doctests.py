@@ -29,9 +29,9 @@ EXAMPLES = _examples()
 
 def test_every_public_function_of_the_api_has_an_example():
     named = {t.name.rsplit(".", 1)[-1] for t in EXAMPLES}
-    functions = [n for n in mavreg.api.__all__]
-    assert set(functions) <= named, sorted(set(functions) - named)
-    assert set(functions) <= set(mavreg.__all__)
+    functions = set(mavreg.api.__all__)
+    assert functions <= named, sorted(functions - named)
+    assert functions <= set(mavreg.__all__)
 
 
 @pytest.mark.parametrize("example", EXAMPLES, ids=lambda t: t.name)
