@@ -63,7 +63,7 @@ import numpy as np
 r.sweep_backward(np.zeros((2, 11, 11)), np.ones((2, 11, 4)), np.zeros((1, 11, 11)),
                  np.ones((1, 11, 4)), 0.01, np.eye(11), np.eye(4), np.eye(11), step_check='off')
 floor = hwm()
-code = main(['plan', sys.argv[1]])
+code = main(['plan', sys.argv[1], '--controller', sys.argv[2]])
 print('RSS', floor, hwm(), code)
 """
 
@@ -137,8 +137,8 @@ def weight_figures(quick: bool) -> dict:
     from mavreg.planning.cache import PlanCache
     from mavreg.planning.plan_io import plan_cached
     env = dict(os.environ, MAVREG_PLAN_CACHE="off")
-    out = subprocess.run([sys.executable, "-c", _RSS_PROBE, str(BARREL)], env=env, capture_output=True,
-                         text=True, timeout=600, cwd=REPO)
+    out = subprocess.run([sys.executable, "-c", _RSS_PROBE, str(BARREL), str(DESIGN_CONTROLLER)], env=env,
+                         capture_output=True, text=True, timeout=600, cwd=REPO)
     line = next((ln for ln in out.stdout.splitlines() if ln.startswith("RSS ")), None)
     if line is None:
         raise RuntimeError(f"the memory probe failed: {out.stderr.strip()[-500:]}")

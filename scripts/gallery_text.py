@@ -83,7 +83,8 @@ boundaries).
 - **plan** (`mavreg plan FILE --plot plan.png`): the nominal's speed, collective thrust (the
   dotted line is the weight), rotor forces against their limit (red bands where a rotor would
   exceed it or pull) and body rates, against s.
-- **simulate** (`mavreg simulate FILE --entry-offset 0.6 0.6 0.6 --plot sim.png`): the design model
+- **simulate** (`mavreg simulate FILE --controller params/controller/design.yaml --entry-offset
+  0.6 0.6 0.6 --plot sim.png`): the design model
   started 1.04 m off the entry (0.85 m across the path). Errors are on a log scale, so the
   metre at the start and the micrometres after convergence are both readable; speed and
   thrust flown against the nominal; the rotor forces applied; and the schedule (arc length
@@ -115,8 +116,9 @@ def markdown(rows, sitl: bool, failed: dict | None) -> str:
              "Every file of `params/maneuvers/`, planned with `params/controller/design.yaml` (the",
              "paper's weights on the SO(3) attitude error) on the MK-Quadro (12 N rotors), and flown.",
              "Made by `python scripts/gallery.py --sitl`.", "",
-             "- **design model**: `mavreg simulate FILE` (1 kHz control, ideal rotors, from the",
-             "  nominal entry): maximum transverse and attitude error over the whole maneuver.",
+             "- **design model**: `mavreg simulate FILE --controller params/controller/design.yaml`",
+             "  (1 kHz control, ideal rotors, from the nominal entry): maximum transverse and attitude",
+             "  error over the whole maneuver.",
              "- **SITL ideal**: `mavreg fly FILE --lockstep --world ideal --controller",
              "  params/controller/design.yaml`: the daemon against firmware_sim, true state, no delay.",
              "- **SITL realistic**: `mavreg fly FILE --lockstep` (the defaults: the realistic world's",

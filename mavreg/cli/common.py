@@ -32,7 +32,10 @@ __all__ = ["PARAMS_DIR", "DEFAULT_VEHICLE", "PAPER_CONTROLLER", "PAPER_GOVERNED_
            "DeprecatedAlias", "add_deprecated_alias"]
 
 
-def add_model_arguments(p: argparse.ArgumentParser, controller: Path = DESIGN_CONTROLLER) -> None:
+def add_model_arguments(p: argparse.ArgumentParser, controller: Path = REAL_CONTROLLER) -> None:
+    """``--vehicle-params YAML`` and ``--controller YAML``. Every command that plans defaults to
+    the controller ``fly`` and ``serve`` fly (``realistic.yaml``), so that ``plan`` prints the
+    gains' margins the flight will have and ``simulate`` flies its gains."""
     p.add_argument("--vehicle-params", metavar="YAML", type=input_file, default=str(DEFAULT_VEHICLE),
                    help="vehicle parameter file (default: %(default)s)")
     p.add_argument("--controller", metavar="YAML", type=input_file, default=str(controller),

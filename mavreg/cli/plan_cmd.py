@@ -18,6 +18,9 @@ and geofence of the controller file's envelope: section, for a take-off at the l
 --json (feasible, length_m, thrust_n {min, max, at_highest_point}, rotor_force_n {min, max},
 torque_nm {max_abs}, segments, margins, ...).
 
+The controller is 'mavreg fly's (default params/controller/realistic.yaml, as fly and serve):
+the gains and margins printed are the ones a flight of the same files flies with.
+
 Margins (docs/robustness.md, "Margins"): the delay and common rotor-gain margins of the
 hover LQR and of the maneuver regulator (the worst over the plan, and where), on the design
 model with the vehicle's rotor lag, the loop broken at the rotor commands. JSON: margins

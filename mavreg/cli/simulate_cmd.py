@@ -20,7 +20,9 @@ the paper's quadrotor model (eqs 6-17, RK4, 1 ms) in closed loop with the s-sche
 regulator run at --control-rate-hz with zero-order hold. Rotor forces may carry Gaussian
 noise (--rotor-noise-sd-n) and saturate per rotor (--rotor-saturation-n); the plant's
 inertia may differ from the design (--inertia-kg-m2); a gust (--gust-n, --gust-window) may
-push the vehicle. The regulator allocates and governs its speed as the controller file's
+push the vehicle. The gains are those of the controller file (default: mavreg fly's,
+params/controller/realistic.yaml, designed for the vehicle's rotor lag; the paper's design is
+--controller params/controller/paper_lqr.yaml). The regulator allocates and governs its speed as the controller file's
 allocation: and speed_governor: sections say (docs/governor.md), knowing the
 --rotor-saturation-n limit.
 Reports, overall and per named segment: transverse position error (max, RMS; mm in the
@@ -79,17 +81,14 @@ def run(args) -> int:
         raise UsageError(f"--gust-window must be T0 <= T1, got {' '.join(f'{t:g}' for t in args.gust_window)}")
     vehicle, controller = load_model_params(args)
     spec = load_maneuver_arg(args)            # the files first: the planner's imports are heavy
-    from ..config.regulation import told_rotor_limit
-    from ..sim.maneuver_run import fly_on_design_model
+    from ..api import simulate           # the library's simulate is this command's run
     plan = plan_saying("simulate", spec, vehicle, controller)
     print(f"{plan.name}: planned, {plan.length_m:.1f} m in {plan.duration_s:.1f} s; simulating",
           file=sys.stderr, flush=True)
-    run_ = fly_on_design_model(plan, offset_m=args.entry_offset, inertia_kg_m2=args.inertia_kg_m2,
-                               rotor_noise_sd_n=args.rotor_noise_sd_n, saturation_n=args.rotor_saturation_n,
-                               seed=args.seed, control_rate_hz=args.control_rate_hz,
-                               gust_force_n=args.gust_n, gust_window_s=tuple(args.gust_window),
-                               allocation=told_rotor_limit(controller.allocation, args.rotor_saturation_n),
-                               speed_governor=controller.speed_governor)
+    run_ = simulate(plan, controller, entry_offset=args.entry_offset, rotor_noise_sd_n=args.rotor_noise_sd_n,
+                    rotor_saturation_n=args.rotor_saturation_n, seed=args.seed,
+                    control_rate_hz=args.control_rate_hz, inertia_kg_m2=args.inertia_kg_m2,
+                    gust_n=args.gust_n, gust_window=tuple(args.gust_window))
     m = run_.metrics
     if args.plot:
         from ..plots import plot_simulation

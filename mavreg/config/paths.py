@@ -55,8 +55,9 @@ PAPER_GOVERNED_CONTROLLER = controller_file("paper_governed")
 """The paper's design with mavreg's speed governor and torques-first allocation: the
 experiments where a gust holds the vehicle back or the rotors saturate."""
 DESIGN_CONTROLLER = controller_file("design")
-"""The paper's weights on the SO(3) attitude error: the default of the design-model commands
-(plan, simulate)."""
+"""The paper's weights on the SO(3) attitude error, with the governor and torques-first
+allocation: ideal rotors (the gallery's design-model column; ``--controller`` to use it)."""
 REAL_CONTROLLER = controller_file("realistic")
-"""Lag-aware gains, delay prediction, weights for estimator noise: the default of the commands
-that fly a vehicle (fly, serve)."""
+"""Lag-aware gains, delay prediction, weights for estimator noise: the default of every command
+(fly, serve, plan, simulate, warm-up) and of the library's :func:`mavreg.load_controller`, so
+that what ``plan`` prints and ``simulate`` flies is what ``fly`` flies."""

@@ -121,6 +121,7 @@ def test_helix_curvature_and_torsion_are_analytic(r, pitch, direction):
 kvec = st.lists(st.floats(-2.0, 2.0), min_size=2, max_size=2).map(np.array)
 
 
+@settings(deadline=None)      # pure numpy, but a loaded machine once took 0.93 s of the default 0.2 s
 @given(st.floats(0.3, 5.0), kvec, kvec, kvec, kvec, kvec, kvec)
 def test_blend_matches_value_slope_and_second_derivative_at_both_ends(L, a, b, c, d, e, f):
     bl = blend_piece("b", L, (a, b, c), (d, e, f))
