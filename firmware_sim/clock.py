@@ -9,7 +9,8 @@ Real time
     (more than 0.1 s behind) are counted and the schedule is reset.
 
 Lockstep
-    Nothing advances until a valid MAVLink message has been heard (time frozen at 0).
+    Nothing advances until a valid MAVLink message has been heard (time frozen at 0), nor
+    after a reboot until a peer is heard again (its down time itself runs as fast as it can).
     Then, period k: the downlink releases what is due at t_k (in the ideal world: the
     HEARTBEAT when due and the telemetry of t_k). If that includes n >= 1 *complete*
     state bundles (ATTITUDE_QUATERNION and LOCAL_POSITION_NED of one time, neither
@@ -90,14 +91,14 @@ def run_lockstep(engine: Engine, timeout_s: float = 0.1, duration_s: float | Non
     """Run in lockstep (see the module docstring) until ``duration_s`` of sim time."""
     link = engine.link
     status = _Status(engine, quiet)
-    while not link.peers:                        # frozen until someone talks
-        if link.wait_readable(1.0):
-            engine.poll()
-        status.tick(time.monotonic())
     period = 1.0 / engine.sim.params.rate_hz
     stalled = False
     stall_wall0 = stall_t0 = 0.0
     while not _done(engine, duration_s):
+        while not link.peers and not engine.reboots.down:   # frozen until someone talks (at the
+            if link.wait_readable(1.0):                     # start, and after a reboot)
+                engine.poll()
+            status.tick(time.monotonic())
         engine.begin_period()
         count0 = engine.targets_received
         if stalled:

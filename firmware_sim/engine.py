@@ -193,10 +193,10 @@ class Engine:
             out.extend(m for m in state if m is not None)
             self.downlink.sent += len(out)
             self.link.send(out)
-            self.complete_released = int(state[1] is not None and state[2] is not None)
+            self.complete_released = int(state[1] is not None and state[2] is not None and bool(self.link.peers))
             return
         self.downlink.push_period(step // self._substeps, out, state)
-        self.complete_released = self._send_due()
+        self.complete_released = self._send_due() if self.link.peers else 0    # nobody to answer
 
     def _state_messages(self, t: float, period: int) -> tuple:
         """The state messages of period ``period`` (``None`` for one whose stream is not due

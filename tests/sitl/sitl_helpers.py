@@ -45,13 +45,14 @@ class Proc:
         with self._cv:
             self._cv.notify_all()
 
-    def wait_line(self, needle: str, timeout_s: float) -> str:
+    def wait_line(self, needle: str, timeout_s: float, nth: int = 1) -> str:
+        """The ``nth`` line that holds ``needle``, once printed (AssertionError after ``timeout_s``)."""
         deadline = time.monotonic() + timeout_s
         with self._cv:
             while True:
-                for ln in self.lines:
-                    if needle in ln:
-                        return ln
+                hits = [ln for ln in self.lines if needle in ln]
+                if len(hits) >= nth:
+                    return hits[nth - 1]
                 left = deadline - time.monotonic()
                 if left <= 0 or (self.p.poll() is not None and not self._t.is_alive()):
                     raise AssertionError(f"{needle!r} not seen from {self.cmd[:3]}; last lines:\n"
