@@ -39,12 +39,15 @@ def judge_truth(rows: list[dict], record_path) -> None:
         return
     alt = altitude_above_takeoff(pos)
     unsafe = False
-    for row in rows:
-        span = (row.get("record") or {}).get("vehicle_span_s") or [None, None]
+    spans = [(row.get("record") or {}).get("vehicle_span_s") or [None, None] for row in rows]
+    for i, (row, span) in enumerate(zip(rows, spans)):
         if span[0] is None or span[1] is None:
             row["truth"] = {"error": "no flight: no span of vehicle time to judge"}
             continue
-        lo, hi = span[0] - 0.5, span[1] + 2.0
+        # to the next flight's first sample: a flight handed over to the vehicle's failsafe is
+        # judged through the failsafe's landing, which comes after the daemon's last sample
+        later = [s[0] for s in spans[i + 1:] if s[0] is not None]
+        lo, hi = span[0] - 0.5, (later[0] if later else np.inf)
         sel = (t >= lo) & (t <= hi)
         downs = touchdowns(t[sel], vel[sel], ground[sel])
         top = max((v for _, v in downs), default=None)

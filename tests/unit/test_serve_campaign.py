@@ -87,3 +87,14 @@ def test_growth_is_measured_from_flight_20_and_lost_results_are_counted():
     assert sm["growth"]["serve_rss_kb"]["growth_pct"] == pytest.approx(5.0)   # the warm-up before 20 is not growth
     assert sm["growth"]["serve_fds"]["growth_pct"] == 0.0
     assert sm["lost_results"] == [33] and sm["outcomes"] == {"lost": 1, "ok": 59}
+
+
+def test_a_flight_handed_over_is_judged_through_its_failsafe_landing(tmp_path):
+    """The daemon's last sample came at 10 s (a hand-over to the vehicle's failsafe); the
+    failsafe's landing at 2 m/s comes after it and still counts against the flight."""
+    path = tmp_path / "truth.npz"
+    _recording(path, touchdown_speed=2.0)
+    row = {"upload": "accepted", "record": {"vehicle_span_s": [0.0, 10.0], "result": "vehicle_mode",
+                                            "counters": {"samples": 1, "actuator_sent": 1}}}
+    judge_truth([row], path)
+    assert row["truth"]["ground_impact"]
