@@ -196,7 +196,8 @@ class Engine:
             self.complete_released = int(state[1] is not None and state[2] is not None and bool(self.link.peers))
             return
         self.downlink.push_period(step // self._substeps, out, state)
-        self.complete_released = self._send_due() if self.link.peers else 0    # nobody to answer
+        released = self._send_due()                  # due messages leave (to nobody, when none is known)
+        self.complete_released = released if self.link.peers else 0       # nobody to answer them
 
     def _state_messages(self, t: float, period: int) -> tuple:
         """The state messages of period ``period`` (``None`` for one whose stream is not due
