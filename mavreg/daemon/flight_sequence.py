@@ -40,13 +40,7 @@ class FlightSequence:
 
     def _close_flight(self) -> None:
         """The flight has ended: its record, its logs; then the next flight, or the stop."""
-        self._flight_closed = True
-        record = FlightRecord.of(self.flight_number, self.supervisor, self.latency_summary(),
-                                 self.clock_s() - self._start_s)
-        self.book.add(record)
-        if self.config.flights != 1:
-            self.log(record.line())
-        self._save_control_log()
+        self._record_flight(stopped=False)
         if self.config.flights is not None and self.book.count >= self.config.flights:
             self._stop.set()
         elif self.supervisor.vehicle_refused:       # no later upload would fly: as fly does, stop
@@ -107,13 +101,19 @@ class FlightSequence:
 
     def _close_flight_on_stop(self) -> None:
         """A many-flight daemon stopped with a flight under way: its record and its log too."""
-        self._flight_closed = True
         if self.supervisor.phase == Phase.PREFLIGHT:
+            self._flight_closed = True
             return                          # nothing took off: no flight to record
+        self._record_flight(stopped=True)
+
+    def _record_flight(self, stopped: bool) -> None:
+        """The flight's record in the book (said, for a daemon of many flights), its control log."""
+        self._flight_closed = True
         record = FlightRecord.of(self.flight_number, self.supervisor, self.latency_summary(),
-                                 self.clock_s() - self._start_s, stopped=True)
+                                 self.clock_s() - self._start_s, stopped=stopped)
         self.book.add(record)
-        self.log(record.line())
+        if self.config.flights != 1:
+            self.log(record.line())
         self._save_control_log()
 
     def _tlog_clock(self) -> Callable[[], float]:

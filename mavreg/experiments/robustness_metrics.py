@@ -38,7 +38,7 @@ import numpy as np
 from .disturbance_metrics import along_track_speed, overspeed
 
 __all__ = ["IMPACT_SPEED_M_S", "STOPPED_FORCE_N", "STOPPED_MIN_S", "STOPPED_ALTITUDE_M", "TOUCHDOWN_SAMPLES",
-           "altitude_above_takeoff", "judging_window", "lowest_altitude", "touchdowns",
+           "altitude_above_takeoff", "judging_window", "load_truth", "lowest_altitude", "touchdowns",
            "motors_stopped_in_air", "judge_flight", "robustness_metrics", "SAFETY_CLASSES",
            "SIM_CLASSES"]
 
@@ -137,13 +137,18 @@ def _meta(z) -> dict:
         return {}
 
 
+def load_truth(record_path) -> tuple:
+    """``(t_s, position_ned_m, velocity_ned_m_s, rotor_applied_n, armed, on_ground, meta)`` of
+    an emulator recording (``firmware_sim --record``), what the safety judges read."""
+    with np.load(record_path) as z:
+        return (z["t_s"], z["position_ned_m"], z["velocity_ned_m_s"], z["rotor_applied_n"], z["armed"],
+                z["on_ground"], _meta(z))
+
+
 def judge_flight(summary: dict, record_path) -> dict:
     """The whole flight's outcome and safety from ``summary.json`` and the emulator's
     recording (JSON-ready; see the module docstring)."""
-    with np.load(record_path) as z:
-        t, pos, vel = z["t_s"], z["position_ned_m"], z["velocity_ned_m_s"]
-        applied, armed, ground = z["rotor_applied_n"], z["armed"], z["on_ground"]
-        meta = _meta(z)
+    t, pos, vel, applied, armed, ground, meta = load_truth(record_path)
     alt = altitude_above_takeoff(pos)
     events = summary.get("events") or []
     t_from, t_to = judging_window(events)

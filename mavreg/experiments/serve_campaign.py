@@ -50,14 +50,6 @@ def process_sample(pid: int) -> dict:
             "fds": len(os.listdir(f"/proc/{pid}/fd"))}
 
 
-def _children(pid: int) -> list[int]:
-    try:
-        text = Path(f"/proc/{pid}/task/{pid}/children").read_text()
-    except OSError:
-        return []
-    return [int(c) for c in text.split()]
-
-
 class ServeRig:
     """The emulator and ``serve`` as processes; uploads and status through the endpoint."""
 
@@ -108,14 +100,15 @@ class ServeRig:
         return request(self.socket, {"op": "land"}, REQUEST_TIMEOUT_S)
 
     def resources(self) -> dict:
-        """The serve process's and its planner worker's :func:`process_sample`."""
+        """The serve process's and its planner worker's :func:`process_sample` (the worker's pid
+        from the daemon's own status, not guessed among its children)."""
         sample = {"serve": process_sample(self.serve.pid)}
-        workers = _children(self.serve.pid)
-        if workers:
+        worker = (self.status().get("planner") or {}).get("worker_pid")
+        if worker is not None:
             try:
-                sample["worker"] = process_sample(workers[0])
+                sample["worker"] = process_sample(worker)
             except OSError:
-                pass
+                pass                    # it ended between the status and the reading
         return sample
 
     def stop(self) -> int | None:

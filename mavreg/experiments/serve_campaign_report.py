@@ -18,7 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .robustness_metrics import IMPACT_SPEED_M_S, altitude_above_takeoff, motors_stopped_in_air, touchdowns
+from .robustness_metrics import (IMPACT_SPEED_M_S, altitude_above_takeoff, load_truth, motors_stopped_in_air,
+                                 touchdowns)
 
 __all__ = ["judge_truth", "summarize", "markdown", "GROWTH_FROM"]
 
@@ -30,9 +31,7 @@ def judge_truth(rows: list[dict], record_path) -> None:
     recording over each flight's span of vehicle time (the recording is deleted unless some
     flight was unsafe)."""
     try:
-        with np.load(record_path) as z:
-            t, pos, vel = z["t_s"], z["position_ned_m"], z["velocity_ned_m_s"]
-            applied, armed, ground = z["rotor_applied_n"], z["armed"], z["on_ground"]
+        t, pos, vel, applied, armed, ground, _ = load_truth(record_path)
     except (OSError, KeyError, ValueError) as exc:
         for row in rows:
             row["truth"] = {"error": f"{type(exc).__name__}: {exc}"}
