@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .serve_campaign import KEEP_LOGS
 from .robustness_metrics import (IMPACT_SPEED_M_S, altitude_above_takeoff, load_truth, motors_stopped_in_air,
                                  touchdowns)
 
@@ -131,6 +132,8 @@ def summarize(kind: str, result: dict) -> dict:
         "growth": {f"{who}_{key}": _growth(rows, who, key) for who in ("serve", "worker")
                    for key in ("rss_kb", "fds", "threads")},
         "latency": _latency(rows), "serve_exit": result["serve_exit"], "wall_s": result["wall_s"],
+        "log_files_left": None if result.get("log_files") is None else len(result["log_files"]),
+        "keep_logs": KEEP_LOGS,
     }
 
 

@@ -9,7 +9,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 from ..config.paths import DEFAULT_VEHICLE, REAL_CONTROLLER, maneuver_file
-from .serve_campaign import KEEP_LOGS, fly_campaign
+from .serve_campaign import fly_campaign
 from .serve_campaign_report import judge_truth, markdown, summarize
 from .serve_draws import FlightDraw, draw_flights
 
@@ -69,11 +69,8 @@ def run_serve_campaign(kind: str, seed: int, flights: int, out_dir: Path, shards
     merged = {"rows": sorted((r for res in results for r in res["rows"]), key=lambda r: r["flight"]),
               "serve_exit": [res["serve_exit"] for res in results],
               "wall_s": max(res["wall_s"] for res in results),
-              "log_files": max(len(res["log_files"]) for res in results)}
+              "log_files": max((res["log_files"] for res in results), key=len)}     # the fullest shard's
     summary = summarize(kind, merged)
-    summary["serve_exit"] = merged["serve_exit"]
-    summary["log_files_left"] = merged["log_files"]
-    summary["keep_logs"] = KEEP_LOGS
     summary.update(seed=seed, shards=k, rate_hz=rate_hz, command=command)
     (out_dir / "campaign.json").write_text(json.dumps({"summary": summary, "rows": merged["rows"]},
                                                       indent=1, default=str))
