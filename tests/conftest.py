@@ -1,9 +1,8 @@
 """Test-wide setup and the shared fixtures.
 
-pytest puts this directory on ``sys.path`` (rootdir conftest, no package) and
-``pyproject.toml`` puts the repository root there (``pythonpath``), so shared helpers are
-imported as ``tests.helpers.<module>`` (``tests/helpers/``) or, for the older ones, by
-their name (``proc_helpers.py``).
+``pyproject.toml`` puts the repository root on ``sys.path`` (``pythonpath``), so shared helpers
+are imported as ``tests.helpers.<module>`` (``tests/helpers/``); no test imports another test
+module or a helper by its bare name.
 
 Fixtures (session-scoped, from :mod:`tests.helpers.params`; shared objects, read-only):
 ``vehicle`` (the MK-Quadro), ``paper_controller``, ``design_controller``,

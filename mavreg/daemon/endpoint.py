@@ -146,6 +146,11 @@ class EndpointServer:
         self.errors = 0
         """Requests whose handler raised (each answered with an error reply)."""
 
+    @property
+    def connections(self) -> int:
+        """Clients connected now and being answered (at most ``max_connections``)."""
+        return len(self._clients)
+
     async def start(self) -> None:
         self.path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
         if self.path.exists() or self.path.is_symlink():

@@ -8,7 +8,7 @@ import sys
 
 from pymavlink.dialects.v20 import common as mavlink2
 
-from fsim_helpers import ARM, Emulator
+from tests.helpers.emulator import ARM, Emulator
 
 
 def _recv(sock, mav, mtype, timeout_s=5.0, pred=lambda m: True):

@@ -19,7 +19,7 @@ from mavsdk.plugins.action import Action  # noqa: E402
 from mavsdk.plugins.param import Param  # noqa: E402
 from mavsdk.plugins.telemetry import FlightMode, LandedState, Telemetry  # noqa: E402
 
-from fsim_helpers import Emulator  # noqa: E402
+from tests.helpers.emulator import Emulator  # noqa: E402
 
 
 def _until(pred, timeout_s: float, what: str):

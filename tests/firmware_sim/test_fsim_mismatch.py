@@ -18,7 +18,7 @@ from firmware_sim.mismatch import (BOUNDS, KEEPABLE, MismatchDraw, airframe_arra
 from firmware_sim.params import build_sim_params, default_vehicle_path, parse_start
 from firmware_sim.rotors import Rotors, mix
 from firmware_sim.sim import Simulation
-from fsim_helpers import REPO
+from tests.helpers.emulator import REPO
 from mavreg.config.vehicle import load_vehicle
 
 VEHICLE = load_vehicle(default_vehicle_path())

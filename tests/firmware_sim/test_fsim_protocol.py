@@ -10,7 +10,7 @@ from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mavlink2
 
 from firmware_sim import modes
-from fsim_helpers import ARM, SET_MODE, Client, Emulator
+from tests.helpers.emulator import ARM, SET_MODE, Client, Emulator
 
 HOVER = 0.749 * 9.81 / 4 / 12.0
 

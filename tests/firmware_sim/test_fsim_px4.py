@@ -15,7 +15,7 @@ from pymavlink.dialects.v20 import common as M
 from firmware_sim import modes
 from firmware_sim.px4 import CAPABILITIES, EARTH_RADIUS_M, PARAMS
 
-from fsim_helpers import GCS, Client, Emulator, Vehicle
+from tests.helpers.emulator import GCS, Client, Emulator, Vehicle
 
 
 def _count(msgs) -> Counter:

@@ -18,7 +18,7 @@ from firmware_sim import modes
 from firmware_sim.cli import build_parser, main
 from firmware_sim.rate_loop import ROLL_PITCH_UNIT, YAW_UNIT, allocate, collective_thrust_n
 
-from fsim_helpers import REPO, Client, Emulator, Vehicle, answer_samples
+from tests.helpers.emulator import REPO, Client, Emulator, Vehicle, answer_samples
 
 DAEMON = (1, 191)
 MASS_KG, FMAX_N, E, L_M = 0.749, 12.0, 0.3, 0.30       # params/vehicles/mk_quadro.yaml, THR_MDL_FAC

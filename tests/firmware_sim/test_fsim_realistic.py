@@ -11,7 +11,7 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
 from firmware_sim import modes
-from fsim_helpers import ARM, REPO, SET_MODE, Client, Emulator, answer_samples
+from tests.helpers.emulator import ARM, REPO, SET_MODE, Client, Emulator, answer_samples
 
 HOVER = 0.749 * 9.81 / 4 / 12.0
 

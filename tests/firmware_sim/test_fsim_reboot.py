@@ -11,7 +11,7 @@ import numpy as np
 from pymavlink.dialects.v20 import common as M
 
 from firmware_sim import modes
-from fsim_helpers import ARM, Client, Emulator, Vehicle
+from tests.helpers.emulator import ARM, Client, Emulator, Vehicle
 
 REBOOT = M.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN
 

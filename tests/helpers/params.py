@@ -47,3 +47,26 @@ def barrel_roll_plan(controller_name: str = "paper_lqr", laps: int | None = None
     (``laps`` laps; None: the file's)."""
     from mavreg.planning.plan_io import plan_file
     return plan_file(BARREL_ROLL, vehicle(vehicle_name), controller(controller_name), laps=laps)
+
+
+ONE_GATE = """\
+kind: maneuver
+version: 1
+name: one_gate
+description: a gate 2 m east of a line heading north, at 2 m/s
+start: {position_m: [0.0, 0.0, -3.0], heading_deg: 0}
+segments:
+  - name: run_up
+    line: {length_m: 3.0}
+  - name: gate
+    waypoints: {points_m: [[4.0, 2.0, 0.0], [8.0, 0.0, 0.0]]}
+  - name: run_out
+    line: {length_m: 3.0}
+speed:
+  initial_m_s: 0.5
+  changes:
+    - {segment: run_up, offset_m: 0.0, length_m: 2.5, to_m_s: 2.0}
+    - {segment: run_out, offset_m: 0.0, length_m: 2.5, to_m_s: 0.5}
+yaw: {mode: tangent}
+"""
+"""A small waypoint maneuver (a gate 2 m east of a line north) for the plan and plot tests."""

@@ -30,6 +30,21 @@ def wire(msg, sysid=1, compid=1):
     return _PARSER.decode(bytearray(msg.pack(mav)))
 
 
+def att_q(t, rpy=(0.0, 0.0, 0.0), rates=(0.0, 0.0, 0.0)):
+    """ATTITUDE_QUATERNION at ``time_boot_ms`` ``t``, as received."""
+    return wire(mavlink2.MAVLink_attitude_quaternion_message(t, *rpy_to_quat(*rpy), *rates))
+
+
+def att_e(t, rpy=(0.0, 0.0, 0.0), rates=(0.0, 0.0, 0.0)):
+    """ATTITUDE (Euler angles) at ``time_boot_ms`` ``t``, as received."""
+    return wire(mavlink2.MAVLink_attitude_message(t, *rpy, *rates))
+
+
+def pos(t, p=(0.0, 0.0, 0.0), v=(0.0, 0.0, 0.0)):
+    """LOCAL_POSITION_NED at ``time_boot_ms`` ``t``, as received."""
+    return wire(mavlink2.MAVLink_local_position_ned_message(t, *p, *v))
+
+
 @dataclass
 class FakePlan:
     """A straight line north at 2 m altitude, flown at ``speed`` m/s."""

@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from sitl_helpers import BARREL, CONTROLLER, VEHICLE, VEHICLE_IDEAL, load_record, mavreg, start_emulator
+from tests.helpers.sitl import BARREL, CONTROLLER, VEHICLE, VEHICLE_IDEAL, load_record, mavreg, start_emulator
 
 
 @pytest.fixture(scope="session")

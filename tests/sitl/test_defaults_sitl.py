@@ -10,7 +10,7 @@ import subprocess
 import sys
 
 import pytest
-from test_robustness_sitl import RECORD_FIELDS
+from tests.helpers.sitl import RECORD_FIELDS
 
 pytestmark = pytest.mark.sitl
 

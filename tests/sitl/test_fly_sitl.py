@@ -12,7 +12,7 @@ import pytest
 from conftest import fly_lockstep
 from mavreg.daemon.ctrllog import load_control_log
 from mavreg.daemon.report import ground_truth_errors
-from sitl_helpers import BARREL, VEHICLE_IDEAL, flight_modes, tilt_deg, vehicle_samples
+from tests.helpers.sitl import BARREL, VEHICLE_IDEAL, flight_modes, tilt_deg, vehicle_samples
 
 pytestmark = pytest.mark.sitl
 
@@ -228,7 +228,7 @@ def test_foreign_system_actuator_traffic_changes_nothing(tmp_path, ideal_flight)
 
 
 def test_killing_the_daemon_mid_maneuver_lets_the_failsafe_land(tmp_path):
-    from sitl_helpers import CONTROLLER, load_record, mavreg, start_emulator
+    from tests.helpers.sitl import CONTROLLER, load_record, mavreg, start_emulator
     from mavreg.daemon.endpoint import request
     record = tmp_path / "gt.npz"
     sock = tmp_path / "mavreg.sock"

@@ -17,7 +17,8 @@ import time
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from sitl_helpers import REPO, Proc, free_udp_port, mavreg
+from tests.helpers.sitl import REPO, Proc, free_udp_port, mavreg
+from tests.helpers.waiting import wait_until
 
 pytestmark = pytest.mark.sitl
 
@@ -79,7 +80,10 @@ def test_mavproxy_sees_the_vehicle_its_modes_and_the_daemons_messages(tmp_path):
                      "--gcs", f"udpout:127.0.0.1:{port}")
         code = fly.wait(180)
         t2 = time.monotonic()
-        time.sleep(1.0)                   # what is in flight to MAVProxy and back out
+        # what is in flight to MAVProxy and back out: the daemon's last phase, re-forwarded
+        wait_until(lambda: any(m.get_type() == "NAMED_VALUE_INT" and m.name == "mr_phase" and m.value == 6
+                               for m in list(listener.msgs)) and any("DISARMED" in ln for ln in mp.lines),
+                   "the disarmed phase through MAVProxy", 60, 0.1)
     finally:
         mp.stop()
         listener.close()

@@ -24,8 +24,9 @@ import numpy as np
 import pytest
 
 from mavreg.config.paths import DEFAULT_VEHICLE, REAL_CONTROLLER
-from sitl_helpers import load_record, vehicle_samples
+from tests.helpers.sitl import load_record, vehicle_samples
 from tests.helpers.repo import ROOT
+from tests.helpers.waiting import wait_until
 
 pytestmark = pytest.mark.sitl
 
@@ -134,16 +135,6 @@ def _status(sock) -> dict:
     return request(sock, {"op": "status"}, 60)["status"]
 
 
-def _wait(cond, what: str, timeout_s: float = 600.0, poll_s: float = 0.05):
-    """``cond()``'s first truthy value (polled; the bound is for a broken run, not relied on)."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if (v := cond()):
-            return v
-        time.sleep(poll_s)
-    raise AssertionError(f"{what}: not within {timeout_s} s")
-
-
 @pytest.mark.slow       # a cold barrel-roll plan killed, then two hops (one to five minutes)
 @pytest.mark.skipif(not FULL.exists(), reason="no /dev/full on this system")
 def test_serve_worker_killed_mid_plan_refuses_that_upload_and_flies_the_next(tmp_path):
@@ -153,7 +144,7 @@ def test_serve_worker_killed_mid_plan_refuses_that_upload_and_flies_the_next(tmp
     import threading
     from mavreg.config.paths import maneuver_file
     from mavreg.daemon.endpoint import request
-    from sitl_helpers import Proc, mavreg
+    from tests.helpers.sitl import Proc, mavreg
     sock, record = tmp_path / "d.sock", tmp_path / "groundtruth.npz"
     ctl = tmp_path / "control.npz"
     ctl.symlink_to(FULL)
@@ -168,20 +159,20 @@ def test_serve_worker_killed_mid_plan_refuses_that_upload_and_flies_the_next(tmp
                        "--stale-timeout-s", "30", "--tlog", str(FULL), "--control-log", str(ctl))
         serve.wait_line("control endpoint", 300)
         assert request(sock, {"op": "upload", "name": "hop1", "yaml": HOP.read_text()}, 900)["ok"]
-        _wait(lambda: _status(sock)["done"] == ["hop"] and _status(sock)["phase"] == "hold", "first hop flown")
+        wait_until(lambda: _status(sock)["done"] == ["hop"] and _status(sock)["phase"] == "hold", "first hop flown")
         answer: dict = {}
         client = threading.Thread(target=lambda: answer.update(
             request(sock, {"op": "upload", "name": "roll.yaml", "yaml": roll}, 900)), daemon=True)
         client.start()
         # the pool's own record of its worker, read while the upload is in it: no race with a restart
-        st = _wait(lambda: (s := _status(sock))["planner"]["busy"] and s, "the roll being planned")
+        st = wait_until(lambda: (s := _status(sock))["planner"]["busy"] and s, "the roll being planned")
         victim = st["planner"]["worker_pid"]
         os.kill(victim, signal.SIGKILL)
         client.join(600)
         after = _status(sock)
         second = subprocess.run([sys.executable, "-m", "mavreg.cli.main", "upload", str(HOP), "--socket", str(sock)],
                                 cwd=ROOT, capture_output=True, text=True, timeout=900)
-        _wait(lambda: _status(sock)["done"] == ["hop", "hop"] and _status(sock)["phase"] == "hold",
+        wait_until(lambda: _status(sock)["done"] == ["hop", "hop"] and _status(sock)["phase"] == "hold",
               "second hop flown")
         final = _status(sock)
         assert request(sock, {"op": "land"}, 60)["ok"]
@@ -225,7 +216,7 @@ def test_real_time_flight_with_both_cores_saturated_mid_flight_lands(tmp_path):
     daemon gets a sixth of a core and cannot fly, and at ``nice -10`` it was still starved for
     seconds on a shared host (docs/reliability.md, *Host faults*). Run it alone
     (``flock /tmp/px4.lock``): it is the load."""
-    from sitl_helpers import Proc
+    from tests.helpers.sitl import Proc
     if subprocess.run(["chrt", "-f", "50", "true"], capture_output=True).returncode != 0:
         pytest.skip("real-time priority (chrt -f 50) is not permitted here: it takes root or CAP_SYS_NICE "
                     "and an RT budget in the container")
@@ -236,7 +227,7 @@ def test_real_time_flight_with_both_cores_saturated_mid_flight_lands(tmp_path):
     try:
         fly.wait_line("maneuver 'hop' begins", 600)
         hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(4)]
-        _wait(lambda: fly.p.poll() is not None or any(w in ln for ln in fly.lines[-50:] for w in
+        wait_until(lambda: fly.p.poll() is not None or any(w in ln for ln in fly.lines[-50:] for w in
                                                      ("landing from", "[aborted]", "touched down")),
               "the landing", 300)
     finally:

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from conftest import fly_lockstep
-from sitl_helpers import VEHICLE_IDEAL
+from tests.helpers.sitl import VEHICLE_IDEAL
 from mavreg.daemon.endpoint import request
 
 pytestmark = pytest.mark.sitl

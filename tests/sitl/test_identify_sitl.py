@@ -15,7 +15,7 @@ import pytest
 
 from mavreg.config.paths import REAL_CONTROLLER
 
-from sitl_helpers import BARREL, mavreg
+from tests.helpers.sitl import BARREL, mavreg
 
 pytestmark = pytest.mark.sitl
 
@@ -59,7 +59,7 @@ def test_the_calibrated_vehicle_flies_the_drag_forward(calibration):
     from mavreg.config.vehicle import load_vehicle
     from mavreg.daemon.report import ground_truth_errors
     from mavreg.planning.plan_io import plan_file
-    from sitl_helpers import load_record
+    from tests.helpers.sitl import load_record
     _, vehicle, tmp = calibration
     out = tmp / "calibrated_flight"
     fly = mavreg("fly", str(BARREL), "--lockstep", "--out", str(out), "--timeout-s", "300",

@@ -16,8 +16,8 @@ import re
 import numpy as np
 import pytest
 
-from link_faults_helpers import NEAR, events, fly_faulted, fly_through_proxy, safe_end, true_errors
-from sitl_helpers import BARREL
+from tests.helpers.link_fault_flights import NEAR, events, fly_faulted, fly_through_proxy, safe_end, true_errors
+from tests.helpers.sitl import BARREL
 
 pytestmark = pytest.mark.sitl
 

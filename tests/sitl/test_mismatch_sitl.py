@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from mavreg.config.paths import REAL_CONTROLLER
-from sitl_helpers import BARREL, load_record, mavreg
+from tests.helpers.sitl import BARREL, load_record, mavreg
 
 pytestmark = pytest.mark.sitl
 

@@ -15,8 +15,8 @@ import time
 import pytest
 
 from mavreg.daemon.endpoint import request
-from proc_helpers import children, cmdline, start_time, survivors
-from sitl_helpers import BARREL, mavreg, start_emulator
+from tests.helpers.processes import children, cmdline, start_time, survivors
+from tests.helpers.sitl import BARREL, mavreg, start_emulator
 
 pytestmark = [pytest.mark.sitl,
               pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")]

@@ -29,8 +29,8 @@ import time
 import pytest
 
 from mavreg.daemon.endpoint import request
-from proc_helpers import children, start_time, survivors
-from sitl_helpers import BARREL, Proc, mavreg
+from tests.helpers.processes import children, start_time, survivors
+from tests.helpers.sitl import BARREL, Proc, mavreg
 
 pytestmark = pytest.mark.sitl
 
@@ -69,7 +69,7 @@ def test_control_loop_runs_every_period_while_planning(tmp_path):
         client.join()
         final = _status(sock)
         serve.p.send_signal(signal.SIGINT)      # first: land at the next safe point
-        time.sleep(0.2)
+        serve.wait_line("signal: ", 60)
         code = serve.stop(signal.SIGINT, 60)    # second: stop at once
     finally:
         if serve is not None:

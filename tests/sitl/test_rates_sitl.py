@@ -21,7 +21,7 @@ from mavreg.config.vehicle import load_vehicle
 from mavreg.daemon.report import ground_truth_errors
 from mavreg.daemon.ctrllog import load_control_log
 from mavreg.planning.plan_io import plan_file
-from sitl_helpers import load_record, mavreg
+from tests.helpers.sitl import load_record, mavreg
 from tests.helpers.repo import ROOT
 
 pytestmark = pytest.mark.sitl

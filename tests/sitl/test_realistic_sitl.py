@@ -19,7 +19,7 @@ from mavreg.config.paths import DEFAULT_VEHICLE, REAL_CONTROLLER
 from mavreg.daemon.ctrllog import load_control_log
 from mavreg.daemon.report import ground_truth_errors
 from mavreg.sim.metrics import rotor_jitter_n
-from sitl_helpers import BARREL, flight_modes, load_record, mavreg, vehicle_samples
+from tests.helpers.sitl import BARREL, flight_modes, load_record, mavreg, vehicle_samples
 
 pytestmark = pytest.mark.sitl
 

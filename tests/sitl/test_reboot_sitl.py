@@ -20,7 +20,7 @@ import pytest
 from pymavlink.dialects.v20 import common as M
 
 from mavreg.daemon.endpoint import request
-from sitl_helpers import load_record, mavreg, start_emulator
+from tests.helpers.sitl import load_record, mavreg, start_emulator
 from tests.helpers.repo import ROOT as REPO
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]     # 2-3 min: two hops, planning, a reboot

@@ -9,12 +9,9 @@ import sys
 
 import pytest
 
-pytestmark = pytest.mark.sitl
+from tests.helpers.sitl import RECORD_FIELDS
 
-RECORD_FIELDS = ("result", "reason", "first_bound", "bound_phase", "action", "maneuver_max_error_m",
-                 "loop_max_error_m", "max_attitude_error_deg", "overspeed_m_s", "lowest_altitude_m",
-                 "max_touchdown_speed_m_s", "ground_impact", "motors_stopped_in_air", "motors_stopped_event_t_s",
-                 "flight_time_s", "safety", "cause", "seed", "emulator_args")
+pytestmark = pytest.mark.sitl
 
 
 def test_a_vehicle_without_timesync_is_refused_and_the_campaign_written(tmp_path):

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 from pymavlink import mavutil
 
-from sitl_helpers import CONTROLLER, VEHICLE, load_record, mavreg, start_emulator
+from tests.helpers.sitl import CONTROLLER, VEHICLE, load_record, mavreg, start_emulator
 
 pytestmark = pytest.mark.sitl
 

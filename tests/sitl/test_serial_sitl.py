@@ -15,13 +15,17 @@ import numpy as np
 import pytest
 
 from mavreg.daemon.report import ground_truth_errors
-from sitl_helpers import BARREL, CONTROLLER, VEHICLE, Proc, load_record, mavreg
+from tests.helpers.sitl import BARREL, CONTROLLER, VEHICLE, Proc, load_record, mavreg
 from tests.helpers.pty_bridge import PtyBridge
 from tests.helpers.repo import ROOT as REPO
+from tests.helpers.waiting import wait_until
 
 pytestmark = pytest.mark.sitl
 
 HOP = REPO / "tests/sitl/signing_hop.yaml"
+PULL_AFTER_S = 1.0
+"""The cable is pulled this long (wall clock) after the hop's maneuver begins: in lockstep about
+a second of vehicle time, mid-maneuver; the test checks on the truth that it was flying."""
 
 
 def _emulator(record, listen: str, *args: str) -> tuple[Proc, str]:
@@ -115,15 +119,16 @@ def test_a_cable_pulled_mid_flight_ends_in_the_vehicles_failsafe_and_the_daemon_
     try:
         fly = _fly(bridge.url, tmp_path / "out")
         fly.wait_line("maneuver 'hop' begins", 120)
-        time.sleep(1.0)                            # mid-maneuver (lockstep: about 1 s of vehicle time)
+        time.sleep(PULL_AFTER_S)                   # the fault's timing: mid-maneuver
         bridge.pull()
         pulled_at = time.monotonic()
         fly.wait_line("no more telemetry from the vehicle", 10)
         fly.wait_line("the vehicle's failsafe is in charge", 10)
         lost_after_s = time.monotonic() - pulled_at
         code = fly.wait(60)
-        emu.wait_line("ground peers", 60)          # the failsafe landed it (status lines go on)
-        time.sleep(1.0)
+        # the failsafe landed and disarmed it (its status lines go on)
+        wait_until(lambda: any("disarmed" in ln and "ground peers" in ln for ln in emu.lines),
+                   "the emulator disarmed on the ground", 60)
     finally:
         bridge.close()
         emu_code = emu.stop()

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from sitl_helpers import CONTROLLER, mavreg
+from tests.helpers.sitl import CONTROLLER, mavreg
 
 pytestmark = pytest.mark.sitl
 

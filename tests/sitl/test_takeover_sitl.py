@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from sitl_helpers import BARREL, CONTROLLER, load_record, mavreg, start_emulator
+from tests.helpers.sitl import BARREL, CONTROLLER, load_record, mavreg, start_emulator
 from mavreg.daemon.endpoint import request
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]   # about 45 s: the failsafe hold runs in real time

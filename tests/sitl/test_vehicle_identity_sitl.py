@@ -21,7 +21,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from mavreg.daemon.ctrllog import load_control_log
 from mavreg.daemon.report import ground_truth_errors
-from sitl_helpers import BARREL, CONTROLLER, VEHICLE, free_udp_port, load_record, mavreg, start_emulator
+from tests.helpers.sitl import BARREL, CONTROLLER, VEHICLE, free_udp_port, load_record, mavreg, start_emulator
 
 pytestmark = pytest.mark.sitl
 

@@ -8,7 +8,8 @@ sample, its Kalman update, the prediction across the link), the controller on th
 bookkeeping, is replayed on the samples of real closed-loop flights (the design model with
 ``realistic.yaml``: rotors lagging 20 ms, the state 14 ms late, a 0.6 N side force) twice, in
 fresh processes, compiled and with ``MAVREG_PURE=1``, and every output compared. The replay
-adds what the flights' own timing lacks: the observer off for the first samples (on the
+adds what the flights' own timing lacks (the chain and its gaps:
+:mod:`tests.helpers.controller_replay`): the observer off for the first samples (on the
 ground), telemetry gaps (samples dropped, so commands switch inside a horizon and the
 observer sees gaps past its limit), gap-filling predictions past the delay
 (:meth:`Forecaster.ahead`, some past the horizon cap), and a second answer to one sample.
@@ -23,54 +24,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mavreg.control.hover import HoverController, HoverParams
 from tests.helpers import controller_flight as flight
+
 from tests.helpers.repo import ROOT as REPO
-
-OBSERVER_OFF_SAMPLES = 50
-GAPS = ((300, 303), (900, 901), (1200, 1230))
-"""Samples dropped (index ranges of the replay): 3 and 1 missed periods, a 60 ms stall."""
-
-
-def _chain(phase: str, samples: np.lib.npyio.NpzFile) -> np.ndarray:
-    """Every output of the per-sample chain, one row per replayed sample."""
-    setup = flight.Setup()
-    fc = setup.forecaster()
-    fc.observing = False
-    fc.reset(np.full(4, setup.vehicle.mass_kg * 9.81 / 4))
-    t, x, R, delay = samples["t"], samples["x"], samples["R"], samples["delay"]
-    if phase == "hover":
-        ctl, ramp = HoverController(setup.vehicle, HoverParams()), flight.hover_ramp(x[0])
-    else:
-        reg = setup.regulator()
-        reg.reset(x[0], s_guess=float(samples["s0"]))
-    dropped = {i for a, b in GAPS for i in range(a, b)}
-    rows = []
-    for i in range(len(t)):
-        if i in dropped:
-            continue
-        fc.observing = i >= OBSERVER_OFF_SAMPLES
-        f = fc.update(t[i], x[i], R[i], delay[i])
-        out = (ctl.step(f.x, ramp, t[i], fc.disturbance) if phase == "hover"
-               else reg.step(f.x, f.rotor_forces_n, fc.disturbance))
-        cmd = fc.command(t[i], out.rotor_forces_n)
-        if i % 97 == 0:                              # the same sample answered again
-            cmd = fc.command(t[i], 0.9 * out.rotor_forces_n)
-        ahead = fc.ahead(t[i], x[i], R[i], (1 + i % 60) * 0.002, delay[i])
-        est = fc.observer.estimate
-        applied = fc.disturbance
-        rows.append(np.concatenate([
-            f.x, np.ravel(f.rotation), f.rotor_forces_n, [f.horizon_s], out.u, out.rotor_forces_n, cmd,
-            est.drag_n_s_per_m, est.force_ned_n, [est.thrust_scale],
-            applied.drag_n_s_per_m, applied.force_ned_n, [applied.thrust_scale],
-            np.full(16, np.nan) if ahead is None else np.concatenate([ahead.x, ahead.rotor_forces_n])]))
-    return np.array(rows)
-
-
-def chain_outputs(phase: str, samples_path: str, out_path: str) -> None:
-    """Child process entry: replay the saved samples, save the outputs."""
-    np.save(out_path, _chain(phase, np.load(samples_path)))
-
 
 @pytest.fixture(scope="module")
 def flights(tmp_path_factory):
@@ -92,11 +48,10 @@ def flights(tmp_path_factory):
 
 
 def _both_paths(phase: str, samples_path: Path, tmp_path: Path) -> tuple[np.ndarray, np.ndarray]:
-    code = "import sys; from tests.unit.test_controller_replay import chain_outputs; chain_outputs(*sys.argv[1:])"
     res = []
     for pure in ("0", "1"):
         out = tmp_path / f"{phase}{pure}.npy"
-        subprocess.run([sys.executable, "-c", code, phase, str(samples_path), str(out)], check=True,
+        subprocess.run([sys.executable, "-m", "tests.helpers.controller_replay", phase, str(samples_path), str(out)], check=True,
                        timeout=600, cwd=REPO, env=dict(os.environ, MAVREG_PURE=pure))
         res.append(np.load(out))
     return res[0], res[1]

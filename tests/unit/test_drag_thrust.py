@@ -9,7 +9,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from identify_synth import MASS_KG, MAX_ROTOR_N, synthetic_flight
+from tests.helpers.identify_synth import MASS_KG, MAX_ROTOR_N, synthetic_flight
 from mavreg.config.loader import ConfigError
 from mavreg.config.loader import load_text
 from mavreg.config.vehicle import VehicleParams

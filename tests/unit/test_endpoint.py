@@ -10,6 +10,7 @@ import pytest
 
 from mavreg.daemon.endpoint import (MAX_REQUEST_BYTES, EndpointServer, RequestError, default_socket_path,
                                     request, validate_request)
+from tests.helpers.waiting import wait_until
 
 
 def test_default_location(monkeypatch, tmp_path):
@@ -151,7 +152,7 @@ def test_request_in_progress_when_the_server_closes_gets_the_reason(tmp_path):
 
     async def handler(req):
         started.set()
-        await asyncio.sleep(60)   # an upload being planned
+        await asyncio.Event().wait()   # an upload being planned, until the server closes
         return {"ok": True}
 
     async def main():
@@ -170,7 +171,8 @@ def test_request_in_progress_when_the_server_closes_gets_the_reason(tmp_path):
 
 # ---------------------------------------------------------------- hostile clients (issue 21)
 def _serve_hostile(tmp_path, client_fn, **server_kwargs):
-    """``client_fn(path)`` in a thread against a server answering status; returns (result, server)."""
+    """``client_fn(path, server)`` in a thread against a server answering status; returns
+    (result, server)."""
     async def handler(req):
         return {"ok": True, "echo": req["op"]}
     path = tmp_path / "s" / "mavreg.sock"
@@ -179,7 +181,7 @@ def _serve_hostile(tmp_path, client_fn, **server_kwargs):
         server = EndpointServer(path, handler, lambda text: None, **server_kwargs)
         await server.start()
         try:
-            return await asyncio.get_running_loop().run_in_executor(None, client_fn, path), server
+            return await asyncio.get_running_loop().run_in_executor(None, client_fn, path, server), server
         finally:
             await server.close()
     return asyncio.run(main())
@@ -198,7 +200,7 @@ def _read_line(s: socket.socket) -> dict:
 def test_an_over_long_line_without_newline_is_refused_at_the_limit(tmp_path):
     """The client keeps its connection open and never sends a newline: the refusal comes as
     the limit is passed, not at the read timeout (60 s here)."""
-    def client(path):
+    def client(path, _server):
         with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
             s.settimeout(30)
             s.connect(str(path))
@@ -216,7 +218,7 @@ def test_an_over_long_line_without_newline_is_refused_at_the_limit(tmp_path):
 
 def test_a_slow_client_is_cut_off_at_the_read_timeout(tmp_path):
     """A byte every 0.1 s (slow loris) never completes a request within the 1 s allowed."""
-    def client(path):
+    def client(path, _server):
         with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
             s.settimeout(30)
             s.connect(str(path))
@@ -235,14 +237,14 @@ def test_a_slow_client_is_cut_off_at_the_read_timeout(tmp_path):
 
 
 def test_connections_beyond_the_cap_are_refused_and_the_cap_frees_up(tmp_path):
-    def client(path):
+    def client(path, server):
         idle = []
         for _ in range(2):                       # two clients that send nothing
             s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
             s.settimeout(30)
             s.connect(str(path))
             idle.append(s)
-        time.sleep(0.2)                          # both accepted
+        wait_until(lambda: server.connections == 2, "both idle clients accepted", 30)
         third = request(path, {"op": "status"}, 10)
         replies = [_read_line(s) for s in idle]  # each cut off at the read timeout
         for s in idle:
@@ -266,6 +268,6 @@ def test_another_user_is_refused(tmp_path, monkeypatch):
         a.close()
         b.close()
     monkeypatch.setattr(endpoint, "peer_uid", lambda sock: os.geteuid() + 1)
-    resp, server = _serve_hostile(tmp_path, lambda path: request(path, {"op": "land"}, 10))
+    resp, server = _serve_hostile(tmp_path, lambda path, _server: request(path, {"op": "land"}, 10))
     assert resp["verdict"] == "refused" and f"uid {os.geteuid() + 1} is not the daemon's user" in resp["reason"]
     assert server.refused == 1

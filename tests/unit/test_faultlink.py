@@ -9,6 +9,7 @@ import pytest
 
 from mavreg.tools.faultlink import FaultLine, FaultParams, flip_bits, parse_faults
 from mavreg.tools.faultlink.proxy import start_proxy
+from tests.helpers.waiting import wait_until_async
 
 N = 20000
 PERIOD = 0.002
@@ -179,13 +180,17 @@ def test_udp_proxy_forwards_both_ways_with_its_faults():
                 vehicle.sendto(b"dn%d" % k, vaddr)
                 if k % 20 == 19:
                     await asyncio.sleep(0.002)          # let the proxy read (socket buffers are finite)
-            await asyncio.sleep(0.2)
             got_down = []
-            while True:
-                try:
-                    got_down.append(daemon.recvfrom(100)[0])
-                except BlockingIOError:
-                    break
+
+            def all_down() -> bool:
+                while True:
+                    try:
+                        got_down.append(daemon.recvfrom(100)[0])
+                    except BlockingIOError:
+                        break
+                c = proxy.down.counters
+                return c.pushed == 400 and c.released + c.lost == 400 and len(got_down) == c.released
+            await wait_until_async(all_down, "the 400 datagrams through the proxy, each released or lost", 30)
             return got_up, got_down, proxy
         finally:
             proxy.close()

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from identify_synth import synthetic_flight, write_tlog
+from tests.helpers.identify_synth import synthetic_flight, write_tlog
 from mavreg.config.paths import DEFAULT_VEHICLE
 from mavreg.cli.main import main
 from mavreg.config.vehicle import load_vehicle

@@ -1,7 +1,7 @@
 """The identification flight's rate pulses pin a rate loop that is not first order, where a
 maneuver's smooth rates do not (docs/identify.md, *The identification flight*).
 
-The synthetic rates flight (:func:`identify_synth.synthetic_rate_flight`) under a rate loop of
+The synthetic rates flight (:func:`tests.helpers.identify_synth.synthetic_rate_flight`) under a rate loop of
 a delay and *two* cascaded lags (not the fit's model, like the emulator's and ArduCopter's
 loops, which overshoot and settle off 1): the truth to compare with is the loop's own step
 response, through the first-order-plus-delay fit that ``firmware-sim --print-rate-response``
@@ -18,7 +18,7 @@ from firmware_sim.rate_response import fit_first_order_delay
 from mavreg.daemon.excitation import ExcitationParams
 from mavreg.identify.fit import FitOptions
 from mavreg.identify.rate_fit import identify_rates
-from tests.unit.identify_synth import MASS_KG, synthetic_rate_flight
+from tests.helpers.identify_synth import MASS_KG, synthetic_rate_flight
 
 TAU_S = (0.03, 0.03, 0.05)
 """Each axis' two lags together (each half of it)."""

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from identify_synth import MASS_KG, MAX_ROTOR_N, synthetic_flight
+from tests.helpers.identify_synth import MASS_KG, MAX_ROTOR_N, synthetic_flight
 from mavreg.identify.bootstrap import BlockBootstrap, integrated_time_rows
 from mavreg.identify.fit import FitOptions, IdentifyError, identify, lagged_integrals
 

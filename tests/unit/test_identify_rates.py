@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from identify_synth import MASS_KG, synthetic_rate_flight, write_tlog
+from tests.helpers.identify_synth import MASS_KG, synthetic_rate_flight, write_tlog
 from mavreg.cli.main import main
 from mavreg.config.vehicle import load_vehicle
 from mavreg.daemon.messages import actuator_target, rate_target

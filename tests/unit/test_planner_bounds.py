@@ -15,6 +15,7 @@ import pytest
 from mavreg.daemon.planner_pool import PlannerBounds, PlannerPool
 from mavreg.errors import EXIT_FAILED, EXIT_USAGE, MAX_MESSAGE_CHARS
 from tests.helpers import params
+from tests.helpers.waiting import wait_until_async
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="RLIMIT_AS, /proc")
 
@@ -88,7 +89,7 @@ def test_a_stalled_worker_is_replaced_and_uploads_beyond_the_queue_are_rejected_
         old = pool.worker_pid
         os.kill(old, signal.SIGSTOP)
         first = asyncio.create_task(pool.plan(BAD, "stalled.yaml"))
-        await asyncio.sleep(0.1)
+        await wait_until_async(lambda: pool.busy == 1, "the first upload in the pool", 30)
         second = await pool.plan(BAD, "second.yaml")       # the queue (0) is full
         stalled = await first
         after = await pool.plan(BAD, "after.yaml")

@@ -13,7 +13,7 @@ import pytest
 from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER
 from mavreg.config.vehicle import load_vehicle
 from mavreg.daemon.planner_pool import PlannerDied, PlannerPool
-from proc_helpers import start_time, survivors
+from tests.helpers.processes import start_time, survivors
 from tests.helpers import params
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")

@@ -21,27 +21,8 @@ from mavreg.model.rotation import rpy_to_matrix, rpy_to_quat
 from mavreg.plots.figures import build_flight_figure, build_plan_figure, panel
 from mavreg.plots.sources import from_fly, from_simulation
 from mavreg.sim.maneuver_run import fly_on_design_model
+from tests.helpers.params import ONE_GATE as GATE
 
-GATE = """\
-kind: maneuver
-version: 1
-name: one_gate
-description: a gate 2 m east of a line heading north, at 2 m/s
-start: {position_m: [0.0, 0.0, -3.0], heading_deg: 0}
-segments:
-  - name: run_up
-    line: {length_m: 3.0}
-  - name: gate
-    waypoints: {points_m: [[4.0, 2.0, 0.0], [8.0, 0.0, 0.0]]}
-  - name: run_out
-    line: {length_m: 3.0}
-speed:
-  initial_m_s: 0.5
-  changes:
-    - {segment: run_up, offset_m: 0.0, length_m: 2.5, to_m_s: 2.0}
-    - {segment: run_out, offset_m: 0.0, length_m: 2.5, to_m_s: 0.5}
-yaw: {mode: tangent}
-"""
 RATE_HZ = 250.0
 OFFSET_M = (0.3, 0.3, 0.3)
 

@@ -5,20 +5,8 @@ from hypothesis import given, settings, strategies as st
 from pymavlink.dialects.v20 import common as mavlink2
 
 from mavreg.daemon.state import StateAssembler
-from mavreg.model.rotation import rpy_to_matrix, rpy_to_quat
-from tests.helpers.supervisor_harness import wire
-
-
-def att_q(t, rpy=(0.0, 0.0, 0.0), rates=(0.0, 0.0, 0.0)):
-    return wire(mavlink2.MAVLink_attitude_quaternion_message(t, *rpy_to_quat(*rpy), *rates))
-
-
-def att_e(t, rpy=(0.0, 0.0, 0.0), rates=(0.0, 0.0, 0.0)):
-    return wire(mavlink2.MAVLink_attitude_message(t, *rpy, *rates))
-
-
-def pos(t, p=(0.0, 0.0, 0.0), v=(0.0, 0.0, 0.0)):
-    return wire(mavlink2.MAVLink_local_position_ned_message(t, *p, *v))
+from mavreg.model.rotation import rpy_to_matrix
+from tests.helpers.supervisor_harness import att_e, att_q, pos
 
 
 def test_complete_only_with_equal_time():

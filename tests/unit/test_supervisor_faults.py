@@ -2,7 +2,7 @@
 import numpy as np
 
 from mavreg.daemon.supervisor import Phase
-from test_state import att_q, pos
+from tests.helpers.supervisor_harness import att_q, pos
 from tests.helpers.supervisor_harness import FakePlan, FakeRegulator, SimVehicle, make_supervisor, run, wire
 from pymavlink.dialects.v20 import common as mavlink2
 

@@ -13,7 +13,7 @@ import numpy as np
 
 from mavreg.config.paths import DEFAULT_VEHICLE, REAL_CONTROLLER
 
-from sitl_helpers import BARREL, load_record, mavreg, start_emulator
+from tests.helpers.sitl import BARREL, load_record, mavreg, start_emulator
 
 NEAR = Path(__file__).resolve().parent / "barrel_roll_near.yaml"
 REAL_CONTROLLER = REAL_CONTROLLER
@@ -97,7 +97,7 @@ def fly_through_proxy(tmp: Path, faults: str, maneuver: Path = NEAR) -> dict:
     """A real-time flight through the UDP proxy (``python -m mavreg.tools.faultlink``, wall
     clock): firmware_sim in real time <- proxy <- ``mavreg fly``; the proxy's counters too."""
     import sys
-    from sitl_helpers import Proc
+    from tests.helpers.sitl import Proc
     record = tmp / "groundtruth.npz"
     t0 = time.monotonic()
     emu, url = start_emulator(record)

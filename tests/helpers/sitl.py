@@ -139,3 +139,10 @@ def vehicle_samples(tlog: Path) -> np.ndarray:
     while (m := conn.recv_match(type="LOCAL_POSITION_NED")) is not None:
         rows.append((m._timestamp, m.time_boot_ms / 1000.0))
     return np.array(rows)
+
+
+RECORD_FIELDS = ("result", "reason", "first_bound", "bound_phase", "action", "maneuver_max_error_m",
+                 "loop_max_error_m", "max_attitude_error_deg", "overspeed_m_s", "lowest_altitude_m",
+                 "max_touchdown_speed_m_s", "ground_impact", "motors_stopped_in_air", "motors_stopped_event_t_s",
+                 "flight_time_s", "safety", "cause", "seed", "emulator_args")
+"""The fields of every flight record of ``mavreg experiment robustness`` (results.json)."""

@@ -1,0 +1,103 @@
+"""The tests keep the rules of tests/README.md ("Writing a test"), checked on the source:
+
+- code the tests share lives in ``tests/helpers/`` (imported as ``tests.helpers.<module>``);
+  every other file under ``tests/`` is a test module, a ``conftest.py`` or data;
+- no module imports a test module for its functions (a helper is imported instead);
+- no fixed sleep stands for synchronization: a literal ``sleep(...)`` outside a loop waits
+  for a time instead of a condition (:mod:`tests.helpers.waiting`). Sleeps inside a loop
+  (polling, pacing) and sleeps of a named duration (a fault's timing or length) are allowed.
+
+The negative controls run the same checks on generated sources.
+"""
+from __future__ import annotations
+
+import ast
+
+from tests.helpers.repo import ROOT
+
+SHARED = ("tests/helpers/", "tests/data/")
+
+
+def misplaced(relpaths: list[str]) -> list[str]:
+    """The Python files under tests/ that are neither a test module, a conftest nor shared."""
+    bad = []
+    for rel in relpaths:
+        name = rel.rsplit("/", 1)[-1]
+        if rel.startswith(SHARED) or name in ("conftest.py", "__init__.py") or name.startswith("test_"):
+            continue
+        bad.append(rel)
+    return bad
+
+
+def imports_of_test_modules(source: str, name: str) -> list[str]:
+    """Imports of a test module (``test_x``, ``tests.unit.test_x``, ``tests.sitl...``) in ``source``."""
+    found = []
+    for node in ast.walk(ast.parse(source, name)):
+        mods = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+        for mod in mods:
+            parts = mod.split(".")
+            if any(p.startswith("test_") for p in parts) or mod.startswith(("tests.unit", "tests.sitl",
+                                                                            "tests.firmware_sim")):
+                found.append(f"{name}:{node.lineno}: imports {mod}")
+    return found
+
+
+def fixed_sleeps(source: str, name: str) -> list[str]:
+    """``sleep(<literal>)`` calls outside any loop of their function, in ``source``."""
+    tree = ast.parse(source, name)
+    parent = {c: n for n in ast.walk(tree) for c in ast.iter_child_nodes(n)}
+    found = []
+    for node in ast.walk(tree):
+        if not (isinstance(node, ast.Call) and isinstance(node.func, (ast.Attribute, ast.Name))
+                and getattr(node.func, "attr", getattr(node.func, "id", "")) == "sleep"
+                and node.args and isinstance(node.args[0], ast.Constant)):
+            continue
+        up, in_loop = node, False
+        while up in parent and not in_loop:
+            up = parent[up]
+            if isinstance(up, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)):
+                break
+            in_loop = isinstance(up, (ast.While, ast.For, ast.AsyncFor))
+        if not in_loop:
+            found.append(f"{name}:{node.lineno}: {ast.unparse(node)}")
+    return found
+
+
+def _sources(*folders: str):
+    for folder in folders:
+        for path in sorted((ROOT / folder).rglob("*.py")):
+            yield path.relative_to(ROOT).as_posix(), path.read_text()
+
+
+def test_shared_code_lives_in_tests_helpers():
+    rels = [p.relative_to(ROOT).as_posix() for p in sorted((ROOT / "tests").rglob("*.py"))]
+    assert misplaced(rels) == []
+
+
+def test_no_module_imports_a_test_module():
+    found = [f for rel, src in _sources("tests", "benchmarks", "scripts", "fuzz", "mavreg", "firmware_sim")
+             for f in imports_of_test_modules(src, rel)]
+    assert found == []
+
+
+def test_no_test_waits_a_fixed_time_for_something_to_happen():
+    found = [f for rel, src in _sources("tests") for f in fixed_sleeps(src, rel)]
+    assert found == []
+
+
+def test_the_checks_see_what_they_forbid():
+    assert misplaced(["tests/sitl/sitl_helpers.py", "tests/unit/test_x.py", "tests/helpers/x.py",
+                      "tests/sitl/conftest.py", "tests/data/hostile/generate.py"]) == ["tests/sitl/sitl_helpers.py"]
+    src = "from test_state import pos\nimport tests.unit.test_plots\nfrom tests.helpers.sitl import Proc\n"
+    assert [f.split(": ")[1] for f in imports_of_test_modules(src, "m.py")] == ["imports test_state",
+                                                                              "imports tests.unit.test_plots"]
+    src = ("import time, asyncio\n"
+           "def f(ready, dur_s):\n"
+           "    time.sleep(0.2)\n"                 # a fixed wait: found
+           "    while not ready():\n"
+           "        time.sleep(0.05)\n"            # polling: allowed
+           "    time.sleep(dur_s)\n"               # a named duration: allowed
+           "async def g():\n"
+           "    await asyncio.sleep(1)\n")         # found
+    assert [f.split(": ")[0] for f in fixed_sleeps(src, "m.py")] == ["m.py:3", "m.py:8"]
