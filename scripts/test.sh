@@ -14,6 +14,7 @@ source scripts/venv.sh
 ensure_venv '.[test,gcs]'
 export PATH="$PWD/.venv/bin:$PATH"
 PYTEST=(.venv/bin/python -m pytest -q -p no:cacheprovider)
+DURATIONS=(--durations=15)   # the slowest tests, in every log: what the suite's time goes to
 if [ "$#" -gt 0 ]; then
     exec "${PYTEST[@]}" "$@"
 fi
@@ -22,6 +23,6 @@ fi
 .venv/bin/ruff check --quiet .
 .venv/bin/lint-imports --no-cache > /dev/null || { .venv/bin/lint-imports --no-cache; exit 1; }
 status=0
-"${PYTEST[@]}" -n 2 tests/unit || status=$?
-"${PYTEST[@]}" tests/firmware_sim tests/sitl || status=$?
+"${PYTEST[@]}" "${DURATIONS[@]}" -n 2 tests/unit || status=$?
+"${PYTEST[@]}" "${DURATIONS[@]}" tests/firmware_sim tests/sitl || status=$?
 exit "$status"
