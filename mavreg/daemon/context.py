@@ -15,6 +15,7 @@ daemon (link health, the forced-disarm retries).
 from __future__ import annotations
 
 import collections
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Callable
@@ -38,7 +39,11 @@ from .records import Outcome
 from .state import StateAssembler, StateSample
 from .timesync import TimesyncEstimator
 
-__all__ = ["FlightContext", "FlightParts"]
+__all__ = ["BOOT_KEYED", "FlightContext", "FlightParts"]
+
+BOOT_KEYED_BESIDES_THE_CLOCK = ("vehicle_status", "landed_state", "last_sample", "last_sample_wall_s", "forecast",
+                                "arm_requested", "ground_end_wall_s")
+"""What the vehicle said or was asked in its last boot, beside its clock's fields."""
 
 
 @dataclass
@@ -119,10 +124,25 @@ class FlightContext:
     """Every safety action taken, in order (the outcome's ``action``)."""
     statustext_id: int = 0
 
+    def forget_boot(self) -> None:
+        """Set every field keyed to the vehicle's last boot back to its default: each
+        ``*_vehicle_s`` (its clock started again) and :data:`BOOT_KEYED` (its status, samples
+        and the requests it was sent). Used when it rebooted on the ground
+        (:mod:`mavreg.daemon.reboot`); a field added later on the vehicle's clock is covered
+        by its name."""
+        for f in dataclasses.fields(self):
+            if f.name in BOOT_KEYED:
+                setattr(self, f.name, f.default_factory() if f.default is dataclasses.MISSING else f.default)
+
     @property
     def vehicle_now_s(self) -> float:
         """The vehicle's time of the last sample (NaN before the first)."""
         return self.last_sample.time_s if self.last_sample is not None else math.nan
+
+
+BOOT_KEYED = frozenset(f.name for f in dataclasses.fields(FlightContext)
+                       if f.name.endswith("_vehicle_s") or f.name in BOOT_KEYED_BESIDES_THE_CLOCK)
+"""The fields :meth:`FlightContext.forget_boot` resets."""
 
 
 @dataclass(frozen=True)

@@ -129,14 +129,4 @@ def _rebuild(flight) -> None:
     parts.timesync.restart()
     parts.forecaster.reset()
     parts.autopilot.restart()
-    ctx.vehicle_status = None            # its next HEARTBEAT: a reboot disarms
-    ctx.landed_state = None
-    ctx.last_sample = None
-    ctx.last_sample_wall_s = None
-    ctx.forecast = None
-    ctx.stream_start_vehicle_s = None
-    ctx.last_command_vehicle_s = -math.inf
-    ctx.phase_start_vehicle_s = 0.0
-    ctx.ramp_start_vehicle_s = 0.0
-    ctx.arm_requested = False
-    ctx.ground_end_wall_s = None
+    ctx.forget_boot()                    # its next HEARTBEAT gives its status: a reboot disarms

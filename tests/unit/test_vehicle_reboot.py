@@ -153,3 +153,23 @@ def test_a_quick_reboot_in_the_air_seen_by_its_clock_first_is_a_loss():
     assert f.action == "command stream stopped (vehicle failsafe)"
     assert not _motor_stops(sent)
     assert not [t for t, m in sent if m.get_type() == "SET_ACTUATOR_CONTROL_TARGET" and t >= 8000]
+
+
+def test_forgetting_the_boot_resets_every_field_on_the_vehicles_clock_and_keeps_the_rest():
+    """Every ``*_vehicle_s`` field of the context, and what the vehicle said in its last boot,
+    go back to a fresh context's values; the flight's own state (its queue, its outcome) stays."""
+    import dataclasses
+    import math
+
+    from mavreg.daemon.context import BOOT_KEYED, FlightContext
+    fresh, ctx = FlightContext(), FlightContext()
+    names = [f.name for f in dataclasses.fields(ctx)]
+    on_clock = {n for n in names if n.endswith("_vehicle_s")}
+    assert on_clock and on_clock <= BOOT_KEYED and {"vehicle_status", "last_sample"} <= BOOT_KEYED
+    for n in names:
+        setattr(ctx, n, 12.5 if n.endswith("_s") else "set")
+    ctx.forget_boot()
+    for n in names:
+        want = getattr(fresh, n) if n in BOOT_KEYED else (12.5 if n.endswith("_s") else "set")
+        got = getattr(ctx, n)
+        assert got == want or (isinstance(want, float) and math.isnan(want) and math.isnan(got)), n
