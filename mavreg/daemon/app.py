@@ -193,7 +193,7 @@ class Daemon(FlightSequence):
             if self.notifier is not None and self.notifier.watchdog_s is not None and now >= self._watchdog_due_s:
                 self.notifier.watchdog()        # fed by the loop: a loop stalled longer goes unfed
                 self._watchdog_due_s = now + self.notifier.watchdog_s
-            if self.link is not None and (line := self.link.peer.silence_notice(self.clock_s())) is not None:
+            if self.link is not None and (line := self.link.peer.notice(self.clock_s())) is not None:
                 self.log(f"link: {line}")
 
     def _watch_preflight(self) -> None:

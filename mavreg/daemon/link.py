@@ -21,9 +21,9 @@ Both
 - take a frame only if :class:`mavreg.daemon.peers.PeerFilter` does: the vehicle's
   system/component id (the system id pinned, or on ``udpin:`` taken from its first
   autopilot HEARTBEAT), from the vehicle's address (fixed for ``udpout:HOST:PORT``,
-  learned from the vehicle's first HEARTBEAT for ``udpin:HOST:PORT``), and, with a
-  signing key (:mod:`mavreg.transport.signing`), validly signed and not replayed; everything
-  else is dropped and counted, and neither logged nor handed on;
+  learned from the vehicle's first HEARTBEAT for ``udpin:HOST:PORT``, moved by it after a silence),
+  and, with a signing key (:mod:`mavreg.transport.signing`), validly signed and not replayed;
+  everything else is dropped and counted, and neither logged nor handed on;
 - sign every frame they send when signing is on;
 - pack outgoing messages with the vehicle's system id and component id 191
   (MAV_COMP_ID_ONBOARD_COMPUTER); nothing is sent before the vehicle is heard on ``udpin:``,
@@ -76,6 +76,7 @@ class LinkCounters:
     setup_signing: int = 0
     """With signing on: frames dropped as unsigned, wrongly signed, replayed; and
     SETUP_SIGNING frames, always dropped."""
+    vehicle_moved: int = 0      # udpin: times the vehicle's address moved (a restarted autopilot: .peers)
     garbage_bytes: int = 0
     """A serial or TCP link: bytes that were no part of a valid frame (:mod:`mavreg.transport.framing`;
     each broken frame also counts once under ``bad_data``)."""
@@ -139,7 +140,7 @@ class MavlinkLink(asyncio.DatagramProtocol):
     def datagram_received(self, data: bytes, addr) -> None:
         t_ns = time.perf_counter_ns()
         self.counters.datagrams_in += 1
-        if self.vehicle_addr is not None and addr[:2] != self.vehicle_addr:
+        if self.vehicle_addr is not None and addr[:2] != self.vehicle_addr and not self.peer.may_move(t_ns * 1e-9):
             self.counters.foreign_address += 1
             return
         try:
@@ -151,7 +152,7 @@ class MavlinkLink(asyncio.DatagramProtocol):
             if msg.get_type() == "BAD_DATA":
                 self.counters.bad_data += 1
                 continue
-            reason = self.peer.admit(msg.get_msgbuf(), addr)
+            reason = self.peer.admit(msg.get_msgbuf(), addr, t_ns * 1e-9)
             if reason is not None:
                 self.counters.__dict__[reason] += 1
                 continue
@@ -163,6 +164,8 @@ class MavlinkLink(asyncio.DatagramProtocol):
                 self.system_id = self.peer.vehicle.system_id
                 self.mav.srcSystem = self.system_id
                 self.connected.set()
+            elif self.peer.moves != self.counters.vehicle_moved:     # the vehicle's address moved
+                self.vehicle_addr, self.counters.vehicle_moved = self.peer.addr, self.peer.moves
             self.on_message(msg, t_ns)
 
     def error_received(self, exc) -> None:
@@ -265,9 +268,9 @@ class FastLink:
         a datagram holding two state bundles (released together by a jittery link) gets the
         second one's latency counted from when the daemon turns to it, as the reference
         path, which reads one message per datagram, counts it."""
-        c = self.counters
+        c, now_s = self.counters, time.perf_counter_ns() * 1e-9
         c.datagrams_in += 1
-        if self.vehicle_addr is not None and addr[:2] != self.vehicle_addr:
+        if self.vehicle_addr is not None and addr[:2] != self.vehicle_addr and not self.peer.may_move(now_s):
             c.foreign_address += 1
             return
         try:
@@ -281,7 +284,7 @@ class FastLink:
             # each frame is logged just before it is handled: the command answering a sample
             # follows that sample in the .tlog (mavreg identify pairs them so)
             if type(msg) is bytes:           # a frame the daemon has no use for: logged only
-                if (reason := admit(msg, addr)) is not None:
+                if (reason := admit(msg, addr, now_s)) is not None:
                     c.__dict__[reason] += 1
                     continue
                 c.messages_in += 1
@@ -292,7 +295,7 @@ class FastLink:
             if msg._type == "BAD_DATA":
                 c.bad_data += 1
                 continue
-            if (reason := admit(msg._msgbuf, addr)) is not None:
+            if (reason := admit(msg._msgbuf, addr, now_s)) is not None:
                 c.__dict__[reason] += 1
                 continue
             c.messages_in += 1
@@ -306,6 +309,8 @@ class FastLink:
                 self.system_id = self.peer.vehicle.system_id
                 self.wire.identify(self.system_id)
                 self.connected.set()
+            elif self.peer.moves != c.vehicle_moved:     # the vehicle's address moved (.peers)
+                self.vehicle_addr, c.vehicle_moved = self.peer.addr, self.peer.moves
             self.on_message(msg, time.perf_counter_ns())
 
     def send(self, msg) -> bool:

@@ -21,7 +21,12 @@ In order, each received frame is dropped, and counted by the link under the reas
 4. it comes from another address than the vehicle's (``foreign_address``). For
    ``udpout:`` the address is the URL's; for ``udpin:`` it is learned from the vehicle's
    first HEARTBEAT that passed 1-3 (authenticated, with signing on) and kept; before that
-   nothing but that HEARTBEAT is taken.
+   nothing but that HEARTBEAT is taken. It **moves** only when the vehicle's address has
+   been silent for :data:`MOVE_AFTER_S` and an autopilot HEARTBEAT of the vehicle's ids
+   (passing 1-3) comes from another one: an autopilot that restarted may send from a new
+   UDP port (ArduCopter's SITL does: its reboot opens its sockets again), and nothing else
+   it says would ever be taken. While the vehicle talks from its address, nobody else's
+   HEARTBEAT moves it; each move is one line (:meth:`PeerFilter.notice`).
 """
 from __future__ import annotations
 
@@ -30,7 +35,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from .vehicle_url import learns_system_id
 
 __all__ = ["PeerFilter", "VehicleIds", "HeardSystems", "DROP_REASONS", "frame_ids", "heartbeat_fields",
-           "check_system_id", "system_id_to_use", "VEHICLE_COMPONENT_ID", "SILENCE_NOTICE_S"]
+           "check_system_id", "system_id_to_use", "VEHICLE_COMPONENT_ID", "SILENCE_NOTICE_S", "MOVE_AFTER_S"]
 
 DROP_REASONS = ("setup_signing", "unsigned", "bad_signature", "replayed", "foreign_system", "foreign_address")
 VEHICLE_COMPONENT_ID = mavlink2.MAV_COMP_ID_AUTOPILOT1
@@ -38,6 +43,11 @@ VEHICLE_COMPONENT_ID = mavlink2.MAV_COMP_ID_AUTOPILOT1
 SILENCE_NOTICE_S = 2.0
 """Seconds (injected clock) of other systems' frames, and none of the vehicle's, before the
 line that says so."""
+MOVE_AFTER_S = 2.0
+"""Seconds (injected clock) without a frame taken from the vehicle's learned address before
+its autopilot HEARTBEAT from another address moves it there: two missed 1 Hz HEARTBEATs and
+hundreds of missed samples, a vehicle gone from its address (the link checks judge that
+silence in the air long before)."""
 _HEARTBEAT = mavlink2.MAVLINK_MSG_ID_HEARTBEAT
 _SETUP_SIGNING = mavlink2.MAVLINK_MSG_ID_SETUP_SIGNING
 _NOT_VEHICLES = frozenset((mavlink2.MAV_TYPE_GCS, mavlink2.MAV_TYPE_ONBOARD_CONTROLLER))
@@ -167,6 +177,12 @@ class PeerFilter:
     def __init__(self, system_id: int | None, component_id: int, vehicle_addr=None, signing=None):
         self.vehicle = VehicleIds(system_id, component_id)
         self.addr = None if vehicle_addr is None else tuple(vehicle_addr)
+        self.learned = vehicle_addr is None
+        """The address is learned (``udpin:``), so it may move; a given one never does."""
+        self.moves = 0
+        """Times the vehicle's address moved."""
+        self._last_taken_s: float | None = None
+        self._move_line: str | None = None
         self.signing = signing
         self.heard = HeardSystems()
         self.vehicle_heard = False
@@ -179,8 +195,16 @@ class PeerFilter:
         """``(system id, component id)`` of the vehicle (system id None: not known yet)."""
         return self.vehicle.system_id, self.vehicle.component_id
 
-    def admit(self, frame, addr) -> str | None:
-        """``None`` to take the frame (one whole frame, received from ``addr``), else why not."""
+    def may_move(self, now_s: float | None) -> bool:
+        """Whether a frame from another address than the vehicle's could move it (``now_s``:
+        the injected clock; None: never): a learned address silent for :data:`MOVE_AFTER_S`."""
+        last = self._last_taken_s
+        return (self.learned and self.addr is not None and now_s is not None and last is not None
+                and now_s - last >= MOVE_AFTER_S)
+
+    def admit(self, frame, addr, now_s: float | None = None) -> str | None:
+        """``None`` to take the frame (one whole frame, received from ``addr`` at the injected
+        clock ``now_s``; None: the address never moves), else why not."""
         sysid, compid, msgid = frame_ids(frame)
         if msgid == _SETUP_SIGNING:
             return "setup_signing"
@@ -199,9 +223,24 @@ class PeerFilter:
                 return "foreign_address"
             self.addr = tuple(addr[:2])
         elif tuple(addr[:2]) != self.addr:
-            return "foreign_address"
+            if (hb is None or hb[0] in _NOT_VEHICLES or hb[1] == mavlink2.MAV_AUTOPILOT_INVALID
+                    or not self.may_move(now_s)):
+                return "foreign_address"
+            self._move_line = (f"the vehicle's HEARTBEAT now comes from {addr[0]}:{addr[1]}, its address "
+                               f"{self.addr[0]}:{self.addr[1]} silent for {now_s - self._last_taken_s:.1f} s "
+                               "(an autopilot that restarted): taken from there")
+            self.addr = tuple(addr[:2])
+            self.moves += 1
         self.vehicle_heard = True
+        if now_s is not None:
+            self._last_taken_s = now_s
         return None
+
+    def notice(self, now_s: float, flag: str = "--vehicle-system-id") -> str | None:
+        """A line to log, or None (call it periodically): a move of the vehicle's address
+        once, else :meth:`silence_notice`."""
+        line, self._move_line = self._move_line, None
+        return line if line is not None else self.silence_notice(now_s, flag)
 
     def silence_notice(self, now_s: float, flag: str = "--vehicle-system-id") -> str | None:
         """Once, a line saying that only other systems are heard, ``SILENCE_NOTICE_S`` after

@@ -24,7 +24,7 @@ from .ardupilot_mocap import HOME, ned_m
 from .ardupilot_sitl import M, ArduPilotSitl
 from .sitl_link import fly_into_the_maneuver
 
-__all__ = ["fly_on_ardupilot", "kill_and_restart_on_ardupilot", "true_errors_from_tlog", "PILOT_PARAMS", "VEHICLE", "CONTROLLER", "CONTROLLERS"]
+__all__ = ["fly_on_ardupilot", "kill_and_restart_on_ardupilot", "sim_touchdowns", "true_errors_from_tlog", "vehicle_args", "PILOT_PARAMS", "VEHICLE", "CONTROLLER", "CONTROLLERS"]
 
 REPO = Path(__file__).resolve().parents[2]
 VEHICLE = REPO / "mavreg" / "params" / "vehicles" / "ardupilot_freestyle.yaml"
@@ -69,8 +69,14 @@ def fly_on_ardupilot(maneuver: Path, out: Path, control_rate_hz: float = 200.0, 
 
 def _fly_cmd(port: int, maneuver: Path, out: Path, controller: Path, *extra: str) -> list[str]:
     """``mavreg fly`` on the SITL's link (``udpin:`` on ``port``) with the freestyle vehicle file."""
-    return [sys.executable, "-m", "mavreg.cli.main", "fly", str(maneuver), "--vehicle", f"udpin:127.0.0.1:{port}",
-            "--vehicle-params", str(VEHICLE), "--controller", str(controller), "--out", str(out), *extra]
+    return [sys.executable, "-m", "mavreg.cli.main", "fly", str(maneuver), *vehicle_args(port, controller),
+            "--out", str(out), *extra]
+
+
+def vehicle_args(port: int, controller: Path = CONTROLLER) -> list[str]:
+    """The SITL's link (``udpin:`` on ``port``) and the freestyle vehicle and controller files, as
+    ``mavreg fly`` and ``mavreg serve`` take them."""
+    return ["--vehicle", f"udpin:127.0.0.1:{port}", "--vehicle-params", str(VEHICLE), "--controller", str(controller)]
 
 
 def kill_and_restart_on_ardupilot(maneuver: Path, out: Path, after_s: float = 2.0, restart_after_s: float = 3.0,
@@ -108,17 +114,21 @@ def kill_and_restart_on_ardupilot(maneuver: Path, out: Path, after_s: float = 2.
 
 def _sim_touchdowns(tlogs: list[Path]) -> list[tuple[float, float]]:
     """(tlog time s, speed m/s) of each ground contact after a lift-off in the SITL's truth
-    (``SIM_STATE`` in the daemons' tlogs, in order): the ground is the first one's first
-    altitude (within 5 cm)."""
+    (``SIM_STATE`` in the daemons' tlogs, in order): :func:`sim_touchdowns`."""
     from pymavlink import mavutil
-
-    from mavreg.experiments.robustness_metrics import touchdowns
     rows = []
     for tlog in tlogs:
         log = mavutil.mavlink_connection(str(tlog)) if Path(tlog).exists() else None
         while log is not None and (m := log.recv_match(type="SIM_STATE")) is not None:
             rows.append((m._timestamp, m.alt, m.vn, m.ve, m.vd))
-    if not rows:
+    return sim_touchdowns(rows)
+
+
+def sim_touchdowns(rows) -> list[tuple[float, float]]:
+    """(time s, speed m/s) of each ground contact after a lift-off in SIM_STATE rows (time s,
+    altitude m, vn, ve, vd m/s), in order: the ground is the first row's altitude (within 5 cm)."""
+    from mavreg.experiments.robustness_metrics import touchdowns
+    if not len(rows):
         return []
     a = np.array(rows, dtype=float)
     on_ground = a[:, 1] <= a[0, 1] + 0.05

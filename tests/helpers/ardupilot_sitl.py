@@ -22,6 +22,7 @@ import shutil
 import socket
 import subprocess
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -32,7 +33,7 @@ from .processes import alive as _alive
 from .processes import terminate as _terminate
 from .sitl_link import M, SitlError, SitlExitedEarly, SitlLink, autopilot_dir, mavutil
 
-__all__ = ["ardupilot_dir", "ArduPilotSitl", "SitlError", "require_ardupilot", "arducopter_sitl_fixture",
+__all__ = ["ardupilot_dir", "ArduPilotSitl", "GroundLink", "SitlError", "require_ardupilot", "arducopter_sitl_fixture",
            "TEST_PARAMS", "POSITION_SOURCES", "HOME"]
 
 ENV_VAR = "MAVREG_ARDUPILOT_DIR"
@@ -119,15 +120,24 @@ class ArduPilotSitl(SitlLink):
         ``gps`` (start.sh as it is), ``vicon`` or ``mocap``: the binary started as start.sh
         starts it, with :data:`EXTRA_DEFAULTS` after the frame's defaults, and the simulated Vicon
         on SERIAL5 (``vicon``) or the motion-capture feed on SERIAL1 (``mocap``).
+    ground_link : bool
+        Listen on SERIAL1 (start.sh's ``MAVLINK2``) as a second ground station,
+        :attr:`ground` (:class:`GroundLink`), from before the start: the link that stays the
+        test's once the first is handed to mavreg (not with ``mocap``, whose feed is SERIAL1).
     """
 
     name = "ArduCopter SITL"
 
     def __init__(self, frame: str = "freestyle", params: dict | None = None,
                  rates_hz: dict | None = None, wait_ready: bool = True, timeout_s: float = 90.0,
-                 directory: Path | None = None, position_source: str = "gps"):
+                 directory: Path | None = None, position_source: str = "gps", ground_link: bool = False):
         if position_source not in POSITION_SOURCES:
             raise ValueError(f"position_source must be one of {POSITION_SOURCES}, not {position_source!r}")
+        if ground_link and position_source == "mocap":
+            raise ValueError("ground_link needs SERIAL1, which the mocap feed takes")
+        self.ground_link = ground_link
+        self.ground: GroundLink | None = None
+        """The second ground station on SERIAL1 (``ground_link``), from :meth:`start` to :meth:`stop`."""
         self.position_source = position_source
         self._proc: subprocess.Popen | None = None
         self.feed: MocapFeed | None = None
@@ -154,6 +164,8 @@ class ArduPilotSitl(SitlLink):
         self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{self.port}", source_system=255,
                                                source_component=190, dialect="ardupilotmega")
         self.t0 = time.monotonic()
+        if self.ground_link:
+            self.ground = GroundLink(self, free_udp_port())
         for attempt in range(1, START_ATTEMPTS + 1):
             try:
                 hb = self._launch()
@@ -165,6 +177,9 @@ class ArduPilotSitl(SitlLink):
         self.sysid, self.compid = hb.get_srcSystem(), hb.get_srcComponent()
         self.conn.target_system, self.conn.target_component = self.sysid, self.compid
         self.recv(0.0)                   # our first HEARTBEAT: ArduPilot sends STATUSTEXT only to active links
+        if self.ground is not None:      # it answers where the SITL's first frame came from
+            self.ground.wait_for(lambda m: m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1,
+                                 self.timeout_s, "first HEARTBEAT on SERIAL1")
         self.set_rate(M.MAVLINK_MSG_ID_SYS_STATUS, 2.0)      # not streamed by default
         for name, value in self.params.items():
             self.set_param(name, value)
@@ -187,7 +202,7 @@ class ArduPilotSitl(SitlLink):
         if self.workdir is not None:
             self.workdir.cleanup()
         self.workdir = tempfile.TemporaryDirectory(prefix="mavreg-ardupilot-")
-        port2 = free_udp_port()
+        port2 = self.ground.port if self.ground is not None else free_udp_port()
         env = dict(os.environ, FRAME=self.frame, MAVLINK=f"udpclient:127.0.0.1:{self.port}",
                    MAVLINK2=f"udpclient:127.0.0.1:{port2}", WORKDIR=self.workdir.name,
                    INSTANCE=str(free_instance()))
@@ -242,6 +257,9 @@ class ArduPilotSitl(SitlLink):
         if self.feed is not None:
             self.feed.stop()
             self.feed = None
+        if self.ground is not None:
+            self.ground.close()
+            self.ground = None
         if self.conn is not None:
             self.conn.close()
             self.conn = None
@@ -270,3 +288,77 @@ class ArduPilotSitl(SitlLink):
             return "(none)"
         return " | ".join(text.strip().splitlines()[-lines:]) or "(none)"
 
+
+
+class GroundLink(SitlLink):
+    """A second ground station on the SITL's SERIAL1 (:class:`ArduPilotSitl` with ``ground_link``).
+
+    The SITL's first link is mavreg's once handed over; on this one a test speaks to the
+    autopilot as a pilot's ground station would (commands, parameters, message rates: the
+    :class:`SitlLink` methods) and keeps the SITL's true state: every ``SIM_STATE`` its
+    :meth:`recv` sees is kept in :attr:`sim_state` as (wall s, altitude m, vn, ve, vd m/s).
+    :meth:`pump` reads on in a thread between the test's own exchanges, which hold
+    :attr:`lock`. A reboot keeps the link: the SITL sends to the same port again.
+    """
+
+    name = "ArduCopter SITL (SERIAL1)"
+
+    def __init__(self, sitl: ArduPilotSitl, port: int):
+        self._init_link()
+        self.sitl = sitl
+        self.port = port
+        self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=255,
+                                               source_component=190, dialect="ardupilotmega")
+        self.t0 = time.monotonic()
+        self.sim_state: list[tuple[float, float, float, float, float]] = []
+        self.lock = threading.RLock()
+        self._pumping: threading.Thread | None = None
+        self._stop = threading.Event()
+
+    def recv(self, timeout_s: float = 0.1):
+        with self.lock:
+            m = super().recv(timeout_s)
+        if m is not None and m.get_type() == "SIM_STATE":
+            self.sim_state.append((time.monotonic(), m.alt, m.vn, m.ve, m.vd))
+        return m
+
+    def command_long(self, command: int, *params: float, timeout_s: float = 3.0):
+        with self.lock:                  # the pump must not take the answer
+            return super().command_long(command, *params, timeout_s=timeout_s)
+
+    def get_param(self, name: str, timeout_s: float = 3.0) -> float:
+        with self.lock:
+            return super().get_param(name, timeout_s)
+
+    def set_param(self, name: str, value: float, timeout_s: float = 3.0) -> None:
+        with self.lock:
+            super().set_param(name, value, timeout_s)
+
+    def pump(self) -> None:
+        """Read on in a daemon thread (until :meth:`close`), so that no SIM_STATE is missed and
+        the ground station's HEARTBEAT keeps going."""
+        def run():
+            while not self._stop.is_set():
+                with self.lock:
+                    if self.conn is None:
+                        return
+                    self.recv(0.05)
+        if self._pumping is None:
+            self._pumping = threading.Thread(target=run, name="ground-link", daemon=True)
+            self._pumping.start()
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._pumping is not None:
+            self._pumping.join(5)
+            self._pumping = None
+        with self.lock:
+            if self.conn is not None:
+                self.conn.close()
+                self.conn = None
+
+    def _check_alive(self, what: str) -> None:
+        self.sitl._check_alive(what)
+
+    def output_tail(self, lines: int = 3) -> str:
+        return self.sitl.output_tail(lines)

@@ -7,7 +7,7 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
 from mavreg.transport import signing as sg
-from mavreg.daemon.peers import (SILENCE_NOTICE_S, PeerFilter, VehicleIds, check_system_id, heartbeat_fields,
+from mavreg.daemon.peers import (MOVE_AFTER_S, SILENCE_NOTICE_S, PeerFilter, VehicleIds, check_system_id, heartbeat_fields,
                                  system_id_to_use)
 from mavreg.daemon.phases import Phase
 from mavreg.transport.wire import Wire
@@ -195,3 +195,67 @@ def test_udpout_needs_a_system_id():
     from mavreg.daemon.link import open_link
     with pytest.raises(ValueError, match="on udpout the vehicle's system id must be given"):
         asyncio.run(open_link("udpout:127.0.0.1:14540", None, 1, lambda m, t: None, None))
+
+
+MOVED_ADDR = ("127.0.0.1", 40123)
+"""Where a rebooted autopilot sends from (ArduCopter's SITL opens its UDP sockets again)."""
+
+
+def test_a_learned_address_moves_with_the_vehicles_heartbeat_only_after_a_silence():
+    f = PeerFilter(None, 1)
+    assert f.admit(frame(hb(M.MAV_TYPE_QUADROTOR, M.MAV_AUTOPILOT_ARDUPILOTMEGA), 1), VEHICLE_ADDR, 10.0) is None
+    assert f.admit(frame(quat(), 1), VEHICLE_ADDR, 10.5) is None
+    # while the vehicle talks from its address, its ids elsewhere are another sender's
+    assert not f.may_move(11.0)
+    assert f.admit(frame(hb(), 1), MOVED_ADDR, 11.0) == "foreign_address"
+    assert f.admit(frame(hb(), 1), MOVED_ADDR, 10.5 + 1.9) == "foreign_address" and f.addr == VEHICLE_ADDR
+    assert f.notice(12.4) is None
+    # silent for MOVE_AFTER_S: a state, a ground station's or a companion's HEARTBEAT does not move it
+    t = 10.5 + MOVE_AFTER_S
+    assert f.may_move(t)
+    assert f.admit(frame(quat(), 1), MOVED_ADDR, t) == "foreign_address"
+    assert f.admit(frame(GCS_HB, 1, 1), MOVED_ADDR, t) == "foreign_address"
+    assert f.admit(frame(COMPANION_HB, 1, 1), MOVED_ADDR, t) == "foreign_address"
+    assert f.admit(frame(hb(), 9), MOVED_ADDR, t) == "foreign_system"
+    # its autopilot HEARTBEAT does, once, and the old address is then another sender's
+    assert f.admit(frame(hb(), 1), MOVED_ADDR, t) is None and f.addr == MOVED_ADDR and f.moves == 1
+    assert f.admit(frame(quat(), 1), MOVED_ADDR, t + 0.01) is None
+    assert f.admit(frame(quat(), 1), VEHICLE_ADDR, t + 0.02) == "foreign_address"
+    line = f.notice(t + 0.1)
+    assert "40123" in line and "14580" in line and "silent for 2.0 s" in line and f.notice(t + 0.2) is None
+
+
+def test_a_given_address_never_moves_nor_does_one_without_a_clock():
+    given = PeerFilter(1, 1, VEHICLE_ADDR)
+    assert given.admit(frame(hb(), 1), VEHICLE_ADDR, 0.0) is None
+    assert not given.may_move(100.0) and given.admit(frame(hb(), 1), MOVED_ADDR, 100.0) == "foreign_address"
+    learned = PeerFilter(None, 1)
+    assert learned.admit(frame(hb(), 1), VEHICLE_ADDR) is None          # no clock given: never moves
+    assert learned.admit(frame(hb(), 1), MOVED_ADDR, 100.0) == "foreign_address" and learned.moves == 0
+
+
+@pytest.mark.parametrize("impl", ["fast", "reference"])
+def test_a_udpin_link_follows_a_rebooted_vehicle_to_its_new_port(impl, monkeypatch):
+    """Both links, fed directly with an injected clock: the vehicle heard, silent 2 s, then its
+    HEARTBEAT from a new port: taken, counted, and what the daemon sends goes there."""
+    from mavreg.daemon import link as link_module
+    from mavreg.daemon.link import FastLink, MavlinkLink
+    now = [100.0]
+    monkeypatch.setattr(link_module.time, "perf_counter_ns", lambda: int(now[0] * 1e9))
+    got, sent = [], []
+    if impl == "fast":
+        sock = type("S", (), {"sendto": lambda self, d, a: sent.append(a), "close": lambda self: None})()
+        link = FastLink("udpin", None, None, 1, lambda m, t: got.append(m), None, sock)
+    else:
+        link = MavlinkLink("udpin", None, None, 1, lambda m, t: got.append(m), None)
+        link.transport = type("T", (), {"sendto": lambda self, d, a: sent.append(a),
+                                        "is_closing": lambda self: False, "close": lambda self: None})()
+    link.datagram_received(frame(hb(), 1), VEHICLE_ADDR)
+    now[0] += 1.0
+    link.datagram_received(frame(hb(), 1), MOVED_ADDR)                  # the vehicle still there
+    assert link.counters.foreign_address == 1 and link.vehicle_addr == VEHICLE_ADDR
+    now[0] += MOVE_AFTER_S
+    link.datagram_received(frame(hb(), 1) + frame(quat(), 1), MOVED_ADDR)
+    assert len(got) == 3 and link.vehicle_addr == MOVED_ADDR and link.counters.vehicle_moved == 1
+    assert link.send(hb()) and sent[-1] == MOVED_ADDR
+    link.close()
