@@ -98,16 +98,17 @@ def realtime_flight(io: str, timeout_s: float, out: Path) -> dict:
                       (sup.recovery, "step")):
         _timed(obj, name, ctl_ns)
     lat = collections.defaultdict(list)    # phase -> [(to sendto ns, controller ns, to sendto returned ns)]
-    inner = daemon._on_message
+    inner = daemon._on_read_end
 
-    def on_message(msg, t_recv_ns):
+    def on_read_end():
         n0, c0 = len(daemon.latency_ns), ctl_ns[0]
-        inner(msg, t_recv_ns)
-        if len(daemon.latency_ns) > n0:       # a rotor command answered this message
+        t_recv_ns = daemon._inbox_t_ns       # when the read's first message was taken up
+        inner()
+        if len(daemon.latency_ns) > n0:       # a rotor command answered this read
             full = daemon.latency_ns[-1]
             sent = getattr(daemon.link, "last_send_ns", None)     # None: a link that does not say
             lat[sup.phase].append((full if sent is None else sent - t_recv_ns, ctl_ns[0] - c0, full))
-    daemon._on_message = on_message
+    daemon._on_read_end = on_read_end
     cpu = collections.defaultdict(lambda: [0.0, 0.0])  # phase -> [cpu s, wall s]
 
     async def sample_cpu():

@@ -1,7 +1,7 @@
 """The two receive paths under test, each with the property checks of one input.
 
 - :class:`DaemonTarget`: the daemon's link (:class:`mavreg.daemon.link.FastLink`, or the
-  reference :class:`~mavreg.daemon.link.MavlinkLink`) parsing a datagram and handing each
+  reference :class:`~mavreg.daemon.link_reference.MavlinkLink`) parsing a datagram and handing each
   message to a :class:`mavreg.daemon.supervisor.Supervisor` (state assembly, vehicle status,
   TIMESYNC, acks), as the daemon wires them.
 - :class:`VehicleTarget`: firmware_sim as its command line builds it (ideal world), fed
@@ -57,7 +57,8 @@ class DaemonTarget:
 
     def __init__(self, impl: str = "fast"):
         from mavreg.config.vehicle import load_vehicle
-        from mavreg.daemon.link import FastLink, MavlinkLink
+        from mavreg.daemon.link import FastLink
+        from mavreg.daemon.link_reference import MavlinkLink
         from mavreg.daemon.supervisor import Supervisor, SupervisorParams
         self.sup = Supervisor(load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml"), SupervisorParams(),
                               lambda plan: None)

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import asyncio
 import collections
-import dataclasses
 import math
 import signal
 import time
@@ -25,15 +24,17 @@ from ..progress import Progress, stderr_line
 from .ctrllog import ControlLog
 from .flight_book import FlightBook, NumberedFiles
 from .flight_sequence import FlightSequence
+from .vehicle_io import VehicleIO
 from .daemon_config import DaemonConfig, regulator_factory
 from .daemon_status import latency_summary, status_report
 from .endpoint import EndpointServer, jsonable
 from .gcs_link import GcsLink
-from .link import FastLink, MavlinkLink, open_link
+from .link import FastLink, open_link
+from .link_reference import MavlinkLink
 from .planner_pool import PlannerDied, PlannerPool
 from .sdnotify import Notifier
 from .startup import PreflightWatch, compile_kernels, preflight_wait, warm_daemon_kernels
-from .supervisor import Output, Phase
+from .supervisor import Phase
 from .tlog import TlogWriter
 
 __all__ = ["DaemonConfig", "Daemon", "regulator_factory"]
@@ -42,7 +43,7 @@ TICK_S = 0.02
 HEARTBEAT_S = 1.0
 
 
-class Daemon(FlightSequence):
+class Daemon(FlightSequence, VehicleIO):
     """One vehicle, one supervisor, optional control endpoint.
 
     ``signing`` (a :class:`mavreg.transport.signing.Signing`, or None): sign every frame sent
@@ -103,6 +104,9 @@ class Daemon(FlightSequence):
         """Our HEARTBEAT has answered the vehicle's first message (:meth:`_on_message`)."""
         self._heard = False
         self._last_heartbeat = None
+        self._inbox: list = []
+        """The messages of the read under way (:meth:`_on_message`, :meth:`_on_read_end`)."""
+        self._inbox_t_ns = 0
         self._watch = PreflightWatch(self.progress.line)
         self.max_tick_gap_s, self.max_tick_gap_phase = 0.0, ""
         """Longest wall time between two runs of the tick task (the event loop's worst stall
@@ -110,64 +114,6 @@ class Daemon(FlightSequence):
         self.max_tick_cpu_s = 0.0
         """Most CPU the loop's thread used between two ticks: the gap is this plus the time the
         process waited for a CPU (a loaded machine) or for events."""
-
-    # ------------------------------------------------------------------ wiring
-    def _emit(self, out: Output) -> bool:
-        sent_actuator = False
-        if out.messages and self.link is not None and self.link.send_many(out.messages):
-            sent_actuator = any(m.get_type() == "SET_ACTUATOR_CONTROL_TARGET" for m in out.messages)
-        if out.events or self.ctrl_log.clock_anchor is None:
-            self._stamp_events(out)
-        for ev in out.events:
-            self.ctrl_log.events.append(ev)
-            self.log(ev.line())
-        if out.log is not None and self.config.keep_control_log:
-            self.ctrl_log.append(out.log)
-        if self.gcs is not None:
-            self.gcs.daemon_output(out)
-        if self.supervisor.finished and not self._flight_closed:
-            self._close_flight()
-        return sent_actuator
-
-    def _stamp_events(self, out: Output) -> None:
-        """Give the events the daemon's clock; note both clocks at the vehicle's first sample
-        (the control log counts earlier events back from there on the vehicle's axis)."""
-        daemon_s = self.clock_s() - self._start_s
-        out.events[:] = [dataclasses.replace(ev, daemon_s=daemon_s) for ev in out.events]
-        if self.ctrl_log.clock_anchor is None and self.supervisor.last_sample is not None:
-            self.ctrl_log.clock_anchor = (daemon_s, self.supervisor.last_sample.time_s)
-
-    def _on_message(self, msg, t_recv_ns: int) -> None:
-        self._heard = True
-        if msg.get_type() == "HEARTBEAT":
-            self._last_heartbeat = msg      # a new flight's supervisor starts from it
-        if not self._greeted:
-            # on udpin: nothing could be sent before the vehicle was heard; our HEARTBEAT goes
-            # first, so a vehicle that takes commands only from a known peer (the emulator)
-            # knows us before the first command instead of up to a heartbeat period later
-            self._greeted = self.link is not None and self.link.send(self.supervisor.heartbeat())
-        if self._emit(self.supervisor.handle(msg, self.clock_s())):
-            dt = time.perf_counter_ns() - t_recv_ns
-            self.latency_ns.append(dt)
-            if self.supervisor.phase == Phase.MANEUVER:
-                self.maneuver_latency_ns.append(dt)
-            self._arm_gap_timer(1.5)
-        if self.gcs is not None:            # after the command: a ground station never delays it
-            self.gcs.vehicle_message(msg)
-
-    def _arm_gap_timer(self, periods: float) -> None:
-        """(Re)start the timer that fills a telemetry gap (real time only)."""
-        if not self.config.supervisor.gap_fill:
-            return
-        if self._gap_timer is not None:
-            self._gap_timer.cancel()
-        loop = asyncio.get_running_loop()
-        self._gap_timer = loop.call_later(periods * self.supervisor.forecaster.period_s, self._fill_gap)
-
-    def _fill_gap(self) -> None:
-        self._gap_timer = None
-        if self._emit(self.supervisor.fill_gap(self.clock_s())):
-            self._arm_gap_timer(1.0)
 
     async def _heartbeat_task(self) -> None:
         while True:
@@ -287,7 +233,7 @@ class Daemon(FlightSequence):
                 self._open_tlog()
             self.link = await open_link(self.config.vehicle_url, self.config.supervisor.vehicle_system_id,
                                         self.config.supervisor.vehicle_component_id, self._on_message, self._tlog,
-                                        signing=self.signing, on_closed=self.log)
+                                        signing=self.signing, on_closed=self.log, on_read_end=self._on_read_end)
             if self.config.gcs_urls:
                 await self._open_gcs()
             self._tasks.append(asyncio.create_task(self._heartbeat_task(), name="heartbeat"))

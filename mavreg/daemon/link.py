@@ -9,7 +9,7 @@ No flight logic here. Two implementations with one interface (``send``, ``send_m
   (a rotor command and the TIMESYNC request that travels with it) leave in **one**
   datagram, one ``sendto``. Once the vehicle has sent an ATTITUDE_QUATERNION, its
   ATTITUDE frames (which the state assembler then ignores) are logged but not decoded.
-- :class:`MavlinkLink` (the reference path, ``MAVREG_IO=reference``): an
+- :class:`~mavreg.daemon.link_reference.MavlinkLink` (the reference path, ``MAVREG_IO=reference``): an
   :class:`asyncio.DatagramProtocol` with pymavlink's generated codec, one datagram per
   message. Kept for the benchmarks' baseline and for agreement tests.
 
@@ -17,7 +17,8 @@ Both
 
 - parse each datagram with robust parsing (bad data counted), log every frame in and out
   to the ``.tlog``, and hand each decoded message to a callback with the time the
-  datagram was read (``time.perf_counter_ns``);
+  datagram was read (``time.perf_counter_ns``), and once a read is done (every datagram
+  that was waiting; the reference path: one datagram) tell ``on_read_end()``;
 - take a frame only if :class:`mavreg.daemon.peers.PeerFilter` does: the vehicle's
   system/component id (the system id pinned, or on ``udpin:`` taken from its first
   autopilot HEARTBEAT), from the vehicle's address (fixed for ``udpout:HOST:PORT``,
@@ -35,7 +36,7 @@ import asyncio
 import os
 import socket
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable
 
 from pymavlink.dialects.v20 import common as mavlink2
@@ -45,8 +46,8 @@ from .tlog import TlogWriter
 from .vehicle_url import VEHICLE_URL_FORMS, parse_url
 from ..transport.wire import Wire
 
-__all__ = ["parse_url", "VEHICLE_URL_FORMS", "LinkCounters", "MavlinkLink", "FastLink", "open_link", "OWN_COMPONENT_ID",
-           "IO_ENV", "io_impl"]
+__all__ = ["parse_url", "VEHICLE_URL_FORMS", "LinkCounters", "FastLink", "open_link", "OWN_COMPONENT_ID",
+           "IO_ENV", "io_impl", "MAX_READ_DATAGRAMS"]
 
 IO_ENV = "MAVREG_IO"
 _AFTER_QUATERNION = frozenset({mavlink2.MAVLINK_MSG_ID_ATTITUDE})
@@ -54,6 +55,9 @@ _AFTER_QUATERNION = frozenset({mavlink2.MAVLINK_MSG_ID_ATTITUDE})
 ignores ATTITUDE): logged to the ``.tlog`` and counted under ``not_decoded`` only."""
 """Environment variable choosing the link: ``fast`` (default) or ``reference``."""
 _MAX_DATAGRAM = 65535
+MAX_READ_DATAGRAMS = 512
+"""Datagrams one wake-up of :class:`FastLink` reads at most (about 0.2 s of a 500 Hz vehicle's
+telemetry): a backlog is read at once, and the loop still runs its timers between reads."""
 
 OWN_COMPONENT_ID = mavlink2.MAV_COMP_ID_ONBOARD_COMPUTER
 
@@ -82,128 +86,6 @@ class LinkCounters:
     each broken frame also counts once under ``bad_data``)."""
 
 
-class _Writer:
-    """File-like sink that pymavlink's ``MAVLink.send`` writes packed frames to."""
-
-    def __init__(self, link: "MavlinkLink"):
-        self.link = link
-
-    def write(self, buf: bytes) -> None:
-        self.link._write(buf)
-
-
-@dataclass
-class MavlinkLink(asyncio.DatagramProtocol):
-    """MAVLink 2 over one UDP socket, to one vehicle.
-
-    Parameters
-    ----------
-    kind : {"udpin", "udpout"}
-    vehicle_addr : (host, port) or None
-        Known for udpout; learned from the vehicle's heartbeat for udpin.
-    system_id : int or None
-        The vehicle's system id (the daemon uses the same, with component 191); None (``udpin``
-        only): taken from the vehicle's first autopilot HEARTBEAT (:mod:`.peers`).
-    vehicle_component_id : int
-    on_message : callable(msg, t_recv_ns)
-        Receives each decoded message from the vehicle's address.
-    tlog : TlogWriter or None
-    signing : Signing or None
-        Sign what is sent, take only validly signed frames (:mod:`.signing`).
-    """
-
-    kind: str
-    vehicle_addr: tuple[str, int] | None
-    system_id: int | None
-    vehicle_component_id: int
-    on_message: Callable
-    tlog: TlogWriter | None = None
-    counters: LinkCounters = field(default_factory=LinkCounters)
-    signing: object = None
-
-    def __post_init__(self):
-        self.peer = PeerFilter(self.system_id, self.vehicle_component_id, self.vehicle_addr, self.signing)
-        self.transport: asyncio.DatagramTransport | None = None
-        self.last_send_ns = 0
-        """``time.perf_counter_ns`` when the last rotor command was handed to ``sendto``."""
-        self._stamp = False
-        self.mav = mavlink2.MAVLink(_Writer(self), srcSystem=self.system_id or 0, srcComponent=OWN_COMPONENT_ID)
-        self.mav.robust_parsing = True
-        self.connected = asyncio.Event()
-        if self.vehicle_addr is not None:
-            self.connected.set()
-
-    # -- asyncio.DatagramProtocol
-    def connection_made(self, transport) -> None:
-        self.transport = transport
-
-    def datagram_received(self, data: bytes, addr) -> None:
-        t_ns = time.perf_counter_ns()
-        self.counters.datagrams_in += 1
-        if self.vehicle_addr is not None and addr[:2] != self.vehicle_addr and not self.peer.may_move(t_ns * 1e-9):
-            self.counters.foreign_address += 1
-            return
-        try:
-            msgs = self.mav.parse_buffer(data) or []
-        except mavlink2.MAVError:
-            self.counters.bad_data += 1
-            return
-        for msg in msgs:
-            if msg.get_type() == "BAD_DATA":
-                self.counters.bad_data += 1
-                continue
-            reason = self.peer.admit(msg.get_msgbuf(), addr, t_ns * 1e-9)
-            if reason is not None:
-                self.counters.__dict__[reason] += 1
-                continue
-            self.counters.messages_in += 1
-            if self.tlog is not None:
-                self.tlog.write(msg.get_msgbuf())
-            if self.vehicle_addr is None:
-                self.vehicle_addr = self.peer.addr
-                self.system_id = self.peer.vehicle.system_id
-                self.mav.srcSystem = self.system_id
-                self.connected.set()
-            elif self.peer.moves != self.counters.vehicle_moved:     # the vehicle's address moved
-                self.vehicle_addr, self.counters.vehicle_moved = self.peer.addr, self.peer.moves
-            self.on_message(msg, t_ns)
-
-    def error_received(self, exc) -> None:
-        self.counters.send_errors += 1
-
-    # -- sending
-    def send(self, msg) -> bool:
-        """Pack and send one message to the vehicle; False while its address is unknown."""
-        if self.transport is None or self.vehicle_addr is None or self.transport.is_closing():
-            return False
-        self._stamp = msg.get_type() == "SET_ACTUATOR_CONTROL_TARGET"
-        self.mav.send(msg)
-        return True
-
-    def send_many(self, msgs) -> bool:
-        """Send each message in a datagram of its own; False while the vehicle's address is unknown."""
-        sent = False
-        for m in msgs:
-            sent = self.send(m) or sent
-        return sent
-
-    def _write(self, buf: bytes) -> None:
-        if self.signing is not None:
-            buf = self.signing.sign(buf)
-        if self._stamp:
-            self.last_send_ns = time.perf_counter_ns()
-        self.transport.sendto(buf, self.vehicle_addr)
-        self.counters.messages_out += 1
-        if self.tlog is not None:
-            self.tlog.write(buf)
-
-    def close(self) -> None:
-        if self.transport is not None:
-            self.transport.close()
-        if self.signing is not None:
-            self.signing.save()
-
-
 def io_impl() -> str:
     """The link implementation :envvar:`MAVREG_IO` asks for (``fast`` when unset).
 
@@ -222,12 +104,14 @@ class FastLink:
     """
 
     def __init__(self, kind: str, vehicle_addr, system_id: int | None, vehicle_component_id: int,
-                 on_message: Callable, tlog: TlogWriter | None, sock: socket.socket, signing=None):
+                 on_message: Callable, tlog: TlogWriter | None, sock: socket.socket, signing=None,
+                 on_read_end: Callable | None = None):
         self.kind = kind
         self.vehicle_addr = vehicle_addr
         self.system_id = system_id
         self.vehicle_component_id = vehicle_component_id
         self.on_message = on_message
+        self.on_read_end = on_read_end
         self.tlog = tlog
         self.counters = LinkCounters()
         self.sock = sock
@@ -249,17 +133,24 @@ class FastLink:
         loop.add_reader(self.sock.fileno(), self._readable)
 
     def _readable(self) -> None:
-        """Read every datagram waiting (not only one per wake-up)."""
+        """Read every datagram waiting (not only one per wake-up; at most
+        :data:`MAX_READ_DATAGRAMS`, the rest at the next), then tell ``on_read_end``."""
         recv = self.sock.recvfrom
-        while not self._closed:
-            try:
-                data, addr = recv(_MAX_DATAGRAM)
-            except (BlockingIOError, InterruptedError):
-                return
-            except OSError:                  # e.g. an ICMP error reported for an earlier send
-                self.counters.send_errors += 1
-                return
-            self.datagram_received(data, addr)
+        try:
+            for _ in range(MAX_READ_DATAGRAMS):
+                if self._closed:
+                    break
+                try:
+                    data, addr = recv(_MAX_DATAGRAM)
+                except (BlockingIOError, InterruptedError):
+                    break
+                except OSError:                  # e.g. an ICMP error reported for an earlier send
+                    self.counters.send_errors += 1
+                    break
+                self.datagram_received(data, addr)
+        finally:
+            if self.on_read_end is not None:
+                self.on_read_end()
 
     def datagram_received(self, data: bytes, addr) -> None:
         """One datagram, just read.
@@ -356,7 +247,8 @@ class FastLink:
 
 
 async def open_link(url: str, system_id: int | None, vehicle_component_id: int, on_message: Callable,
-                    tlog: TlogWriter | None, impl: str | None = None, signing=None, on_closed=None):
+                    tlog: TlogWriter | None, impl: str | None = None, signing=None, on_closed=None,
+                    on_read_end: Callable | None = None):
     """Create the UDP endpoint for ``url`` and return its link; or open the serial port or the
     TCP connection (:func:`mavreg.daemon.stream_link.open_stream_link`; ``on_closed(line)`` is
     told when that stream ends, and ``impl`` does not apply).
@@ -368,11 +260,14 @@ async def open_link(url: str, system_id: int | None, vehicle_component_id: int, 
     ``impl``: ``fast`` (:class:`FastLink`) or ``reference`` (:class:`MavlinkLink`);
     default: :func:`io_impl` (the :envvar:`MAVREG_IO` environment variable).
     ``signing``: a :class:`mavreg.transport.signing.Signing`, or None (signing off).
+    ``on_read_end()``: called after each read of the link has handed on its messages (the
+    daemon handles a read's messages together: :meth:`mavreg.daemon.app.Daemon._on_read_end`).
     """
     kind, host, port = parse_url(url)
     if kind in ("serial", "tcp"):
         from .stream_link import open_stream_link
-        return await open_stream_link(url, system_id, vehicle_component_id, on_message, tlog, signing, on_closed)
+        return await open_stream_link(url, system_id, vehicle_component_id, on_message, tlog, signing, on_closed,
+                                      on_read_end)
     if system_id is None and kind != "udpin":
         raise ValueError(f"vehicle URL {url!r}: on udpout the vehicle's system id must be given")
     impl = io_impl() if impl is None else impl
@@ -380,8 +275,9 @@ async def open_link(url: str, system_id: int | None, vehicle_component_id: int, 
     vehicle = (host, port) if kind == "udpout" else None
     local = (host, 0) if kind == "udpout" else (host, port)
     if impl == "reference":
+        from .link_reference import MavlinkLink
         proto = MavlinkLink(kind, vehicle, system_id, vehicle_component_id, on_message, tlog,
-                            signing=signing)
+                            signing=signing, on_read_end=on_read_end)
         await loop.create_datagram_endpoint(lambda: proto, local_addr=local)
         return proto
     info = socket.getaddrinfo(local[0], local[1], type=socket.SOCK_DGRAM)[0]
@@ -394,6 +290,6 @@ async def open_link(url: str, system_id: int | None, vehicle_component_id: int, 
         raise
     if vehicle is not None:
         vehicle = socket.getaddrinfo(host, port, family=info[0], type=socket.SOCK_DGRAM)[0][4][:2]
-    link = FastLink(kind, vehicle, system_id, vehicle_component_id, on_message, tlog, sock, signing)
+    link = FastLink(kind, vehicle, system_id, vehicle_component_id, on_message, tlog, sock, signing, on_read_end)
     link.start(loop)
     return link

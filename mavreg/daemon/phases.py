@@ -223,6 +223,9 @@ class Counters:
     timesync_dropped: int = 0
     """TIMESYNC replies that answered no request of ours, or implied an implausible delay."""
     unsupported_heartbeats: int = 0
+    superseded: int = 0
+    """Complete samples not answered because a newer one came in the same read of the link
+    (:meth:`Supervisor.handle_many`): the daemon had fallen behind its telemetry."""
     reboots: int = 0
     """Reboots of the vehicle seen (its ``time_boot_ms`` went back, :mod:`mavreg.daemon.reboot`)."""
     """HEARTBEATs of an autopilot mavreg does not speak to (:mod:`mavreg.daemon.preflight`)."""

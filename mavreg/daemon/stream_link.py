@@ -40,8 +40,10 @@ class StreamLink(FastLink):
     """
 
     def __init__(self, url: str, system_id: int | None, vehicle_component_id: int, on_message: Callable,
-                 tlog: TlogWriter | None, stream: ByteStream, signing=None, on_closed: Callable | None = None):
-        super().__init__(parse_url(url)[0], None, system_id, vehicle_component_id, on_message, tlog, None, signing)
+                 tlog: TlogWriter | None, stream: ByteStream, signing=None, on_closed: Callable | None = None,
+                 on_read_end: Callable | None = None):
+        super().__init__(parse_url(url)[0], None, system_id, vehicle_component_id, on_message, tlog, None, signing,
+                         on_read_end)
         self.url = url
         self.stream = stream
         self.framer = StreamFramer()
@@ -69,6 +71,8 @@ class StreamLink(FastLink):
         self.counters.garbage_bytes += fc.garbage_bytes - garbage0
         if frames:
             self.datagram_received(frames, self._addr)
+            if self.on_read_end is not None:
+                self.on_read_end()
 
     def _ended(self) -> None:
         self._stop_reading()
@@ -94,7 +98,8 @@ class StreamLink(FastLink):
 
 
 async def open_stream_link(url: str, system_id: int | None, vehicle_component_id: int, on_message: Callable,
-                           tlog: TlogWriter | None, signing=None, on_closed: Callable | None = None) -> StreamLink:
+                           tlog: TlogWriter | None, signing=None, on_closed: Callable | None = None,
+                           on_read_end: Callable | None = None) -> StreamLink:
     """Open ``serial:PATH[:BAUD]`` (raw, at the baud) or connect ``tcp:HOST:PORT`` (within
     :data:`TCP_CONNECT_TIMEOUT_S`), and start reading; OSError with a one-line reason naming
     the device or the address."""
@@ -111,6 +116,6 @@ async def open_stream_link(url: str, system_id: int | None, vehicle_component_id
             why = getattr(exc, "strerror", None) or f"no answer within {TCP_CONNECT_TIMEOUT_S:g} s"
             raise OSError(getattr(exc, "errno", None) or errno.ETIMEDOUT, f"tcp {where}:{number}: {why}") from None
         stream = ByteStream(sock.fileno(), url, owner=sock)
-    link = StreamLink(url, system_id, vehicle_component_id, on_message, tlog, stream, signing, on_closed)
+    link = StreamLink(url, system_id, vehicle_component_id, on_message, tlog, stream, signing, on_closed, on_read_end)
     link.start(loop)
     return link

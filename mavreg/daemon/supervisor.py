@@ -104,10 +104,6 @@ class Supervisor:
     def phase(self) -> Phase:
         return self.ctx.phase
 
-    @phase.setter
-    def phase(self, phase: Phase) -> None:
-        self.ctx.phase = phase
-
     @property
     def reason(self) -> str:
         return self.ctx.reason
@@ -197,12 +193,27 @@ class Supervisor:
 
     def handle(self, msg, now_s: float) -> Output:
         """Process one decoded message from the link (``now_s``: the injected wall clock)."""
+        return self.handle_many((msg,), now_s)
+
+    def handle_many(self, msgs, now_s: float) -> Output:
+        """The messages of one read of the link, in order, as :meth:`handle`; of the complete
+        samples among them only the **newest is answered**, the older ones only checked (gap
+        policy, envelope) and counted (``counters.superseded``): a loop that fell behind acts
+        once on the vehicle's state now, not on a backlog of states it has left."""
         out = Output()
         self.ctx.now_wall_s = now_s
+        samples = [s for msg in msgs if (s := self._take(msg, now_s, out)) is not None]
+        for i, sample in enumerate(samples):
+            self._on_sample(sample, now_s, out, answer=i == len(samples) - 1)
+        self.counters.superseded += max(0, len(samples) - 1)
+        return out
+
+    def _take(self, msg, now_s: float, out: Output) -> StateSample | None:
+        """One message: routed; the complete sample it closes, if any (not yet acted on)."""
         mtype = msg.get_type()
         if not self._vehicle_ids(msg, mtype, out):
             self.counters.foreign_dropped += 1
-            return out
+            return None
         if mtype in STATE_PARTS and (seen := self.reboots.part(msg, now_s)) is not None:
             on_reboot(self.flight, self.safety, seen, out)
         if mtype == "HEARTBEAT":
@@ -220,8 +231,8 @@ class Supervisor:
             sample = self.assembler.add(msg)
             if sample is not None:
                 self.counters.samples += 1
-                self._on_sample(sample, now_s, out)
-        return out
+                return sample
+        return None
 
     def tick(self, now_s: float) -> Output:
         """Periodic check, called every ``tick_stall_s / 2`` or more often: link loss,
@@ -339,8 +350,9 @@ class Supervisor:
                 and msg.command == mm.mavlink2.MAV_CMD_COMPONENT_ARM_DISARM):
             self.safety.disarm_confirmed(out, "forced disarm acknowledged")
 
-    def _on_sample(self, sample: StateSample, now_s: float, out: Output) -> None:
-        """Every complete sample: the ground phases' handler, or the airborne pipeline."""
+    def _on_sample(self, sample: StateSample, now_s: float, out: Output, answer: bool = True) -> None:
+        """Every complete sample: the ground phases' handler, or the airborne pipeline;
+        ``answer`` False (a newer sample came in the same read): the checks only."""
         ctx = self.ctx
         prev, prev_wall_s = ctx.last_sample, ctx.last_sample_wall_s
         ctx.last_sample = sample
@@ -348,7 +360,8 @@ class Supervisor:
         if self.finished or ctx.vehicle_status is None:
             return
         if ctx.phase not in AIRBORNE:
-            self.handlers[ctx.phase].on_sample(sample, now_s, out)
+            if answer:
+                self.handlers[ctx.phase].on_sample(sample, now_s, out)
             return
         t = sample.time_s
         if prev is not None:
@@ -359,9 +372,8 @@ class Supervisor:
                                          ) or self.safety.recovery_timeout(t)
             if v is not None:
                 self.safety.on_violation(v, out)
-        if ctx.phase not in AIRBORNE:
-            return
-        self._control_and_send(sample, now_s, out)
+        if ctx.phase in AIRBORNE and answer:
+            self._control_and_send(sample, now_s, out)
 
     def _control_and_send(self, sample: StateSample, now_s: float, out: Output) -> None:
         """The phase's control on the predicted state, the tracking bounds, the command out."""

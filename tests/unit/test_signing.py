@@ -218,7 +218,8 @@ def test_tlog_never_holds_setup_signing(tmp_path):
 @pytest.mark.parametrize("impl", ["fast", "reference"])
 def test_both_links_take_only_signed_vehicle_frames_and_sign_what_they_send(tmp_path, impl):
     """The links' receive path (fed directly, no socket) and send path with signing on."""
-    from mavreg.daemon.link import FastLink, MavlinkLink
+    from mavreg.daemon.link import FastLink
+    from mavreg.daemon.link_reference import MavlinkLink
     signing = sg.Signing(write_key(tmp_path / "key", KEY.hex()), "t")
     got, sent = [], []
     tlog = TlogWriter(tmp_path / "t.tlog")

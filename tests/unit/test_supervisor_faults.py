@@ -147,7 +147,7 @@ def test_upload_mid_maneuver_waits_for_safe_point():
 
 def test_offer_after_flight_over_is_refused():
     sup = make_supervisor(FakePlan())
-    sup.phase = Phase.ABORTED
+    sup.ctx.phase = Phase.ABORTED
     try:
         sup.offer_plan(FakePlan(), 0.0)
     except ValueError as exc:

@@ -168,7 +168,8 @@ def test_a_pinned_id_hears_nothing_from_another_system():
 def test_a_udpin_link_takes_the_vehicles_id_and_sends_as_it(impl):
     """Both links (fed directly, no socket): a GCS datagram, then the vehicle's HEARTBEAT as
     system 6; what the daemon then sends carries system id 6."""
-    from mavreg.daemon.link import FastLink, MavlinkLink
+    from mavreg.daemon.link import FastLink
+    from mavreg.daemon.link_reference import MavlinkLink
     got, sent = [], []
     if impl == "fast":
         sock = type("S", (), {"sendto": lambda self, d, a: sent.append(bytes(d)), "close": lambda self: None})()
@@ -239,7 +240,8 @@ def test_a_udpin_link_follows_a_rebooted_vehicle_to_its_new_port(impl, monkeypat
     """Both links, fed directly with an injected clock: the vehicle heard, silent 2 s, then its
     HEARTBEAT from a new port: taken, counted, and what the daemon sends goes there."""
     from mavreg.daemon import link as link_module
-    from mavreg.daemon.link import FastLink, MavlinkLink
+    from mavreg.daemon.link import FastLink
+    from mavreg.daemon.link_reference import MavlinkLink
     now = [100.0]
     monkeypatch.setattr(link_module.time, "perf_counter_ns", lambda: int(now[0] * 1e9))
     got, sent = [], []
