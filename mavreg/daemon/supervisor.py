@@ -197,15 +197,17 @@ class Supervisor:
 
     def handle_many(self, msgs, now_s: float) -> Output:
         """The messages of one read of the link, in order, as :meth:`handle`; of the complete
-        samples among them only the **newest is answered**, the older ones only checked (gap
-        policy, envelope) and counted (``counters.superseded``): a loop that fell behind acts
-        once on the vehicle's state now, not on a backlog of states it has left."""
+        samples among them only the **newest is answered** (a lockstep vehicle, which waits
+        for each answer: all), the older ones checked (gap policy, envelope) and counted
+        (``counters.superseded``): a loop that fell behind acts once on the state now."""
         out = Output()
         self.ctx.now_wall_s = now_s
         samples = [s for msg in msgs if (s := self._take(msg, now_s, out)) is not None]
+        newest = len(samples) - 1
         for i, sample in enumerate(samples):
-            self._on_sample(sample, now_s, out, answer=i == len(samples) - 1)
-        self.counters.superseded += max(0, len(samples) - 1)
+            self._on_sample(sample, now_s, out, answer=i == newest or self.params.lockstep)
+        if not self.params.lockstep:
+            self.counters.superseded += max(0, newest)
         return out
 
     def _take(self, msg, now_s: float, out: Output) -> StateSample | None:

@@ -4,7 +4,7 @@ Supervisor (sans-I/O, the harness's fake vehicle on an injected clock): a read h
 complete samples, the vehicle flying on meanwhile with the last command held, is answered
 with one command, for the newest sample; the four older ones are checked and counted as
 superseded; handing the same messages one read each (the negative control) answers all
-five. Link (a real UDP socket, no event loop): one wake-up reads every datagram waiting and
+five, and so does a lockstep vehicle's read (it waits for each answer). Link (a real UDP socket, no event loop): one wake-up reads every datagram waiting and
 then says the read is done, once; a backlog beyond :data:`MAX_READ_DATAGRAMS` takes two.
 """
 from __future__ import annotations
@@ -18,9 +18,9 @@ from tests.helpers.supervisor_harness import FakePlan, SimVehicle, make_supervis
 COMMAND = "SET_ACTUATOR_CONTROL_TARGET"
 
 
-def _in_the_hold():
-    """A supervisor and its vehicle, holding after the take-off."""
-    sup, veh = make_supervisor(FakePlan()), SimVehicle()
+def _in_the_hold(**params):
+    """A supervisor (``SupervisorParams(**params)``) and its vehicle, holding after the take-off."""
+    sup, veh = make_supervisor(FakePlan(), **params), SimVehicle()
     for _ in range(200):
         run(sup, veh, 0.1)
         if sup.phase == Phase.HOLD:
@@ -112,3 +112,12 @@ def test_a_backlog_beyond_one_reads_bound_takes_two_reads():
     finally:
         link.close()
         tx.close()
+
+
+def test_a_lockstep_vehicle_has_every_sample_of_a_read_answered():
+    """It waits for the answer to each sample it released (it is still where the oldest says)."""
+    sup, veh = _in_the_hold(lockstep=True)
+    before = sup.counters.superseded
+    out = sup.handle_many(_backlog(veh, 5), veh.t_ms / 1000.0)
+    assert [m.get_type() for m in out.messages].count(COMMAND) == 5
+    assert sup.counters.superseded == before
