@@ -42,6 +42,7 @@ from ..config.vehicle import VehicleParams
 from ..control.forecast import Forecaster
 from . import messages as mm
 from .context import FlightContext, FlightParts
+from .daemon_status import supervisor_status
 from .excitation import check_output
 from .flight import Flight
 from .gate import nominal_points
@@ -177,37 +178,35 @@ class Supervisor:
                                    and not self.ctx.recovery_landing)
 
     def status(self) -> dict:
-        ctx, c, a = self.ctx, self.counters, self.assembler.counters
-        return {
-            "phase": ctx.phase, "reason": ctx.reason, "s_m": None if math.isnan(ctx.s_m) else ctx.s_m,
-            "active": None if ctx.active is None else ctx.active[0].name,
-            "pending": [p.name for p, _, _ in ctx.pending], "done": list(ctx.maneuvers_done),
-            "vehicle_mode": None if ctx.vehicle_status is None else ctx.vehicle_status.mode,
-            "vehicle_armed": None if ctx.vehicle_status is None else ctx.vehicle_status.armed,
-            "failure": None if ctx.failure is None else ctx.failure.as_dict(),
-            "recoveries": ctx.recoveries, "touchdown_speed_m_s": ctx.touchdown_speed_m_s,
-            "envelope_peaks": {k: dict(v) for k, v in sorted(self.monitor.peaks.items())},
-            "counters": {**c.__dict__, "state_late": a.late, "state_unmatched": a.unmatched,
-                         "state_euler_refused": a.euler_near_vertical, "state_non_finite": a.non_finite},
-        }
+        """The flight's status (:func:`mavreg.daemon.daemon_status.supervisor_status`)."""
+        return supervisor_status(self.ctx, self.counters, self.assembler.counters, self.monitor.peaks)
 
     def handle(self, msg, now_s: float) -> Output:
         """Process one decoded message from the link (``now_s``: the injected wall clock)."""
         return self.handle_many((msg,), now_s)
 
     def handle_many(self, msgs, now_s: float) -> Output:
-        """The messages of one read of the link, in order, as :meth:`handle`; of the complete
-        samples among them only the **newest is answered** (a lockstep vehicle, which waits
-        for each answer: all), the older ones checked (gap policy, envelope) and counted
-        (``counters.superseded``): a loop that fell behind acts once on the state now."""
+        """The messages of one read of the link, in order, as :meth:`handle`, except that a
+        complete sample with state parts after it in the read waits for them: one that a newer
+        sample supersedes is checked (gap policy, envelope) and counted
+        (``counters.superseded``), not answered. A loop that fell behind acts once on the state
+        now. A lockstep vehicle waits for each answer: every sample is answered at once."""
         out = Output()
         self.ctx.now_wall_s = now_s
-        samples = [s for msg in msgs if (s := self._take(msg, now_s, out)) is not None]
-        newest = len(samples) - 1
-        for i, sample in enumerate(samples):
-            self._on_sample(sample, now_s, out, answer=i == newest or self.params.lockstep)
-        if not self.params.lockstep:
-            self.counters.superseded += max(0, newest)
+        later = -1 if self.params.lockstep else max(
+            (i for i, m in enumerate(msgs) if m.get_type() in STATE_PARTS), default=-1)
+        held = None
+        for i, msg in enumerate(msgs):
+            if (sample := self._take(msg, now_s, out)) is None:
+                continue
+            if held is not None:
+                self._on_sample(held, now_s, out, answer=False)
+                self.counters.superseded += 1
+            held = sample if i < later else None
+            if held is None:
+                self._on_sample(sample, now_s, out)
+        if held is not None:                       # the parts after it completed nothing newer
+            self._on_sample(held, now_s, out)
         return out
 
     def _take(self, msg, now_s: float, out: Output) -> StateSample | None:

@@ -4,7 +4,8 @@ Supervisor (sans-I/O, the harness's fake vehicle on an injected clock): a read h
 complete samples, the vehicle flying on meanwhile with the last command held, is answered
 with one command, for the newest sample; the four older ones are checked and counted as
 superseded; handing the same messages one read each (the negative control) answers all
-five, and so does a lockstep vehicle's read (it waits for each answer). Link (a real UDP socket, no event loop): one wake-up reads every datagram waiting and
+five, and so does a lockstep vehicle's read (it waits for each answer). A sample with no
+state part after it in its read is answered before the messages that follow it. Link (a real UDP socket, no event loop): one wake-up reads every datagram waiting and
 then says the read is done, once; a backlog beyond :data:`MAX_READ_DATAGRAMS` takes two.
 """
 from __future__ import annotations
@@ -47,6 +48,18 @@ def test_a_read_of_five_samples_is_answered_once_for_the_newest():
     assert sup.counters.superseded - before == 4
     assert sup.last_sample.time_boot_ms == newest_ms and sup.phase == Phase.HOLD
     assert out.log is not None and abs(out.log.time_s - newest_ms / 1000.0) < 1e-9   # the newest's record
+
+
+def test_the_last_sample_of_a_read_is_answered_before_the_messages_after_it():
+    """A sample with no state part after it in its read is answered at once, in order: a
+    HEARTBEAT after it (here: the vehicle taken out of OFFBOARD) acts after the command."""
+    from mavreg.daemon.messages import PX4_MAIN_AUTO, PX4_SUB_LOITER
+    sup, veh = _in_the_hold()
+    msgs = _backlog(veh, 1)
+    veh.main, veh.sub = PX4_MAIN_AUTO, PX4_SUB_LOITER
+    out = sup.handle_many(msgs + [veh.heartbeat()], veh.t_ms / 1000.0)
+    assert [m.get_type() for m in out.messages].count(COMMAND) == 1
+    assert sup.phase == Phase.ABORTED and sup.failure.bound == "vehicle_mode"
 
 
 def test_the_same_messages_one_read_each_are_answered_five_times():
