@@ -205,6 +205,9 @@ class Output:
     messages: list = field(default_factory=list)
     events: list = field(default_factory=list)
     log: LogRecord | None = None
+    taken: int | None = None
+    """Of a read's messages (:meth:`Supervisor.handle_many`), how many this flight took: fewer
+    than given when one of them ended it (the rest are the next flight's); None: all."""
 
 
 @dataclass

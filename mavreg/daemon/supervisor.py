@@ -186,25 +186,26 @@ class Supervisor:
         return self.handle_many((msg,), now_s)
 
     def handle_many(self, msgs, now_s: float) -> Output:
-        """The messages of one read of the link, in order, as :meth:`handle`, except that a
-        complete sample with state parts after it in the read waits for them: one that a newer
-        sample supersedes is checked (gap policy, envelope) and counted
-        (``counters.superseded``), not answered. A loop that fell behind acts once on the state
-        now. A lockstep vehicle waits for each answer: every sample is answered at once."""
+        """A read's messages in order, as :meth:`handle`; but a sample with state parts after it
+        waits for them, and one a newer sample supersedes is only checked (gap policy, envelope)
+        and counted (``counters.superseded``): a loop that fell behind acts once on the state
+        now. Lockstep (the vehicle waits for each answer): every sample answered at once."""
         out = Output()
         self.ctx.now_wall_s = now_s
         later = -1 if self.params.lockstep else max(
             (i for i, m in enumerate(msgs) if m.get_type() in STATE_PARTS), default=-1)
-        held = None
+        held, was_over = None, self.finished
         for i, msg in enumerate(msgs):
-            if (sample := self._take(msg, now_s, out)) is None:
-                continue
-            if held is not None:
-                self._on_sample(held, now_s, out, answer=False)
-                self.counters.superseded += 1
-            held = sample if i < later else None
-            if held is None:
-                self._on_sample(sample, now_s, out)
+            if (sample := self._take(msg, now_s, out)) is not None:
+                if held is not None:
+                    self._on_sample(held, now_s, out, answer=False)
+                    self.counters.superseded += 1
+                held = sample if i < later else None
+                if held is None:
+                    self._on_sample(sample, now_s, out)
+            if self.finished and not was_over:     # the flight ended: the rest is the next one's
+                out.taken = i + 1
+                break
         if held is not None:                       # the parts after it completed nothing newer
             self._on_sample(held, now_s, out)
         return out

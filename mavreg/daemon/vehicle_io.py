@@ -71,7 +71,12 @@ class VehicleIO:
             # first, so a vehicle that takes commands only from a known peer (the emulator)
             # knows us before the first command instead of up to a heartbeat period later
             self._greeted = self.link is not None and self.link.send(self.supervisor.heartbeat())
-        if self._emit(self.supervisor.handle_many(msgs, self.clock_s())):
+        sent, rest = False, msgs
+        while rest:                     # a flight that ends mid-read hands the rest to the next
+            out = self.supervisor.handle_many(rest, self.clock_s())
+            sent = self._emit(out) or sent
+            rest = rest[len(rest) if out.taken is None else out.taken:]
+        if sent:
             dt = time.perf_counter_ns() - t_recv_ns
             self.latency_ns.append(dt)
             if self.supervisor.phase == Phase.MANEUVER:

@@ -134,3 +134,15 @@ def test_a_lockstep_vehicle_has_every_sample_of_a_read_answered():
     out = sup.handle_many(_backlog(veh, 5), veh.t_ms / 1000.0)
     assert [m.get_type() for m in out.messages].count(COMMAND) == 5
     assert sup.counters.superseded == before
+
+
+def test_a_read_that_ends_the_flight_leaves_the_rest_to_the_next():
+    """The message that ends the flight is the last this flight takes (``Output.taken``): the
+    samples after it in the read are the next flight's to answer."""
+    from mavreg.daemon.messages import PX4_MAIN_AUTO, PX4_SUB_LOITER
+    sup, veh = _in_the_hold()
+    veh.main, veh.sub = PX4_MAIN_AUTO, PX4_SUB_LOITER
+    read = [veh.heartbeat()] + _backlog(veh, 2)
+    out = sup.handle_many(read, veh.t_ms / 1000.0)
+    assert sup.finished and out.taken == 1
+    assert sup.handle_many(read[1:], veh.t_ms / 1000.0).taken is None      # an ended flight takes all
