@@ -63,19 +63,22 @@ class VehicleIO:
         msgs, self._inbox = self._inbox, []
         t_recv_ns = self._inbox_t_ns
         self._heard = True
-        for msg in msgs:
-            if msg.get_type() == "HEARTBEAT":
-                self._last_heartbeat = msg      # a new flight's supervisor starts from it
         if not self._greeted:
             # on udpin: nothing could be sent before the vehicle was heard; our HEARTBEAT goes
             # first, so a vehicle that takes commands only from a known peer (the emulator)
             # knows us before the first command instead of up to a heartbeat period later
             self._greeted = self.link is not None and self.link.send(self.supervisor.heartbeat())
-        sent, rest = False, msgs
-        while rest:                     # a flight that ends mid-read hands the rest to the next
-            out = self.supervisor.handle_many(rest, self.clock_s())
-            sent = self._emit(out) or sent
-            rest = rest[len(rest) if out.taken is None else out.taken:]
+        # a lockstep vehicle waits for each answer: its messages one by one, each command out
+        # before the next message is handled (as the .tlog pairs them); in real time, the read
+        sent = False
+        for rest in ([m] for m in msgs) if self.config.supervisor.lockstep else (msgs,):
+            for msg in rest:
+                if msg.get_type() == "HEARTBEAT":
+                    self._last_heartbeat = msg      # a new flight's supervisor starts from it
+            while rest:                 # a flight that ends mid-read hands the rest to the next
+                out = self.supervisor.handle_many(rest, self.clock_s())
+                sent = self._emit(out) or sent
+                rest = rest[len(rest) if out.taken is None else out.taken:]
         if sent:
             dt = time.perf_counter_ns() - t_recv_ns
             self.latency_ns.append(dt)
