@@ -85,7 +85,8 @@ class AutopilotConfig:
     failsafe_hold_s: float = 1.5
     land_descent_m_s: float = 0.8
     land_disarm_s: float = 0.5
-    """Time on the ground in LAND before the automatic disarm."""
+    """Time on the ground before the automatic disarm: in LAND, and in any mode but OFFBOARD
+    once it has flown since arming (PX4's land detector and ``COM_DISARM_LAND``)."""
     stream_min_hz: float = 2.0
     stream_min_duration_s: float = 0.5
     heartbeat_period_s: float = 1.0
@@ -130,6 +131,7 @@ class Autopilot:
         self.stream_start_t = math.inf
         self.mode_since_t = 0.0
         self.ground_since_t: float | None = None
+        self.flown = False              # airborne since it was armed
         self.next_heartbeat_t = 0.0
         self.hover_thrust_n = float(hover_thrust_n)
         """Per-rotor hover thrust of the vehicle file (N)."""
@@ -195,7 +197,7 @@ class Autopilot:
         return on_ground and tilt <= self.cfg.max_arm_tilt_rad
 
     def _set_armed(self, armed: bool, why: str):
-        self.armed = armed
+        self.armed, self.flown = armed, False
         if not armed:
             self.failsafe = False
         self._out.append(self._statustext(_SEV_INFO, f"{'armed' if armed else 'disarmed'}: {why}"))
@@ -364,9 +366,9 @@ class Autopilot:
             if self.ground_since_t is None:
                 self.ground_since_t = t_s
         else:
-            self.ground_since_t = None
-        if (self.armed and self.mode == modes.LAND and self.ground_since_t is not None
-                and t_s - self.ground_since_t >= cfg.land_disarm_s - 1e-9):
+            self.ground_since_t, self.flown = None, self.flown or self.armed
+        if (self.armed and (self.mode == modes.LAND or (self.flown and self.mode != modes.OFFBOARD))
+                and self.ground_since_t is not None and t_s - self.ground_since_t >= cfg.land_disarm_s - 1e-9):
             self._set_armed(False, "landed")
             self._set_mode(modes.HOLD, t_s, "landed")
         if t_s >= self.next_heartbeat_t - 1e-9:

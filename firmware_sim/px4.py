@@ -117,7 +117,7 @@ def _rate_params() -> tuple:
 PARAMS = (
     Param("COM_OF_LOSS_T", "offboard loss timeout, s (--offboard-loss-timeout)", 0.01, 60.0,
           "offboard_loss_timeout_s"),
-    Param("COM_DISARM_LAND", "time on the ground in LAND before the disarm, s", 0.0, 20.0, "land_disarm_s"),
+    Param("COM_DISARM_LAND", "time on the ground before the automatic disarm (LAND; after a flight, any mode but OFFBOARD), s", 0.0, 20.0, "land_disarm_s"),
     Param("MIS_TAKEOFF_ALT", "take-off height above home, m", 0.5, 100.0, "takeoff_height_m"),
     Param("MPC_LAND_SPEED", "descent speed in LAND, m/s", 0.2, 3.0, "land_descent_m_s"),
     *_rate_params(),

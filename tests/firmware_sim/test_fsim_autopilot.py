@@ -86,6 +86,41 @@ def test_arm_offboard_takeoff_and_failsafe_landing():
     assert not ap.armed and sim.on_ground
 
 
+def _flown_and_landed_in_offboard():
+    """In OFFBOARD 0.3 m up, then a little less than the hover thrust until it sits on the
+    ground, still armed."""
+    sim, ap = make("z_m=-0.3")
+    for _ in range(40):
+        run(sim, ap, 0.1, [HOVER * 0.9] * 4)
+        if sim.on_ground:
+            break
+    run(sim, ap, 0.2, [0.05] * 4)
+    assert ap.armed and ap.mode == modes.OFFBOARD and sim.on_ground
+    return sim, ap
+
+
+def test_offboard_lost_on_the_ground_after_a_flight_disarms_as_landed():
+    """PX4's land detector: a vehicle that has flown since it was armed and sits on the ground
+    disarms after COM_DISARM_LAND in any mode the offboard computer does not fly; here the
+    offboard stream stops after touchdown and the hold it falls back to disarms it (it used
+    to stay armed on the ground for good, and a daemon waiting for the disarm waited forever)."""
+    sim, ap = _flown_and_landed_in_offboard()
+    log = []
+    run(sim, ap, 2.0, None, log)
+    texts = [t for _, t in log]
+    assert texts[:3] == ["mode HOLD: offboard lost", "disarmed: landed", "mode HOLD: landed"], texts
+    assert not ap.armed
+
+
+def test_armed_on_the_ground_without_a_flight_stays_armed():
+    """The negative control: armed, never airborne, in HOLD on the ground: no automatic disarm
+    (the offboard computer arms before it streams; PX4's pre-flight disarm is not modelled)."""
+    sim, ap = make()
+    ap.handle(command(400, 1), 0.0, sim.state, sim.on_ground)
+    run(sim, ap, 3.0, None)
+    assert ap.armed and ap.mode == modes.HOLD
+
+
 def test_failsafe_recovers_from_inverted_at_speed():
     sim, ap = make("z_m=-8,vy_m_s=8,roll_deg=120")
     assert ap.armed and ap.mode == modes.OFFBOARD
