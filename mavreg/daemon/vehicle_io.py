@@ -49,7 +49,12 @@ class VehicleIO:
             self.ctrl_log.clock_anchor = (daemon_s, self.supervisor.last_sample.time_s)
 
     def _on_message(self, msg, t_recv_ns: int) -> None:
-        """The link's callback for each message read: kept until the read is done."""
+        """The link's callback for each message read: kept until the read is done; a lockstep
+        vehicle's at once (it waits for each answer, and the .tlog keeps each command right
+        after its sample, as ``mavreg identify`` pairs them)."""
+        if self.config.supervisor.lockstep:
+            self._handle_read([msg], t_recv_ns)
+            return
         if not self._inbox:
             self._inbox_t_ns = t_recv_ns
         self._inbox.append(msg)
@@ -58,27 +63,25 @@ class VehicleIO:
         """The link's callback once a read is done (every datagram that was waiting, or a
         chunk of a serial or TCP stream): its messages are handled together, and of the
         samples among them only the newest is answered (:meth:`Supervisor.handle_many`)."""
-        if not self._inbox:
-            return
-        msgs, self._inbox = self._inbox, []
-        t_recv_ns = self._inbox_t_ns
+        if self._inbox:
+            msgs, self._inbox = self._inbox, []
+            self._handle_read(msgs, self._inbox_t_ns)
+
+    def _handle_read(self, msgs: list, t_recv_ns: int) -> None:
         self._heard = True
         if not self._greeted:
             # on udpin: nothing could be sent before the vehicle was heard; our HEARTBEAT goes
             # first, so a vehicle that takes commands only from a known peer (the emulator)
             # knows us before the first command instead of up to a heartbeat period later
             self._greeted = self.link is not None and self.link.send(self.supervisor.heartbeat())
-        # a lockstep vehicle waits for each answer: its messages one by one, each command out
-        # before the next message is handled (as the .tlog pairs them); in real time, the read
-        sent = False
-        for rest in ([m] for m in msgs) if self.config.supervisor.lockstep else (msgs,):
-            for msg in rest:
-                if msg.get_type() == "HEARTBEAT":
-                    self._last_heartbeat = msg      # a new flight's supervisor starts from it
-            while rest:                 # a flight that ends mid-read hands the rest to the next
-                out = self.supervisor.handle_many(rest, self.clock_s())
-                sent = self._emit(out) or sent
-                rest = rest[len(rest) if out.taken is None else out.taken:]
+        for msg in msgs:
+            if msg.get_type() == "HEARTBEAT":
+                self._last_heartbeat = msg      # a new flight's supervisor starts from it
+        sent, rest = False, msgs
+        while rest:                     # a flight that ends mid-read hands the rest to the next
+            out = self.supervisor.handle_many(rest, self.clock_s())
+            sent = self._emit(out) or sent
+            rest = rest[len(rest) if out.taken is None else out.taken:]
         if sent:
             dt = time.perf_counter_ns() - t_recv_ns
             self.latency_ns.append(dt)
