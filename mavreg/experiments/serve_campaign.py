@@ -190,9 +190,12 @@ def fly_one(rig: ServeRig, draw: FlightDraw, timeout_s: float) -> dict:
         row["hostile"][name] = "rejected" if reply.get("verdict") == "rejected" else f"NOT rejected: {reply}"
     flown_before = _wait_ready(rig, timeout_s)
     if flown_before is None:
-        row.update(record=None, upload="not sent",
-                   lost="the daemon did not become ready for a new flight (the vehicle never reported "
-                   "itself disarmed after an aborted flight, or the daemon is gone)")
+        row.update(record=None, upload="not sent")
+        if rig.serve.poll() is None:
+            row["not_flown"] = ("the vehicle never reported itself disarmed after the aborted flight before "
+                                "(its own failsafe holds it armed); the daemon waits for that, as it must")
+        else:
+            row["lost"] = "the daemon is gone"
         return row
     load = _Load()
     try:

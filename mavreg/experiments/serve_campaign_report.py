@@ -5,6 +5,9 @@ Definitions (docs/reliability.md):
 
 - **lost result**: a flight whose upload was accepted and whose record (the daemon's outcome
   of it) never came, or any flight after the daemon died;
+- **not flown**: a flight the daemon, still running, did not begin because the vehicle never
+  reported itself disarmed after an aborted flight (its own failsafe holds it, and mavreg
+  does not take back a vehicle its failsafe flies): an outcome, not a lost result;
 - **unsafe event**: a touchdown faster than 1 m/s, the motors stopped in the air (both on the
   emulator's recording when there is one: :mod:`.robustness_metrics`; else the daemon's
   touchdown speed and its ``impact`` outcome), or an arm not asked for (the vehicle armed in a
@@ -112,14 +115,24 @@ def _latency(rows: list[dict]) -> dict:
             "p99_ms_max": float(np.max(p99))}
 
 
+NOT_FLOWN = "not flown: the vehicle stayed armed"
+
+
+def not_flown(row: dict) -> bool:
+    """The daemon, alive after it (its resources read), did not begin this flight: the vehicle
+    never reported itself disarmed after the aborted flight before it."""
+    return row.get("upload") == "not sent" and row.get("resources") is not None
+
+
 def summarize(kind: str, result: dict) -> dict:
     rows = result["rows"]
     outcomes: dict[str, int] = {}
     for r in rows:
-        key = r["record"]["result"] if r.get("record") else ("upload rejected" if r.get("upload") == "rejected"
-                                                             else "lost")
+        key = (r["record"]["result"] if r.get("record") else "upload rejected" if r.get("upload") == "rejected"
+               else NOT_FLOWN if not_flown(r) else "lost")
         outcomes[key] = outcomes.get(key, 0) + 1
-    lost = [r["flight"] for r in rows if r.get("record") is None and r.get("upload") != "rejected"]
+    lost = [r["flight"] for r in rows
+            if r.get("record") is None and r.get("upload") != "rejected" and not not_flown(r)]
     unsafe = {r["flight"]: _unsafe(r) for r in rows if _unsafe(r)}
     hostile = [v for r in rows for v in (r.get("hostile") or {}).values()]
     counters = [r["record"]["counters"] for r in rows if r.get("record")]

@@ -83,10 +83,13 @@ def test_growth_is_measured_from_flight_20_and_lost_results_are_counted():
                                     "counters": {"samples": 10, "actuator_sent": 10}}
         rows.append({"flight": n, "upload": "accepted", "record": rec,
                      "resources": {"serve": {"rss_kb": rss, "fds": 20, "threads": 6}}})
+    rows[40].update(record=None, upload="not sent")            # alive (resources read): not flown
+    rows[50].update(record=None, upload="not sent", resources=None)     # the daemon gone: lost
     sm = summarize("soak", {"rows": rows, "serve_exit": 0, "wall_s": 1.0})
     assert sm["growth"]["serve_rss_kb"]["growth_pct"] == pytest.approx(5.0)   # the warm-up before 20 is not growth
     assert sm["growth"]["serve_fds"]["growth_pct"] == 0.0
-    assert sm["lost_results"] == [33] and sm["outcomes"] == {"lost": 1, "ok": 59}
+    assert sm["lost_results"] == [33, 51]
+    assert sm["outcomes"] == {"lost": 2, "ok": 57, "not flown: the vehicle stayed armed": 1}
 
 
 def test_a_flight_handed_over_is_judged_through_its_failsafe_landing(tmp_path):
