@@ -15,7 +15,7 @@ import time
 import pytest
 
 from mavreg.daemon.endpoint import request
-from sitl_helpers import mavreg
+from tests.helpers.sitl import mavreg
 from tests.helpers.ardupilot_flight import PILOT_PARAMS, sim_touchdowns, vehicle_args
 from tests.helpers.ardupilot_sitl import M, ArduPilotSitl, SitlError, require_ardupilot
 from tests.helpers.repo import ROOT as REPO
