@@ -66,7 +66,7 @@ class Reboot:
     def describe(self) -> str:
         gap = (f"after a {self.heartbeat_gap_s:.1f} s heartbeat gap" if math.isfinite(self.heartbeat_gap_s)
                else "with no HEARTBEAT heard before")
-        old = ", the boot the previous flight flew" if self.previous_flight else ""
+        old = " s (the boot the previous flight flew)" if self.previous_flight else ""
         return f"time_boot_ms went back from {self.from_s:.3f}{old} to {self.to_s:.3f} s {gap}"
 
 

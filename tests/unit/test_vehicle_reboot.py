@@ -189,7 +189,7 @@ def test_a_reboot_in_the_air_that_ends_the_flight_is_named_by_the_next_flight_of
     events, _, sent = run(second, veh, 20.0, on_step=_silent_while_down, clock=_wall)
     seen = [e for e in events if e.kind == "vehicle_rebooted"]
     assert len(seen) == 1 and second.counters.reboots == 1, [e.kind for e in events]
-    assert "the boot the previous flight flew" in seen[0].detail and "on the ground" in seen[0].detail, seen[0]
+    assert "s (the boot the previous flight flew) to" in seen[0].detail and "on the ground" in seen[0].detail, seen[0]
     assert not _motor_stops(sent) and second.phase == Phase.PREFLIGHT
 
 
