@@ -58,7 +58,9 @@ class FlightSequence:
         """A fresh supervisor on the same link, endpoint and planner; a new numbered log."""
         self._waiting_disarm = False
         self.flight_number += 1
+        previous = self.supervisor.reboots
         self.supervisor = self._new_supervisor()
+        self.supervisor.reboots.carry_on(previous)      # the vehicle's clock outlives the flight
         self._flight_closed = False
         self.ctrl_log = ControlLog()
         self.plans.clear()

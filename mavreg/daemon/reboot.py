@@ -32,6 +32,11 @@ What follows (:func:`on_reboot`), by phase:
   stream); a queued maneuver then flies as from a fresh start.
 
 ``counters.reboots`` counts them (the daemon's ``status``).
+
+The vehicle's clock is the vehicle's, not the flight's: a daemon of many flights hands each
+new flight's detector what the last one saw (:meth:`RebootDetector.carry_on`), so that a
+reboot that ended a flight (in the air, the link lost first) and had the next one begin on
+its disarmed HEARTBEAT is still seen, and named, by the first state part of the new boot.
 """
 from __future__ import annotations
 
@@ -55,11 +60,14 @@ class Reboot:
     from_s: float
     to_s: float
     heartbeat_gap_s: float
+    previous_flight: bool = False
+    """The old boot is the one the previous flight saw last (this flight saw none of it)."""
 
     def describe(self) -> str:
         gap = (f"after a {self.heartbeat_gap_s:.1f} s heartbeat gap" if math.isfinite(self.heartbeat_gap_s)
                else "with no HEARTBEAT heard before")
-        return f"time_boot_ms went back from {self.from_s:.3f} to {self.to_s:.3f} s {gap}"
+        old = " s (the boot the previous flight flew)" if self.previous_flight else ""
+        return f"time_boot_ms went back from {self.from_s:.3f}{old} to {self.to_s:.3f} s {gap}"
 
 
 class RebootDetector:
@@ -76,6 +84,14 @@ class RebootDetector:
         self.newest_ms = -1
         self._last_heartbeat_wall_s: float | None = None
         self._heartbeat_gap_s = 0.0
+        self._carried_ms = -1
+
+    def carry_on(self, previous: RebootDetector) -> None:
+        """Go on from what ``previous`` (the last flight's detector, the same vehicle) saw of
+        the vehicle's clock and HEARTBEATs: see the module docstring."""
+        self.newest_ms = self._carried_ms = previous.newest_ms
+        self._last_heartbeat_wall_s = previous._last_heartbeat_wall_s
+        self._heartbeat_gap_s = previous._heartbeat_gap_s
 
     def heartbeat(self, now_wall_s: float) -> None:
         """A vehicle HEARTBEAT at the injected clock ``now_wall_s``."""
@@ -98,7 +114,7 @@ class RebootDetector:
         gap = math.inf if last is None else max(self._heartbeat_gap_s, now_wall_s - last)
         self.newest_ms = t_ms
         self._heartbeat_gap_s = 0.0
-        return Reboot(newest / 1000.0, t_ms / 1000.0, gap)
+        return Reboot(newest / 1000.0, t_ms / 1000.0, gap, previous_flight=newest == self._carried_ms >= 0)
 
 
 def on_reboot(flight, safety, seen: Reboot, out) -> None:

@@ -173,3 +173,30 @@ def test_forgetting_the_boot_resets_every_field_on_the_vehicles_clock_and_keeps_
         want = getattr(fresh, n) if n in BOOT_KEYED else (12.5 if n.endswith("_s") else "set")
         got = getattr(ctx, n)
         assert got == want or (isinstance(want, float) and math.isnan(want) and math.isnan(got)), n
+
+
+def test_a_reboot_in_the_air_that_ends_the_flight_is_named_by_the_next_flight_of_the_same_daemon():
+    """ArduCopter in ``serve``: the link is lost in the air (the flight ends aborted), the new
+    boot's disarmed HEARTBEAT begins the next flight, and its state comes only when asked for:
+    the next flight's supervisor goes on from the last one's view of the vehicle's clock."""
+    veh = RebootingVehicle(reboot_at_s=8.0, down_s=2.0, needs_request=True)
+    first = make_supervisor(FakePlan())
+    run(first, veh, 20.0, on_step=_silent_while_down, clock=_wall)
+    assert first.phase == Phase.ABORTED and first.failure.bound == "link_lost" and veh.down, first.failure
+    assert first.counters.reboots == 0                  # nothing of the new boot yet
+    second = make_supervisor(None)                      # serve's next flight, waiting for an upload
+    second.reboots.carry_on(first.reboots)
+    events, _, sent = run(second, veh, 20.0, on_step=_silent_while_down, clock=_wall)
+    seen = [e for e in events if e.kind == "vehicle_rebooted"]
+    assert len(seen) == 1 and second.counters.reboots == 1, [e.kind for e in events]
+    assert "s (the boot the previous flight flew) to" in seen[0].detail and "on the ground" in seen[0].detail, seen[0]
+    assert not _motor_stops(sent) and second.phase == Phase.PREFLIGHT
+
+
+def test_a_fresh_detector_knows_no_earlier_boot():
+    d, fresh = RebootDetector(), RebootDetector()
+    d.part(M.MAVLink_attitude_message(90_000, 0, 0, 0, 0, 0, 0), 0.0)
+    fresh.carry_on(RebootDetector())
+    assert fresh.part(M.MAVLink_attitude_message(40, 0, 0, 0, 0, 0, 0), 1.0) is None
+    fresh.carry_on(d)
+    assert fresh.part(M.MAVLink_attitude_message(95_000, 0, 0, 0, 0, 0, 0), 2.0) is None   # the same boot goes on
