@@ -15,15 +15,14 @@ import time
 import pytest
 
 from mavreg.daemon.endpoint import request
-from tests.helpers.sitl import mavreg
-from tests.helpers.ardupilot_flight import PILOT_PARAMS, sim_touchdowns, vehicle_args
-from tests.helpers.ardupilot_sitl import M, ArduPilotSitl, SitlError, require_ardupilot
+from tests.helpers.ardupilot_flight import PILOT_PARAMS, sim_touchdowns
+from tests.helpers.ardupilot_serve import serve_on_arducopter, set_pilot_params
+from tests.helpers.ardupilot_sitl import M, SitlError, require_ardupilot
 from tests.helpers.repo import ROOT as REPO
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 
 HOP = (REPO / "tests/sitl/gcs_hop.yaml").read_text()
-SIM_STATE_HZ = 50.0
 
 
 def _hop(serve, sock, name: str, number: int) -> str:
@@ -63,36 +62,20 @@ def test_serve_flies_again_after_the_arducopter_reboots_between_flights(tmp_path
     the reboot, as a pilot whose vehicle lost them would, before the next upload; mavreg
     never sets them, it checks them again before that flight's arm."""
     require_ardupilot()
-    sock = tmp_path / "d.sock"
-    serve = None
     t0 = time.monotonic()
-    with ArduPilotSitl(frame="freestyle", params=PILOT_PARAMS, ground_link=True) as sitl:
-        gcs = sitl.ground
-        gcs.set_rate(M.MAVLINK_MSG_ID_SIM_STATE, SIM_STATE_HZ)
-        port = sitl.release_link()        # the daemon takes SERIAL0; the SITL keeps sending there
-        gcs.pump()
-        try:
-            serve = mavreg("serve", *vehicle_args(port), "--control-rate-hz", "200", "--socket", str(sock),
-                           "--tlog", str(tmp_path / "flight.tlog"))
-            serve.wait_line("control endpoint", 120)
-            first = _hop(serve, sock, "first", 1)
-            serve.wait_line("flight 2: waiting for an upload", 30)
-            ack = gcs.command_long(M.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, 1)
-            t_reboot = time.monotonic()
-            seen = serve.wait_line("vehicle_rebooted", 60)
-            t_seen = time.monotonic()
-            after_reboot = _params_after_reboot(gcs)
-            for name, value in PILOT_PARAMS.items():
-                gcs.set_param(name, value)
-            gcs.set_rate(M.MAVLINK_MSG_ID_SIM_STATE, SIM_STATE_HZ)    # message rates do not survive it
-            t_upload = time.monotonic()
-            second = _hop(serve, sock, "second", 2)
-            status = request(sock, {"op": "status"}, 60)["status"]
-            code = serve.stop(signal.SIGINT, 60)
-        finally:
-            if serve is not None:
-                serve.stop()
-                (tmp_path / "serve.log").write_text("\n".join(serve.lines))
+    with serve_on_arducopter(tmp_path) as (gcs, serve, sock):
+        first = _hop(serve, sock, "first", 1)
+        serve.wait_line("flight 2: waiting for an upload", 30)
+        ack = gcs.command_long(M.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, 1)
+        t_reboot = time.monotonic()
+        seen = serve.wait_line("vehicle_rebooted", 60)
+        t_seen = time.monotonic()
+        after_reboot = _params_after_reboot(gcs)
+        set_pilot_params(gcs)
+        t_upload = time.monotonic()
+        second = _hop(serve, sock, "second", 2)
+        status = request(sock, {"op": "status"}, 60)["status"]
+        code = serve.stop(signal.SIGINT, 60)
         rows = list(gcs.sim_state)
     downs = sim_touchdowns(rows)
     armed = [ln for ln in serve.lines[serve.lines.index(seen):] if "vehicle armed" in ln]

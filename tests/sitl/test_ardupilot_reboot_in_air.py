@@ -34,15 +34,13 @@ import time
 import pytest
 
 from mavreg.daemon.endpoint import request
-from tests.helpers.sitl import mavreg
-from tests.helpers.ardupilot_flight import PILOT_PARAMS, vehicle_args
-from tests.helpers.ardupilot_sitl import M, ArduPilotSitl, require_ardupilot
+from tests.helpers.ardupilot_serve import serve_on_arducopter, set_pilot_params
+from tests.helpers.ardupilot_sitl import M, require_ardupilot
 from tests.helpers.repo import ROOT as REPO
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 
 HOP = (REPO / "tests/sitl/gcs_hop.yaml").read_text()
-SIM_STATE_HZ = 50.0
 FORCE_REBOOT = 20190226
 """ArduPilot's param6 that lets MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN reboot an armed vehicle."""
 LOSS_BOUNDS = ("vehicle_rebooted", "link_lost", "vehicle_mode")
@@ -51,19 +49,6 @@ LOSS_BOUNDS = ("vehicle_rebooted", "link_lost", "vehicle_mode")
 def _reboot(gcs, force: bool):
     """MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN (param1 1: the autopilot) from the ground station."""
     return gcs.command_long(M.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, 1, 0, 0, 0, 0, FORCE_REBOOT if force else 0)
-
-
-def _set_pilot_params(gcs, timeout_s: float = 30.0) -> None:
-    """Set the pilot's parameters again once the rebooted autopilot answers."""
-    deadline = time.monotonic() + timeout_s
-    for name, value in PILOT_PARAMS.items():
-        while True:
-            try:
-                gcs.set_param(name, value, 1.0)
-                break
-            except Exception:            # still booting: its first requests go unanswered
-                if time.monotonic() > deadline:
-                    raise
 
 
 def _wait_for_sim_state(gcs, since: float, rows: int = 25, timeout_s: float = 15.0) -> None:
@@ -79,39 +64,24 @@ def _altitudes(rows, t_from: float, t_to: float) -> list[float]:
 
 def test_serve_reports_the_arducopter_rebooting_in_the_air_as_a_loss(tmp_path):
     require_ardupilot()
-    sock = tmp_path / "d.sock"
-    serve = None
     t0 = time.monotonic()
-    with ArduPilotSitl(frame="freestyle", params=PILOT_PARAMS, ground_link=True) as sitl:
-        gcs = sitl.ground
-        gcs.set_rate(M.MAVLINK_MSG_ID_SIM_STATE, SIM_STATE_HZ)
-        port = sitl.release_link()        # the daemon takes SERIAL0; the SITL keeps sending there
-        gcs.pump()
-        try:
-            serve = mavreg("serve", *vehicle_args(port), "--control-rate-hz", "200", "--socket", str(sock),
-                           "--tlog", str(tmp_path / "flight.tlog"))
-            serve.wait_line("control endpoint", 120)
-            assert request(sock, {"op": "upload", "name": "hop", "yaml": HOP}, 600)["ok"]
-            hold = serve.wait_line("[hold] phase", 240)
-            refused = _reboot(gcs, force=False)
-            forced = _reboot(gcs, force=True)
-            t_reboot = time.monotonic()
-            record = serve.wait_line("flight 1:", 60)
-            next_flight = serve.wait_line("the next flight begins once", 60)
-            seen = serve.wait_line("vehicle_rebooted", 60)
-            t_seen = time.monotonic()
-            _set_pilot_params(gcs)
-            gcs.set_rate(M.MAVLINK_MSG_ID_SIM_STATE, SIM_STATE_HZ)     # message rates do not survive it
-            disarmed = serve.wait_line("the vehicle reports itself disarmed (mode", 60)
-            waiting = serve.wait_line("flight 2: waiting for an upload", 60)
-            status = request(sock, {"op": "status"}, 60)["status"]
-            _wait_for_sim_state(gcs, t_reboot + 1.0)
-            t_end = time.monotonic()
-            code = serve.stop(signal.SIGINT, 60)
-        finally:
-            if serve is not None:
-                serve.stop()
-                (tmp_path / "serve.log").write_text("\n".join(serve.lines))
+    with serve_on_arducopter(tmp_path) as (gcs, serve, sock):
+        assert request(sock, {"op": "upload", "name": "hop", "yaml": HOP}, 600)["ok"]
+        hold = serve.wait_line("[hold] phase", 240)
+        refused = _reboot(gcs, force=False)
+        forced = _reboot(gcs, force=True)
+        t_reboot = time.monotonic()
+        record = serve.wait_line("flight 1:", 60)
+        next_flight = serve.wait_line("the next flight begins once", 60)
+        seen = serve.wait_line("vehicle_rebooted", 60)
+        t_seen = time.monotonic()
+        set_pilot_params(gcs)
+        disarmed = serve.wait_line("the vehicle reports itself disarmed (mode", 60)
+        waiting = serve.wait_line("flight 2: waiting for an upload", 60)
+        status = request(sock, {"op": "status"}, 60)["status"]
+        _wait_for_sim_state(gcs, t_reboot + 1.0)
+        t_end = time.monotonic()
+        code = serve.stop(signal.SIGINT, 60)
         rows = list(gcs.sim_state)
     log = serve.lines
     before, after = _altitudes(rows, t_reboot - 1.0, t_reboot), _altitudes(rows, t_reboot + 1.0, t_end)
