@@ -83,7 +83,8 @@ class AutopilotConfig:
     max_rotor_thrust_n: float = 12.0
     offboard_loss_timeout_s: float = 0.25
     failsafe_hold_s: float = 1.5
-    land_descent_m_s: float = 0.8
+    land_descent_m_s: float = 0.7
+    """Descent speed of LAND (PX4's ``MPC_LAND_SPEED`` default)."""
     land_disarm_s: float = 0.5
     """Time on the ground before the automatic disarm: in LAND, and in any mode but OFFBOARD
     once it has flown since arming (PX4's land detector and ``COM_DISARM_LAND``)."""

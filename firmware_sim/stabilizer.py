@@ -2,7 +2,9 @@
 
 A plain cascade, written for the emulator alone (nothing shared with mavreg):
 
-1. velocity loop (NED): horizontal velocity to zero; vertical velocity from an
+1. velocity loop (NED): horizontal velocity to zero, then, once braked, from a position P
+   loop (PX4's hold and land keep their position, so a steady wind leaves an offset, not a
+   drift); vertical velocity from an
    altitude P loop (HOLD) or a fixed descent rate (LAND); gives a desired
    acceleration, saturated, hence a desired force ``F = m (a - g e3)``;
 2. desired attitude: body -z along ``F``, heading held;
@@ -41,8 +43,11 @@ class StabilizerGains:
     min_hold_height_m: float = 0.5
     """HOLD never targets an altitude lower than this above ground."""
     kp_xy_per_s: float = 1.0
-    """Offboard position set-points: horizontal position gain (velocity per metre)."""
+    """Horizontal position gain (velocity per metre) of offboard position set-points and of
+    the position HOLD and LAND keep."""
     max_speed_xy_m_s: float = 5.0
+    brake_done_m_s: float = 1.0
+    """HOLD and LAND brake to this horizontal speed before they keep a position."""
 
 
 def _quat_from_matrix(c0, c1, c2):
@@ -85,21 +90,43 @@ class Stabilizer:
         self.g = gains if gains is not None else StabilizerGains()
         self.z_ref_m = -self.g.min_hold_height_m
         self.yaw_ref_rad = 0.0
+        self.xy_ref_m: tuple[float, float] | None = None
+        """Horizontal position HOLD and LAND keep; ``None``: velocity to zero only."""
+        self._keep_pending = False
 
     def reset(self, s) -> None:
-        """Capture the altitude to hold and the heading to keep from state ``s``."""
+        """Capture the altitude to hold and the heading to keep from state ``s``; the
+        horizontal position to keep is taken once the vehicle has braked (see :meth:`_keep_xy`)."""
         self.z_ref_m = min(s[2], -self.g.min_hold_height_m)
         self.yaw_ref_rad = yaw_of(s[3:7], self.yaw_ref_rad)
+        self.xy_ref_m = None
+        self._keep_pending = True
+
+    def _keep_xy(self, s) -> tuple[float, float]:
+        """Horizontal velocity set-point of HOLD and LAND. As PX4 does, brake first (velocity
+        to zero); below :attr:`StabilizerGains.brake_done_m_s` keep a position: where the
+        position loop brings the vehicle to rest, ``x + v / k_p``, so the set-point is
+        continuous. Before any :meth:`reset` (HOLD on the ground) velocity to zero only."""
+        g = self.g
+        if self.xy_ref_m is None:
+            if not self._keep_pending or math.hypot(s[7], s[8]) >= g.brake_done_m_s:
+                return 0.0, 0.0
+            self.xy_ref_m = (s[0] + s[7] / g.kp_xy_per_s, s[1] + s[8] / g.kp_xy_per_s)
+        vx, vy = g.kp_xy_per_s * (self.xy_ref_m[0] - s[0]), g.kp_xy_per_s * (self.xy_ref_m[1] - s[1])
+        h = math.hypot(vx, vy)
+        if h > g.max_speed_xy_m_s:
+            vx, vy = vx * g.max_speed_xy_m_s / h, vy * g.max_speed_xy_m_s / h
+        return vx, vy
 
     def hold(self, s):
-        """Rotor forces (N) to level, stop and hold ``z_ref_m``."""
+        """Rotor forces (N) to level, keep ``xy_ref_m`` and hold ``z_ref_m``."""
         g = self.g
         vz_ref = max(-g.max_climb_m_s, min(g.max_climb_m_s, g.kp_z_per_s * (self.z_ref_m - s[2])))
-        return self._control(s, vz_ref)
+        return self._control(s, vz_ref, *self._keep_xy(s))
 
     def land(self, s, descent_m_s: float):
-        """Rotor forces (N) to level, stop horizontally and descend at ``descent_m_s``."""
-        return self._control(s, descent_m_s)
+        """Rotor forces (N) to level, keep ``xy_ref_m`` and descend at ``descent_m_s``."""
+        return self._control(s, descent_m_s, *self._keep_xy(s))
 
     def track(self, s, position_ned, velocity_ned, yaw_rad):
         """Rotor forces (N) to a position and/or velocity set-point (offboard, PX4's

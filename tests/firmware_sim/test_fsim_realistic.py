@@ -176,7 +176,8 @@ def test_ideal_preset_reproduces_the_recording_bit_for_bit(tmp_path):
     k = np.searchsorted(d["t_s"], d["estimate_t_s"])
     assert np.array_equal(d["estimate_position_ned_m"], d["position_ned_m"][k])
     assert np.array_equal(d["estimate_quat"], d["quaternion_wxyz"][k])
-    # failsafe from an inverted in-flight start: the stabilizer path, no peer answering
+    # failsafe from an inverted in-flight start: the stabilizer path, no peer answering (digest
+    # retaken when HOLD and LAND began to keep a position once braked, and LAND to descend at 0.7 m/s)
     rec = tmp_path / "failsafe.npz"
     with Emulator("--world", "ideal", "--vehicle-params", str(vehicle), "--lockstep", "--lockstep-stall-speed",
                   "0", "--seed", "3", "--rotor-noise-sd-n", "0.05", "--start", "z_m=-6,vy_m_s=8,roll_deg=120",
@@ -185,7 +186,7 @@ def test_ideal_preset_reproduces_the_recording_bit_for_bit(tmp_path):
         c.heartbeat()
         assert emu.proc.wait(60) == 0
         c.close()
-    assert digest(np.load(rec)) == "a4ba9f11cfc51a90f938adf4dfb846e48f7feb3cdd56f0ff49b06c06e0ea4c97"
+    assert digest(np.load(rec)) == "31f57fdbd824c9db0f482dd7ae711cd00c82a94c31743045dc80ed47c57a730f"
 
 
 def test_startup_lines_name_the_world_and_its_overrides():
