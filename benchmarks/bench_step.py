@@ -24,9 +24,9 @@ import numpy as np
 from mavreg.config.paths import PARAMS_DIR
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
-from mavreg.control import fastpath
-from mavreg.control.disturbance import DisturbanceEstimate
-from mavreg.control.regulator import ManeuverRegulator
+from mavreg.control.controllers import fastpath
+from mavreg.control.estimation.disturbance import DisturbanceEstimate
+from mavreg.control.controllers.regulator import ManeuverRegulator
 from mavreg.planning.plan_io import plan_file
 from mavreg.sim.maneuver_run import fly_on_design_model
 

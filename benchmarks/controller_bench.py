@@ -3,12 +3,12 @@
 ``run_controller(quick)`` returns figures (:func:`benchmarks.io_helpers.figure`), microseconds
 per sample, p50 and p99:
 
-- ``controller_us.forecast_*``: :meth:`mavreg.control.forecast.Forecaster.update` with the
+- ``controller_us.forecast_*``: :meth:`mavreg.control.estimation.forecast.Forecaster.update` with the
   disturbance observer (its own prediction of the sample from the previous one and its
   Kalman update), then the prediction across the link delay;
-- ``controller_us.hover_*``: :meth:`mavreg.control.hover.HoverController.step` on the
+- ``controller_us.hover_*``: :meth:`mavreg.control.controllers.hover.HoverController.step` on the
   forecast state, the estimate fed forward (take-off ramp, then hold);
-- ``controller_us.regulator_*``: :meth:`mavreg.control.regulator.ManeuverRegulator.step` on
+- ``controller_us.regulator_*``: :meth:`mavreg.control.controllers.regulator.ManeuverRegulator.step` on
   the forecast state and rotor forces, with the estimate (the barrel roll);
 - ``controller_us.command_*``: :meth:`Forecaster.command` (the command's bookkeeping).
 
@@ -37,7 +37,7 @@ import numpy as np
 
 from benchmarks.io_helpers import REPO, figure
 from mavreg.config.vehicle import G
-from mavreg.control.hover import HoverController, HoverParams
+from mavreg.control.controllers.hover import HoverController, HoverParams
 from tests.helpers.controller_flight import Setup, fly, hover_ramp
 
 __all__ = ["run_controller", "replay"]

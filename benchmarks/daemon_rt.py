@@ -72,9 +72,9 @@ def realtime_flight(io: str, timeout_s: float, out: Path) -> dict:
     """One real-time flight with the daemon in this process on the ``io`` path."""
     from mavreg.config.controller import load_controller
     from mavreg.config.vehicle import load_vehicle
-    from mavreg.daemon.app import Daemon, DaemonConfig, regulator_factory
-    from mavreg.daemon.fly import spawn_emulator, stop_process
-    from mavreg.daemon.supervisor import SupervisorParams
+    from mavreg.daemon.jobs.app import Daemon, DaemonConfig, regulator_factory
+    from mavreg.daemon.jobs.fly import spawn_emulator, stop_process
+    from mavreg.daemon.flight.supervisor import SupervisorParams
 
     old_io = os.environ.get("MAVREG_IO")
     os.environ["MAVREG_IO"] = io                  # the daemon's link and the emulator's

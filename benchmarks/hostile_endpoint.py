@@ -1,7 +1,7 @@
 """How long hostile requests stall the daemon's event loop (docs/reliability.md).
 
 ``python -m benchmarks.hostile_endpoint`` serves the control endpoint with the daemon's
-planner (:class:`~mavreg.daemon.planner_pool.PlannerPool`, default bounds) on an event loop
+planner (:class:`~mavreg.daemon.jobs.planner_pool.PlannerPool`, default bounds) on an event loop
 that also runs a 20 ms ticker, as the daemon's control loop does, and sends, one kind at a
 time: malformed JSON, a 5 MB request, a line past the limit without a newline, slow clients
 (a byte every 0.2 s, never done within the 10 s read timeout) filling the connection cap
@@ -25,9 +25,9 @@ from pathlib import Path
 from mavreg.config.controller import load_controller
 from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER, PARAMS_DIR
 from mavreg.config.vehicle import load_vehicle
-from mavreg.daemon import endpoint
-from mavreg.daemon.endpoint import EndpointServer, request
-from mavreg.daemon.planner_pool import PlannerPool
+from mavreg.daemon.jobs import endpoint
+from mavreg.daemon.jobs.endpoint import EndpointServer, request
+from mavreg.daemon.jobs.planner_pool import PlannerPool
 
 TICK_S = 0.02
 

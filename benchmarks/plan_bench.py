@@ -58,7 +58,7 @@ def hwm():
     status = dict(line.split(':', 1) for line in open('/proc/self/status'))
     return int(status['VmHWM'].split()[0]) / 1024
 from mavreg.cli.main import main
-import mavreg.maneuver.plan, mavreg.maneuver.plan_margins, mavreg.control.riccati as r
+import mavreg.maneuver.plan, mavreg.maneuver.plan_margins, mavreg.control.design.riccati as r
 import numpy as np
 r.sweep_backward(np.zeros((2, 11, 11)), np.ones((2, 11, 4)), np.zeros((1, 11, 11)),
                  np.ones((1, 11, 4)), 0.01, np.eye(11), np.eye(4), np.eye(11), step_check='off')

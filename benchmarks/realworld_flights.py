@@ -25,7 +25,7 @@ from mavreg.config.paths import PARAMS_DIR  # noqa: E402
 
 
 def one_flight(out: Path, world: str, seed: int) -> dict:
-    from mavreg.daemon.ctrllog import load_control_log
+    from mavreg.daemon.jobs.ctrllog import load_control_log
     from mavreg.sim.metrics import rotor_jitter_n
     cmd = [sys.executable, "-m", "mavreg.cli.main", "fly", str(PARAMS_DIR / "maneuvers/barrel_roll.yaml"),
            "--out", str(out), "--world", world, f"--emulator-arg=--seed={seed}"]

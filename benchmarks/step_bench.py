@@ -2,7 +2,7 @@
 
 ``run_step(quick)`` returns figures (:func:`benchmarks.io_helpers.figure`):
 ``step_us.p50``, ``step_us.p99``, ``step_us.p999``: microseconds per call of the production
-step, :meth:`mavreg.control.regulator.ManeuverRegulator.step` (the paper's design,
+step, :meth:`mavreg.control.controllers.regulator.ManeuverRegulator.step` (the paper's design,
 ``paper_lqr.yaml``; a 1 kHz control period and the vehicle's rotor lag in the feedforward's
 lead, as the daemon builds it), over 30 000 states (quick: 3 000) in flight order: the
 first group 1 runs of the paper (0.6 m off in each axis, nominal then drawn inertia) flown
@@ -23,7 +23,7 @@ from benchmarks.io_helpers import BARREL, PAPER_CONTROLLER, VEHICLE, figure
 from tests.helpers.plain_regulator import PlainRegulator
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
-from mavreg.control.regulator import ManeuverRegulator
+from mavreg.control.controllers.regulator import ManeuverRegulator
 from mavreg.experiments.definitions import paper_group1
 from mavreg.planning.plan_io import plan_file
 from mavreg.sim.batch import BatchRun, fly_batch

@@ -5,7 +5,7 @@ main mode in bits 16-23, sub mode in bits 24-31) and ``base_mode`` carries
 ``MAV_MODE_FLAG_CUSTOM_MODE_ENABLED`` plus ``MAV_MODE_FLAG_SAFETY_ARMED`` when armed. The
 HEARTBEAT says ``MAV_AUTOPILOT_PX4``, so pymavlink (``mode_string_v10``), MAVProxy and
 MAVExplorer name the modes (LOITER, LAND, OFFBOARD). The daemon has its own copy of these
-numbers (``mavreg.daemon.messages``): the emulator stands for somebody else's firmware.
+numbers (``mavreg.daemon.vehicle.messages``): the emulator stands for somebody else's firmware.
 """
 from __future__ import annotations
 

@@ -1,8 +1,8 @@
 """The two receive paths under test, each with the property checks of one input.
 
-- :class:`DaemonTarget`: the daemon's link (:class:`mavreg.daemon.link.FastLink`, or the
-  reference :class:`~mavreg.daemon.link_reference.MavlinkLink`) parsing a datagram and handing each
-  message to a :class:`mavreg.daemon.supervisor.Supervisor` (state assembly, vehicle status,
+- :class:`DaemonTarget`: the daemon's link (:class:`mavreg.daemon.vehicle.link.FastLink`, or the
+  reference :class:`~mavreg.daemon.vehicle.link_reference.MavlinkLink`) parsing a datagram and handing each
+  message to a :class:`mavreg.daemon.flight.supervisor.Supervisor` (state assembly, vehicle status,
   TIMESYNC, acks), as the daemon wires them.
 - :class:`VehicleTarget`: firmware_sim as its command line builds it (ideal world), fed
   through its UDP socket on loopback: :meth:`firmware_sim.link.Link.recv_datagram`, the
@@ -57,9 +57,9 @@ class DaemonTarget:
 
     def __init__(self, impl: str = "fast"):
         from mavreg.config.vehicle import load_vehicle
-        from mavreg.daemon.link import FastLink
-        from mavreg.daemon.link_reference import MavlinkLink
-        from mavreg.daemon.supervisor import Supervisor, SupervisorParams
+        from mavreg.daemon.vehicle.link import FastLink
+        from mavreg.daemon.vehicle.link_reference import MavlinkLink
+        from mavreg.daemon.flight.supervisor import Supervisor, SupervisorParams
         self.sup = Supervisor(load_vehicle(PARAMS_DIR / "vehicles/mk_quadro.yaml"), SupervisorParams(),
                               lambda plan: None)
         self.passed: list = []

@@ -212,7 +212,7 @@ def plan(maneuver: ManeuverSpec | str | os.PathLike, vehicle: VehicleParams | No
     result = plan_cached(spec, vehicle, controller, strict, default_cache() if cache else None)
     if not margins:
         return result
-    from .control.hover import HoverParams
+    from .control.controllers.hover import HoverParams
     from .maneuver.plan_margins import with_margins
     return with_margins(result, HoverParams.from_controller(controller))
 

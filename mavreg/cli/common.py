@@ -57,7 +57,7 @@ def add_entry_offset_argument(p: argparse.ArgumentParser, what: str) -> argparse
 
 def add_planner_arguments(p: argparse.ArgumentParser) -> None:
     """--planner-memory-mib, --planner-cpu-s: what one upload may cost the planner worker."""
-    from ..daemon.planner_pool import PlannerBounds
+    from ..daemon.jobs.planner_pool import PlannerBounds
     d = PlannerBounds()
     p.add_argument("--planner-memory-mib", type=positive_int, default=d.memory_bytes >> 20, metavar="MIB",
                    help="memory one upload's planning may add to the planner worker; beyond it the "
@@ -68,10 +68,10 @@ def add_planner_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def planner_bounds(args):
-    """The :class:`~mavreg.daemon.planner_pool.PlannerBounds` of the options above."""
+    """The :class:`~mavreg.daemon.jobs.planner_pool.PlannerBounds` of the options above."""
     import dataclasses
 
-    from ..daemon.planner_pool import PlannerBounds
+    from ..daemon.jobs.planner_pool import PlannerBounds
     return dataclasses.replace(PlannerBounds(), memory_bytes=args.planner_memory_mib << 20,
                                cpu_s=args.planner_cpu_s)
 
@@ -197,7 +197,7 @@ def excitation_params(args, output: str):
     for an output with no rate loop to excite."""
     if not getattr(args, "identify_excitation", False):
         return None
-    from ..daemon.excitation import ExcitationParams, check_output
+    from ..daemon.flight.excitation import ExcitationParams, check_output
     from ..errors import UsageError
     try:
         check_output(ExcitationParams(), output)
@@ -230,7 +230,7 @@ def add_gcs_arguments(p: argparse.ArgumentParser) -> None:
 
 def gcs_config(args) -> dict:
     """The DaemonConfig fields of ``--gcs`` and ``--gcs-allow-commands``; UsageError on a bad URL."""
-    from ..daemon.gcs_params import GcsParams, parse_gcs_url     # no MAVLink: checked before the imports
+    from ..daemon.gcs.params import GcsParams, parse_gcs_url     # no MAVLink: checked before the imports
     from ..errors import UsageError
     for url in args.gcs:
         try:

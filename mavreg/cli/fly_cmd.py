@@ -163,7 +163,7 @@ def run(args) -> int:
     # numba): the first line, before the daemon's imports and everything slow
     where = args.vehicle or ("the bundled emulator" + (" (lockstep)" if args.lockstep else ""))
     progress.line(f"starting: {maneuver.name} on {where}; outputs in {out}/")
-    from ..daemon.fly import FlyOptions, fly
+    from ..daemon.jobs.fly import FlyOptions, fly
     opts = FlyOptions(maneuver, args.vehicle, Path(args.vehicle_params), Path(args.controller), out,
                       Path(args.socket) if args.socket else None, args.timeout_s, args.lockstep,
                       tuple(args.emulator_arg), args.control_rate_hz, args.vehicle_lockstep, args.world,

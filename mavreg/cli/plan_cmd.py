@@ -63,7 +63,7 @@ def _export_file(text: str) -> str:
 def run(args) -> int:
     vehicle, controller = load_model_params(args)
     spec = load_maneuver_arg(args)            # the files first: the planner's imports are heavy
-    from ..control.hover import HoverParams
+    from ..control.controllers.hover import HoverParams
     from ..maneuver.plan_margins import with_margins
     plan = with_margins(plan_saying("plan", spec, vehicle, controller, strict=False),
                         HoverParams.from_controller(controller))
@@ -90,7 +90,7 @@ def _write_outputs(args, plan, summary: dict) -> None:
 def _check_envelope(plan, envelope, summary: dict) -> None:
     """The daemon's floor and geofence (the controller file's ``envelope:``), seen from a
     take-off at the local origin: a plan that leaves them would be refused before take-off."""
-    from ..daemon.gate import nominal_points, plan_outside_envelope
+    from ..daemon.flight.gate import nominal_points, plan_outside_envelope
     origin = (0.0, 0.0, 0.0)
     bad = plan_outside_envelope(nominal_points(plan), origin, envelope)
     summary["envelope"] = {"takeoff_point_ned_m": list(origin), "inside": bad is None,

@@ -96,12 +96,12 @@ def run(args) -> int:
     progress.line(f"serving {args.vehicle}")       # checked: the first line, before the daemon's imports
     import asyncio
 
-    from ..control.hover import HoverParams
-    from ..daemon.app import Daemon, DaemonConfig, regulator_factory
-    from ..daemon.endpoint import default_socket_path
-    from ..daemon.peers import system_id_to_use
-    from ..daemon.sdnotify import Notifier
-    from ..daemon.supervisor import Phase, SupervisorParams
+    from ..control.controllers.hover import HoverParams
+    from ..daemon.jobs.app import Daemon, DaemonConfig, regulator_factory
+    from ..daemon.jobs.endpoint import default_socket_path
+    from ..daemon.vehicle.peers import system_id_to_use
+    from ..daemon.jobs.sdnotify import Notifier
+    from ..daemon.flight.supervisor import Phase, SupervisorParams
     from ..transport.signing import Signing
     signing = Signing(args.signing_key, "mavreg") if args.signing_key is not None else None
     config = DaemonConfig(args.vehicle, Path(args.vehicle_params), Path(args.controller),

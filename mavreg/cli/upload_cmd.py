@@ -39,7 +39,7 @@ def add_arguments(p):
 
 
 def run(args) -> int:
-    from ..daemon.endpoint import default_socket_path, request
+    from ..daemon.jobs.endpoint import default_socket_path, request
     path = Path(args.socket) if args.socket else default_socket_path()
     if args.laps is not None and args.maneuver is None:
         raise UsageError("--laps needs a maneuver FILE")

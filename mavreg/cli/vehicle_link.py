@@ -9,8 +9,8 @@ __all__ = ["vehicle_url", "vehicle_url_help", "check_vehicle_link"]
 
 def vehicle_url(text: str) -> str:
     """udpin:HOST:PORT, udpout:HOST:PORT, serial:PATH[:BAUD] or tcp:HOST:PORT
-    (mavreg.daemon.vehicle_url.parse_url)."""
-    from ..daemon.vehicle_url import parse_url
+    (mavreg.daemon.vehicle.url.parse_url)."""
+    from ..daemon.vehicle.url import parse_url
     try:
         parse_url(text)
     except ValueError as exc:      # parse_url's only failure: the text is not such a URL
@@ -20,7 +20,7 @@ def vehicle_url(text: str) -> str:
 
 def vehicle_url_help(default: str) -> str:
     """``--vehicle``'s help: the forms, where each fits, and the default."""
-    from ..daemon.vehicle_url import VEHICLE_URL_FORMS
+    from ..daemon.vehicle.url import VEHICLE_URL_FORMS
     return (f"vehicle connection: {VEHICLE_URL_FORMS}. udpout: PX4 SITL's offboard port; udpin: the "
             "vehicle sends first; serial: the flight controller's TELEM port on a UART or USB (e.g. "
             "serial:/dev/ttyAMA0:921600), checked against the telemetry rate; tcp: ArduPilot SITL "
@@ -30,11 +30,11 @@ def vehicle_url_help(default: str) -> str:
 def check_vehicle_link(url: str | None, rate_hz: float, output: str, signed: bool) -> None:
     """UsageError (one line, before anything starts) when ``url`` is a serial port that is not
     there or not readable and writable by this user, or whose baud cannot carry the telemetry and
-    commands at ``rate_hz`` (:mod:`mavreg.daemon.link_budget`)."""
+    commands at ``rate_hz`` (:mod:`mavreg.daemon.vehicle.link_budget`)."""
     if url is None or not url.startswith("serial:"):
         return
-    from ..daemon.link_budget import baud_refusal
-    from ..daemon.vehicle_url import parse_url
+    from ..daemon.vehicle.link_budget import baud_refusal
+    from ..daemon.vehicle.url import parse_url
     from ..errors import UsageError
     _, path, baud_bps = parse_url(url)
     if not os.path.exists(path):

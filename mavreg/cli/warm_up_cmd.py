@@ -43,8 +43,8 @@ def run(args) -> int:
     progress.line("the controller's kernels, then the maneuvers' plans, into the caches")
     from ..config.controller import load_controller
     from ..config.vehicle import load_vehicle
-    from ..control.hover import HoverParams
-    from ..daemon.startup import kernels_cold, warm_daemon_kernels
+    from ..control.controllers.hover import HoverParams
+    from ..daemon.jobs.startup import kernels_cold, warm_daemon_kernels
     vehicle, controller = load_vehicle(args.vehicle_params), load_controller(args.controller)
     files = [Path(f) for f in args.maneuvers] or maneuver_files()
     cold = kernels_cold()

@@ -51,7 +51,7 @@ class ControllerParams:
     rotor_lag_in_design: bool = False
     """Design the LQR on the transverse state augmented with the wrench the rotors achieve
     through their first-order lag (``rotor_time_constant_s`` of the vehicle file; see
-    :mod:`mavreg.control.actuator`). False: the paper's design, which assumes the commanded
+    :mod:`mavreg.control.design.actuator`). False: the paper's design, which assumes the commanded
     wrench acts at once."""
     q_wrench: tuple[float, ...] = field(default=(0.0, 0.0, 0.0, 0.0),
                                         metadata={"length": 4, **LQR_WEIGHT_OR_ZERO})
@@ -59,7 +59,7 @@ class ControllerParams:
     nominal, (f, gamma1, gamma2, gamma3)."""
     predict_delay: bool = False
     """Predict the state across the measured (or ``fixed_delay_s``) sample-to-actuation delay
-    before regulating (:mod:`mavreg.control.predictor`). False: regulate the sample as it is."""
+    before regulating (:mod:`mavreg.control.estimation.predictor`). False: regulate the sample as it is."""
     fixed_delay_s: float | None = field(default=None, metadata={"min": 0.0, "max": 0.5})
     """A configured link delay (downlink + uplink, s) that overrides the measured one."""
     max_prediction_s: float = field(default=MAX_PREDICTION_S, metadata={"min": 0.0, "max": 0.5})
@@ -74,7 +74,7 @@ class ControllerParams:
     hover_q: tuple[float, ...] = field(default=(20.0, 20.0, 30.0, 4.0, 4.0, 4.0, 6.0, 6.0, 8.0, 0.5, 0.5, 0.5),
                                        metadata={"length": 12, **LQR_WEIGHT})
     """The hover LQR's state weights over x = (p, roll pitch yaw, v_body, w_body): take-off,
-    holds, landing (:class:`mavreg.control.hover.HoverParams`)."""
+    holds, landing (:class:`mavreg.control.controllers.hover.HoverParams`)."""
     hover_r_input: tuple[float, ...] = field(default=(0.1, 4.0, 4.0, 1.0),
                                              metadata={"length": 4, **LQR_WEIGHT})
     """The hover LQR's input weights over (f, gamma1, gamma2, gamma3). Roll and pitch at 4:

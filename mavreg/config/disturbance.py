@@ -23,7 +23,7 @@ _RATE = within(1e-6, 1e4)
 
 @dataclass(frozen=True)
 class TorqueBiasParams:
-    r"""The torque part of the observer (:mod:`mavreg.control.torque_bias`): a body torque the
+    r"""The torque part of the observer (:mod:`mavreg.control.estimation.torque_bias`): a body torque the
     design model does not know, :math:`\tau_b = t_0 + t_1 T` per axis (``torque_bias:``
     inside ``disturbance:``; docs/robustness.md, "Torque bias").
 
@@ -67,7 +67,7 @@ class TorqueBiasParams:
 
 @dataclass(frozen=True)
 class RotorLagParams:
-    r"""The rotor-lag part of the observer (:mod:`mavreg.control.lag_observer`): the rotors'
+    r"""The rotor-lag part of the observer (:mod:`mavreg.control.estimation.lag_observer`): the rotors'
     time constant :math:`\tau`, learned in flight from the body rates (``rotor_lag:`` inside
     ``disturbance:``; docs/robustness.md, "Rotor lag"). The prediction lags the commands by
     the estimate; the regulator's feedforward leads by its follower. The gains stay those the
@@ -100,7 +100,7 @@ class RotorLagParams:
 
 @dataclass(frozen=True)
 class DisturbanceParams:
-    """A Kalman filter on the airframe's unknown force model (:mod:`mavreg.control.disturbance`).
+    """A Kalman filter on the airframe's unknown force model (:mod:`mavreg.control.estimation.disturbance`).
 
     Each parameter is a random walk that wanders by its ``*_sd`` over its ``*_tau_s``; the
     initial uncertainty is the same SD. The estimate is bounded by the ``max_*`` values.

@@ -83,7 +83,7 @@ class GateParams:
 
 @dataclass(frozen=True)
 class RecoveryParams:
-    """The recovery controller (:mod:`mavreg.control.recovery`) and its success criteria."""
+    """The recovery controller (:mod:`mavreg.control.controllers.recovery`) and its success criteria."""
 
     safe_altitude_m: float = field(default=3.0, metadata=DISTANCE_M)
     """Climb to at least this altitude above the take-off point, then hold."""

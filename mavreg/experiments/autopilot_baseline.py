@@ -8,7 +8,7 @@ a fixed rate, in OFFBOARD or GUIDED (``scripts/compare_autopilots.py``).
 Nothing here re-derives the nominal. The plan's nominal is timed by its speed profile,
 ``ds/dt = v(s)``, by :class:`mavreg.trackers.timed.TimedNominal` (what the time-indexed trackers
 of ``mavreg experiment gust|lag`` fly); the take-off, the hold, the run-in onto the entry state
-and the stop at the exit are the daemon's own ramps (:mod:`mavreg.daemon.flightpath`), so the
+and the stop at the exit are the daemon's own ramps (:mod:`mavreg.daemon.flight.flightpath`), so the
 autopilot flies the maneuver from the same entry as mavreg does. :class:`BaselineSchedule` is
 that whole reference as one function of time, phase by phase. Pure numbers: no clock, no I/O.
 """
@@ -20,8 +20,8 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
-from ..control.hover import HoverParams, Ramp
-from ..daemon import flightpath as fp
+from ..control.controllers.hover import HoverParams, Ramp
+from ..daemon.flight import flightpath as fp
 from ..model.rotation import rpy_to_matrix, wrap_angle
 from ..trackers.timed import TimedNominal
 

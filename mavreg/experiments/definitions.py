@@ -72,7 +72,7 @@ DISTURBANCE = "disturbance"
 by whether each run reaches the path's end."""
 
 REGULATOR = "regulator"
-"""Maneuver regulation (:class:`mavreg.control.regulator.ManeuverRegulator`), the plan's gains."""
+"""Maneuver regulation (:class:`mavreg.control.controllers.regulator.ManeuverRegulator`), the plan's gains."""
 TVLQR = "tvlqr"
 """The time-varying LQR of :mod:`mavreg.trackers.tvlqr`, on the regulator's weights."""
 SE3 = "se3"

@@ -6,7 +6,7 @@ back as a :class:`RunOutcome`; the outcomes are put back in run order. So the re
 depend on the experiment's seed alone, not on ``jobs`` nor on which worker finished first
 (tests/unit/test_experiment_runner.py). ``jobs = 1`` flies in this process.
 
-Workers are ``spawn``-ed processes bound to this one (:mod:`mavreg.daemon.lifeline`): they,
+Workers are ``spawn``-ed processes bound to this one (:mod:`mavreg.daemon.jobs.lifeline`): they,
 and the ``mavreg fly`` of a ``sitl`` run with its emulator, die with it however it ends; on
 Ctrl-C they are killed at once. A run that raises is recorded with its error (one line, the
 traceback apart) and the campaign goes on; a worker process that dies stops the campaign
@@ -106,7 +106,7 @@ def _execute(job: _Job) -> RunOutcome:
 
 
 def _init_worker(parent_pid: int) -> None:
-    from ..daemon.lifeline import die_with_parent
+    from ..daemon.jobs.lifeline import die_with_parent
     signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C is the parent's to handle
     die_with_parent(parent_pid)
 

@@ -28,9 +28,9 @@ from pathlib import Path
 
 from ..config.maneuver import maneuver_text_with_laps
 from ..config.paths import DEFAULT_VEHICLE, maneuver_file
-from ..daemon.endpoint import request
-from ..daemon.fly import spawn_emulator, stop_process
-from ..daemon.lifeline import wrap_command
+from ..daemon.jobs.endpoint import request
+from ..daemon.jobs.fly import spawn_emulator, stop_process
+from ..daemon.jobs.lifeline import wrap_command
 from .serve_draws import HOP_YAML, HOSTILE_UPLOADS, FlightDraw
 
 __all__ = ["ServeRig", "fly_campaign", "process_sample"]

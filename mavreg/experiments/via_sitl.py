@@ -47,7 +47,7 @@ import yaml
 
 from ..config.controller import load_controller
 from ..config.maneuver import load_maneuver, maneuver_text_with_laps
-from ..daemon.lifeline import wrap_command
+from ..daemon.jobs.lifeline import wrap_command
 from ..model.rotation import quats_to_matrices
 from .record import Flight
 

@@ -9,7 +9,7 @@ From the ``.tlog`` (every message in and out, in the order the daemon saw or sen
 - the vehicle is the source of the first LOCAL_POSITION_NED or ATTITUDE_QUATERNION; its
   LOCAL_POSITION_NED and ATTITUDE_QUATERNION of one ``time_boot_ms`` make one sample;
 - its HEARTBEATs give armed and the mode, in its autopilot's dialect (PX4 OFFBOARD, ArduCopter
-  GUIDED: :mod:`mavreg.daemon.autopilots`); each sample carries
+  GUIDED: :mod:`mavreg.daemon.vehicle.autopilots`); each sample carries
   the status of the last HEARTBEAT before it;
 - the body rates of a sample are its ATTITUDE_QUATERNION's (rollspeed, pitchspeed,
   yawspeed), or its ATTITUDE's of the same ``time_boot_ms`` where the former are all zero
@@ -24,11 +24,11 @@ From the ``.tlog`` (every message in and out, in the order the daemon saw or sen
   such sample (real time: sent across a telemetry gap) is placed on the vehicle clock by its
   ``time_usec`` or ``time_boot_ms`` (the daemon's clock) less the median offset of the paired commands;
 - the daemon's STATUSTEXTs ``mavreg excitation: start:`` and ``end:`` bound the
-  identification flight's rate doublets (:mod:`mavreg.daemon.excitation`), each at the time
+  identification flight's rate doublets (:mod:`mavreg.daemon.flight.excitation`), each at the time
   of the last complete sample before it;
 - TIMESYNC: the daemon's request (``tc1 = 0``) follows the command of the sample it goes
   with; the vehicle's reply carries its clock (``tc1``, ns). ``tc1`` minus that sample's time
-  is the sample-to-actuation delay of the link (:mod:`mavreg.daemon.timesync`); the median is
+  is the sample-to-actuation delay of the link (:mod:`mavreg.daemon.vehicle.timesync`); the median is
   returned.
 """
 from __future__ import annotations
@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..daemon.autopilots import dialect_for
+from ..daemon.vehicle.autopilots import dialect_for
 from ..errors import UsageError
 from .regressors import FlightSeries
 

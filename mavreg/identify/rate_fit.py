@@ -32,7 +32,7 @@ loop's own delay is :math:`d = D - D_{link}` with the link's part (TIMESYNC plus
 file's estimate latency) given by the caller.
 
 **Which samples.** A flight with the identification excitation (``mavreg fly
---identify-excitation``: rate doublets in the hold, :mod:`mavreg.daemon.excitation`) has the
+--identify-excitation``: rate doublets in the hold, :mod:`mavreg.daemon.flight.excitation`) has the
 rate loop fitted on the doublets' window only (:func:`rate_rows`; ``rate_window`` 'all': the
 whole flight). A maneuver's rates are large and smooth: where the loop is not first order
 they weigh a split of lag and delay of their own into the fit, which the steps pin otherwise.

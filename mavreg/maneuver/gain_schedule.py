@@ -15,9 +15,9 @@ import numpy as np
 
 from ..config.controller import ControllerParams
 from ..config.maneuver import ManeuverSpec
-from ..control.actuator import augmented_jacobians
-from ..control.riccati import SweepDivergence, care, periodic_riccati, riccati_rhs, sweep_backward
-from ..control.transverse import transverse_jacobians
+from ..control.design.actuator import augmented_jacobians
+from ..control.design.riccati import SweepDivergence, care, periodic_riccati, riccati_rhs, sweep_backward
+from ..control.design.transverse import transverse_jacobians
 from ..errors import ManeuverError
 from .nominal_grid import Nominal, nominal_on_grid, with_midpoints
 

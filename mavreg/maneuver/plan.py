@@ -21,8 +21,8 @@ import numpy as np
 from ..config.controller import ControllerParams
 from ..config.maneuver import ManeuverSpec
 from ..config.vehicle import VehicleParams
-from ..control.attitude_table import NominalAttitudes
-from ..control.riccati import SweepDivergence
+from ..control.controllers.attitude_table import NominalAttitudes
+from ..control.design.riccati import SweepDivergence
 from ..blas import one_blas_thread
 from ..errors import ManeuverError
 from ..geometry.build import build_path
@@ -49,7 +49,7 @@ class Plan:
     ``dx`` is dx/ds = f(x, u)/v, used for Hermite interpolation of the nominal. ``K`` is
     (N, 4, 11) for the paper's design, or (N, 4, 15) when the rotor lag is in the design
     (``rotor_time_constant_s`` > 0): the last four columns act on the achieved wrench's
-    deviation from the nominal (:mod:`mavreg.control.actuator`).
+    deviation from the nominal (:mod:`mavreg.control.design.actuator`).
     """
 
     name: str
@@ -81,7 +81,7 @@ class Plan:
 
     def nominal_attitude(self, s: float) -> np.ndarray:
         """Rbar(s) (3, 3) between the grid rows around s (clamped), by the cubic in the
-        rotation vector of :class:`~mavreg.control.attitude_table.NominalAttitudes`."""
+        rotation vector of :class:`~mavreg.control.controllers.attitude_table.NominalAttitudes`."""
         s = float(np.clip(s, self.s[0], self.s[-1]))
         i = int(np.clip(np.searchsorted(self.s, s) - 1, 0, len(self.s) - 2))
         rows = slice(i, i + 2)

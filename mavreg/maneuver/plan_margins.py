@@ -1,17 +1,17 @@
 r"""Margins of the loops a flight flies: the maneuver regulator along a plan, and the hover LQR.
 
 Both on the **lag-augmented design model**, the loop broken at the rotor commands (a common
-gain or delay on the four rotors is one on the wrench; :mod:`mavreg.control.margins` has the
+gain or delay on the four rotors is one on the wrench; :mod:`mavreg.control.design.margins` has the
 math and the methods; docs/robustness.md, *Margins*, the choices and the figures).
 
 - **Maneuver.** At plan row i the transverse dynamics are in s (:math:`z' = A_z z + B_z\nu`,
-  :mod:`mavreg.control.actuator`); frozen at the nominal speed, :math:`dt = ds/v`, so in time
+  :mod:`mavreg.control.design.actuator`); frozen at the nominal speed, :math:`dt = ds/v`, so in time
   :math:`\dot z = v A_z z + v B_z \nu`. With lag-aware gains (15 columns) the regulator feeds
   back its own lag model of its commands, not a measured wrench
-  (:func:`~mavreg.control.margins.lag_model_loop`); the paper's gains (11 columns) act on w
+  (:func:`~mavreg.control.design.margins.lag_model_loop`); the paper's gains (11 columns) act on w
   alone, and the plant still lags by the vehicle's ``rotor_time_constant_s``.
 - **Hover.** The hover LQR is designed without the lag
-  (:meth:`~mavreg.control.hover.HoverController.design_loop`); the plant is that model through
+  (:meth:`~mavreg.control.controllers.hover.HoverController.design_loop`); the plant is that model through
   the lag (:func:`~mavreg.model.rotor_lag.lag_augment`).
 
 Frozen-time: each row's loop is analysed as if the maneuver stood still there. That is exact
@@ -32,12 +32,12 @@ import numpy as np
 from ..blas import one_blas_thread
 from ..config.vehicle import VehicleParams
 from ..errors import ManeuverError
-from ..control.actuator import augmented_jacobians
+from ..control.design.actuator import augmented_jacobians
 from ..model.rotor_lag import lag_augment
-from ..control.hover import HoverController, HoverParams
-from ..control.margins import (FastLoopError, LoopMargins, ScheduleMargins, lag_model_loop, loop_margins,
+from ..control.controllers.hover import HoverController, HoverParams
+from ..control.design.margins import (FastLoopError, LoopMargins, ScheduleMargins, lag_model_loop, loop_margins,
                                node_margins, rotor_loop, schedule_margins)
-from ..control.transverse import transverse_jacobians
+from ..control.design.transverse import transverse_jacobians
 from ..model.mixer import mixer_matrix
 from ..model.quadrotor import QuadrotorModel
 from .gain_schedule import du_ds

@@ -26,7 +26,7 @@ the forms the code needs; :mod:`mavreg.model.drag_kernel` has the same forms for
 compiled kernels, operation for operation (``tests/unit/test_drag.py`` holds them together
 and against each other). The flat nominal (:mod:`mavreg.maneuver.flatness`) feeds the drag's
 time derivatives forward as jets of this same model; the disturbance observer's regressors
-(:func:`mavreg.control.disturbance.regressors`) are its derivatives in the coefficients.
+(:func:`mavreg.control.estimation.disturbance.regressors`) are its derivatives in the coefficients.
 The bundled emulator (``firmware_sim``) keeps its own drag on purpose.
 """
 from __future__ import annotations

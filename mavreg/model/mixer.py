@@ -143,7 +143,7 @@ def torques_first(mixer_inverse, u, max_rotor_thrust_n: float) -> np.ndarray:
 
 def collective_first(thrust_n: float, torque_n_m, mixer_inverse, max_rotor_thrust_n: float) -> np.ndarray:
     """Rotor forces in [0, max] for a wrench, giving up collective thrust first (the
-    recovery's policy, :mod:`mavreg.control.recovery`: the attitude is what must be kept).
+    recovery's policy, :mod:`mavreg.control.controllers.recovery`: the attitude is what must be kept).
 
     Returns rotor forces f with ``M f = (thrust', torque')``: the torque exactly when some
     collective makes it feasible (thrust' is then the feasible value nearest ``thrust_n``);

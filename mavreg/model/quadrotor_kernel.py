@@ -55,5 +55,5 @@ plant_rhs_compiled = plant_rhs
 @njit
 def angular_acceleration(jx, jy, jz, wx, wy, wz, g1, g2, g3):
     r""":math:`J^{-1}(\gamma - \omega \times J\omega)` of the body rates (eqs 12-14), in the
-    form the state predictor's integration uses (:mod:`mavreg.control.predictor_kernel`)."""
+    form the state predictor's integration uses (:mod:`mavreg.control.estimation.predictor_kernel`)."""
     return (g1 + (jy - jz) * wy * wz) / jx, (g2 + (jz - jx) * wx * wz) / jy, (g3 + (jx - jy) * wx * wy) / jz

@@ -4,7 +4,7 @@ nothing is allocated, and numba keeps them in registers.
 The same maths as :func:`mavreg.model.rotation.rpy_to_matrix` (:math:`R = R_z(\psi) R_y(\theta)
 R_x(\phi)`), :func:`~mavreg.model.rotation.matrix_to_rpy`, :func:`~mavreg.model.rotation.wrap_angle`, :func:`mavreg.model.so3.log_so3` (the
 series below 1e-4 rad, the axis from the symmetric part near pi) and
-:func:`mavreg.control.attitude_table.rodrigues` (Exp of a rotation vector, the series below
+:func:`mavreg.control.controllers.attitude_table.rodrigues` (Exp of a rotation vector, the series below
 1e-4 rad), operation for operation where it matters for rounding.
 """
 from __future__ import annotations

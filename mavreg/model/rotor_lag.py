@@ -15,7 +15,7 @@ For a command held over a step :math:`\Delta t` this is exact in closed form:
 the second the force's mean over the step (what a physics step should apply). The compiled
 kernels use the same maths, operation for operation, from :mod:`mavreg.model.rotor_lag_kernel`;
 ``tests/unit/test_rotor_lag.py`` holds the two together. The lag in the transverse
-linearization (s-domain, with the nominal's lead) is :mod:`mavreg.control.actuator`'s, built
+linearization (s-domain, with the nominal's lead) is :mod:`mavreg.control.design.actuator`'s, built
 on :func:`lag_augment`'s time-domain form. The bundled emulator (``firmware_sim``) keeps its
 own rotor model on purpose (it stands for somebody else's firmware).
 """
@@ -57,7 +57,7 @@ def lag_augment(A, B, tau_s: float) -> tuple[np.ndarray, np.ndarray]:
         A_z = \begin{bmatrix} A & B \\ 0 & -I/\tau \end{bmatrix},\qquad
         B_z = \begin{bmatrix} 0 \\ I/\tau \end{bmatrix}.
 
-    This is :func:`mavreg.control.actuator.augmented_jacobians` times the speed where the
+    This is :func:`mavreg.control.design.actuator.augmented_jacobians` times the speed where the
     nominal input does not change (u-bar' = 0: a hover, a steady line), for a plant given in
     time."""
     if not tau_s > 0:

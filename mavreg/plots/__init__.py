@@ -43,7 +43,7 @@ def plot_fly(png_path, plan, ctrl: dict, record: dict | None, summary: dict | No
 
     Parameters
     ----------
-    ctrl : the control log (:func:`mavreg.daemon.ctrllog.load_control_log`).
+    ctrl : the control log (:func:`mavreg.daemon.jobs.ctrllog.load_control_log`).
     record : the emulator's recording (``t_s``, ``position_ned_m`` and, optionally,
         ``quaternion_wxyz``, ``velocity_ned_m_s``), or None for a vehicle without one.
     summary : ``summary.json``'s dict (``result``, ``reason``, ``failure``), or None.

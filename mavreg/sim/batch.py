@@ -12,7 +12,7 @@ offset, plant inertia, rotor noise, saturation, seed.
 
 Compiled (numba, :mod:`mavreg.sim.batch_compiled`), each run is a scalar loop in time, the
 regulator's step the project's compiled kernel
-(:func:`mavreg.control.step_kernel.regulator_step`), RK4 on plain floats, and each run's
+(:func:`mavreg.control.controllers.step_kernel.regulator_step`), RK4 on plain floats, and each run's
 :class:`~mavreg.sim.closed_loop.SimResult` agrees with the sequential one to rounding
 (``tests/unit/test_batch_sim.py``: 1e-9). Without numba (or with ``MAVREG_PURE=1``, or
 ``compiled=False``) the runs are flown one after another by the sequential simulator
@@ -32,8 +32,8 @@ import numpy as np
 
 from ..accel import use_compiled
 from ..config.vehicle import G
-from ..control.fastpath import FastStep
-from ..control.step_kernel import ST_GOV, ST_S
+from ..control.controllers.fastpath import FastStep
+from ..control.controllers.step_kernel import ST_GOV, ST_S
 from ..geometry.projection import Projector
 from ..maneuver.plan import Plan
 from ..model.mixer import Mixer

@@ -4,7 +4,7 @@ What the sequential simulator does (:func:`mavreg.sim.maneuver_run.fly_on_design
 numba compiles here as plain loops (:func:`mavreg.accel.njit`), which is several times faster
 than numba's array expressions and compiles in seconds instead of tens of seconds. Per run and control
 call, the regulator's step is the project's compiled one,
-:func:`mavreg.control.step_kernel.regulator_step` (the same kernel the regulator's compiled
+:func:`mavreg.control.controllers.step_kernel.regulator_step` (the same kernel the regulator's compiled
 path runs), and between calls the plant of eqs 6-17
 (:func:`mavreg.model.quadrotor_kernel.plant_rhs`, the run's inertia)
 is stepped by classical RK4, exactly as :func:`mavreg.sim.closed_loop.simulate` steps it:
@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..accel import njit
-from ..control import step_kernel as sk
+from ..control.controllers import step_kernel as sk
 from ..model.quadrotor_kernel import plant_rhs
 
 __all__ = ["run", "RUNNING", "COMPLETED", "DIVERGED", "BAD_COMMAND", "TIMEOUT"]
@@ -120,7 +120,7 @@ def _fly(r, x, st, status, k_end, xs, cmd, app, step, M, plant, J, upper, noise,
 def run(X, ST, status, k_end, xs, cmd, app, step, M, plant, J, upper, noise, thrust_scale, dt, period, limits):
     """Fly every run whose ``status`` is RUNNING: X (N, 12) start states, ST (N, 6) the step
     kernel's state per run (s first), ``step`` = (table, s_tab, s_nodes, coef, ends, prm) of
-    :class:`mavreg.control.fastpath.FastStep`; ``xs`` (N, K+1, 12), ``cmd`` and ``app``
+    :class:`mavreg.control.controllers.fastpath.FastStep`; ``xs`` (N, K+1, 12), ``cmd`` and ``app``
     (N, K+1, 4) receive the records, ``status`` and ``k_end`` how and where each run ended.
     ``plant`` = (mass, g, c_xy, c_z, c_parasitic, the drag's thrust exponent), J (N, 3), ``upper`` (N,) the saturation,
     ``noise`` (C, 4, N): the rotor noise of each control call (:func:`mavreg.sim.batch._noise`)."""

@@ -10,8 +10,8 @@ import dataclasses
 from ..config.defaults import MAX_PREDICTION_S
 from ..config.disturbance import DisturbanceParams
 from ..config.regulation import AllocationParams, SpeedGovernorParams
-from ..control.forecast import Forecaster
-from ..control.regulator import ManeuverRegulator
+from ..control.estimation.forecast import Forecaster
+from ..control.controllers.regulator import ManeuverRegulator
 from ..maneuver.plan import Plan
 from ..model.mixer import Mixer
 from ..model.quadrotor import QuadrotorModel
@@ -60,7 +60,7 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
     ``measurement_delay_s`` late, corrupted by ``estimate_noise`` (seeded by ``seed``), and
     its command reaches the rotors ``command_delay_s`` later. With ``predict`` it first
     predicts the state across ``assumed_delay_s`` (default: the true round trip) with
-    :class:`~mavreg.control.forecast.Forecaster`, at most ``max_prediction_s`` ahead; with
+    :class:`~mavreg.control.estimation.forecast.Forecaster`, at most ``max_prediction_s`` ahead; with
     ``disturbance`` enabled its observer runs from the start and the regulator compensates
     its estimate, as in the daemon (needs ``predict``). The rotors give ``thrust_scale`` of
     their command (the controller is not told). ``allocation`` and ``speed_governor`` (the

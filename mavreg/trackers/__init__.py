@@ -1,6 +1,6 @@
 """Time-indexed trackers of a planned maneuver: what maneuver regulation is compared with.
 
-Maneuver regulation (:mod:`mavreg.control.regulator`) schedules its feedback on the arc
+Maneuver regulation (:mod:`mavreg.control.controllers.regulator`) schedules its feedback on the arc
 length of the vehicle's projection on the path: it has no clock. The classical alternative
 tracks the same nominal as a *trajectory*, a reference that moves on in time whether the
 vehicle keeps up or not. Spedicato et al.'s Fig. 1 is the argument: a vehicle held back

@@ -17,8 +17,8 @@ with f the design model (:mod:`mavreg.model.quadrotor`), differentiated by compl
 
 integrated backward in time by RK4 on the clock's grid (1 ms; A and B also at the interval
 midpoints) from :math:`P(T)`, the algebraic solution at the last node (the run-out's straight
-flight at constant speed). It is the s-domain machinery of :mod:`mavreg.control.riccati`
-(:func:`~mavreg.control.riccati.sweep_backward`) with time as the independent variable.
+flight at constant speed). It is the s-domain machinery of :mod:`mavreg.control.design.riccati`
+(:func:`~mavreg.control.design.riccati.sweep_backward`) with time as the independent variable.
 
 **Weights** (:meth:`TvlqrWeights.from_controller`): the maneuver regulator's, of the same
 controller file (``paper_lqr.yaml``: the paper's), on the same physical quantities. The
@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config.controller import ControllerParams
-from ..control.riccati import care, sweep_backward
+from ..control.design.riccati import care, sweep_backward
 from ..model.linearize import complex_step_jacobian
 from ..model.quadrotor import NX
 from ..model.rotation import wrap_angle

@@ -12,7 +12,7 @@ daemon's UDP sockets.
 - :mod:`.tty`: a serial device or a new pseudo-terminal in raw mode (termios), a TCP
   socket, as one non-blocking :class:`~.tty.ByteStream`.
 
-(What a stream set-up needs of a UART's baud is the daemon's: :mod:`mavreg.daemon.link_budget`.)
+(What a stream set-up needs of a UART's baud is the daemon's: :mod:`mavreg.daemon.vehicle.link_budget`.)
 Shared by the daemon (``mavreg fly``/``serve --vehicle serial:...``) and the emulator
 (``firmware-sim --listen pty``): a transport, not vehicle behaviour (docs/architecture.md).
 """

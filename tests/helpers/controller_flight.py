@@ -13,9 +13,9 @@ from __future__ import annotations
 import numpy as np
 
 from mavreg.config.defaults import CONTROL_RATE_HZ
-from mavreg.control.forecast import Forecaster
-from mavreg.control.hover import HoverController, HoverParams, plan_ramp
-from mavreg.control.regulator import ManeuverRegulator
+from mavreg.control.estimation.forecast import Forecaster
+from mavreg.control.controllers.hover import HoverController, HoverParams, plan_ramp
+from mavreg.control.controllers.regulator import ManeuverRegulator
 from mavreg.model.mixer import Mixer
 from mavreg.model.quadrotor import QuadrotorModel
 from mavreg.model.rotation import rpy_to_matrix

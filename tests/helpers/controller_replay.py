@@ -10,7 +10,7 @@ import sys
 
 import numpy as np
 
-from mavreg.control.hover import HoverController, HoverParams
+from mavreg.control.controllers.hover import HoverController, HoverParams
 from tests.helpers import controller_flight as flight
 
 OBSERVER_OFF_SAMPLES = 50

@@ -7,9 +7,9 @@ from collections.abc import Callable
 import numpy as np
 
 from mavreg.config.vehicle import G
-from mavreg.control.forecast import Forecaster
-from mavreg.control.hover import HoverController, HoverParams, Ramp
-from mavreg.control.predictor import StatePredictor
+from mavreg.control.estimation.forecast import Forecaster
+from mavreg.control.controllers.hover import HoverController, HoverParams, Ramp
+from mavreg.control.estimation.predictor import StatePredictor
 
 
 def fly_hover(fc: Forecaster, truth: StatePredictor, ramp_at: Callable[[float], Ramp], seconds: float,

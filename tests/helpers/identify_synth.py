@@ -88,8 +88,8 @@ def write_tlog(series: FlightSeries, path, link_delay_s: float = 0.018, timesync
     has its body rates in ATTITUDE_QUATERNION and its commands as SET_ATTITUDE_TARGET."""
     from pymavlink.dialects.v20 import common as mavlink2
 
-    from mavreg.daemon.messages import actuator_target, rate_target, timesync_request
-    from mavreg.daemon.tlog import TlogWriter
+    from mavreg.daemon.vehicle.messages import actuator_target, rate_target, timesync_request
+    from mavreg.daemon.logs.tlog import TlogWriter
     veh = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
     dmn = mavlink2.MAVLink(None, srcSystem=1, srcComponent=191)
     clock = [1.7e9]
@@ -143,7 +143,7 @@ def synthetic_rate_flight(duration_s=20.0, h=0.002, hover_thrust=0.35, expo=0.4,
     At each sample the "regulator" commands body rates
     ``0.5 w_measured - 2 (roll, pitch, yaw - yaw_ref) + excitation`` (sinusoids and square
     waves per axis, scaled by ``excite``; ``squares`` False: the sinusoids only; ``doublets``,
-    an :class:`~mavreg.daemon.excitation.ExcitationParams`: no sinusoids or square waves, but the
+    an :class:`~mavreg.daemon.flight.excitation.ExcitationParams`: no sinusoids or square waves, but the
     identification flight's doublets from t = 0.5 s, sent as they are on their axis in place of
     the feedback, as the daemon's hold sends them); the measured rates carry white noise ``gyro_sd``)
     and the thrust that holds the weight through the tilt, less a vertical-speed feedback on

@@ -67,11 +67,11 @@ _PLANS: dict = {}
 
 
 def true_errors(f: dict, maneuver: Path) -> dict:
-    """Ground-truth errors (:func:`mavreg.daemon.report.ground_truth_errors`) from the maneuver's
+    """Ground-truth errors (:func:`mavreg.daemon.jobs.report.ground_truth_errors`) from the maneuver's
     start to the phase after it (or the recording's end), against the plan the daemon flew."""
     from mavreg.config.controller import load_controller
     from mavreg.config.vehicle import load_vehicle
-    from mavreg.daemon.report import ground_truth_errors
+    from mavreg.daemon.jobs.report import ground_truth_errors
     from mavreg.planning.plan_io import plan_file
     if maneuver not in _PLANS:
         _PLANS[maneuver] = plan_file(maneuver, load_vehicle(DEFAULT_VEHICLE),

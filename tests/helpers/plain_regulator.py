@@ -1,6 +1,6 @@
 r"""The baseline of the controller-step figure: the regulator step written the plain way.
 
-:class:`PlainRegulator` computes what :meth:`mavreg.control.regulator.ManeuverRegulator.step`
+:class:`PlainRegulator` computes what :meth:`mavreg.control.controllers.regulator.ManeuverRegulator.step`
 computes for the paper's design (gains (4, 11), no disturbance compensation, no speed
 governor, the paper's allocation), the straightforward way: every table is a
 ``scipy.interpolate.interp1d`` (the nominal x(s), u(s), v(s) and the gains K(s), linear,
@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.interpolate import PPoly, interp1d
 
-from mavreg.control.transverse import transverse_coordinates
+from mavreg.control.design.transverse import transverse_coordinates
 from mavreg.model.mixer import Mixer, yaw_then_lift
 
 __all__ = ["PlainRegulator"]

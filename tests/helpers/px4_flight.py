@@ -198,7 +198,7 @@ def _watch_modes(px4: Px4Sitl, wait_s: float) -> tuple[list[str], bool]:
     disarms; (modes, disarmed)."""
     import time
 
-    from mavreg.daemon.autopilots import PX4
+    from mavreg.daemon.vehicle.autopilots import PX4
     modes, end = [], time.monotonic() + wait_s
     while time.monotonic() < end:
         m = px4.recv(0.5)

@@ -18,7 +18,7 @@ from pathlib import Path
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil  # noqa: E402  (MAVLINK20 must be set first)
 
-from mavreg.daemon.autopilots import param_value  # noqa: E402
+from mavreg.daemon.vehicle.autopilots import param_value  # noqa: E402
 
 __all__ = ["SitlLink", "SitlError", "SitlExitedEarly", "M", "mavutil", "autopilot_dir", "parse_param_items"]
 

@@ -10,10 +10,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavreg.control.hover import HoverController, Ramp
-from mavreg.control.regulator import RegulatorOutput
-from mavreg.daemon.messages import PX4_MAIN_AUTO, PX4_MAIN_OFFBOARD, PX4_SUB_LOITER
-from mavreg.daemon.supervisor import Supervisor, SupervisorParams
+from mavreg.control.controllers.hover import HoverController, Ramp
+from mavreg.control.controllers.regulator import RegulatorOutput
+from mavreg.daemon.vehicle.messages import PX4_MAIN_AUTO, PX4_MAIN_OFFBOARD, PX4_SUB_LOITER
+from mavreg.daemon.flight.supervisor import Supervisor, SupervisorParams
 from mavreg.model.mixer import Mixer
 from mavreg.model.quadrotor import QuadrotorModel
 from mavreg.model.rotation import rpy_to_quat, rpy_to_matrix

@@ -14,7 +14,7 @@ import time
 
 import pytest
 
-from mavreg.daemon.endpoint import request
+from mavreg.daemon.jobs.endpoint import request
 from tests.helpers.ardupilot_flight import PILOT_PARAMS, sim_touchdowns
 from tests.helpers.ardupilot_serve import serve_on_arducopter, set_pilot_params
 from tests.helpers.ardupilot_sitl import M, SitlError, require_ardupilot
@@ -51,7 +51,7 @@ def _params_after_reboot(gcs, timeout_s: float = 30.0) -> dict:
 
 def test_serve_flies_again_after_the_arducopter_reboots_between_flights(tmp_path):
     """Reboot between flights: the daemon follows the rebooted SITL to the new UDP port it
-    sends from (its old one silent for 2 s: :mod:`mavreg.daemon.peers`), sees ArduCopter's
+    sends from (its old one silent for 2 s: :mod:`mavreg.daemon.vehicle.peers`), sees ArduCopter's
     clock go back, rebuilds, waits through its start (a position estimate about 40 s after
     boot, as at a cold start) and flies the next upload.
 

@@ -33,7 +33,7 @@ import time
 
 import pytest
 
-from mavreg.daemon.endpoint import request
+from mavreg.daemon.jobs.endpoint import request
 from tests.helpers.ardupilot_serve import serve_on_arducopter, set_pilot_params
 from tests.helpers.ardupilot_sitl import M, require_ardupilot
 from tests.helpers.repo import ROOT as REPO

@@ -13,8 +13,8 @@ import pytest
 from helpers.ardupilot_sitl import (TEST_PARAMS, ArduPilotSitl, SitlError, _alive, ardupilot_dir, free_instance,
                                     require_ardupilot)
 from helpers.ardupilot_sitl import arducopter_sitl_fixture  # noqa: F401  (the fixture arducopter_sitl)
-from mavreg.daemon.autopilots import ARDUCOPTER, dialect_for
-from mavreg.daemon.messages import arm_disarm, mavlink2 as M
+from mavreg.daemon.vehicle.autopilots import ARDUCOPTER, dialect_for
+from mavreg.daemon.vehicle.messages import arm_disarm, mavlink2 as M
 
 
 def read_params(sitl, dialect, timeout_s=5.0):

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from conftest import fly_lockstep
-from mavreg.daemon.ctrllog import load_control_log
-from mavreg.daemon.report import ground_truth_errors
+from mavreg.daemon.jobs.ctrllog import load_control_log
+from mavreg.daemon.jobs.report import ground_truth_errors
 from tests.helpers.sitl import BARREL, VEHICLE_IDEAL, flight_modes, tilt_deg, vehicle_samples
 
 pytestmark = pytest.mark.sitl
@@ -229,7 +229,7 @@ def test_foreign_system_actuator_traffic_changes_nothing(tmp_path, ideal_flight)
 
 def test_killing_the_daemon_mid_maneuver_lets_the_failsafe_land(tmp_path):
     from tests.helpers.sitl import CONTROLLER, load_record, mavreg, start_emulator
-    from mavreg.daemon.endpoint import request
+    from mavreg.daemon.jobs.endpoint import request
     record = tmp_path / "gt.npz"
     sock = tmp_path / "mavreg.sock"
     emu, url = start_emulator(record, "--lockstep", "--world", "ideal", "--lockstep-stall-speed", "0",

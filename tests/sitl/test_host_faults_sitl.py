@@ -7,7 +7,7 @@ load), judged on the emulator's recorded truth:
   ``ENOSPC``): the flight is flown and landed ``ok``, exit 0, each file said once, and the
   summary reaches the user on standard output;
 - the wall clock jumps by +1 h or -1 h as the maneuver begins (the injected clock,
-  :attr:`mavreg.daemon.fly.FlyOptions.wall_s`): the flight is the same, bit for bit, as one
+  :attr:`mavreg.daemon.jobs.fly.FlyOptions.wall_s`): the flight is the same, bit for bit, as one
   without a jump; the signed link takes every frame; the ``.tlog``'s stamps step by nothing.
 """
 from __future__ import annotations
@@ -67,11 +67,11 @@ def test_fly_with_every_output_on_a_full_disk_lands_ok_and_says_each_once(tmp_pa
 
 
 def _fly_in_process(tmp_path: Path, jumps: bool, monkeypatch) -> dict:
-    """The hop in lockstep, signed, through :func:`mavreg.daemon.fly.fly` in this process; with
+    """The hop in lockstep, signed, through :func:`mavreg.daemon.jobs.fly.fly` in this process; with
     ``jumps`` its wall clock jumps +1 h as the maneuver begins and -2 h (to an hour behind) as
     the landing begins."""
-    from mavreg.daemon import fly as fly_mod
-    from mavreg.daemon.supervisor import Phase
+    from mavreg.daemon.jobs import fly as fly_mod
+    from mavreg.daemon.flight.supervisor import Phase
     tmp_path.mkdir()
     key = tmp_path / "mavlink.key"
     key.write_text(bytes(range(7, 39)).hex())
@@ -105,7 +105,7 @@ def _fly_in_process(tmp_path: Path, jumps: bool, monkeypatch) -> dict:
 
 @pytest.mark.slow       # two lockstep flights (about 75 s); the writers' and clocks' unit tests are in the suite
 def test_wall_clock_jumps_of_an_hour_mid_flight_change_nothing(tmp_path, monkeypatch):
-    from mavreg.daemon.supervisor import Phase
+    from mavreg.daemon.flight.supervisor import Phase
     ref = _fly_in_process(tmp_path / "steady", False, monkeypatch)
     jumped = _fly_in_process(tmp_path / "jumped", True, monkeypatch)
     for f in (ref, jumped):
@@ -131,7 +131,7 @@ def test_wall_clock_jumps_of_an_hour_mid_flight_change_nothing(tmp_path, monkeyp
 
 
 def _status(sock) -> dict:
-    from mavreg.daemon.endpoint import request
+    from mavreg.daemon.jobs.endpoint import request
     return request(sock, {"op": "status"}, 60)["status"]
 
 
@@ -143,7 +143,7 @@ def test_serve_worker_killed_mid_plan_refuses_that_upload_and_flies_the_next(tmp
     with the cause in one line, the vehicle holds on, and the next upload plans and flies."""
     import threading
     from mavreg.config.paths import maneuver_file
-    from mavreg.daemon.endpoint import request
+    from mavreg.daemon.jobs.endpoint import request
     from tests.helpers.sitl import Proc, mavreg
     sock, record = tmp_path / "d.sock", tmp_path / "groundtruth.npz"
     ctl = tmp_path / "control.npz"

@@ -15,7 +15,7 @@ import pytest
 
 from conftest import fly_lockstep
 from tests.helpers.sitl import VEHICLE_IDEAL
-from mavreg.daemon.endpoint import request
+from mavreg.daemon.jobs.endpoint import request
 
 pytestmark = pytest.mark.sitl
 

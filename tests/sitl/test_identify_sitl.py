@@ -57,7 +57,7 @@ def test_the_calibrated_vehicle_flies_the_drag_forward(calibration):
     ``tests/unit/test_identify_cli.py``.)"""
     from mavreg.config.controller import load_controller
     from mavreg.config.vehicle import load_vehicle
-    from mavreg.daemon.report import ground_truth_errors
+    from mavreg.daemon.jobs.report import ground_truth_errors
     from mavreg.planning.plan_io import plan_file
     from tests.helpers.sitl import load_record
     _, vehicle, tmp = calibration

@@ -40,7 +40,7 @@ def test_barrel_roll_on_a_mismatched_airframe_runs_to_the_ground(tmp_path):   # 
     print(f"\nmismatch seed 3: {summary['result']} {summary['reason']}")
 
 
-# The observer's torque and lag parts (mavreg/control/torque_bias.py, lag_observer.py) on a
+# The observer's torque and lag parts (mavreg/control/estimation/torque_bias.py, lag_observer.py) on a
 # drawn airframe whose motors answer in 45 ms (the file says 20) and whose rotors are unequal
 # with its centre of mass off: torque biases of 4.1 and 3.7 mm per newton of thrust (0.03 N m
 # in a hover, 0.15 N m at the loop's bottom), which the regulator alone has no integral action

@@ -28,7 +28,7 @@ import time
 
 import pytest
 
-from mavreg.daemon.endpoint import request
+from mavreg.daemon.jobs.endpoint import request
 from tests.helpers.processes import children, start_time, survivors
 from tests.helpers.sitl import BARREL, Proc, mavreg
 

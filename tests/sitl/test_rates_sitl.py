@@ -18,8 +18,8 @@ from pymavlink import mavutil
 from mavreg.config.controller import load_controller
 from mavreg.config.paths import DEFAULT_VEHICLE, REAL_CONTROLLER
 from mavreg.config.vehicle import load_vehicle
-from mavreg.daemon.report import ground_truth_errors
-from mavreg.daemon.ctrllog import load_control_log
+from mavreg.daemon.jobs.report import ground_truth_errors
+from mavreg.daemon.jobs.ctrllog import load_control_log
 from mavreg.planning.plan_io import plan_file
 from tests.helpers.sitl import load_record, mavreg
 from tests.helpers.repo import ROOT

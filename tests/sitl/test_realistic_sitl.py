@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from mavreg.config.paths import DEFAULT_VEHICLE, REAL_CONTROLLER
-from mavreg.daemon.ctrllog import load_control_log
-from mavreg.daemon.report import ground_truth_errors
+from mavreg.daemon.jobs.ctrllog import load_control_log
+from mavreg.daemon.jobs.report import ground_truth_errors
 from mavreg.sim.metrics import rotor_jitter_n
 from tests.helpers.sitl import BARREL, flight_modes, load_record, mavreg, vehicle_samples
 

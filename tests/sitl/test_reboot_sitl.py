@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 from pymavlink.dialects.v20 import common as M
 
-from mavreg.daemon.endpoint import request
+from mavreg.daemon.jobs.endpoint import request
 from tests.helpers.sitl import load_record, mavreg, start_emulator
 from tests.helpers.repo import ROOT as REPO
 

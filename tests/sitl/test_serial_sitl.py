@@ -14,7 +14,7 @@ import time
 import numpy as np
 import pytest
 
-from mavreg.daemon.report import ground_truth_errors
+from mavreg.daemon.jobs.report import ground_truth_errors
 from tests.helpers.sitl import BARREL, CONTROLLER, VEHICLE, Proc, load_record, mavreg
 from tests.helpers.pty_bridge import PtyBridge
 from tests.helpers.repo import ROOT as REPO

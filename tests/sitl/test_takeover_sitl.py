@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from tests.helpers.sitl import BARREL, CONTROLLER, load_record, mavreg, start_emulator
-from mavreg.daemon.endpoint import request
+from mavreg.daemon.jobs.endpoint import request
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]   # about 45 s: the failsafe hold runs in real time
 

@@ -19,8 +19,8 @@ import time
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavreg.daemon.ctrllog import load_control_log
-from mavreg.daemon.report import ground_truth_errors
+from mavreg.daemon.jobs.ctrllog import load_control_log
+from mavreg.daemon.jobs.report import ground_truth_errors
 from tests.helpers.sitl import BARREL, CONTROLLER, VEHICLE, free_udp_port, load_record, mavreg, start_emulator
 
 pytestmark = pytest.mark.sitl

@@ -10,12 +10,12 @@ ROOT = Path(mavreg.__file__).resolve().parent
 
 def test_stamp_holds_the_kernel_files_and_what_they_compile_in():
     files = {str(f.relative_to(ROOT)) for f in accel._kernel_sources(ROOT)}
-    for kernel in ("control/step_kernel.py", "model/rotor_lag_kernel.py", "model/drag_kernel.py",
+    for kernel in ("control/controllers/step_kernel.py", "model/rotor_lag_kernel.py", "model/drag_kernel.py",
                    "model/mixer_kernel.py", "geometry/projection_kernel.py", "sim/batch_compiled.py"):
         assert kernel in files
     assert "config/vehicle.py" in files           # gravity, compiled into the predictor and hover kernels
     # negative control: modules that only call kernels do not recompile them when edited
-    for caller in ("control/hover.py", "control/fastpath.py", "control/regulator.py", "accel.py"):
+    for caller in ("control/controllers/hover.py", "control/controllers/fastpath.py", "control/controllers/regulator.py", "accel.py"):
         assert caller not in files
 
 

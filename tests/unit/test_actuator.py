@@ -7,8 +7,8 @@ import pytest
 from mavreg.config.paths import DEFAULT_VEHICLE, REAL_CONTROLLER, maneuver_file
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
-from mavreg.control.actuator import NZ, augmented_jacobians, augmented_rhs
-from mavreg.control.riccati import care
+from mavreg.control.design.actuator import NZ, augmented_jacobians, augmented_rhs
+from mavreg.control.design.riccati import care
 from mavreg.maneuver.gain_schedule import du_ds
 from mavreg.maneuver.nominal_grid import nominal_on_grid
 from mavreg.maneuver.plan import build_profiles

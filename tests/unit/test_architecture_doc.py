@@ -54,9 +54,9 @@ def test_the_check_sees_a_module_left_out_and_a_module_made_up():
     text = DOC.read_text()
     assert "- `timesync.py`:" in text
     missing, _ = missing_and_stale(text.replace("- `timesync.py`:", "- timesync:"))
-    assert missing == ["mavreg/daemon/timesync.py"]
+    assert missing == ["mavreg/daemon/vehicle/timesync.py"]
     _, stale = missing_and_stale(text.replace("- `timesync.py`:", "- `timesync.py`, `ghost.py`:"))
-    assert stale == ["mavreg/daemon/ghost.py"]
+    assert stale == ["mavreg/daemon/vehicle/ghost.py"]
     missing, _ = missing_and_stale(text.replace("### mavreg/trackers/", "### trackers"))
     assert "mavreg/trackers/" in missing
 

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from mavreg.daemon.autopilots import ARDUCOPTER, dialect_for
-from mavreg.daemon.messages import mavlink2 as M
-from mavreg.daemon.state import StateAssembler
+from mavreg.daemon.vehicle.autopilots import ARDUCOPTER, dialect_for
+from mavreg.daemon.vehicle.messages import mavlink2 as M
+from mavreg.daemon.flight.state import StateAssembler
 from mavreg.transport.wire import FAST_IDS, Wire
 
 TLOG = Path(__file__).resolve().parents[1] / "data" / "ardupilot_hover_100hz.tlog"

@@ -12,9 +12,9 @@ import struct
 
 import pytest
 
-from mavreg.daemon.autopilots import (ARDUCOPTER, PX4, ParamChecker, choose_dialect, dialect_for,
+from mavreg.daemon.vehicle.autopilots import (ARDUCOPTER, PX4, ParamChecker, choose_dialect, dialect_for,
                                       unsupported_reason)
-from mavreg.daemon.messages import mavlink2 as M
+from mavreg.daemon.vehicle.messages import mavlink2 as M
 
 ARMED = M.MAV_MODE_FLAG_SAFETY_ARMED | M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
 

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import socket
 
-from mavreg.daemon.link import MAX_READ_DATAGRAMS, FastLink
-from mavreg.daemon.supervisor import Phase
+from mavreg.daemon.vehicle.link import MAX_READ_DATAGRAMS, FastLink
+from mavreg.daemon.flight.supervisor import Phase
 from tests.helpers.supervisor_harness import FakePlan, SimVehicle, make_supervisor, run
 
 COMMAND = "SET_ACTUATOR_CONTROL_TARGET"
@@ -53,7 +53,7 @@ def test_a_read_of_five_samples_is_answered_once_for_the_newest():
 def test_the_last_sample_of_a_read_is_answered_before_the_messages_after_it():
     """A sample with no state part after it in its read is answered at once, in order: a
     HEARTBEAT after it (here: the vehicle taken out of OFFBOARD) acts after the command."""
-    from mavreg.daemon.messages import PX4_MAIN_AUTO, PX4_SUB_LOITER
+    from mavreg.daemon.vehicle.messages import PX4_MAIN_AUTO, PX4_SUB_LOITER
     sup, veh = _in_the_hold()
     msgs = _backlog(veh, 1)
     veh.main, veh.sub = PX4_MAIN_AUTO, PX4_SUB_LOITER
@@ -139,7 +139,7 @@ def test_a_lockstep_vehicle_has_every_sample_of_a_read_answered():
 def test_a_read_that_ends_the_flight_leaves_the_rest_to_the_next():
     """The message that ends the flight is the last this flight takes (``Output.taken``): the
     samples after it in the read are the next flight's to answer."""
-    from mavreg.daemon.messages import PX4_MAIN_AUTO, PX4_SUB_LOITER
+    from mavreg.daemon.vehicle.messages import PX4_MAIN_AUTO, PX4_SUB_LOITER
     sup, veh = _in_the_hold()
     veh.main, veh.sub = PX4_MAIN_AUTO, PX4_SUB_LOITER
     read = [veh.heartbeat()] + _backlog(veh, 2)

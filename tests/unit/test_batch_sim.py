@@ -17,7 +17,7 @@ from mavreg.accel import ACCELERATED
 from mavreg.config.controller import load_controller
 from mavreg.config.maneuver import load_maneuver_text
 from mavreg.config.vehicle import load_vehicle
-from mavreg.control.regulator import ManeuverRegulator
+from mavreg.control.controllers.regulator import ManeuverRegulator
 from mavreg.experiments.definitions import paper_group1
 from mavreg.maneuver.plan import plan_spec
 from mavreg.planning.plan_io import plan_file

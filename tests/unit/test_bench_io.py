@@ -6,7 +6,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from benchmarks.codec import pymavlink_crc_is_fast, run_codec
 from benchmarks.io_helpers import figure, read_tlog
-from mavreg.daemon.tlog import TlogWriter
+from mavreg.daemon.logs.tlog import TlogWriter
 
 
 def test_ratio_is_always_times_better_than_the_baseline():

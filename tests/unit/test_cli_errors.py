@@ -194,8 +194,8 @@ def test_fly_gives_2_for_a_bad_file_and_1_for_an_infeasible_maneuver():
 
     from mavreg.config.controller import load_controller
     from mavreg.config.vehicle import load_vehicle
-    from mavreg.daemon.app import Daemon, DaemonConfig, regulator_factory
-    from mavreg.daemon.supervisor import SupervisorParams
+    from mavreg.daemon.jobs.app import Daemon, DaemonConfig, regulator_factory
+    from mavreg.daemon.flight.supervisor import SupervisorParams
     from mavreg.errors import UserError
     vehicle_path, controller_path = DEFAULT_VEHICLE, PAPER_CONTROLLER
     vehicle = load_vehicle(vehicle_path)

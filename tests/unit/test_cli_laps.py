@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-import mavreg.daemon.endpoint as endpoint
-import mavreg.daemon.fly as fly_job
+import mavreg.daemon.jobs.endpoint as endpoint
+import mavreg.daemon.jobs.fly as fly_job
 from mavreg.cli.common import PARAMS_DIR
 from mavreg.cli.main import build_parser, main
 from mavreg.config.maneuver import load_maneuver, load_maneuver_text, maneuver_text_with_laps

@@ -12,9 +12,9 @@ from mavreg.config.disturbance import DisturbanceParams
 from mavreg.config.loader import ConfigError
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import G, load_vehicle
-from mavreg.control.disturbance import DisturbanceEstimate, DisturbanceObserver, compensated_nominal
-from mavreg.control.forecast import Forecaster
-from mavreg.control.predictor import StatePredictor
+from mavreg.control.estimation.disturbance import DisturbanceEstimate, DisturbanceObserver, compensated_nominal
+from mavreg.control.estimation.forecast import Forecaster
+from mavreg.control.estimation.predictor import StatePredictor
 from mavreg.model.rotation import rpy_to_matrix
 
 
@@ -207,7 +207,7 @@ def test_an_outlier_is_refused_and_counted():
 
 
 def test_the_flight_summary_prints_the_estimate():
-    from mavreg.daemon.report import format_summary
+    from mavreg.daemon.jobs.report import format_summary
     summary = {"result": "ok", "maneuver": "barrel_roll", "length_m": 40.47, "flight_time_s": 59.0,
                "status": {"disturbance": {"drag_n_s_per_m": [0.381, 0.642], "force_ned_n": [-1.1, 0.02, 0.0],
                                           "thrust_scale": 0.903, "updates": 27000, "rejected": 3}}}

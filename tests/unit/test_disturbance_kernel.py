@@ -16,8 +16,8 @@ from mavreg.config.paths import DEFAULT_VEHICLE
 from mavreg.accel import ACCELERATED
 from mavreg.config.disturbance import DisturbanceParams
 from mavreg.config.vehicle import load_vehicle
-from mavreg.control import observer_kernel as ok
-from mavreg.control.disturbance import DisturbanceObserver
+from mavreg.control.estimation import observer_kernel as ok
+from mavreg.control.estimation.disturbance import DisturbanceObserver
 from mavreg.model.rotation import rpy_to_matrix
 
 VEHICLE = load_vehicle(DEFAULT_VEHICLE)

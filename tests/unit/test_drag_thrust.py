@@ -13,8 +13,8 @@ from tests.helpers.identify_synth import MASS_KG, MAX_ROTOR_N, synthetic_flight
 from mavreg.config.loader import ConfigError
 from mavreg.config.loader import load_text
 from mavreg.config.vehicle import VehicleParams
-from mavreg.control.disturbance import regressors
-from mavreg.control.observer_kernel import update as observer_update
+from mavreg.control.estimation.disturbance import regressors
+from mavreg.control.estimation.observer_kernel import update as observer_update
 from mavreg.identify.fit import FitOptions, identify
 from mavreg.model import drag, drag_kernel
 from mavreg.model.linearize import model_jacobians
@@ -124,7 +124,7 @@ def test_the_flat_nominal_feeds_the_thrust_dependent_drag_forward():
 def test_the_predictor_takes_the_drag_at_the_thrust_flown():
     from mavreg.config.vehicle import load_vehicle
     from tests.helpers.repo import ROOT
-    from mavreg.control.predictor import StatePredictor
+    from mavreg.control.estimation.predictor import StatePredictor
     base = load_vehicle(ROOT / "mavreg/params/vehicles/ardupilot_freestyle.yaml")
     base = dataclasses.replace(base, rotor_time_constant_s=0.0, parasitic_drag_n_s2_per_m2=0.0)
     T = 3.0 * base.mass_kg * 9.80665                      # a steady 3 g pull

@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from mavreg.daemon.endpoint import (MAX_REQUEST_BYTES, EndpointServer, RequestError, default_socket_path,
+from mavreg.daemon.jobs.endpoint import (MAX_REQUEST_BYTES, EndpointServer, RequestError, default_socket_path,
                                     request, validate_request)
 from tests.helpers.waiting import wait_until
 
@@ -259,7 +259,7 @@ def test_connections_beyond_the_cap_are_refused_and_the_cap_frees_up(tmp_path):
 def test_another_user_is_refused(tmp_path, monkeypatch):
     """The peer's uid comes from the kernel (SO_PEERCRED); another user's (here: a faked one)
     is refused before its request is read, whatever the socket's mode lets through."""
-    from mavreg.daemon import endpoint
+    from mavreg.daemon.jobs import endpoint
     real = endpoint.peer_uid
     a, b = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
     try:

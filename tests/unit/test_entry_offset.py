@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from mavreg.control.hover import HoverParams
-from mavreg.daemon import flightpath as fp
-from mavreg.daemon.supervisor import Phase
+from mavreg.control.controllers.hover import HoverParams
+from mavreg.daemon.flight import flightpath as fp
+from mavreg.daemon.flight.supervisor import Phase
 from tests.helpers.supervisor_harness import FakePlan, SimVehicle, make_supervisor, run
 
 

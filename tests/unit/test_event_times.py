@@ -5,9 +5,9 @@ from __future__ import annotations
 import json
 import math
 
-from mavreg.daemon.ctrllog import ControlLog
-from mavreg.daemon.phases import Event
-from mavreg.daemon.report import TABLE_LEGEND, format_summary
+from mavreg.daemon.jobs.ctrllog import ControlLog
+from mavreg.daemon.flight.phases import Event
+from mavreg.daemon.jobs.report import TABLE_LEGEND, format_summary
 
 
 def test_an_event_before_the_vehicle_clock_prints_the_daemon_clock_not_nan():

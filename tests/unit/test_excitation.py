@@ -11,10 +11,10 @@ import pytest
 from mavreg.cli.main import main
 from mavreg.config.paths import DEFAULT_VEHICLE, PARAMS_DIR
 from mavreg.config.vehicle import load_vehicle, with_output
-from mavreg.daemon.excitation import MAX_TURN_RAD, ExcitationParams
-from mavreg.daemon.output import RateOutput
-from mavreg.daemon.peers import VehicleIds
-from mavreg.daemon.supervisor import Supervisor, SupervisorParams
+from mavreg.daemon.flight.excitation import MAX_TURN_RAD, ExcitationParams
+from mavreg.daemon.flight.output import RateOutput
+from mavreg.daemon.vehicle.peers import VehicleIds
+from mavreg.daemon.flight.supervisor import Supervisor, SupervisorParams
 from mavreg.model.mixer import Mixer
 
 FREESTYLE = PARAMS_DIR / "vehicles" / "ardupilot_freestyle.yaml"
@@ -118,7 +118,7 @@ def test_a_pulse_is_clipped_to_the_files_rate_limit():
 def test_leaving_the_hold_cuts_the_excitation_short_and_says_so():
     """A phase change in the middle (a recovery, say) ends the excitation for good, with the
     end STATUSTEXT that identify closes its window by; no pulse goes out after it."""
-    from mavreg.daemon.phases import Output, Phase
+    from mavreg.daemon.flight.phases import Output, Phase
     sup = Supervisor(with_output(load_vehicle(DEFAULT_VEHICLE), "rates"),
                      SupervisorParams(excitation=ExcitationParams()), lambda plan: None)
     ctx, out = sup.ctx, Output()

@@ -17,10 +17,10 @@ from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER, controller_fi
 from mavreg.config.controller import load_controller
 from mavreg.config.maneuver import load_maneuver_text
 from mavreg.config.vehicle import load_vehicle
-from mavreg.control.compensation_kernel import compensate, extra_force
-from mavreg.control.disturbance import DisturbanceEstimate
-from mavreg.control.disturbance import compensate as reference_compensate
-from mavreg.control.regulator import ManeuverRegulator
+from mavreg.control.controllers.compensation_kernel import compensate, extra_force
+from mavreg.control.estimation.disturbance import DisturbanceEstimate
+from mavreg.control.estimation.disturbance import compensate as reference_compensate
+from mavreg.control.controllers.regulator import ManeuverRegulator
 from mavreg.model.mixer_kernel import torques_first as torques_first_kernel
 from mavreg.model.mixer_kernel import yaw_then_lift as yaw_then_lift_kernel
 from mavreg.geometry.build import build_path

@@ -7,7 +7,7 @@ from scipy.integrate import solve_ivp
 
 from mavreg.config.paths import maneuver_file
 from mavreg.config.vehicle import G
-from mavreg.control.transverse import transverse_jacobians, transverse_rhs
+from mavreg.control.design.transverse import transverse_jacobians, transverse_rhs
 from mavreg.config.maneuver import load_maneuver
 from mavreg.maneuver.flatness import nominal_from_flat
 from mavreg.maneuver import plan as plan_mod

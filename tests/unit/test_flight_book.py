@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from mavreg.daemon.flight_book import FlightBook, FlightRecord, NumberedFiles
-from mavreg.daemon.supervisor import Phase
+from mavreg.daemon.jobs.flight_book import FlightBook, FlightRecord, NumberedFiles
+from mavreg.daemon.flight.supervisor import Phase
 from tests.helpers.supervisor_harness import FakePlan, SimVehicle, make_supervisor, run
 
 

@@ -95,7 +95,7 @@ def test_extreme_state_in_flight_never_raises_nor_commands_non_finite():
     and the motors are not stopped: found by this test, one absurd sample 21 km under the
     ground at 176 m/s read as an impact (forced disarm in the air); the monitor now judges a
     sample that contradicts the one before as a position jump (a recovery) first."""
-    from mavreg.daemon.phases import AIRBORNE
+    from mavreg.daemon.flight.phases import AIRBORNE
     from tests.helpers.supervisor_harness import FakePlan, SimVehicle, make_supervisor, run, wire
 
     veh = SimVehicle()

@@ -2,8 +2,8 @@
 from __future__ import annotations
 
 
-from mavreg.control.forecast import Forecaster
-from mavreg.daemon.supervisor import Phase, Supervisor, SupervisorParams
+from mavreg.control.estimation.forecast import Forecaster
+from mavreg.daemon.flight.supervisor import Phase, Supervisor, SupervisorParams
 from tests.helpers.supervisor_harness import VEHICLE, FakePlan, FakeRegulator, SimVehicle, wire
 
 RATE = 250

@@ -6,7 +6,7 @@ import math
 import numpy as np
 
 from mavreg.config.envelope import EnvelopeParams
-from mavreg.daemon.gate import HealthGate, nominal_points, plan_outside_envelope
+from mavreg.daemon.flight.gate import HealthGate, nominal_points, plan_outside_envelope
 
 MASS, FMAX, G = 0.749, 12.0, 9.81
 HOVER_N = MASS * G / 4

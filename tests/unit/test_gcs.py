@@ -5,10 +5,10 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
 from mavreg.config.paths import maneuver_file
-from mavreg.daemon import messages as mm
-from mavreg.daemon.gcs import GcsHub, GcsParams, parse_gcs_url
-from mavreg.daemon.gcs_policy import DROP, FORWARD, LAND, REFUSE, judge
-from mavreg.daemon.phases import Event
+from mavreg.daemon.vehicle import messages as mm
+from mavreg.daemon.gcs.bridge import GcsHub, GcsParams, parse_gcs_url
+from mavreg.daemon.gcs.policy import DROP, FORWARD, LAND, REFUSE, judge
+from mavreg.daemon.flight.phases import Event
 
 VEHICLE = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
 GCS = mavlink2.MAVLink(None, srcSystem=255, srcComponent=190)

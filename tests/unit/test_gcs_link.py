@@ -6,10 +6,10 @@ import socket
 
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavreg.daemon import messages as mm
-from mavreg.daemon.gcs import GcsParams
-from mavreg.daemon.gcs_link import GcsLink
-from mavreg.daemon.phases import Event, Output
+from mavreg.daemon.vehicle import messages as mm
+from mavreg.daemon.gcs.bridge import GcsParams
+from mavreg.daemon.gcs.link import GcsLink
+from mavreg.daemon.flight.phases import Event, Output
 
 VEHICLE = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
 GCS = mavlink2.MAVLink(None, srcSystem=255, srcComponent=190)

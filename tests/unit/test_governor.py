@@ -1,4 +1,4 @@
-"""The speed governor (mavreg.control.governor): its speed law on its own, the thrust cap, and
+"""The speed governor (mavreg.control.controllers.governor): its speed law on its own, the thrust cap, and
 closed-loop outcomes on the design model (the issue 9 gust and saturation targets)."""
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_GOVERNED_CONTROLLER, mane
 from mavreg.config.controller import load_controller
 from mavreg.config.regulation import AllocationParams, SpeedGovernorParams
 from mavreg.config.vehicle import load_vehicle
-from mavreg.control.governor import SpeedGovernor, retiming_force, thrust_speed_cap
+from mavreg.control.controllers.governor import SpeedGovernor, retiming_force, thrust_speed_cap
 from mavreg.geometry.projection import Projector
 from mavreg.planning.plan_io import plan_file
 from mavreg.model.rotation import rpy_to_matrix

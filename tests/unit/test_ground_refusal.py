@@ -11,8 +11,8 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from mavreg.config.envelope import EnvelopeParams
 from mavreg.config.vehicle import with_dialect, with_output
-from mavreg.daemon.phases import Phase
-from mavreg.daemon.supervisor import Supervisor, SupervisorParams
+from mavreg.daemon.flight.phases import Phase
+from mavreg.daemon.flight.supervisor import Supervisor, SupervisorParams
 from tests.helpers.supervisor_harness import VEHICLE, FakePlan, FakeRegulator, SimVehicle, make_supervisor, run, wire
 
 STEP_S = SimVehicle().dt

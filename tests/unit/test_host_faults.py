@@ -18,11 +18,11 @@ import numpy as np
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavreg.daemon import tlog as tlog_mod
-from mavreg.daemon.ctrllog import ControlLog, decoded, load_control_log
-from mavreg.daemon.link import open_link
-from mavreg.daemon.outputs import stopped_line, write_or_say
-from mavreg.daemon.tlog import SteadyWallClock, TlogWriter, VehicleClock, tlog_clock
+from mavreg.daemon.logs import tlog as tlog_mod
+from mavreg.daemon.jobs.ctrllog import ControlLog, decoded, load_control_log
+from mavreg.daemon.vehicle.link import open_link
+from mavreg.daemon.logs.outputs import stopped_line, write_or_say
+from mavreg.daemon.logs.tlog import SteadyWallClock, TlogWriter, VehicleClock, tlog_clock
 from mavreg.transport import signing as sg
 from mavreg.transport.wire import Wire
 
@@ -171,7 +171,7 @@ def test_write_or_say_removes_a_partial_file_and_says_once(tmp_path):
 
 @needs_dev_full
 def test_control_log_to_dev_full_raises_oserror_and_stays_usable_in_memory(tmp_path):
-    from mavreg.daemon.phases import LogRecord
+    from mavreg.daemon.flight.phases import LogRecord
     log = ControlLog()
     for k in range(50):
         log.append(LogRecord(0.002 * k, "hold", float("nan"), np.zeros(11), np.zeros(4), np.zeros(4),

@@ -5,7 +5,7 @@ import pytest
 
 from mavreg.config.paths import DEFAULT_VEHICLE
 from mavreg.config.vehicle import load_vehicle
-from mavreg.control.hover import HoverController, HoverParams, hold_ramp, plan_ramp
+from mavreg.control.controllers.hover import HoverController, HoverParams, hold_ramp, plan_ramp
 from mavreg.model.quadrotor import QuadrotorModel
 
 VEHICLE = load_vehicle(DEFAULT_VEHICLE)
@@ -96,7 +96,7 @@ def test_reference_in_a_wind_balances_the_estimated_force_exactly(yaw):
     """A descent in a strong wind: the reference attitude and thrust, with the estimated drag
     taken at that attitude, give exactly the ramp's acceleration; its body velocity is the
     ramp's velocity in that tilted frame."""
-    from mavreg.control.disturbance import DisturbanceEstimate
+    from mavreg.control.estimation.disturbance import DisturbanceEstimate
     from mavreg.model.rotation import rpy_to_matrix
     ctrl = HoverController(VEHICLE)
     ramp = plan_ramp([0, 0, -10.0], [0, 0, 0], yaw, [0, 0, -1.0], [0, 0, 0], yaw, ctrl.params)

@@ -12,7 +12,7 @@ import pytest
 
 from mavreg.config.paths import DEFAULT_VEHICLE
 from mavreg.config.vehicle import load_vehicle
-from mavreg.control.hover import HoverController, HoverParams, plan_ramp
+from mavreg.control.controllers.hover import HoverController, HoverParams, plan_ramp
 from mavreg.model.mixer import Mixer
 from mavreg.model.quadrotor import QuadrotorModel
 from mavreg.model.rotation import rpy_to_matrix
@@ -85,7 +85,7 @@ def test_a_tilt_from_the_reference_is_paid_for_in_collective(compiled):
     asks for the hover thrust along the reference's axis, so the collective is m g / cos 25
     (the hover linearization loses that lift only to second order; in a 6 m/s wind the
     vehicle sank back onto the ground tilted). A tilt past 60 deg is paid for at most twice."""
-    from mavreg.control.hover import hold_ramp
+    from mavreg.control.controllers.hover import hold_ramp
     hc = HoverController(VEHICLE, HoverParams(), compiled=False)
     hc._compiled = compiled
     ramp = hold_ramp(np.array([0.0, 0.0, -3.0]), 0.0)

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from mavreg.accel import ACCELERATED
-from mavreg.control.disturbance import DisturbanceEstimate
-from mavreg.control.hover import HoverController, HoverParams, hold_ramp, plan_ramp
+from mavreg.control.estimation.disturbance import DisturbanceEstimate
+from mavreg.control.controllers.hover import HoverController, HoverParams, hold_ramp, plan_ramp
 
 from tests.helpers import controller_flight as flight
 from tests.helpers import params

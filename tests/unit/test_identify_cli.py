@@ -11,8 +11,8 @@ from tests.helpers.identify_synth import synthetic_flight, write_tlog
 from mavreg.config.paths import DEFAULT_VEHICLE
 from mavreg.cli.main import main
 from mavreg.config.vehicle import load_vehicle
-from mavreg.daemon.messages import actuator_target, timesync_request
-from mavreg.daemon.tlog import TlogWriter
+from mavreg.daemon.vehicle.messages import actuator_target, timesync_request
+from mavreg.daemon.logs.tlog import TlogWriter
 from mavreg.identify.flightlog import read_flight
 
 VEH = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from firmware_sim.rate_response import fit_first_order_delay
-from mavreg.daemon.excitation import ExcitationParams
+from mavreg.daemon.flight.excitation import ExcitationParams
 from mavreg.identify.fit import FitOptions
 from mavreg.identify.rate_fit import identify_rates
 from tests.helpers.identify_synth import MASS_KG, synthetic_rate_flight

@@ -15,8 +15,8 @@ from pymavlink.dialects.v20 import common as mavlink2
 from tests.helpers.identify_synth import MASS_KG, synthetic_rate_flight, write_tlog
 from mavreg.cli.main import main
 from mavreg.config.vehicle import load_vehicle
-from mavreg.daemon.messages import actuator_target, rate_target
-from mavreg.daemon.tlog import TlogWriter
+from mavreg.daemon.vehicle.messages import actuator_target, rate_target
+from mavreg.daemon.logs.tlog import TlogWriter
 from mavreg.identify.fit import FitOptions, IdentifyError, identify
 from mavreg.identify.flightlog import read_flight
 from mavreg.identify.rate_fit import identify_rates

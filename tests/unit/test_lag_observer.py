@@ -14,11 +14,11 @@ from mavreg.config.disturbance import DisturbanceParams, RotorLagParams, TorqueB
 from mavreg.config.loader import ConfigError, load_text
 from mavreg.config.paths import REAL_CONTROLLER
 from mavreg.config.vehicle import with_output
-from mavreg.control import lag_observer as lo
-from mavreg.control.disturbance import DisturbanceObserver
-from mavreg.control.forecast import Forecaster
-from mavreg.control.hover import hold_ramp
-from mavreg.control.predictor import StatePredictor
+from mavreg.control.estimation import lag_observer as lo
+from mavreg.control.estimation.disturbance import DisturbanceObserver
+from mavreg.control.estimation.forecast import Forecaster
+from mavreg.control.controllers.hover import hold_ramp
+from mavreg.control.estimation.predictor import StatePredictor
 from tests.helpers import params
 from tests.helpers.hover_loop import fly_hover
 

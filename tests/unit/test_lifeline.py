@@ -52,13 +52,13 @@ def test_a_plain_child_outlives_its_killed_parent():
 
 
 def test_exec_wrapper_child_dies_with_its_parent():
-    expr = f"__import__('mavreg.daemon.lifeline', fromlist=['x']).wrap_command({_SLEEPER!r})"
+    expr = f"__import__('mavreg.daemon.jobs.lifeline', fromlist=['x']).wrap_command({_SLEEPER!r})"
     assert _orphan_after_parent_killed(expr) == []
 
 
 def test_getppid_watcher_alone_ends_the_child():
     """The portable fallback, without the parent-death signal."""
-    code = "import time; from mavreg.daemon.lifeline import watch_parent; watch_parent(%d); time.sleep(600)"
+    code = "import time; from mavreg.daemon.jobs.lifeline import watch_parent; watch_parent(%d); time.sleep(600)"
     # the parent's pid is given, not read by the child: the parent may be dead before it looks
     expr = f"[{sys.executable!r}, '-c', {code!r} % __import__('os').getpid()]"
     assert _orphan_after_parent_killed(expr) == []
@@ -66,8 +66,8 @@ def test_getppid_watcher_alone_ends_the_child():
 
 def test_wrapper_refuses_a_dead_parent_and_bad_usage():
     # parent pid that is not ours: the child exits at once instead of running the program
-    r = subprocess.run([sys.executable, "-m", "mavreg.daemon.lifeline", "1", *_SLEEPER], timeout=30)
+    r = subprocess.run([sys.executable, "-m", "mavreg.daemon.jobs.lifeline", "1", *_SLEEPER], timeout=30)
     assert r.returncode == 1
-    r = subprocess.run([sys.executable, "-m", "mavreg.daemon.lifeline", "x"], capture_output=True,
+    r = subprocess.run([sys.executable, "-m", "mavreg.daemon.jobs.lifeline", "x"], capture_output=True,
                        text=True, timeout=30)
     assert r.returncode == 2 and "usage" in r.stderr

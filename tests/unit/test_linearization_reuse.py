@@ -1,13 +1,13 @@
 """The linearization computes the attitude terms once for the columns that keep the attitude
-(:class:`mavreg.control.transverse.FrozenAttitude`): its A and B must be those of the plain
+(:class:`mavreg.control.design.transverse.FrozenAttitude`): its A and B must be those of the plain
 complex step, in which every column computes them anew, to the last bit."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from mavreg.control.actuator import augmented_jacobians, augmented_rhs
-from mavreg.control.transverse import NW, transverse_jacobians, transverse_rhs
+from mavreg.control.design.actuator import augmented_jacobians, augmented_rhs
+from mavreg.control.design.transverse import NW, transverse_jacobians, transverse_rhs
 from mavreg.model.linearize import complex_step_jacobian
 from mavreg.model.quadrotor import QuadrotorModel
 from mavreg.model.rotation import rpy_to_matrix

@@ -7,9 +7,9 @@ import socket
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavreg.daemon.link import FastLink, io_impl, open_link
-from mavreg.daemon.link_reference import MavlinkLink
-from mavreg.daemon.tlog import TlogWriter
+from mavreg.daemon.vehicle.link import FastLink, io_impl, open_link
+from mavreg.daemon.vehicle.link_reference import MavlinkLink
+from mavreg.daemon.logs.tlog import TlogWriter
 
 VEHICLE = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
 STRANGER = mavlink2.MAVLink(None, srcSystem=7, srcComponent=1)

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavreg.daemon.messages import PX4_MAIN_AUTO, PX4_MAIN_OFFBOARD, PX4_SUB_LOITER
-from mavreg.daemon.state import StateAssembler
-from mavreg.daemon.supervisor import Phase
+from mavreg.daemon.vehicle.messages import PX4_MAIN_AUTO, PX4_MAIN_OFFBOARD, PX4_SUB_LOITER
+from mavreg.daemon.flight.state import StateAssembler
+from mavreg.daemon.flight.supervisor import Phase
 from mavreg.tools.faultlink import FaultLine, FaultParams
 from tests.helpers.supervisor_harness import FakePlan, SimVehicle, make_supervisor, wire
 

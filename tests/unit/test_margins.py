@@ -1,4 +1,4 @@
-"""Delay and gain margins (mavreg.control.margins, mavreg.maneuver.plan_margins): closed forms,
+"""Delay and gain margins (mavreg.control.design.margins, mavreg.maneuver.plan_margins): closed forms,
 against the simulator on the design model, and the default controller's targets (issue 18)."""
 from __future__ import annotations
 
@@ -11,10 +11,10 @@ from mavreg.config.paths import DEFAULT_VEHICLE, REAL_CONTROLLER, maneuver_file
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
 from mavreg.model.rotor_lag import lag_augment
-from mavreg.control.hover import HoverController, HoverParams, hold_ramp
-from mavreg.control.margins import (delay_margins, gain_margins, lag_model_loop, loop_margins, node_margins,
+from mavreg.control.controllers.hover import HoverController, HoverParams, hold_ramp
+from mavreg.control.design.margins import (delay_margins, gain_margins, lag_model_loop, loop_margins, node_margins,
                                     rotor_loop, schedule_margins, spectral_abscissa)
-from mavreg.daemon.gate import HealthGate, MarginCheck, delay_margin_of, unmodelled_delay_s
+from mavreg.daemon.flight.gate import HealthGate, MarginCheck, delay_margin_of, unmodelled_delay_s
 from mavreg.config.envelope import EnvelopeParams
 from mavreg.planning.plan_io import plan_file
 from mavreg.maneuver.plan_margins import SLOW_RAD_S, hover_margins, maneuver_loops, with_margins

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from mavreg.config.envelope import EnvelopeParams
-from mavreg.daemon.monitor import EnvelopeMonitor, Tracking
-from mavreg.daemon.phases import Phase
+from mavreg.daemon.flight.monitor import EnvelopeMonitor, Tracking
+from mavreg.daemon.flight.phases import Phase
 from mavreg.model.rotation import rpy_to_matrix
 
 MASS, FMAX, G = 0.749, 12.0, 9.81
@@ -256,7 +256,7 @@ def test_violation_reads_in_one_line():
 def test_window_search_selects_exactly_the_rows_a_full_filter_selects():
     """The bisection of the sliding windows against filtering every row (the old way), with
     now and then a row older than the one before it (a gap-filling command's time)."""
-    from mavreg.daemon.series import Series
+    from mavreg.daemon.flight.series import Series
     rng = np.random.default_rng(4)
     s = Series()
     rows = []                                       # every row kept, as the old deque held them

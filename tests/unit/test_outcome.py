@@ -5,9 +5,9 @@ from __future__ import annotations
 import math
 from types import SimpleNamespace
 
-from mavreg.daemon.flight_book import outcome
-from mavreg.daemon.phases import Phase
-from mavreg.daemon.records import Outcome
+from mavreg.daemon.jobs.flight_book import outcome
+from mavreg.daemon.flight.phases import Phase
+from mavreg.daemon.flight.records import Outcome
 
 
 def _sup(phase=Phase.DISARMED, failure=None, succeeded=True, finished=True, t=42.0, reason=""):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mavreg.control.regulator import ManeuverRegulator
+from mavreg.control.controllers.regulator import ManeuverRegulator
 from mavreg.sim.batch import BatchRun, fly_batch
 from tests.helpers.plain_regulator import PlainRegulator
 

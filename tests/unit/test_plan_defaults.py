@@ -8,11 +8,11 @@ import json
 
 import pytest
 
-import mavreg.daemon.fly as fly_job
+import mavreg.daemon.jobs.fly as fly_job
 from mavreg.cli.main import build_parser, main
 from mavreg.cli.plan_cmd import format_margins
 from mavreg.config.paths import REAL_CONTROLLER, maneuver_file
-from mavreg.daemon.planner_pool import PlannerPool
+from mavreg.daemon.jobs.planner_pool import PlannerPool
 
 BARREL = maneuver_file("barrel_roll")
 

@@ -18,8 +18,8 @@ from mavreg.config.vehicle import load_vehicle
 from mavreg.maneuver import plan as pm
 from mavreg.model.quadrotor import QuadrotorModel
 from mavreg.geometry.build import build_path
-from mavreg.control.riccati import care
-from mavreg.control.actuator import augmented_jacobians
+from mavreg.control.design.riccati import care
+from mavreg.control.design.actuator import augmented_jacobians
 from mavreg.maneuver import nominal_grid as ng
 from mavreg.maneuver import gain_schedule as gs
 from mavreg.planning import plan_io as pio

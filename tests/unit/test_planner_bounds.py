@@ -1,5 +1,5 @@
 """The planner worker's bounds: a hostile upload costs a one-line rejection, never the daemon
-(mavreg.daemon.planner_pool, "Bounds"): memory (RLIMIT_AS), CPU per plan, wall clock (the
+(mavreg.daemon.jobs.planner_pool, "Bounds"): memory (RLIMIT_AS), CPU per plan, wall clock (the
 worker killed and replaced), the queue of waiting uploads, the length of a reason."""
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import sys
 
 import pytest
 
-from mavreg.daemon.planner_pool import PlannerBounds, PlannerPool
+from mavreg.daemon.jobs.planner_pool import PlannerBounds, PlannerPool
 from mavreg.errors import EXIT_FAILED, EXIT_USAGE, MAX_MESSAGE_CHARS
 from tests.helpers import params
 from tests.helpers.waiting import wait_until_async

@@ -12,7 +12,7 @@ import pytest
 
 from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER
 from mavreg.config.vehicle import load_vehicle
-from mavreg.daemon.planner_pool import PlannerDied, PlannerPool
+from mavreg.daemon.jobs.planner_pool import PlannerDied, PlannerPool
 from tests.helpers.processes import start_time, survivors
 from tests.helpers import params
 
@@ -97,7 +97,7 @@ _OWNER = textwrap.dedent("""
     import asyncio, sys, time
     from mavreg.config.controller import load_controller
     from mavreg.config.vehicle import load_vehicle
-    from mavreg.daemon.planner_pool import PlannerPool
+    from mavreg.daemon.jobs.planner_pool import PlannerPool
 
     async def main():
         pool = PlannerPool(load_vehicle({vehicle!r}), load_controller({controller!r}))

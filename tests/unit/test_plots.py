@@ -15,7 +15,7 @@ import pytest
 from mavreg.config.paths import DEFAULT_VEHICLE, DESIGN_CONTROLLER
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
-from mavreg.daemon.phases import PHASE_CODES
+from mavreg.daemon.flight.phases import PHASE_CODES
 from mavreg.planning.plan_io import plan_text
 from mavreg.model.rotation import rpy_to_matrix, rpy_to_quat
 from mavreg.plots.figures import build_flight_figure, build_plan_figure, panel

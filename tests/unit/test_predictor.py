@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from mavreg.config.vehicle import G
-from mavreg.control.predictor import StatePredictor
+from mavreg.control.estimation.predictor import StatePredictor
 from mavreg.model.mixer import Mixer
 from mavreg.model.quadrotor import QuadrotorModel
 from mavreg.model.rotation import rpy_to_matrix
@@ -116,7 +116,7 @@ def test_horizon_is_capped_and_zero_is_the_identity():
 
 
 def test_forecaster_divides_commands_by_the_thrust_scale_and_predicts_with_it():
-    from mavreg.control.forecast import Forecaster
+    from mavreg.control.estimation.forecast import Forecaster
     weak = dataclasses.replace(VEHICLE, rotor_time_constant_s=0.0, thrust_scale=0.9)
     fc = Forecaster(weak, PERIOD)
     hover = VEHICLE.mass_kg * G / 4

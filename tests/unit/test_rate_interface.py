@@ -1,5 +1,5 @@
 """The rate-and-thrust interface of a stock autopilot: its thrust map and the rate loop's
-inverse (mavreg.model.rate_interface), and the daemon's rate output (mavreg.daemon.output)."""
+inverse (mavreg.model.rate_interface), and the daemon's rate output (mavreg.daemon.flight.output)."""
 from __future__ import annotations
 
 import dataclasses
@@ -11,9 +11,9 @@ from scipy.integrate import solve_ivp
 from mavreg.config.loader import ConfigError
 from mavreg.config.paths import DEFAULT_VEHICLE
 from mavreg.config.vehicle import G, RateInterfaceParams, load_vehicle, with_output
-from mavreg.daemon import messages as mm
-from mavreg.daemon.output import RateOutput, RotorOutput, command_output
-from mavreg.daemon.peers import VehicleIds
+from mavreg.daemon.vehicle import messages as mm
+from mavreg.daemon.flight.output import RateOutput, RotorOutput, command_output
+from mavreg.daemon.vehicle.peers import VehicleIds
 from mavreg.model.mixer import Mixer
 from mavreg.model.rate_interface import ThrustMap, rate_command, rate_response_rhs
 
@@ -221,7 +221,7 @@ def test_plant_through_the_rate_loop_linearizes_as_the_design_model(vehicle):
 
 def test_lag_loop_factor_is_the_achieved_wrench_gain_over_one_period():
     """rho(K_a) (1 - e^{-T/tau}) on gains with a known spectral radius; 0 without the lag."""
-    from mavreg.control.actuator import lag_loop_factor
+    from mavreg.control.design.actuator import lag_loop_factor
     from mavreg.model.rotor_lag import lag_decay
     K = np.zeros((3, 4, 15))
     K[1, :, 11:] = np.diag([0.5, 3.0, -4.0, 1.0])

@@ -17,7 +17,7 @@ from firmware_sim.rotors import Rotors, mix
 from mavreg.config.paths import DEFAULT_VEHICLE
 from mavreg.config.envelope import RecoveryParams
 from mavreg.config.vehicle import load_vehicle
-from mavreg.control.recovery import RecoveryController, allocate, attitude_error, heading_rad, tilt_rad
+from mavreg.control.controllers.recovery import RecoveryController, allocate, attitude_error, heading_rad, tilt_rad
 from mavreg.model.mixer import Mixer
 from mavreg.model.rotation import quat_to_matrix, rpy_to_matrix
 

@@ -8,7 +8,7 @@ from scipy.linalg import solve_continuous_are
 from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER, maneuver_file
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
-from mavreg.control.transverse import transverse_jacobians
+from mavreg.control.design.transverse import transverse_jacobians
 from mavreg.planning.plan_io import plan_file, plan_text
 from mavreg.model.quadrotor import QuadrotorModel
 from mavreg.sim.maneuver_run import fly_on_design_model

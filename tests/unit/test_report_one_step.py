@@ -6,9 +6,9 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from mavreg.daemon.ctrllog import PHASE_CODES
-from mavreg.daemon.report import controller_metrics
-from mavreg.daemon.supervisor import Phase
+from mavreg.daemon.jobs.ctrllog import PHASE_CODES
+from mavreg.daemon.jobs.report import controller_metrics
+from mavreg.daemon.flight.supervisor import Phase
 
 
 def _ctrl(n_maneuver: int) -> dict:

@@ -6,7 +6,7 @@ import pytest
 import scipy.integrate
 import scipy.linalg
 
-from mavreg.control.riccati import (
+from mavreg.control.design.riccati import (
     care,
     check_step,
     max_stable_step,
@@ -227,7 +227,7 @@ def test_both_sweep_forms_agree_and_report_a_nan_with_its_node(sweep):
     """The compiled form (loops into buffers) and the reference (numpy products) of the RK4
     sweep, called directly: the same P to round-off on a random time-varying system, and a
     NaN in A(s) is reported at the node where it enters, not hidden by the running maximum."""
-    from mavreg.control import riccati_kernel as rk
+    from mavreg.control.design import riccati_kernel as rk
     rng = np.random.default_rng(7)
     N, n = 60, 5
     At_n, At_m = rng.normal(size=(N, n, n)), rng.normal(size=(N - 1, n, n))

@@ -1,10 +1,10 @@
-"""``mavreg.control.sample_warmup``: after the warm-up, a closed-loop flight compiles nothing.
+"""``mavreg.control.controllers.sample_warmup``: after the warm-up, a closed-loop flight compiles nothing.
 
 In a fresh process (numba's dispatchers start empty there), the kernels' compiled
 signatures are read before the warm-up, after it, and after a closed-loop realistic.yaml
 hover and the barrel roll's first second flown through the daemon's objects
 (``tests/helpers/controller_flight.py``): the warm-ups the daemon runs before it opens the link
-(the regulator's step, :func:`mavreg.control.fastpath.warm_up`, then the sample kernels)
+(the regulator's step, :func:`mavreg.control.controllers.fastpath.warm_up`, then the sample kernels)
 must have compiled every kernel the flights call, for every argument type they call it with.
 (The regulator's step compiles the compensation kernels into itself; on a cold numba cache
 their dispatchers then show the signatures too.)
@@ -22,11 +22,11 @@ from tests.helpers.repo import ROOT as REPO
 
 _CHILD = """
 import json
-from mavreg.control import (command_history_kernel, compensation_kernel, hover_kernel, observer_kernel,
-                            predictor_kernel)
-from mavreg.control.hover import HoverParams
-from mavreg.control import fastpath
-from mavreg.control.sample_warmup import warm_up_sample_kernels
+from mavreg.control.controllers import compensation_kernel, hover_kernel
+from mavreg.control.estimation import command_history_kernel, observer_kernel, predictor_kernel
+from mavreg.control.controllers.hover import HoverParams
+from mavreg.control.controllers import fastpath
+from mavreg.control.controllers.sample_warmup import warm_up_sample_kernels
 from tests.helpers import controller_flight as flight
 
 MODULES = (predictor_kernel, command_history_kernel, observer_kernel, hover_kernel, compensation_kernel)

@@ -1,4 +1,4 @@
-"""systemd's readiness protocol (mavreg.daemon.sdnotify) and the service unit (deploy/)."""
+"""systemd's readiness protocol (mavreg.daemon.jobs.sdnotify) and the service unit (deploy/)."""
 from __future__ import annotations
 
 import os
@@ -10,7 +10,7 @@ import subprocess
 
 import pytest
 
-from mavreg.daemon.sdnotify import Notifier
+from mavreg.daemon.jobs.sdnotify import Notifier
 from tests.helpers.repo import ROOT
 
 UNIT = ROOT / "deploy" / "mavreg.service"

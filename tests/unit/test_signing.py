@@ -11,8 +11,8 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from mavreg.config.paths import maneuver_file
 from mavreg.transport import signing as sg
-from mavreg.daemon.peers import PeerFilter
-from mavreg.daemon.tlog import TlogWriter
+from mavreg.daemon.vehicle.peers import PeerFilter
+from mavreg.daemon.logs.tlog import TlogWriter
 from mavreg.transport.wire import Wire
 
 KEY = bytes(range(1, 33))
@@ -218,8 +218,8 @@ def test_tlog_never_holds_setup_signing(tmp_path):
 @pytest.mark.parametrize("impl", ["fast", "reference"])
 def test_both_links_take_only_signed_vehicle_frames_and_sign_what_they_send(tmp_path, impl):
     """The links' receive path (fed directly, no socket) and send path with signing on."""
-    from mavreg.daemon.link import FastLink
-    from mavreg.daemon.link_reference import MavlinkLink
+    from mavreg.daemon.vehicle.link import FastLink
+    from mavreg.daemon.vehicle.link_reference import MavlinkLink
     signing = sg.Signing(write_key(tmp_path / "key", KEY.hex()), "t")
     got, sent = [], []
     tlog = TlogWriter(tmp_path / "t.tlog")

@@ -8,7 +8,7 @@ import pytest
 from mavreg.config.paths import DEFAULT_VEHICLE, maneuver_file
 from mavreg.config.maneuver import load_maneuver_text
 from mavreg.config.vehicle import load_vehicle
-from mavreg.control.transverse import transverse_jacobians, transverse_rhs, transverse_rhs_so3
+from mavreg.control.design.transverse import transverse_jacobians, transverse_rhs, transverse_rhs_so3
 from mavreg.geometry.build import build_path
 from mavreg.maneuver.flatness import flat_nominal
 from mavreg.maneuver.plan import build_profiles

@@ -1,4 +1,4 @@
-"""The start says what it does before doing it (mavreg.daemon.startup, mavreg fly's first line),
+"""The start says what it does before doing it (mavreg.daemon.jobs.startup, mavreg fly's first line),
 by the order of events and an injected clock, never by wall-clock limits."""
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import pytest
 
 from mavreg import accel
 from mavreg.config.paths import maneuver_file
-from mavreg.daemon import startup
-from mavreg.daemon.startup import PreflightWatch, compile_kernels, preflight_wait
+from mavreg.daemon.jobs import startup
+from mavreg.daemon.jobs.startup import PreflightWatch, compile_kernels, preflight_wait
 from mavreg.planning.cache import PlanCache
 from mavreg.planning.plan_io import text_in_cache
 from mavreg.progress import Progress
@@ -103,7 +103,7 @@ def test_the_plan_cache_tells_a_hit_before_planning(tmp_path, monkeypatch, vehic
 
 def test_fly_says_its_first_line_before_the_daemon_is_imported_or_started(monkeypatch, capsys, tmp_path):
     from mavreg.cli.main import main
-    from mavreg.daemon import fly as fly_module
+    from mavreg.daemon.jobs import fly as fly_module
     seen = {}
 
     def fake_fly(opts):
@@ -204,9 +204,9 @@ class _FakePool:
 def _daemon_starting(monkeypatch, result, compile_gate: threading.Event | None = None):
     from pathlib import Path
 
-    from mavreg.daemon import app
-    from mavreg.daemon.app import Daemon, DaemonConfig
-    from mavreg.daemon.phases import SupervisorParams
+    from mavreg.daemon.jobs import app
+    from mavreg.daemon.jobs.app import Daemon, DaemonConfig
+    from mavreg.daemon.flight.phases import SupervisorParams
     from tests.helpers.supervisor_harness import VEHICLE, FakeRegulator
     order: list[str] = []
     lines: list[str] = []
@@ -227,7 +227,7 @@ def _daemon_starting(monkeypatch, result, compile_gate: threading.Event | None =
 
 
 def test_the_daemon_says_planning_before_it_plans_and_queues_only_once_compiled(monkeypatch):
-    from mavreg.daemon.planner_pool import PlanResult
+    from mavreg.daemon.jobs.planner_pool import PlanResult
     from tests.helpers.supervisor_harness import FakePlan
     d, order, lines = _daemon_starting(monkeypatch, PlanResult(FakePlan()))
     asyncio.run(d._start([("kind: maneuver", "some/dir/line.yaml")]))
@@ -237,8 +237,8 @@ def test_the_daemon_says_planning_before_it_plans_and_queues_only_once_compiled(
 
 
 def test_a_refused_maneuver_ends_the_start_without_waiting_for_the_compile(monkeypatch):
-    from mavreg.daemon.app import _InitialRejected
-    from mavreg.daemon.planner_pool import PlanResult
+    from mavreg.daemon.jobs.app import _InitialRejected
+    from mavreg.daemon.jobs.planner_pool import PlanResult
     gate = threading.Event()
     d, order, _ = _daemon_starting(monkeypatch, PlanResult(None, "line.yaml: too fast", 1), gate)
     try:

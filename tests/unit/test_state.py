@@ -4,7 +4,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavreg.daemon.state import StateAssembler
+from mavreg.daemon.flight.state import StateAssembler
 from mavreg.model.rotation import rpy_to_matrix
 from tests.helpers.supervisor_harness import att_e, att_q, pos
 

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavreg.daemon import messages as mm
+from mavreg.daemon.vehicle import messages as mm
 
 _PARSER = mavlink2.MAVLink(None)
 

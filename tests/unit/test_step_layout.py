@@ -1,10 +1,10 @@
-"""The step kernel's vectors have one declared layout (mavreg.control.step_kernel): slots do
+"""The step kernel's vectors have one declared layout (mavreg.control.controllers.step_kernel): slots do
 not overlap, the governor's block is contiguous in the order the kernel reads it, and the one
 packer (fastpath.step_params) puts each value in its slot."""
 import numpy as np
 
-from mavreg.control import step_kernel as sk
-from mavreg.control.fastpath import step_params
+from mavreg.control.controllers import step_kernel as sk
+from mavreg.control.controllers.fastpath import step_params
 
 FIELDS = {"P_LEAD": 1, "P_DECAY": 1, "P_FMAX": 1, "P_WINDOW": 1, "P_MARGIN": 1, "P_MAX_TURN": 1,
           "P_CXY": 1, "P_CZ": 1, "P_TORQUES_FIRST": 1, "P_AUGMENTED": 1, "P_END": 1, "P_NK": 1,

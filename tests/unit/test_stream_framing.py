@@ -7,9 +7,9 @@ import random
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavreg.daemon.link_budget import LINE_SHARE, baud_refusal, frame_bytes, link_budget
-from mavreg.daemon.peers import system_id_to_use
-from mavreg.daemon.vehicle_url import parse_url
+from mavreg.daemon.vehicle.link_budget import LINE_SHARE, baud_refusal, frame_bytes, link_budget
+from mavreg.daemon.vehicle.peers import system_id_to_use
+from mavreg.daemon.vehicle.url import parse_url
 from mavreg.transport.wire import Wire
 from mavreg.transport.framing import StreamFramer
 from mavreg.transport.urls import DEFAULT_BAUD, parse_stream_url

@@ -12,7 +12,7 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
 from firmware_sim.link import open_link as open_emulator_link
-from mavreg.daemon.link import open_link
+from mavreg.daemon.vehicle.link import open_link
 from mavreg.transport.tty import ByteStream, open_pty, open_serial
 from tests.helpers.repo import ROOT as REPO
 

@@ -3,7 +3,7 @@ import math
 
 import numpy as np
 
-from mavreg.daemon.supervisor import Phase
+from mavreg.daemon.flight.supervisor import Phase
 from tests.helpers.supervisor_harness import FakePlan, SimVehicle, VEHICLE, make_supervisor, run
 
 
@@ -153,7 +153,7 @@ def test_gains_that_oscillate_between_commands_are_refused_before_take_off():
     """A regulator whose feedback on the achieved wrench answers more than its share of each
     command within one control period (lag_loop_factor above the gate's bound) does not take
     off; one line says why and what to change."""
-    from mavreg.daemon.gate import MAX_LAG_LOOP_FACTOR
+    from mavreg.daemon.flight.gate import MAX_LAG_LOOP_FACTOR
     from tests.helpers.supervisor_harness import FakeRegulator
     plan = FakePlan()
     reg = FakeRegulator(plan)

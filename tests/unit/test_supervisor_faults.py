@@ -1,7 +1,7 @@
 """Supervisor faults: stale state, mixed times, foreign ids, non-finite output, uploads."""
 import numpy as np
 
-from mavreg.daemon.supervisor import Phase
+from mavreg.daemon.flight.supervisor import Phase
 from tests.helpers.supervisor_harness import att_q, pos
 from tests.helpers.supervisor_harness import FakePlan, FakeRegulator, SimVehicle, make_supervisor, run, wire
 from pymavlink.dialects.v20 import common as mavlink2
@@ -168,9 +168,9 @@ def test_rejected_upload_changes_nothing_accepted_waits_for_safe_point():
     import asyncio
     from pathlib import Path
 
-    from mavreg.daemon.app import Daemon, DaemonConfig
-    from mavreg.daemon.planner_pool import PlanResult
-    from mavreg.daemon.supervisor import SupervisorParams
+    from mavreg.daemon.jobs.app import Daemon, DaemonConfig
+    from mavreg.daemon.jobs.planner_pool import PlanResult
+    from mavreg.daemon.flight.supervisor import SupervisorParams
     from tests.helpers.supervisor_harness import VEHICLE
 
     class FakePool:

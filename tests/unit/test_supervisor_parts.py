@@ -5,12 +5,12 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from mavreg.daemon.app import Daemon, DaemonConfig
-from mavreg.daemon.gate import GateVerdict
-from mavreg.daemon.handlers import HANDLERS
-from mavreg.daemon.hover_phases import Hold
-from mavreg.daemon.phases import AIRBORNE, PHASE_CODES, Phase, SupervisorParams
-from mavreg.daemon.records import BoundViolation, Outcome
+from mavreg.daemon.jobs.app import Daemon, DaemonConfig
+from mavreg.daemon.flight.gate import GateVerdict
+from mavreg.daemon.flight.handlers import HANDLERS
+from mavreg.daemon.flight.hover_phases import Hold
+from mavreg.daemon.flight.phases import AIRBORNE, PHASE_CODES, Phase, SupervisorParams
+from mavreg.daemon.flight.records import BoundViolation, Outcome
 from tests.helpers.supervisor_harness import VEHICLE, FakePlan, FakeRegulator, SimVehicle, make_supervisor, run
 
 

@@ -11,7 +11,7 @@ import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
 
 from mavreg.config.envelope import EnvelopeParams
-from mavreg.daemon.phases import Phase
+from mavreg.daemon.flight.phases import Phase
 from mavreg.model.rotation import rpy_to_quat, rpy_to_matrix
 from tests.helpers.supervisor_harness import FakePlan, SimVehicle, make_supervisor, run, wire
 

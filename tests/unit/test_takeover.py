@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavreg.daemon.phases import Phase
+from mavreg.daemon.flight.phases import Phase
 from tests.helpers.supervisor_harness import VEHICLE, FakePlan, SimVehicle, make_supervisor, run, wire
 
 HOVER_CONTROL = VEHICLE.mass_kg * 9.81 / 4 / VEHICLE.max_rotor_thrust_n
@@ -124,7 +124,7 @@ def test_the_cli_offers_what_the_supervisor_takes():
     import argparse
 
     from mavreg.cli.common import add_airborne_argument
-    from mavreg.daemon.phases import AIRBORNE_CHOICES, SupervisorParams
+    from mavreg.daemon.flight.phases import AIRBORNE_CHOICES, SupervisorParams
     p = argparse.ArgumentParser()
     add_airborne_argument(p)
     assert tuple(next(a for a in p._actions if a.dest == "airborne").choices) == AIRBORNE_CHOICES

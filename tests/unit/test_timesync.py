@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from mavreg.daemon.timesync import TimesyncEstimator
+from mavreg.daemon.vehicle.timesync import TimesyncEstimator
 
 
 def _exchange(est, sample_t, delay, now_ns):

@@ -4,8 +4,8 @@ import subprocess
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavreg.daemon.messages import actuator_target, daemon_heartbeat
-from mavreg.daemon.tlog import TlogWriter
+from mavreg.daemon.vehicle.messages import actuator_target, daemon_heartbeat
+from mavreg.daemon.logs.tlog import TlogWriter
 
 
 def test_tlog_round_trip(tmp_path):
@@ -53,7 +53,7 @@ def test_frames_sent_together_share_one_time_stamp(tmp_path):
 
 
 def test_vehicle_clock_starts_at_the_wall_time_and_follows_the_vehicle():
-    from mavreg.daemon.tlog import VehicleClock
+    from mavreg.daemon.logs.tlog import VehicleClock
     vehicle = [None]
     clock = VehicleClock(lambda: vehicle[0], wall_s=lambda: 1.7e9)
     assert clock() == 1.7e9                      # before the vehicle's first sample: the start
@@ -67,7 +67,7 @@ def test_vehicle_clock_starts_at_the_wall_time_and_follows_the_vehicle():
 
 def test_a_lockstep_tlog_spans_the_vehicle_time(tmp_path):
     """Written through the writer: 10 vehicle seconds that took no wall time at all."""
-    from mavreg.daemon.tlog import VehicleClock
+    from mavreg.daemon.logs.tlog import VehicleClock
     mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
     vehicle = [None]
     with TlogWriter(tmp_path / "v.tlog", VehicleClock(lambda: vehicle[0])) as tl:
@@ -83,7 +83,7 @@ def test_a_lockstep_tlog_spans_the_vehicle_time(tmp_path):
 
 def test_an_unknown_tlog_clock_is_refused_in_one_line():
     import pytest
-    from mavreg.daemon.app import DaemonConfig
-    from mavreg.daemon.supervisor import SupervisorParams
+    from mavreg.daemon.jobs.app import DaemonConfig
+    from mavreg.daemon.flight.supervisor import SupervisorParams
     with pytest.raises(ValueError, match="tlog clock 'gps'"):
         DaemonConfig("udpout:127.0.0.1:1", None, None, None, None, SupervisorParams(), tlog_clock="gps")

@@ -10,11 +10,11 @@ from mavreg.config.disturbance import DisturbanceParams, TorqueBiasParams
 from mavreg.config.loader import ConfigError
 from mavreg.config.paths import REAL_CONTROLLER
 from mavreg.config.vehicle import G
-from mavreg.control.disturbance import DisturbanceEstimate
-from mavreg.control.forecast import Forecaster
-from mavreg.control.hover import HoverController, HoverParams, hold_ramp
-from mavreg.control.predictor import StatePredictor
-from mavreg.control.torque_bias import TorqueBiasObserver, allocated_less_bias, bias_vector_n_m
+from mavreg.control.estimation.disturbance import DisturbanceEstimate
+from mavreg.control.estimation.forecast import Forecaster
+from mavreg.control.controllers.hover import HoverController, HoverParams, hold_ramp
+from mavreg.control.estimation.predictor import StatePredictor
+from mavreg.control.estimation.torque_bias import TorqueBiasObserver, allocated_less_bias, bias_vector_n_m
 from mavreg.maneuver.plan_margins import hover_margins
 from mavreg.model.mixer import Mixer, torques_first, yaw_then_lift
 from tests.helpers import params
@@ -134,7 +134,7 @@ def test_torque_bias_section_of_the_controller_file(tmp_path):
 
 
 def test_the_flight_summary_prints_the_torque_estimate():
-    from mavreg.daemon.report import format_summary
+    from mavreg.daemon.jobs.report import format_summary
     est = {"drag_n_s_per_m": [0.381, 0.642], "force_ned_n": [-1.1, 0.02, 0.0], "thrust_scale": 0.903,
            "updates": 27000, "rejected": 3}
     summary = {"result": "ok", "maneuver": "barrel_roll", "length_m": 40.47, "flight_time_s": 59.0,

@@ -7,8 +7,8 @@ import collections
 
 import numpy as np
 
-from mavreg.daemon.hover_phases import touched_down
-from mavreg.daemon.phases import SupervisorParams
+from mavreg.daemon.flight.hover_phases import touched_down
+from mavreg.daemon.flight.phases import SupervisorParams
 
 P = SupervisorParams()
 DT = 0.005

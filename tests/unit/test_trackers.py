@@ -8,7 +8,7 @@ import scipy.linalg
 from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER, maneuver_file
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
-from mavreg.control.riccati import sweep_backward
+from mavreg.control.design.riccati import sweep_backward
 from mavreg.planning.plan_io import plan_file
 from mavreg.model.mixer import Mixer
 from mavreg.model.quadrotor import QuadrotorModel

@@ -7,9 +7,9 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
 from mavreg.transport import signing as sg
-from mavreg.daemon.peers import (MOVE_AFTER_S, SILENCE_NOTICE_S, PeerFilter, VehicleIds, check_system_id, heartbeat_fields,
+from mavreg.daemon.vehicle.peers import (MOVE_AFTER_S, SILENCE_NOTICE_S, PeerFilter, VehicleIds, check_system_id, heartbeat_fields,
                                  system_id_to_use)
-from mavreg.daemon.phases import Phase
+from mavreg.daemon.flight.phases import Phase
 from mavreg.transport.wire import Wire
 from tests.helpers.supervisor_harness import FakePlan, SimVehicle, make_supervisor, run, wire
 
@@ -168,8 +168,8 @@ def test_a_pinned_id_hears_nothing_from_another_system():
 def test_a_udpin_link_takes_the_vehicles_id_and_sends_as_it(impl):
     """Both links (fed directly, no socket): a GCS datagram, then the vehicle's HEARTBEAT as
     system 6; what the daemon then sends carries system id 6."""
-    from mavreg.daemon.link import FastLink
-    from mavreg.daemon.link_reference import MavlinkLink
+    from mavreg.daemon.vehicle.link import FastLink
+    from mavreg.daemon.vehicle.link_reference import MavlinkLink
     got, sent = [], []
     if impl == "fast":
         sock = type("S", (), {"sendto": lambda self, d, a: sent.append(bytes(d)), "close": lambda self: None})()
@@ -193,7 +193,7 @@ def test_a_udpin_link_takes_the_vehicles_id_and_sends_as_it(impl):
 def test_udpout_needs_a_system_id():
     import asyncio
 
-    from mavreg.daemon.link import open_link
+    from mavreg.daemon.vehicle.link import open_link
     with pytest.raises(ValueError, match="on udpout the vehicle's system id must be given"):
         asyncio.run(open_link("udpout:127.0.0.1:14540", None, 1, lambda m, t: None, None))
 
@@ -239,9 +239,9 @@ def test_a_given_address_never_moves_nor_does_one_without_a_clock():
 def test_a_udpin_link_follows_a_rebooted_vehicle_to_its_new_port(impl, monkeypatch):
     """Both links, fed directly with an injected clock: the vehicle heard, silent 2 s, then its
     HEARTBEAT from a new port: taken, counted, and what the daemon sends goes there."""
-    from mavreg.daemon import link as link_module
-    from mavreg.daemon.link import FastLink
-    from mavreg.daemon.link_reference import MavlinkLink
+    from mavreg.daemon.vehicle import link as link_module
+    from mavreg.daemon.vehicle.link import FastLink
+    from mavreg.daemon.vehicle.link_reference import MavlinkLink
     now = [100.0]
     monkeypatch.setattr(link_module.time, "perf_counter_ns", lambda: int(now[0] * 1e9))
     got, sent = [], []

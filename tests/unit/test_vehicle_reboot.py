@@ -1,4 +1,4 @@
-"""A vehicle that reboots (mavreg/daemon/reboot.py), on the fake vehicle of
+"""A vehicle that reboots (mavreg/daemon/flight/reboot.py), on the fake vehicle of
 tests/helpers/supervisor_harness.py with an injected wall clock of its own: seen by its
 ``time_boot_ms`` going back (and the heartbeat gap named), rebuilt on the ground so that the
 queued maneuver flies, a loss in the air (the stream stops; no motor stop from the daemon)."""
@@ -6,8 +6,8 @@ from __future__ import annotations
 
 from pymavlink.dialects.v20 import common as M
 
-from mavreg.daemon.phases import Phase
-from mavreg.daemon.reboot import RebootDetector
+from mavreg.daemon.flight.phases import Phase
+from mavreg.daemon.flight.reboot import RebootDetector
 from tests.helpers.supervisor_harness import FakePlan, SimVehicle, make_supervisor, run
 
 SET_INTERVAL = M.MAV_CMD_SET_MESSAGE_INTERVAL
@@ -161,7 +161,7 @@ def test_forgetting_the_boot_resets_every_field_on_the_vehicles_clock_and_keeps_
     import dataclasses
     import math
 
-    from mavreg.daemon.context import BOOT_KEYED, FlightContext
+    from mavreg.daemon.flight.context import BOOT_KEYED, FlightContext
     fresh, ctx = FlightContext(), FlightContext()
     names = [f.name for f in dataclasses.fields(ctx)]
     on_clock = {n for n in names if n.endswith("_vehicle_s")}
