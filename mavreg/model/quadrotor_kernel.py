@@ -3,7 +3,7 @@ r"""The design model's derivative as a compiled kernel (:func:`mavreg.accel.njit
 :func:`plant_rhs` is :meth:`mavreg.model.quadrotor.QuadrotorModel.f` (eqs 6-17, with the
 optional drag of :mod:`mavreg.model.drag_kernel`) written out on scalars, the same operations
 in the same order, for one run's inertia: given x (12,) and floats it fills ``out`` (12,).
-The batch simulator (:mod:`mavreg.sim.batch_compiled`) steps it by RK4;
+The batch simulator (:mod:`mavreg.sim.batch_kernel`) steps it by RK4;
 ``tests/unit/test_quadrotor_kernel.py`` holds it to the numpy reference.
 """
 from __future__ import annotations

@@ -10,7 +10,7 @@ rotor noise drawn once per control call from the run's seed, and the same exit r
 nominal duration plus ``extra_time_s``). The runs differ by their :class:`BatchRun`: start
 offset, plant inertia, rotor noise, saturation, seed.
 
-Compiled (numba, :mod:`mavreg.sim.batch_compiled`), each run is a scalar loop in time, the
+Compiled (numba, :mod:`mavreg.sim.batch_kernel`), each run is a scalar loop in time, the
 regulator's step the project's compiled kernel
 (:func:`mavreg.control.controllers.step_kernel.regulator_step`), RK4 on plain floats, and each run's
 :class:`~mavreg.sim.closed_loop.SimResult` agrees with the sequential one to rounding
@@ -38,8 +38,8 @@ from ..geometry.projection import Projector
 from ..maneuver.plan import Plan
 from ..model.mixer import Mixer
 from ..model.quadrotor import NX
-from . import batch_compiled
-from .batch_compiled import BAD_COMMAND, COMPLETED, DIVERGED, RUNNING
+from . import batch_kernel
+from .batch_kernel import BAD_COMMAND, COMPLETED, DIVERGED, RUNNING
 from .closed_loop import SimOptions, SimResult, SimStatus, _divergence
 from .maneuver_run import fly_on_design_model
 
@@ -77,7 +77,7 @@ def fly_batch(plan: Plan, runs: Sequence[BatchRun], *, control_rate_hz: float = 
         whole number of physics steps ``dt_s``; each run stops at the nominal duration plus
         ``extra_time_s``.
     compiled : bool, optional
-        The compiled path (:mod:`~mavreg.sim.batch_compiled`) or the sequential simulator
+        The compiled path (:mod:`~mavreg.sim.batch_kernel`) or the sequential simulator
         run by run; default: compiled when numba is in use (:data:`mavreg.accel.ACCELERATED`).
 
     Raises
@@ -147,7 +147,7 @@ def _fly_compiled(plan: Plan, runs: Sequence[BatchRun], steps: int, dt_s: float,
                   projector.window_m, projector.tube_margin)
     ST = np.zeros((n, ST_GOV))          # no governor: the state ends where its slots begin
     ST[:, ST_S] = S
-    batch_compiled.run(X, ST, status, k_end, xs, cmd, app, (fs.table, fs.s_tab, fs.s_nodes, fs.coef, fs.ends,
+    batch_kernel.run(X, ST, status, k_end, xs, cmd, app, (fs.table, fs.s_tab, fs.s_nodes, fs.coef, fs.ends,
                                                              fs.prm), M, (mass, G, cxy, cz, cpar, float(vehicle.rotor_drag_thrust_exponent)), J, upper,
                        noise, 1.0, float(dt_s), steps, limits)
     ts = np.arange(n_steps + 1) * dt_s

@@ -11,7 +11,7 @@ ROOT = Path(mavreg.__file__).resolve().parent
 def test_stamp_holds_the_kernel_files_and_what_they_compile_in():
     files = {str(f.relative_to(ROOT)) for f in accel._kernel_sources(ROOT)}
     for kernel in ("control/controllers/step_kernel.py", "model/rotor_lag_kernel.py", "model/drag_kernel.py",
-                   "model/mixer_kernel.py", "geometry/projection_kernel.py", "sim/batch_compiled.py"):
+                   "model/mixer_kernel.py", "geometry/projection_kernel.py", "sim/batch_kernel.py"):
         assert kernel in files
     assert "config/vehicle.py" in files           # gravity, compiled into the predictor and hover kernels
     # negative control: modules that only call kernels do not recompile them when edited

@@ -227,17 +227,17 @@ def test_both_sweep_forms_agree_and_report_a_nan_with_its_node(sweep):
     """The compiled form (loops into buffers) and the reference (numpy products) of the RK4
     sweep, called directly: the same P to round-off on a random time-varying system, and a
     NaN in A(s) is reported at the node where it enters, not hidden by the running maximum."""
-    from mavreg.control.design import riccati_kernel as rk
+    from mavreg.control.design import riccati, riccati_kernel
     rng = np.random.default_rng(7)
     N, n = 60, 5
     At_n, At_m = rng.normal(size=(N, n, n)), rng.normal(size=(N - 1, n, n))
     Bn, Bm = rng.normal(size=(N, n, 2)), rng.normal(size=(N - 1, n, 2))
     S_n, S_m = Bn @ Bn.transpose(0, 2, 1), Bm @ Bm.transpose(0, 2, 1)
     steps, Q, PT = np.full(N - 1, 0.01), np.eye(n), np.eye(n)
-    run = {"loops": rk.rk4_sweep_loops, "numpy": rk.rk4_sweep_numpy}[sweep]
+    run = {"loops": riccati_kernel.rk4_sweep_loops, "numpy": riccati.rk4_sweep_numpy}[sweep]
     P, P_ref = np.empty((N, n, n)), np.empty((N, n, n))
     assert run(At_n, S_n, At_m, S_m, steps, Q, PT, 1e12, P)[:2] == (-1, 0)
-    assert rk.rk4_sweep_numpy(At_n, S_n, At_m, S_m, steps, Q, PT, 1e12, P_ref)[:2] == (-1, 0)
+    assert riccati.rk4_sweep_numpy(At_n, S_n, At_m, S_m, steps, Q, PT, 1e12, P_ref)[:2] == (-1, 0)
     assert np.abs(P - P_ref).max() <= 1e-12 * np.abs(P_ref).max()
     assert np.array_equal(P, P.transpose(0, 2, 1))
     At_m[20, 1, 3] = np.nan

@@ -31,7 +31,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from .riccati_kernel import rk4_sweep
+from ...accel import ACCELERATED
+from .riccati_kernel import rk4_sweep_loops
 from .riccati_step import RK4_STABILITY_RADIUS, check_step, max_stable_step
 
 __all__ = [
@@ -43,6 +44,8 @@ __all__ = [
     "check_step",
     "sweep_backward",
     "periodic_riccati",
+    "rk4_sweep",
+    "rk4_sweep_numpy",
 ]
 
 _BLOWUP_FACTOR = 1e12
@@ -151,6 +154,45 @@ def riccati_rhs(A: np.ndarray, S: np.ndarray, Q: np.ndarray, P: np.ndarray) -> n
     Stacks ``(N, n, n)`` give a stack."""
     AtP = np.swapaxes(A, -1, -2) @ P
     return AtP + np.swapaxes(AtP, -1, -2) - P @ S @ P + Q
+
+
+def _rhs_transposed(At, S, Q, P):
+    r"""``F(P) = A^T P + P A - P S P + Q``, so that ``-P' = F``; ``At`` is ``A^T``, P
+    symmetric (so that ``P A = (A^T P)^T``)."""
+    AtP = At @ P
+    return AtP + AtP.T - P @ (S @ P) + Q
+
+
+def rk4_sweep_numpy(At_nodes, S_nodes, At_mid, S_mid, steps, Q, P_terminal, limit, P):
+    """Fill ``P`` (N, n, n) backward (``At_*``: the transposed A matrices, C-contiguous) from ``P[N-1] = P_terminal`` by classical RK4.
+
+    Returns ``(node, failure, peak)``: ``failure`` 0 when the sweep completed (node -1),
+    1 if P became non-finite at ``node``, 2 if ``max |P|`` exceeded ``limit`` there
+    (``peak`` is that maximum).
+    """
+    N = At_nodes.shape[0]
+    P[N - 1] = P_terminal
+    for k in range(N - 2, -1, -1):
+        hk = steps[k]
+        Pk1 = P[k + 1]
+        k1 = _rhs_transposed(At_nodes[k + 1], S_nodes[k + 1], Q, Pk1)
+        k2 = _rhs_transposed(At_mid[k], S_mid[k], Q, Pk1 + (0.5 * hk) * k1)
+        k3 = _rhs_transposed(At_mid[k], S_mid[k], Q, Pk1 + (0.5 * hk) * k2)
+        k4 = _rhs_transposed(At_nodes[k], S_nodes[k], Q, Pk1 + hk * k3)
+        Pk = Pk1 + (hk / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
+        Pk = 0.5 * (Pk + Pk.T)
+        peak = np.abs(Pk).max()
+        if not np.isfinite(peak):
+            return k, 1, peak
+        if peak > limit:
+            return k, 2, peak
+        P[k] = Pk
+    return -1, 0, 0.0
+
+
+rk4_sweep = rk4_sweep_loops if ACCELERATED else rk4_sweep_numpy
+"""The sweep of the path in use: the loops compiled (:mod:`.riccati_kernel`), numpy in plain
+Python (in plain Python the loops would be two orders slower)."""
 
 
 def _validate_grid(A_nodes, B_nodes, A_mid, B_mid, h):

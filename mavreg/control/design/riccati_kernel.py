@@ -1,12 +1,13 @@
 r"""The RK4 step loop of the backward Riccati sweep, compiled by numba where available.
 
 The loop is sequential (each step starts from the last), so it cannot be vectorized across
-nodes. It comes in two forms with the same maths and signature, and :data:`rk4_sweep` is the
-one that suits the path in use (:mod:`mavreg.accel`):
+nodes. It comes in two forms with the same maths and signature, and
+:data:`mavreg.control.design.riccati.rk4_sweep` is the one that suits the path in use
+(:mod:`mavreg.accel`):
 
-- :func:`rk4_sweep_numpy`, the reference: each step ~30 small (n x n) numpy operations, in
-  plain Python (``MAVREG_PURE=1`` or no numba);
-- :func:`rk4_sweep_loops`, compiled: the same products as explicit loops into buffers
+- :func:`mavreg.control.design.riccati.rk4_sweep_numpy`, the reference: each step ~30 small
+  (n x n) numpy operations, in plain Python (``MAVREG_PURE=1`` or no numba);
+- :func:`rk4_sweep_loops` (here), compiled: the same products as explicit loops into buffers
   allocated once, the symmetric :math:`P S P` on one triangle. Compiled, numpy's small
   matrix products cost more in dispatch and allocation than in arithmetic (3.3 µs per
   right-hand side at n = 11, against about 1 µs as loops); in plain Python the loops would
@@ -19,45 +20,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...accel import ACCELERATED, njit
+from ...accel import njit
 
-__all__ = ["rk4_sweep", "rk4_sweep_numpy", "rk4_sweep_loops", "rhs_transposed"]
-
-
-@njit
-def rhs_transposed(At, S, Q, P):
-    r"""``F(P) = A^T P + P A - P S P + Q``, so that ``-P' = F``; ``At`` is ``A^T``, P
-    symmetric (so that ``P A = (A^T P)^T``)."""
-    AtP = At @ P
-    return AtP + AtP.T - P @ (S @ P) + Q
-
-
-@njit
-def rk4_sweep_numpy(At_nodes, S_nodes, At_mid, S_mid, steps, Q, P_terminal, limit, P):
-    """Fill ``P`` (N, n, n) backward (``At_*``: the transposed A matrices, C-contiguous) from ``P[N-1] = P_terminal`` by classical RK4.
-
-    Returns ``(node, failure, peak)``: ``failure`` 0 when the sweep completed (node -1),
-    1 if P became non-finite at ``node``, 2 if ``max |P|`` exceeded ``limit`` there
-    (``peak`` is that maximum).
-    """
-    N = At_nodes.shape[0]
-    P[N - 1] = P_terminal
-    for k in range(N - 2, -1, -1):
-        hk = steps[k]
-        Pk1 = P[k + 1]
-        k1 = rhs_transposed(At_nodes[k + 1], S_nodes[k + 1], Q, Pk1)
-        k2 = rhs_transposed(At_mid[k], S_mid[k], Q, Pk1 + (0.5 * hk) * k1)
-        k3 = rhs_transposed(At_mid[k], S_mid[k], Q, Pk1 + (0.5 * hk) * k2)
-        k4 = rhs_transposed(At_nodes[k], S_nodes[k], Q, Pk1 + hk * k3)
-        Pk = Pk1 + (hk / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
-        Pk = 0.5 * (Pk + Pk.T)
-        peak = np.abs(Pk).max()
-        if not np.isfinite(peak):
-            return k, 1, peak
-        if peak > limit:
-            return k, 2, peak
-        P[k] = Pk
-    return -1, 0, 0.0
+__all__ = ["rk4_sweep_loops"]
 
 
 @njit
@@ -95,7 +60,7 @@ def _axpy_into(X, h, Y, out):
 
 @njit
 def rk4_sweep_loops(At_nodes, S_nodes, At_mid, S_mid, steps, Q, P_terminal, limit, P):
-    """:func:`rk4_sweep_numpy` by loops into buffers allocated once (the compiled form)."""
+    """:func:`~mavreg.control.design.riccati.rk4_sweep_numpy` by loops into buffers allocated once (the compiled form)."""
     N, n = At_nodes.shape[0], At_nodes.shape[1]
     P[N - 1] = P_terminal
     k1 = np.empty((n, n))
@@ -137,6 +102,3 @@ def rk4_sweep_loops(At_nodes, S_nodes, At_mid, S_mid, steps, Q, P_terminal, limi
             return k, 2, peak
     return -1, 0, 0.0
 
-
-rk4_sweep = rk4_sweep_loops if ACCELERATED else rk4_sweep_numpy
-"""The sweep of the path in use: the loops compiled, numpy in plain Python."""
