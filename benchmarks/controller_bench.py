@@ -17,7 +17,7 @@ controller (``realistic.yaml``: prediction, the observer, the lag-aware SO(3) re
 the daemon runs it at 500 Hz: a hover (take-off ramp to 1.5 m, then hold) and the barrel
 roll, the rotors lagging by 20 ms, the state seen 14 ms late and the command acting 6 ms
 later, a steady 0.6 N side force for the observer to find (the flights:
-``tests/helpers/controller_flight.py``, which the tests replay too). Each flight is flown once (its
+``harness/controller_flight.py``, which the tests replay too). Each flight is flown once (its
 samples and commands recorded), then replayed through fresh objects in a timed loop, one
 sample after the other (the replay computes what the flight did). Baseline: the same, same
 run, in a child process on the pure path (``MAVREG_PURE=1``: the predictor's kernel as plain
@@ -38,7 +38,7 @@ import numpy as np
 from benchmarks.io_helpers import REPO, figure
 from mavreg.config.vehicle import G
 from mavreg.control.controllers.hover import HoverController, HoverParams
-from tests.helpers.controller_flight import Setup, fly, hover_ramp
+from harness.controller_flight import Setup, fly, hover_ramp
 
 __all__ = ["run_controller", "replay"]
 

@@ -8,7 +8,7 @@ lead, as the daemon builds it), over 30 000 states (quick: 3 000) in flight orde
 first group 1 runs of the paper (0.6 m off in each axis, nominal then drawn inertia) flown
 on the design model by :func:`mavreg.sim.batch.fly_batch`, one after the other, the
 regulator reset (untimed) at the start of each. Baseline, same states, same run, the two
-steps taken in turn on each state: :class:`tests.helpers.plain_regulator.PlainRegulator`, the
+steps taken in turn on each state: :class:`harness.plain_regulator.PlainRegulator`, the
 straightforward step with scipy interpolators and small numpy arrays (it agrees to 1e-9).
 
 Run alone: ``python -m benchmarks.step_bench [--quick]``.
@@ -20,7 +20,7 @@ import time
 import numpy as np
 
 from benchmarks.io_helpers import BARREL, PAPER_CONTROLLER, VEHICLE, figure
-from tests.helpers.plain_regulator import PlainRegulator
+from harness.plain_regulator import PlainRegulator
 from mavreg.config.controller import load_controller
 from mavreg.config.vehicle import load_vehicle
 from mavreg.control.controllers.regulator import ManeuverRegulator

@@ -72,8 +72,8 @@ def fly_one(autopilot: str, maneuver: Path, out: Path, vehicle: Path, params: di
     from mavreg.config.controller import load_controller
     from mavreg.config.vehicle import load_vehicle
     from mavreg.planning.plan_io import plan_file
-    from tests.helpers.autopilot_baseline_flight import fly_ardupilot_baseline, fly_px4_baseline
-    from tests.helpers.sitl_link import SitlError
+    from harness.autopilot_baseline_flight import fly_ardupilot_baseline, fly_px4_baseline
+    from harness.sitl_link import SitlError
     plan = plan_file(maneuver, load_vehicle(vehicle), load_controller(CONTROLLER))
     row = {"autopilot": autopilot, "maneuver": maneuver.stem, "feedforward": feedforward, "out": str(out),
            "load_before": os.getloadavg()[0]}
@@ -117,7 +117,7 @@ def figures(rows: list[dict], root: Path, vehicles: dict) -> list[Path]:
     from mavreg.config.controller import load_controller
     from mavreg.config.vehicle import load_vehicle
     from mavreg.planning.plan_io import plan_file
-    from tests.helpers.autopilot_baseline_flight import flown_track
+    from harness.autopilot_baseline_flight import flown_track
     written = []
     for maneuver in sorted({r["maneuver"] for r in rows}):
         mine = [r for r in rows if r["maneuver"] == maneuver and r.get("max_m") is not None]
@@ -164,7 +164,7 @@ def main(argv=None) -> int:
                    "(default: %(default)s)")
     p.add_argument("--px4-position-source", choices=("gps", "mocap"), default="gps",
                    help="EKF2's on PX4: SIH's GPS and barometer, or the harness's motion-capture feed "
-                   "(tests/helpers/px4_sitl.py) (default: %(default)s)")
+                   "(harness/px4_sitl.py) (default: %(default)s)")
     p.add_argument("--max-load", type=float, default=1.5, help="wait before each flight until the 1-minute "
                    "load average is below this (real time: a loaded machine slows the SITL) (default: %(default)s)")
     p.add_argument("--load-wait-s", type=float, default=600.0, help="fly anyway after waiting this long "

@@ -4,7 +4,7 @@
 are imported as ``tests.helpers.<module>`` (``tests/helpers/``); no test imports another test
 module or a helper by its bare name.
 
-Fixtures (session-scoped, from :mod:`tests.helpers.params`; shared objects, read-only):
+Fixtures (session-scoped, from :mod:`harness.params`; shared objects, read-only):
 ``vehicle`` (the MK-Quadro), ``paper_controller``, ``design_controller``,
 ``realistic_controller`` and ``barrel_roll_plan`` (the barrel roll with ``paper_lqr.yaml``).
 """
@@ -14,7 +14,7 @@ import tempfile
 
 import pytest
 
-from tests.helpers import params
+from harness import params
 
 
 @pytest.fixture(autouse=True, scope="session")

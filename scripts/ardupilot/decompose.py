@@ -80,7 +80,7 @@ def decompose(flight: Path, bins: int = 40) -> dict:
     from mavreg.config.controller import load_controller
     from mavreg.config.vehicle import load_vehicle
     from mavreg.planning.plan_io import plan_file
-    from tests.helpers.ardupilot_flight import CONTROLLER, VEHICLE, _truth_samples
+    from harness.ardupilot_flight import CONTROLLER, VEHICLE, _truth_samples
 
     summary = json.loads((flight / "summary.json").read_text())
     begin, end = _window(summary)

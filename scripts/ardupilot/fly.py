@@ -5,7 +5,7 @@ thrust, and print the true path error of each flight (the SITL's SIM_STATE) and 
     python -m scripts.ardupilot.fly [--flights 5] [--maneuver FILE] [--out DIR] [--param NAME=VALUE ...]
                                     [--position-source gps|vicon|mocap] [--vehicle FILE] [--controller FILE]
 
-Needs the SITL (``MAVREG_ARDUPILOT_DIR``; tests/helpers/ardupilot_sitl.py). Real time: about
+Needs the SITL (``MAVREG_ARDUPILOT_DIR``; harness/ardupilot_sitl.py). Real time: about
 2 minutes a flight (EKF start, take-off, maneuver, landing). docs/autopilots.md quotes it.
 """
 from __future__ import annotations
@@ -16,9 +16,9 @@ import sys
 import tempfile
 from pathlib import Path
 
-from tests.helpers.sitl_link import parse_param_items
-from tests.helpers.ardupilot_flight import fly_on_ardupilot
-from tests.helpers.ardupilot_sitl import POSITION_SOURCES
+from harness.sitl_link import parse_param_items
+from harness.ardupilot_flight import fly_on_ardupilot
+from harness.ardupilot_sitl import POSITION_SOURCES
 
 REPO = Path(__file__).resolve().parents[2]
 

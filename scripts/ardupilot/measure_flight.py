@@ -7,7 +7,7 @@ take-off by SET_ATTITUDE_TARGET type_mask 128 with the thrust ramped from 0 (no
 NAV_TAKEOFF); hover thrust; 30 deg/s roll-rate steps seen from the host; what happens when
 set-points stop (GUID_TIMEOUT); landing with low thrust (land detector, disarm); an
 ordinary and a forced disarm in flight. Test setup only: GUID_OPTIONS = 8 (thrust is a
-thrust). Prints one JSON document. Needs the SITL (see ``tests/helpers/ardupilot_sitl.py``).
+thrust). Prints one JSON document. Needs the SITL (see ``harness/ardupilot_sitl.py``).
 
     python scripts/ardupilot/measure_flight.py [--frame freestyle] [--steps 6]
 """

@@ -4,7 +4,7 @@
 HEARTBEAT fields, time to EKF origin and to passing pre-arm checks, parameters read by
 name, achieved telemetry rates for requested 100/200/400 Hz, the time_boot_ms pairing of
 ATTITUDE_QUATERNION and LOCAL_POSITION_NED, and its TIMESYNC answers. Prints one JSON
-document. Needs the SITL (``MAVREG_ARDUPILOT_DIR``; see ``tests/helpers/ardupilot_sitl.py``).
+document. Needs the SITL (``MAVREG_ARDUPILOT_DIR``; see ``harness/ardupilot_sitl.py``).
 
     python scripts/ardupilot/measure_link.py [--frame freestyle]
 """

@@ -8,7 +8,7 @@ plan in EKF2's frame), split into the estimate's own path error and EKF2's error
                               [--position-source gps|mocap]
 
 Needs the PX4 SITL (``MAVREG_PX4_DIR``, or the shared autopilot directory beside the repository:
-tests/helpers/px4_sitl.py).
+harness/px4_sitl.py).
 Real time: about 1.5 minutes a flight. docs/autopilots.md quotes it.
 """
 from __future__ import annotations
@@ -19,9 +19,9 @@ import sys
 import tempfile
 from pathlib import Path
 
-from tests.helpers.sitl_link import parse_param_items
-from tests.helpers.px4_flight import AGGRESSIVE_PARAMS, CONTROLLER, VEHICLE, fly_on_px4
-from tests.helpers.px4_sitl import POSITION_SOURCES
+from harness.sitl_link import parse_param_items
+from harness.px4_flight import AGGRESSIVE_PARAMS, CONTROLLER, VEHICLE, fly_on_px4
+from harness.px4_sitl import POSITION_SOURCES
 
 REPO = Path(__file__).resolve().parents[2]
 AIRFRAMES = {"default": {}, "aggressive": AGGRESSIVE_PARAMS}

@@ -8,8 +8,8 @@ defines its own: from the SENT step to SIH's true body rate, averaged over repet
 PX4 hovers in OFFBOARD on body rates and thrust, levelled by the script's own small stabilizer;
 each repetition steps one axis (a doublet: +-step, then -+step for as long) and the figures come
 from firmware_sim.rate_response.step_figures (10/50/90 %, overshoot, final value over the last
-quarter of the step, first order + delay over 150 ms). tests/helpers/px4_rate_step.py says how.
-Needs the PX4 SITL (tests/helpers/px4_sitl.py says where it is looked for). Real time: under a
+quarter of the step, first order + delay over 150 ms). harness/px4_rate_step.py says how.
+Needs the PX4 SITL (harness/px4_sitl.py says where it is looked for). Real time: under a
 minute. Run it alone (no other PX4 flight on the machine); times are on PX4's clock.
 """
 from __future__ import annotations
@@ -19,8 +19,8 @@ import json
 import sys
 from pathlib import Path
 
-from tests.helpers.px4_rate_step import measure_px4_rate_step
-from tests.helpers.sitl_link import parse_param_items
+from harness.px4_rate_step import measure_px4_rate_step
+from harness.sitl_link import parse_param_items
 
 AXES = {"roll": 0, "pitch": 1}
 

@@ -11,8 +11,8 @@ import contextlib
 import time
 from pathlib import Path
 
-from .ardupilot_flight import PILOT_PARAMS, vehicle_args
-from .ardupilot_sitl import M, ArduPilotSitl
+from harness.ardupilot_flight import PILOT_PARAMS, vehicle_args
+from harness.ardupilot_sitl import M, ArduPilotSitl
 from .sitl import mavreg
 
 __all__ = ["SIM_STATE_HZ", "serve_on_arducopter", "set_pilot_params"]

@@ -11,7 +11,7 @@ import sys
 import numpy as np
 
 from mavreg.control.controllers.hover import HoverController, HoverParams
-from tests.helpers import controller_flight as flight
+from harness import controller_flight as flight
 
 OBSERVER_OFF_SAMPLES = 50
 GAPS = ((300, 303), (900, 901), (1200, 1230))

@@ -1,6 +1,6 @@
 """The emulator configured as PX4's SIH quadrotor with PX4's rate-loop parameters: the
 ``firmware-sim`` flags under which its rate step is compared with a stock PX4's
-(docs/firmware_sim.md, "PX4's SIH quadrotor"; :mod:`tests.helpers.px4_rate_step` measures PX4's).
+(docs/firmware_sim.md, "PX4's SIH quadrotor"; :mod:`harness.px4_rate_step` measures PX4's).
 
 - the airframe: ``mavreg/params/vehicles/px4_sih.yaml`` (``SIH_*``; its ``emulator:`` section
   has SIH's rotor lag and linear drag) and SIH's angular drag ``SIH_KDW``;

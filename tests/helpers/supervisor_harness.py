@@ -17,7 +17,7 @@ from mavreg.daemon.flight.supervisor import Supervisor, SupervisorParams
 from mavreg.model.mixer import Mixer
 from mavreg.model.quadrotor import QuadrotorModel
 from mavreg.model.rotation import rpy_to_quat, rpy_to_matrix
-from tests.helpers import params
+from harness import params
 
 VEHICLE = params.vehicle()
 _PARSER = mavlink2.MAVLink(None)

@@ -2,7 +2,7 @@
 the barrel roll, landing and disarm, judged by the SITL's own ground truth (SIM_STATE).
 
 Slow (about 2 minutes in real time: EKF start, take-off, maneuver, landing) and skipped
-where the ArduCopter SITL is absent (tests/helpers/ardupilot_sitl.py says where it is
+where the ArduCopter SITL is absent (harness/ardupilot_sitl.py says where it is
 looked for). ``python -m scripts.ardupilot.fly --flights 5 [--position-source mocap]`` flies the
 campaigns the docs quote.
 """
@@ -11,8 +11,8 @@ from __future__ import annotations
 import pytest
 
 from mavreg.config.paths import maneuver_file
-from tests.helpers.ardupilot_flight import fly_on_ardupilot
-from tests.helpers.ardupilot_sitl import require_ardupilot
+from harness.ardupilot_flight import fly_on_ardupilot
+from harness.ardupilot_sitl import require_ardupilot
 
 LOOP_MAX_M = 0.30
 """The loop's true error bound of this test: 18.8-24.0 cm measured over 11 flights. Most of it is
@@ -46,7 +46,7 @@ def test_a_restarted_mavreg_takes_the_arducopter_back_in_the_air_and_lands_it(tm
     finds it armed in the air, takes it over (GUIDED is its offboard mode: the recovery flies at
     once), brakes, holds and lands it: never an ARM, one soft touchdown on SIM_STATE, disarmed
     at the end."""
-    from tests.helpers.ardupilot_flight import kill_and_restart_on_ardupilot
+    from harness.ardupilot_flight import kill_and_restart_on_ardupilot
     require_ardupilot()
     r = kill_and_restart_on_ardupilot(maneuver_file("barrel_roll"), tmp_path / "restart", after_s=1.0,
                                       restart_after_s=3.0)

@@ -3,7 +3,7 @@
 flies in the same ``serve``, judged by the SITL's true state (SIM_STATE).
 
 The daemon has the SITL's first MAVLink port (SERIAL0); the test is a pilot's ground station
-on its second (SERIAL1, :class:`~tests.helpers.ardupilot_sitl.GroundLink`): it asks for the
+on its second (SERIAL1, :class:`~harness.ardupilot_sitl.GroundLink`): it asks for the
 reboot (MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN) and receives SIM_STATE for the truth. Slow (about
 3 minutes in real time: two EKF starts, two hops) and skipped where the SITL is absent.
 """
@@ -15,9 +15,9 @@ import time
 import pytest
 
 from mavreg.daemon.jobs.endpoint import request
-from tests.helpers.ardupilot_flight import PILOT_PARAMS, sim_touchdowns
+from harness.ardupilot_flight import PILOT_PARAMS, sim_touchdowns
 from tests.helpers.ardupilot_serve import serve_on_arducopter, set_pilot_params
-from tests.helpers.ardupilot_sitl import M, SitlError, require_ardupilot
+from harness.ardupilot_sitl import M, SitlError, require_ardupilot
 from tests.helpers.repo import ROOT as REPO
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]

@@ -35,7 +35,7 @@ import pytest
 
 from mavreg.daemon.jobs.endpoint import request
 from tests.helpers.ardupilot_serve import serve_on_arducopter, set_pilot_params
-from tests.helpers.ardupilot_sitl import M, require_ardupilot
+from harness.ardupilot_sitl import M, require_ardupilot
 from tests.helpers.repo import ROOT as REPO
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]

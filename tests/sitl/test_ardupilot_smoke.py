@@ -1,6 +1,6 @@
 """A stock ArduCopter SITL through mavreg's dialect: detection, parameter check, GUIDED, arming.
 
-The SITL is found by ``tests/helpers/ardupilot_sitl.py`` (``MAVREG_ARDUPILOT_DIR``); without
+The SITL is found by ``harness/ardupilot_sitl.py`` (``MAVREG_ARDUPILOT_DIR``); without
 it the slow test is skipped with the reason. It runs in real time: about 45 s, most of it
 waiting for EKF3 to use GPS (GUIDED refuses to arm before).
 """

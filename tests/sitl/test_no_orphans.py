@@ -15,7 +15,7 @@ import time
 import pytest
 
 from mavreg.daemon.jobs.endpoint import request
-from tests.helpers.processes import children, cmdline, start_time, survivors
+from harness.processes import children, cmdline, start_time, survivors
 from tests.helpers.sitl import BARREL, mavreg, start_emulator
 
 pytestmark = [pytest.mark.sitl,

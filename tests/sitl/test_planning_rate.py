@@ -29,7 +29,7 @@ import time
 import pytest
 
 from mavreg.daemon.jobs.endpoint import request
-from tests.helpers.processes import children, start_time, survivors
+from harness.processes import children, start_time, survivors
 from tests.helpers.sitl import BARREL, Proc, mavreg
 
 pytestmark = pytest.mark.sitl

@@ -3,7 +3,7 @@ figure-eight's nominal in time, streamed as SET_POSITION_TARGET_LOCAL_NED to a s
 in OFFBOARD, its position controller flying it, judged on SIH's truth in EKF2's frame.
 
 Slow (about 1.5 minutes in real time) and skipped where the PX4 SITL is absent
-(tests/helpers/px4_sitl.py says where it is looked for). ``python -m scripts.compare_autopilots``
+(harness/px4_sitl.py says where it is looked for). ``python -m scripts.compare_autopilots``
 flies the whole comparison.
 """
 from __future__ import annotations
@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 
 from mavreg.config.paths import maneuver_file
-from tests.helpers.params import controller
-from tests.helpers.px4_sitl import free_instance, require_px4
+from harness.params import controller
+from harness.px4_sitl import free_instance, require_px4
 
 HERE = Path(__file__).resolve().parent
 CONTROLLER_FILE = HERE.parents[1] / "mavreg" / "params" / "controller" / "realistic.yaml"
@@ -35,7 +35,7 @@ def test_px4_position_controller_flies_the_figure_eight(tmp_path):
     require_px4()
     from mavreg.config.vehicle import load_vehicle
     from mavreg.planning.plan_io import plan_file
-    from tests.helpers.autopilot_baseline_flight import fly_px4_baseline
+    from harness.autopilot_baseline_flight import fly_px4_baseline
     maneuver, veh = maneuver_file("figure_eight"), _vehicle_file()
     plan = plan_file(maneuver, load_vehicle(veh), controller("realistic"))
     s = fly_px4_baseline(plan, maneuver, tmp_path / "flight", veh, CONTROLLER_FILE, instance=free_instance(7, 9))   # 7-9: clear of other PX4 runs

@@ -2,7 +2,7 @@
 body rates and thrust only, judged by SIH's ground truth (HIL_STATE_QUATERNION).
 
 Slow (real time: PX4's boot, EKF2, take-off, a hop, landing: about 80 s a flight) and skipped
-where the PX4 SITL is absent (tests/helpers/px4_sitl.py says where it is looked for). EKF2 flies
+where the PX4 SITL is absent (harness/px4_sitl.py says where it is looked for). EKF2 flies
 on the harness's motion-capture feed: on SIH's GPS and barometer its estimate wanders 0.3-1 m,
 and the take-off or the hold leaves the envelope's 0.5 m by that alone (docs/autopilots.md).
 ``python -m scripts.px4.fly --flights 5`` flies the campaigns docs/autopilots.md quotes.
@@ -13,9 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from tests.helpers.px4_flight import (fly_on_px4, glitch_mid_maneuver, kill_and_restart, kill_mid_maneuver,
+from harness.px4_flight import (fly_on_px4, glitch_mid_maneuver, kill_and_restart, kill_mid_maneuver,
                                      truth_touchdowns, ulog_texts)
-from tests.helpers.px4_sitl import require_px4
+from harness.px4_sitl import require_px4
 
 HOP = Path(__file__).with_name("px4_hop.yaml")
 TOUCHDOWN_MAX_M_S = 1.0

@@ -66,6 +66,6 @@ def test_nothing_points_outside_the_repository(pattern):
     # The one exception: the ArduCopter SITL test harness looks for the simulator next to the
     # repository by default (an environment variable overrides it; tests skip without it).
     found = subprocess.run(["git", "grep", "-n", "-F", pattern, "--", ".", ":!tests/unit/test_architecture_doc.py",
-                            ":!tests/helpers/ardupilot_sitl.py"],
+                            ":!harness/ardupilot_sitl.py"],
                            cwd=REPO, capture_output=True, text=True).stdout
     assert found == "", found

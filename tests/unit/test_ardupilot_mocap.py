@@ -1,4 +1,4 @@
-"""The ArduCopter harness's motion-capture feed (tests/helpers/ardupilot_mocap.py), without the
+"""The ArduCopter harness's motion-capture feed (harness/ardupilot_mocap.py), without the
 SITL: what it makes of a SIM_STATE, what it sends over a loopback link, and the timing settings
 of its parameter file (docs/autopilots.md, "The position source")."""
 from __future__ import annotations
@@ -10,8 +10,8 @@ import time
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil  # noqa: E402  (MAVLINK20 must be set first)
 
-from tests.helpers.ardupilot_mocap import HOME, MocapFeed, vision_sample  # noqa: E402
-from tests.helpers.ardupilot_sitl import EXTRA_DEFAULTS, free_udp_port  # noqa: E402
+from harness.ardupilot_mocap import HOME, MocapFeed, vision_sample  # noqa: E402
+from harness.ardupilot_sitl import EXTRA_DEFAULTS, free_udp_port  # noqa: E402
 
 M = mavutil.mavlink
 NORTH_M, EAST_M, UP_M = 2.5, -1.25, 3.0

@@ -8,7 +8,7 @@ import pytest
 from mavreg.config.paths import maneuver_file
 from mavreg.experiments.autopilot_baseline import MANEUVER, BaselineSchedule, nominal_setpoint
 from mavreg.planning.plan_io import plan_file
-from tests.helpers.params import controller, vehicle
+from harness.params import controller, vehicle
 
 
 @pytest.fixture(scope="module")

@@ -11,7 +11,7 @@ import sys
 import numpy as np
 
 from benchmarks import controller_bench as cb
-from tests.helpers import controller_flight as flight
+from harness import controller_flight as flight
 from tests.helpers.repo import ROOT as REPO
 
 
@@ -38,7 +38,7 @@ def test_the_forecaster_compiled_and_pure_agree_over_a_recorded_flight(tmp_path)
     observer's state agree to 1e-12 relative after 1500 samples."""
     import os
     import subprocess
-    code = ("import sys, numpy as np; from tests.helpers.controller_flight import hover_forecasts; "
+    code = ("import sys, numpy as np; from harness.controller_flight import hover_forecasts; "
             "np.save(sys.argv[1], hover_forecasts())")
     out = {}
     for pure in ("0", "1"):

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.helpers import controller_flight as flight
+from harness import controller_flight as flight
 
 from tests.helpers.repo import ROOT as REPO
 

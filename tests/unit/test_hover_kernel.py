@@ -17,8 +17,8 @@ from mavreg.accel import ACCELERATED
 from mavreg.control.estimation.disturbance import DisturbanceEstimate
 from mavreg.control.controllers.hover import HoverController, HoverParams, hold_ramp, plan_ramp
 
-from tests.helpers import controller_flight as flight
-from tests.helpers import params
+from harness import controller_flight as flight
+from harness import params
 
 VEHICLE = params.vehicle()
 

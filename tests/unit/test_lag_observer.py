@@ -19,7 +19,7 @@ from mavreg.control.estimation.disturbance import DisturbanceObserver
 from mavreg.control.estimation.forecast import Forecaster
 from mavreg.control.controllers.hover import hold_ramp
 from mavreg.control.estimation.predictor import StatePredictor
-from tests.helpers import params
+from harness import params
 from tests.helpers.hover_loop import fly_hover
 
 VEHICLE = params.vehicle()                     # the file: 20 ms rotors

@@ -11,7 +11,7 @@ import textwrap
 
 import pytest
 
-from tests.helpers.processes import start_time, survivors
+from harness.processes import start_time, survivors
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 

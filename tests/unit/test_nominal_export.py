@@ -17,7 +17,7 @@ from mavreg.planning.plan_io import plan_text
 from mavreg.model.mixer import Mixer
 from mavreg.model.rotation import quat_to_matrix
 
-from tests.helpers.params import ONE_GATE as GATE
+from harness.params import ONE_GATE as GATE
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,7 @@ import numpy as np
 
 from mavreg.control.controllers.regulator import ManeuverRegulator
 from mavreg.sim.batch import BatchRun, fly_batch
-from tests.helpers.plain_regulator import PlainRegulator
+from harness.plain_regulator import PlainRegulator
 
 
 def test_plain_step_agrees_with_the_regulator_on_closed_loop_states(vehicle, barrel_roll_plan):

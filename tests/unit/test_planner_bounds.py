@@ -14,7 +14,7 @@ import pytest
 
 from mavreg.daemon.jobs.planner_pool import PlannerBounds, PlannerPool
 from mavreg.errors import EXIT_FAILED, EXIT_USAGE, MAX_MESSAGE_CHARS
-from tests.helpers import params
+from harness import params
 from tests.helpers.waiting import wait_until_async
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="RLIMIT_AS, /proc")

@@ -13,8 +13,8 @@ import pytest
 from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER
 from mavreg.config.vehicle import load_vehicle
 from mavreg.daemon.jobs.planner_pool import PlannerDied, PlannerPool
-from tests.helpers.processes import start_time, survivors
-from tests.helpers import params
+from harness.processes import start_time, survivors
+from harness import params
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 

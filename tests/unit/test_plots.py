@@ -21,7 +21,7 @@ from mavreg.model.rotation import rpy_to_matrix, rpy_to_quat
 from mavreg.plots.figures import build_flight_figure, build_plan_figure, panel
 from mavreg.plots.sources import from_fly, from_simulation
 from mavreg.sim.maneuver_run import fly_on_design_model
-from tests.helpers.params import ONE_GATE as GATE
+from harness.params import ONE_GATE as GATE
 
 RATE_HZ = 250.0
 OFFSET_M = (0.3, 0.3, 0.3)

@@ -11,7 +11,7 @@ from mavreg.model.mixer import Mixer
 from mavreg.model.quadrotor import QuadrotorModel
 from mavreg.model.rotation import rpy_to_matrix
 from mavreg.sim.closed_loop import SimOptions, simulate
-from tests.helpers import params
+from harness import params
 from tests.helpers.repo import ROOT as REPO
 
 VEHICLE = params.vehicle()

@@ -3,7 +3,7 @@
 In a fresh process (numba's dispatchers start empty there), the kernels' compiled
 signatures are read before the warm-up, after it, and after a closed-loop realistic.yaml
 hover and the barrel roll's first second flown through the daemon's objects
-(``tests/helpers/controller_flight.py``): the warm-ups the daemon runs before it opens the link
+(``harness/controller_flight.py``): the warm-ups the daemon runs before it opens the link
 (the regulator's step, :func:`mavreg.control.controllers.fastpath.warm_up`, then the sample kernels)
 must have compiled every kernel the flights call, for every argument type they call it with.
 (The regulator's step compiles the compensation kernels into itself; on a cold numba cache
@@ -27,7 +27,7 @@ from mavreg.control.estimation import command_history_kernel, observer_kernel, p
 from mavreg.control.controllers.hover import HoverParams
 from mavreg.control.controllers import fastpath
 from mavreg.control.controllers.sample_warmup import warm_up_sample_kernels
-from tests.helpers import controller_flight as flight
+from harness import controller_flight as flight
 
 MODULES = (predictor_kernel, command_history_kernel, observer_kernel, hover_kernel, compensation_kernel)
 

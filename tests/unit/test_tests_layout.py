@@ -1,7 +1,9 @@
 """The tests keep the rules of tests/README.md ("Writing a test"), checked on the source:
 
 - code the tests share lives in ``tests/helpers/`` (imported as ``tests.helpers.<module>``);
-  every other file under ``tests/`` is a test module, a ``conftest.py`` or data;
+  every other file under ``tests/`` is a test module, a ``conftest.py`` or data; code the
+  tests share with the benchmarks and the scripts (the stock-autopilot rigs) lives in
+  ``harness/``, which, like ``benchmarks/`` and ``scripts/``, imports nothing from ``tests/``;
 - no module imports a test module for its functions (a helper is imported instead);
 - no fixed sleep stands for synchronization: a literal ``sleep(...)`` outside a loop waits
   for a time instead of a condition (:mod:`tests.helpers.waiting`). Sleeps inside a loop
@@ -43,6 +45,16 @@ def imports_of_test_modules(source: str, name: str) -> list[str]:
     return found
 
 
+def imports_of_tests(source: str, name: str) -> list[str]:
+    """Any import from the ``tests`` package in ``source`` (forbidden outside ``tests/``)."""
+    found = []
+    for node in ast.walk(ast.parse(source, name)):
+        mods = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                else [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else [])
+        found += [f"{name}:{node.lineno}: imports {m}" for m in mods if m == "tests" or m.startswith("tests.")]
+    return found
+
+
 def fixed_sleeps(source: str, name: str) -> list[str]:
     """``sleep(<literal>)`` calls outside any loop of their function, in ``source``."""
     tree = ast.parse(source, name)
@@ -76,8 +88,15 @@ def test_shared_code_lives_in_tests_helpers():
 
 
 def test_no_module_imports_a_test_module():
-    found = [f for rel, src in _sources("tests", "benchmarks", "scripts", "fuzz", "mavreg", "firmware_sim")
+    found = [f for rel, src in _sources("tests", "benchmarks", "scripts", "harness", "fuzz", "mavreg",
+                                        "firmware_sim")
              for f in imports_of_test_modules(src, rel)]
+    assert found == []
+
+
+def test_benchmarks_scripts_and_the_harness_import_nothing_from_tests():
+    found = [f for rel, src in _sources("benchmarks", "scripts", "harness", "fuzz", "mavreg", "firmware_sim")
+             for f in imports_of_tests(src, rel)]
     assert found == []
 
 
@@ -92,6 +111,9 @@ def test_the_checks_see_what_they_forbid():
     src = "from test_state import pos\nimport tests.unit.test_plots\nfrom tests.helpers.sitl import Proc\n"
     assert [f.split(": ")[1] for f in imports_of_test_modules(src, "m.py")] == ["imports test_state",
                                                                               "imports tests.unit.test_plots"]
+    src = "import tests.helpers.repo\nfrom tests.helpers import sitl\nfrom harness import params\nfrom . import x\n"
+    assert [f.split(": ")[1] for f in imports_of_tests(src, "m.py")] == ["imports tests.helpers.repo",
+                                                                       "imports tests.helpers"]
     src = ("import time, asyncio\n"
            "def f(ready, dur_s):\n"
            "    time.sleep(0.2)\n"                 # a fixed wait: found

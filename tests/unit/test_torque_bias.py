@@ -17,7 +17,7 @@ from mavreg.control.estimation.predictor import StatePredictor
 from mavreg.control.estimation.torque_bias import TorqueBiasObserver, allocated_less_bias, bias_vector_n_m
 from mavreg.maneuver.plan_margins import hover_margins
 from mavreg.model.mixer import Mixer, torques_first, yaw_then_lift
-from tests.helpers import params
+from harness import params
 from tests.helpers.hover_loop import fly_hover
 
 VEHICLE = params.vehicle()

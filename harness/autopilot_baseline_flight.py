@@ -17,8 +17,8 @@ Each flight leaves what a mavreg flight leaves, so the same code judges both: ``
 vehicle time), PX4's ``truth.npz`` and ``.ulg``. The window judged runs from the start of the
 maneuver to the end of the exit hold (a vehicle behind its reference at the path's end is still
 judged on the rest of the path; samples past the end project outside it and are left out).
-PX4 is judged by :func:`~tests.helpers.px4_flight.px4_truth` (``HIL_STATE_QUATERNION`` in EKF2's
-frame), ArduCopter by :func:`~tests.helpers.ardupilot_flight.true_errors_from_tlog` (``SIM_STATE``).
+PX4 is judged by :func:`~harness.px4_flight.px4_truth` (``HIL_STATE_QUATERNION`` in EKF2's
+frame), ArduCopter by :func:`~harness.ardupilot_flight.true_errors_from_tlog` (``SIM_STATE``).
 """
 from __future__ import annotations
 
@@ -215,7 +215,7 @@ def fly_px4_baseline(plan, maneuver: Path, out: Path, vehicle: Path, controller:
     """Fly ``plan`` (planned from ``maneuver`` with ``vehicle`` and ``controller``) through PX4's
     position controller on a fresh SIH; summary.json plus ``px4_truth``. ``feedforward``: the
     maneuver's acceleration (:data:`~mavreg.experiments.autopilot_baseline.FEEDFORWARDS`);
-    ``position_source``: EKF2's, ``gps`` or ``mocap`` (:class:`~tests.helpers.px4_sitl.Px4Sitl`)."""
+    ``position_source``: EKF2's, ``gps`` or ``mocap`` (:class:`~harness.px4_sitl.Px4Sitl`)."""
     from .px4_flight import px4_truth
     from .px4_sitl import Px4Sitl
     out = Path(out)

@@ -43,7 +43,7 @@ starts die at once; six attempts all fail about once in 4000."""
 POSITION_SOURCES = ("gps", "vicon", "mocap")
 """Where ArduCopter's EKF3 takes its position from: its simulated GPS (5 Hz, the frame's
 defaults), the SITL's simulated Vicon or the harness's motion-capture feed
-(:class:`~tests.helpers.ardupilot_mocap.MocapFeed`), both as ExternalNav (:data:`EXTRA_DEFAULTS`);
+(:class:`~harness.ardupilot_mocap.MocapFeed`), both as ExternalNav (:data:`EXTRA_DEFAULTS`);
 with either, the EKF's local frame is the vision frame, about :data:`HOME`."""
 EXTRA_DEFAULTS = {"vicon": Path(__file__).with_name("ardupilot_vicon.parm"),
                   "mocap": Path(__file__).with_name("ardupilot_mocap.parm")}
@@ -51,7 +51,7 @@ EXTRA_DEFAULTS = {"vicon": Path(__file__).with_name("ardupilot_vicon.parm"),
 
 def ardupilot_dir() -> Path | None:
     """The SITL directory, or None: ``$MAVREG_ARDUPILOT_DIR`` when set; else
-    ``shared/autopilot/ardupilot`` beside the repository (:func:`~tests.helpers.sitl_link.autopilot_dir`)."""
+    ``shared/autopilot/ardupilot`` beside the repository (:func:`~harness.sitl_link.autopilot_dir`)."""
     return autopilot_dir(ENV_VAR, "ardupilot", ("start.sh", "arducopter"))
 
 

@@ -1,6 +1,6 @@
 """``mavreg fly`` on a stock ArduCopter SITL, judged by the SITL's ground truth.
 
-:func:`fly_on_ardupilot` starts the SITL (:class:`~tests.helpers.ardupilot_sitl.ArduPilotSitl`),
+:func:`fly_on_ardupilot` starts the SITL (:class:`~harness.ardupilot_sitl.ArduPilotSitl`),
 sets what a pilot sets once on a real vehicle (``GUID_OPTIONS`` 8, ``GUID_TIMEOUT``; mavreg
 itself only checks them), asks for the SITL's true state (``SIM_STATE``) and the EKF origin
 (``GPS_GLOBAL_ORIGIN``), then hands the link to ``mavreg fly --vehicle udpin:...`` (the SITL
@@ -22,11 +22,10 @@ import numpy as np
 
 from .ardupilot_mocap import HOME, ned_m
 from .ardupilot_sitl import M, ArduPilotSitl
-from .sitl_link import fly_into_the_maneuver
+from .sitl_link import REPO, fly_into_the_maneuver
 
 __all__ = ["fly_on_ardupilot", "kill_and_restart_on_ardupilot", "sim_touchdowns", "true_errors_from_tlog", "vehicle_args", "PILOT_PARAMS", "VEHICLE", "CONTROLLER", "CONTROLLERS"]
 
-REPO = Path(__file__).resolve().parents[2]
 VEHICLE = REPO / "mavreg" / "params" / "vehicles" / "ardupilot_freestyle.yaml"
 CONTROLLER = REPO / "mavreg" / "params" / "controller" / "freestyle.yaml"
 CONTROLLERS = {"gps": CONTROLLER, "vicon": CONTROLLER, "mocap": CONTROLLER.with_name("freestyle_mocap.yaml")}

@@ -1,8 +1,8 @@
 """A stock autopilot's MAVLink link as the test harnesses speak it: receive, wait by messages,
 commands, message rates and parameters.
 
-:class:`SitlLink` is what :class:`~tests.helpers.ardupilot_sitl.ArduPilotSitl` and
-:class:`~tests.helpers.px4_sitl.Px4Sitl` share: a pymavlink connection (``conn``) to the
+:class:`SitlLink` is what :class:`~harness.ardupilot_sitl.ArduPilotSitl` and
+:class:`~harness.px4_sitl.Px4Sitl` share: a pymavlink connection (``conn``) to the
 autopilot, a ground-station HEARTBEAT a second on it, every STATUSTEXT kept with its time, and
 waits bounded by time that end in :class:`SitlError` with the autopilot's last words. A
 subclass names the autopilot (``name``), checks that its process lives (``_check_alive``) and
@@ -22,7 +22,7 @@ from mavreg.daemon.vehicle.autopilots import param_value  # noqa: E402
 
 __all__ = ["SitlLink", "SitlError", "SitlExitedEarly", "M", "mavutil", "autopilot_dir", "parse_param_items"]
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[1]
 
 M = mavutil.mavlink
 PREARM_BIT = M.MAV_SYS_STATUS_PREARM_CHECK

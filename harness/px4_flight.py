@@ -1,6 +1,6 @@
 """``mavreg fly`` on a stock PX4 SITL (SIH), judged by SIH's ground truth.
 
-:func:`fly_on_px4` starts PX4 (:class:`~tests.helpers.px4_sitl.Px4Sitl`) with the airframe's
+:func:`fly_on_px4` starts PX4 (:class:`~harness.px4_sitl.Px4Sitl`) with the airframe's
 parameters, records SIH's true state (``HIL_STATE_QUATERNION`` at 100 Hz on its display link)
 for the whole flight, hands the offboard link to ``mavreg fly --vehicle udpin:...`` and waits
 for it. :func:`px4_truth` then measures the flight against the plan in EKF2's frame:
@@ -28,11 +28,10 @@ import numpy as np
 from mavreg.experiments.via_sitl import maneuver_window
 
 from .px4_sitl import Px4Sitl
-from .sitl_link import fly_into_the_maneuver
+from .sitl_link import REPO, fly_into_the_maneuver
 
 __all__ = ["fly_on_px4", "px4_truth", "VEHICLE", "AGGRESSIVE_VEHICLE", "CONTROLLER", "AGGRESSIVE_PARAMS"]
 
-REPO = Path(__file__).resolve().parents[2]
 VEHICLE = REPO / "mavreg" / "params" / "vehicles" / "px4_sih.yaml"
 AGGRESSIVE_VEHICLE = VEHICLE.with_name("px4_sih_aggressive.yaml")
 CONTROLLER = REPO / "mavreg" / "params" / "controller" / "px4_sih.yaml"
@@ -50,7 +49,7 @@ def fly_on_px4(maneuver: Path, out: Path, vehicle: Path = VEHICLE, controller: P
     """Fly ``maneuver`` with mavreg on a fresh PX4; summary.json plus ``px4_truth``
     (:func:`px4_truth`) and ``exit_code``. ``params``: PX4 parameters set before the flight
     (the airframe's ``SIH_*``, an experiment's); ``extra_args``: more ``mavreg fly`` options;
-    ``position_source``: EKF2's, ``gps`` or ``mocap`` (:class:`~tests.helpers.px4_sitl.Px4Sitl`)."""
+    ``position_source``: EKF2's, ``gps`` or ``mocap`` (:class:`~harness.px4_sitl.Px4Sitl`)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     with Px4Sitl(params=params, instance=instance, position_source=position_source) as px4:
@@ -159,7 +158,7 @@ def _fly_cmd(port: int, maneuver: Path, out: Path, vehicle: Path, controller: Pa
 
 def _fly_into_the_maneuver(px4: Px4Sitl, maneuver: Path, out: Path, vehicle: Path, controller: Path,
                            after_s: float, wait_s: float = 120.0):
-    """``mavreg fly`` on ``px4``'s offboard link (:func:`~tests.helpers.sitl_link.fly_into_the_maneuver`,
+    """``mavreg fly`` on ``px4``'s offboard link (:func:`~harness.sitl_link.fly_into_the_maneuver`,
     its output into ``out/fly.log``)."""
     cmd = _fly_cmd(px4.release_link(), maneuver, out / "flight", vehicle, controller, "--control-rate-hz", "200")
     return fly_into_the_maneuver(cmd, out / "fly.log", after_s, wait_s)

@@ -20,7 +20,7 @@ from mavreg.model.mixer import Mixer
 from mavreg.model.quadrotor import QuadrotorModel
 from mavreg.model.rotation import rpy_to_matrix
 from mavreg.sim.closed_loop import SimOptions, simulate
-from tests.helpers import params
+from harness import params
 
 __all__ = ["RATE_HZ", "MEASUREMENT_DELAY_S", "COMMAND_DELAY_S", "SIDE_FORCE_N", "Setup", "hover_ramp", "fly",
            "hover_forecasts"]

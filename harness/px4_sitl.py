@@ -64,7 +64,7 @@ defaults pass mavreg's checks (``COM_OF_LOSS_T`` 1 s, ``COM_OBL_RC_ACT`` 0 Posit
 
 def px4_dir() -> Path | None:
     """The PX4 SITL directory, or None: ``$MAVREG_PX4_DIR`` when set; else ``shared/autopilot/px4``
-    beside the repository (:func:`~tests.helpers.sitl_link.autopilot_dir`)."""
+    beside the repository (:func:`~harness.sitl_link.autopilot_dir`)."""
     return autopilot_dir(ENV_VAR, "px4", ("start.sh", "bin/px4"))
 
 
