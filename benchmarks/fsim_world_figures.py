@@ -32,7 +32,7 @@ HOVER = 0.749 * G / 4 / 12.0
 def run(duration_s: float, extra: list[str], record: Path) -> dict:
     proc = subprocess.Popen(
         [sys.executable, "-m", "firmware_sim", "--lockstep", "--quiet", "--listen", "udpin:127.0.0.1:0",
-         "--start", "z_m=-5", "--duration-s", str(duration_s), "--lockstep-stall-speed", "0",
+         "--start", "z_m=-5", "--duration-s", str(duration_s), "--lockstep-stall-factor", "0",
          "--record", str(record), *extra],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO)
     try:

@@ -92,7 +92,8 @@ def build_parser() -> argparse.ArgumentParser:
            "pseudo-terminal, announced as serial:/dev/pts/N (a flight controller's TELEM port); "
            "serial: an existing device (baud 921600 if left out); tcpin: one TCP client at a time, "
            "port 0 a free one (default %(default)s)")
-    # Old spellings (--vehicle, --rate-hz, --lockstep-timeout, --offboard-loss-timeout, --preset)
+    # Old spellings (--vehicle, --rate-hz, --lockstep-timeout, --lockstep-stall-speed,
+    # --offboard-loss-timeout, --preset)
     # are hidden aliases for one release; the dest names are kept (docs/cli.md).
     add_deprecated_alias(p, "--vehicle", a(
         "--vehicle-params", dest="vehicle", default=None, metavar="YAML", type=input_file,
@@ -107,9 +108,10 @@ def build_parser() -> argparse.ArgumentParser:
     add_deprecated_alias(p, "--lockstep-timeout", a(
         "--lockstep-timeout-s", dest="lockstep_timeout", type=positive_float, default=0.1, metavar="S",
         help="wall seconds to wait for a period's command before it counts as lost (default %(default)s)"))
-    a("--lockstep-stall-speed", type=nonneg_float, default=1.0, metavar="X",
-      help="while no commands stream in lockstep, run at X times real time; 0 = as fast "
-           "as possible (default %(default)s)")
+    add_deprecated_alias(p, "--lockstep-stall-speed", a(
+        "--lockstep-stall-factor", type=nonneg_float, default=1.0, metavar="X",
+        help="while no commands stream in lockstep, run at X times real time; 0 = as fast "
+             "as possible (default %(default)s)"))
     a("--seed", type=nonneg_int, default=0, metavar="N", help="seed of the rotor noise and perturbations (default 0)")
     a("--start", default=None, metavar="STATE", type=checked(parse_start, "STATE"),
       help="start in flight, armed and in OFFBOARD, e.g. 'z_m=-5,vy_m_s=8,roll_deg=120'. "
@@ -374,7 +376,7 @@ def _main(argv: list[str] | None) -> int:
     try:
         if args.lockstep:
             run_lockstep(engine, args.lockstep_timeout, args.duration_s, args.quiet,
-                         args.lockstep_stall_speed)
+                         args.lockstep_stall_factor)
         else:
             run_realtime(engine, args.rate_hz, args.duration_s, args.quiet)
     except StopRun as exc:

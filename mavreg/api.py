@@ -221,7 +221,7 @@ def simulate(plan: Plan, controller: ControllerParams | None = None, *,
              entry_offset=(0.0, 0.0, 0.0), rotor_noise_sd_n: float = 0.0,
              rotor_saturation_n: float | None = None, seed: int | None = None,
              control_rate_hz: float = 1000.0, inertia_kg_m2=None, gust_n=None,
-             gust_window=(0.0, 1.0)) -> ManeuverRun:
+             gust_window_s=(0.0, 1.0), gust_window=None) -> ManeuverRun:
     r"""Fly a plan with the regulator on the design model (``mavreg simulate``; the command calls this).
 
     The paper's quadrotor model (eqs 6-17, ideal rotors) is integrated by RK4 in 1 ms steps
@@ -251,8 +251,10 @@ def simulate(plan: Plan, controller: ControllerParams | None = None, *,
         The regulator's rate: 1000 Hz divided by a whole number.
     inertia_kg_m2 : (3,) array_like, optional
         The plant's principal moments, when they differ from the design's.
-    gust_n, gust_window : (3,) and (2,) array_like, optional
+    gust_n, gust_window_s : (3,) and (2,) array_like, optional
         An external force on the vehicle (NED, N) from t0 to t1 (s from the start).
+        ``gust_window`` is the old name of ``gust_window_s``: accepted with a
+        ``DeprecationWarning`` for one release.
 
     Returns
     -------
@@ -267,7 +269,7 @@ def simulate(plan: Plan, controller: ControllerParams | None = None, *,
         An infeasible plan (no gains).
     ValueError
         A plan made with another controller (another attitude error or rotor-lag design),
-        a rate that is not 1000 Hz divided by a whole number, ``gust_window`` t0 > t1.
+        a rate that is not 1000 Hz divided by a whole number, ``gust_window_s`` t0 > t1.
 
     Examples
     --------
@@ -288,12 +290,17 @@ def simulate(plan: Plan, controller: ControllerParams | None = None, *,
     from .sim.maneuver_run import fly_on_design_model
     controller = load_controller() if controller is None else controller
     _check_plan_of(plan, controller)
-    if not gust_window[0] <= gust_window[1]:
-        raise ValueError(f"gust_window must be t0 <= t1, got {tuple(gust_window)}")
+    if gust_window is not None:
+        import warnings
+        warnings.warn("simulate(gust_window=) is deprecated and goes in the next release; use gust_window_s",
+                      DeprecationWarning, stacklevel=2)
+        gust_window_s = gust_window
+    if not gust_window_s[0] <= gust_window_s[1]:
+        raise ValueError(f"gust_window_s must be t0 <= t1, got {tuple(gust_window_s)}")
     return fly_on_design_model(plan, offset_m=entry_offset, inertia_kg_m2=inertia_kg_m2,
                                rotor_noise_sd_n=rotor_noise_sd_n, saturation_n=rotor_saturation_n,
                                seed=seed, control_rate_hz=control_rate_hz, gust_force_n=gust_n,
-                               gust_window_s=tuple(gust_window),
+                               gust_window_s=tuple(gust_window_s),
                                allocation=told_rotor_limit(controller.allocation, rotor_saturation_n),
                                speed_governor=controller.speed_governor)
 

@@ -19,7 +19,7 @@ Plan the maneuver, start at its nominal entry state (plus --entry-offset), and i
 the paper's quadrotor model (eqs 6-17, RK4, 1 ms) in closed loop with the s-scheduled LQR
 regulator run at --control-rate-hz with zero-order hold. Rotor forces may carry Gaussian
 noise (--rotor-noise-sd-n) and saturate per rotor (--rotor-saturation-n); the plant's
-inertia may differ from the design (--inertia-kg-m2); a gust (--gust-n, --gust-window) may
+inertia may differ from the design (--inertia-kg-m2); a gust (--gust-n, --gust-window-s) may
 push the vehicle. The gains are those of the controller file (default: mavreg fly's,
 params/controller/realistic.yaml, designed for the vehicle's rotor lag; the paper's design is
 --controller params/controller/paper_lqr.yaml). The regulator allocates and governs its speed as the controller file's
@@ -66,9 +66,10 @@ def add_arguments(p):
     p.add_argument("--inertia-kg-m2", nargs=3, type=positive_float, default=None,
                    metavar=("JX", "JY", "JZ"), help="plant inertia (default: the design's)")
     p.add_argument("--gust-n", nargs=3, type=finite_float, default=None, metavar=("FN", "FE", "FD"),
-                   help="an external force on the vehicle, NED newtons (with --gust-window)")
-    p.add_argument("--gust-window", nargs=2, type=finite_float, default=(0.0, 1.0), metavar=("T0", "T1"),
-                   help="when the gust acts, seconds from the start (default 0 1)")
+                   help="an external force on the vehicle, NED newtons (with --gust-window-s)")
+    add_deprecated_alias(p, "--gust-window", p.add_argument(
+        "--gust-window-s", nargs=2, type=finite_float, default=(0.0, 1.0), metavar=("T0", "T1"),
+        help="when the gust acts, seconds from the start (default 0 1)"))
     p.add_argument("--json", action="store_true", help="print the metrics as JSON")
     p.add_argument("--plot", metavar="PNG", type=plot_file, default=None,
                    help="save a figure: the path flown (3-D, top and side views, north up), the "
@@ -77,8 +78,8 @@ def add_arguments(p):
 
 
 def run(args) -> int:
-    if not args.gust_window[0] <= args.gust_window[1]:
-        raise UsageError(f"--gust-window must be T0 <= T1, got {' '.join(f'{t:g}' for t in args.gust_window)}")
+    if not args.gust_window_s[0] <= args.gust_window_s[1]:
+        raise UsageError(f"--gust-window-s must be T0 <= T1, got {' '.join(f'{t:g}' for t in args.gust_window_s)}")
     vehicle, controller = load_model_params(args)
     spec = load_maneuver_arg(args)            # the files first: the planner's imports are heavy
     from ..api import simulate           # the library's simulate is this command's run
@@ -88,7 +89,7 @@ def run(args) -> int:
     run_ = simulate(plan, controller, entry_offset=args.entry_offset, rotor_noise_sd_n=args.rotor_noise_sd_n,
                     rotor_saturation_n=args.rotor_saturation_n, seed=args.seed,
                     control_rate_hz=args.control_rate_hz, inertia_kg_m2=args.inertia_kg_m2,
-                    gust_n=args.gust_n, gust_window=tuple(args.gust_window))
+                    gust_n=args.gust_n, gust_window_s=tuple(args.gust_window_s))
     m = run_.metrics
     if args.plot:
         from ..plots import plot_simulation

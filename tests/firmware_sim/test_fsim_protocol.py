@@ -41,7 +41,7 @@ def test_arm_disarm_acks_and_offboard_refused_without_stream():
 
 def fly_lockstep(rec, seed="5", kill_at=None):
     """Strict lockstep client: answer every telemetry period; arm, stream, OFFBOARD, climb."""
-    args = ["--world", "ideal", "--lockstep", "--seed", seed, "--rotor-noise-sd-n", "0.1", "--lockstep-stall-speed", "0", "--duration-s", "3"]
+    args = ["--world", "ideal", "--lockstep", "--seed", seed, "--rotor-noise-sd-n", "0.1", "--lockstep-stall-factor", "0", "--duration-s", "3"]
     with Emulator(*args, record=rec) as emu:
         c = Client(emu.port)
         c.heartbeat()
@@ -79,7 +79,7 @@ def test_failsafe_from_inverted_in_flight_start_lands_and_disarms(tmp_path):
     rec = tmp_path / "f.npz"
     # The emulator stops itself at --duration-s: the test reads nothing (a stalled lockstep
     # runs flat out, and a slow reader would lose datagrams to its full socket buffer).
-    with Emulator("--world", "ideal", "--lockstep", "--lockstep-stall-speed", "0", "--start",
+    with Emulator("--world", "ideal", "--lockstep", "--lockstep-stall-factor", "0", "--start",
                   "z_m=-6,vy_m_s=8,roll_deg=120", "--duration-s", "12", record=rec) as emu:
         c = Client(emu.port)
         c.heartbeat()                  # the daemon "dies" right away: no targets ever
@@ -104,7 +104,7 @@ def test_failsafe_from_inverted_in_flight_start_lands_and_disarms(tmp_path):
 
 
 def test_bad_input_is_dropped_counted_and_sim_keeps_running(tmp_path):
-    with Emulator("--world", "ideal", "--lockstep", "--lockstep-stall-speed", "0",
+    with Emulator("--world", "ideal", "--lockstep", "--lockstep-stall-factor", "0",
                   record=tmp_path / "r.npz") as emu:
         c = Client(emu.port)
         foreign = Client(emu.port, system_id=9, component_id=191)

@@ -57,7 +57,7 @@ def fly_realistic(rec, seed: str = "7", *extra: str):
     It retries ARM and OFFBOARD from what the vehicle reports, sends a TIMESYNC request
     every 50 samples, and reacts only to what it receives, so a run is a function of the seed.
     """
-    args = ["--lockstep", "--seed", seed, "--rotor-noise-sd-n", "0.1", "--lockstep-stall-speed", "0",
+    args = ["--lockstep", "--seed", seed, "--rotor-noise-sd-n", "0.1", "--lockstep-stall-factor", "0",
             "--lockstep-timeout-s", "2", "--duration-s", "3", *extra]
     status = {"armed": False, "offboard": False, "n": 0, "timesync": []}
 
@@ -119,7 +119,7 @@ def test_realistic_lockstep_is_deterministic_without_timeouts(tmp_path):
 def _timesync_delays(tmp_path, *world: str, samples: int = 20) -> list:
     """Lockstep peer sending a TIMESYNC request with each answer; tc1 - sample time (ms)."""
     replies = []
-    with Emulator("--lockstep", "--lockstep-stall-speed", "0", "--start", "z_m=-20", *world) as emu:
+    with Emulator("--lockstep", "--lockstep-stall-factor", "0", "--start", "z_m=-20", *world) as emu:
         c = Client(emu.port)
         c.heartbeat()
 
@@ -155,7 +155,7 @@ def test_ideal_preset_reproduces_the_recording_bit_for_bit(tmp_path):
     vehicle.write_text(VEHICLE_YAML)
     rec = tmp_path / "ideal.npz"
     with Emulator("--world", "ideal", "--vehicle-params", str(vehicle), "--lockstep", "--seed", "5",
-                  "--rotor-noise-sd-n", "0.1", "--lockstep-stall-speed", "0", "--duration-s", "3",
+                  "--rotor-noise-sd-n", "0.1", "--lockstep-stall-factor", "0", "--duration-s", "3",
                   record=rec) as emu:
         c = Client(emu.port)
         c.heartbeat()
@@ -179,7 +179,7 @@ def test_ideal_preset_reproduces_the_recording_bit_for_bit(tmp_path):
     # failsafe from an inverted in-flight start: the stabilizer path, no peer answering (digest
     # retaken when HOLD and LAND began to keep a position once braked, and LAND to descend at 0.7 m/s)
     rec = tmp_path / "failsafe.npz"
-    with Emulator("--world", "ideal", "--vehicle-params", str(vehicle), "--lockstep", "--lockstep-stall-speed",
+    with Emulator("--world", "ideal", "--vehicle-params", str(vehicle), "--lockstep", "--lockstep-stall-factor",
                   "0", "--seed", "3", "--rotor-noise-sd-n", "0.05", "--start", "z_m=-6,vy_m_s=8,roll_deg=120",
                   "--duration-s", "4", record=rec) as emu:
         c = Client(emu.port)

@@ -21,11 +21,11 @@ GROUND_Z_M = 0.05
 
 
 def fly_faulted(tmp: Path, faults: str | None, maneuver: Path = BARREL, duration_s: float | None = None,
-                stall_speed: float | None = None) -> dict:
+                stall_factor: float | None = None) -> dict:
     """One flight; ``faults`` as ``--link-faults`` takes it (``None``: the clean run, same seed).
 
     ``duration_s``: the emulator stops at this vehicle time (the flight is cut there);
-    ``stall_speed`` 0: once the daemon stops streaming, the emulator runs on as fast as it
+    ``stall_factor`` 0: once the daemon stops streaming, the emulator runs on as fast as it
     can (the vehicle's failsafe flies) until ``duration_s``."""
     record = tmp / "groundtruth.npz"
     args = ["--lockstep", "--lockstep-timeout-s", "3"]
@@ -33,8 +33,8 @@ def fly_faulted(tmp: Path, faults: str | None, maneuver: Path = BARREL, duration
         args += ["--link-faults", faults]
     if duration_s is not None:
         args += ["--duration-s", f"{duration_s:g}"]
-    if stall_speed is not None:
-        args += ["--lockstep-stall-speed", f"{stall_speed:g}"]
+    if stall_factor is not None:
+        args += ["--lockstep-stall-factor", f"{stall_factor:g}"]
     t0 = time.monotonic()
     emu, url = start_emulator(record, *args)
     out = tmp / "out"

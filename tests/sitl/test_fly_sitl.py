@@ -232,7 +232,7 @@ def test_killing_the_daemon_mid_maneuver_lets_the_failsafe_land(tmp_path):
     from mavreg.daemon.jobs.endpoint import request
     record = tmp_path / "gt.npz"
     sock = tmp_path / "mavreg.sock"
-    emu, url = start_emulator(record, "--lockstep", "--world", "ideal", "--lockstep-stall-speed", "0",
+    emu, url = start_emulator(record, "--lockstep", "--world", "ideal", "--lockstep-stall-factor", "0",
                               "--duration-s", "100")
     try:
         fly = mavreg("fly", str(BARREL), "--vehicle", url, "--vehicle-lockstep", "--out", str(tmp_path / "out"),

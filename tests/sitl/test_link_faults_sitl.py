@@ -49,7 +49,7 @@ def test_barrel_roll_near_through_10_percent_loss_and_jitter(tmp_path):
 @pytest.mark.parametrize("faults", [None, LOSS10, "loss=0.3,jitter_ms=5"])
 def test_whole_barrel_roll_through_loss(tmp_path, faults):
     """Completes, lands and disarms: ok in every case (figures in docs/reliability.md)."""
-    f = fly_faulted(tmp_path, faults, BARREL, duration_s=90.0, stall_speed=0.0)
+    f = fly_faulted(tmp_path, faults, BARREL, duration_s=90.0, stall_factor=0.0)
     assert f["code"] == 0 and f["summary"]["result"] == "ok", f["lines"][-5:]
     end = safe_end(f)
     assert end["on_ground"] and not end["armed"] and end["disarmed_in_air"] == 0
@@ -63,7 +63,7 @@ def test_half_second_outage_mid_maneuver_triggers_the_failsafe_and_is_not_resume
     """Maneuver from 24.5 s; both ways dark at 35-35.5 s. The vehicle's failsafe (0.25 s)
     holds, then lands; the daemon judges the gap (recover), sees the failsafe's mode in the
     next HEARTBEAT and hands over; the vehicle lands and disarms on its own."""
-    f = fly_faulted(tmp_path, "outage=35:0.5", BARREL, duration_s=80.0, stall_speed=0.0)
+    f = fly_faulted(tmp_path, "outage=35:0.5", BARREL, duration_s=80.0, stall_factor=0.0)
     assert f["code"] == 1
     fail = f["summary"]["failure"]
     assert fail["bound"] == "telemetry_gap" and fail["phase"] == "maneuver", fail

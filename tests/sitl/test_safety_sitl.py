@@ -5,7 +5,7 @@ judged by the emulator's ground-truth recording, the daemon's .tlog and summary.
 The maneuver is the paper's barrel roll entered 2 m from the take-off point
 (barrel_roll_near.yaml: a take-off of seconds). The emulator flies an airframe that survives
 an impact (crash speed 100 m/s), so that its recording goes on past one; it runs to
-``--duration-s`` once the daemon has stopped streaming (``--lockstep-stall-speed 0``).
+``--duration-s`` once the daemon has stopped streaming (``--lockstep-stall-factor 0``).
 The daemon designs on params/vehicles/mk_quadro.yaml with the paper's controller
 (params/controller/paper_lqr.yaml, the ideal world's). Timeline of the clean flight (sim
 time): take-off 0.7 s, hold 11.2 s, run-in 12.2 s, maneuver 13.8 s (loop from about 16.3 s).
@@ -42,7 +42,7 @@ def tough_vehicle(tmp: Path) -> Path:
 def fly_fault(tmp: Path, duration_s: float, *emulator_args: str) -> dict:
     record = tmp / "groundtruth.npz"
     emu, url = start_emulator(record, "--lockstep", "--world", "ideal", "--lockstep-timeout-s", "3",
-                              "--lockstep-stall-speed", "0", "--duration-s", f"{duration_s:g}",
+                              "--lockstep-stall-factor", "0", "--duration-s", f"{duration_s:g}",
                               "--vehicle-params", str(tough_vehicle(tmp)), *emulator_args)
     out = tmp / "out"
     try:

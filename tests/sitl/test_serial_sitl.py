@@ -113,7 +113,7 @@ def test_the_barrel_roll_flies_over_a_pseudo_terminal_as_over_udp(tmp_path, barr
 @pytest.mark.slow      # 20 s here
 def test_a_cable_pulled_mid_flight_ends_in_the_vehicles_failsafe_and_the_daemon_says_so(tmp_path):
     emu, port = _emulator(tmp_path / "gt.npz", "pty", "--lockstep-timeout-s", "0.05",
-                          "--lockstep-stall-speed", "4")
+                          "--lockstep-stall-factor", "4")
     bridge = PtyBridge(port.split(":", 1)[1])
     fly = None
     try:

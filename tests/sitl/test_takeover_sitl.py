@@ -36,7 +36,7 @@ def _kill_mid_maneuver(url: str, out, sock) -> float:
 def test_a_restarted_daemon_takes_the_airborne_vehicle_back_and_lands_it(tmp_path):
     record = tmp_path / "gt.npz"
     emu, url = start_emulator(record, "--lockstep", "--world", "ideal", "--failsafe-hold-s", "120",
-                              "--lockstep-stall-speed", "1.0")
+                              "--lockstep-stall-factor", "1.0")
     try:
         s_kill = _kill_mid_maneuver(url, tmp_path / "first", tmp_path / "first.sock")
         again = mavreg("fly", str(BARREL), "--vehicle", url, "--vehicle-lockstep", "--out", str(tmp_path / "again"),

@@ -53,3 +53,18 @@ def test_the_library_plan_is_mavreg_plan(capsys):
     del printed["envelope"]                      # the command's check of the daemon's geofence
     printed["from_cache"] = summary["from_cache"] = None
     assert summary == printed
+
+
+def test_the_old_keyword_gust_window_still_works_for_a_release_and_warns():
+    """``simulate(gust_window=)`` is ``gust_window_s=`` (the CLI's ``--gust-window-s``) with a
+    DeprecationWarning; the check of the window is the same under either name."""
+    import pytest
+    hop = mavreg.load_maneuver_text(
+        "{kind: maneuver, version: 1, name: hop, start: {position_m: [0, 1, -1.5], heading_deg: 90,"
+        " climb_deg: 0}, segments: [{name: line, line: {length_m: 3}}], speed: {initial_m_s: 1.0}}")
+    plan = mavreg.plan(hop, margins=False)
+    with pytest.raises(ValueError, match="gust_window_s must be t0 <= t1"):
+        mavreg.simulate(plan, gust_window_s=(2.0, 1.0))
+    with pytest.warns(DeprecationWarning, match="gust_window_s"), \
+            pytest.raises(ValueError, match="gust_window_s must be t0 <= t1"):
+        mavreg.simulate(plan, gust_window=(2.0, 1.0))

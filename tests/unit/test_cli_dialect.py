@@ -41,6 +41,8 @@ DIALECT = {
     "control endpoint": ("--socket", "Unix socket path", {"fly", "serve", "upload"}),
     "output directory": ("--out", "directory", {"fly", "experiment"}),
     "JSON on stdout": ("--json", "flag", {"plan", "simulate", "identify"}),
+    "gust window": ("--gust-window-s", "s (sim)", {"simulate"}),
+    "lockstep speed while no commands stream": ("--lockstep-stall-factor", "x real time", {"firmware-sim"}),
 }
 """docs/cli.md's table. A command that gains one of these concepts takes this spelling."""
 
@@ -56,6 +58,8 @@ OTHER_SPELLINGS = {
     "give up after": ("--timeout",),
     "the vehicle's system id": ("--system-id", "--sysid", "--target-system", "--vehicle-sysid"),
     "custom firmware's mode layout": ("--autopilot-dialect", "--mode-layout", "--modes"),
+    "gust window": ("--gust-window",),
+    "lockstep speed while no commands stream": ("--lockstep-stall-speed",),
 }
 """Spellings a command must not show: the old ones (hidden aliases for a release) and near misses."""
 
@@ -65,6 +69,8 @@ ALIASES = [
     ("simulate", ["--noise-n", "0.1"], ["--rotor-noise-sd-n", "0.1"]),
     ("simulate", ["--saturation-n", "8.5"], ["--rotor-saturation-n", "8.5"]),
     ("simulate", ["--rate-hz", "500"], ["--control-rate-hz", "500"]),
+    ("simulate", ["--gust-window", "1", "2"], ["--gust-window-s", "1", "2"]),
+    ("firmware-sim", ["--lockstep-stall-speed", "0"], ["--lockstep-stall-factor", "0"]),
     ("firmware-sim", ["--vehicle", VEHICLE], ["--vehicle-params", VEHICLE]),
     ("firmware-sim", ["--rate-hz", "250"], ["--control-rate-hz", "250"]),
     ("firmware-sim", ["--preset", "ideal"], ["--world", "ideal"]),
