@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
-from helpers.ardupilot_sitl import ArduPilotSitl, SitlError  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+from harness.ardupilot_sitl import ArduPilotSitl, SitlError  # noqa: E402
 from pymavlink import mavutil  # noqa: E402
 
 M = mavutil.mavlink

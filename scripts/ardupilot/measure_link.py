@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
-from helpers.ardupilot_sitl import ArduPilotSitl, SitlError  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+from harness.ardupilot_sitl import ArduPilotSitl, SitlError  # noqa: E402
 
 PARAMS = ["GUID_OPTIONS", "GUID_TIMEOUT", "FS_GCS_ENABLE", "FS_GCS_TIMEOUT", "DISARM_DELAY",
           "MOT_THST_HOVER", "MOT_THST_EXPO", "MOT_SPIN_MIN", "MOT_SPIN_ARM", "ATC_RAT_RLL_P",

@@ -10,9 +10,9 @@ import socket
 
 import pytest
 
-from helpers.ardupilot_sitl import (TEST_PARAMS, ArduPilotSitl, SitlError, _alive, ardupilot_dir, free_instance,
+from harness.ardupilot_sitl import (TEST_PARAMS, ArduPilotSitl, SitlError, _alive, ardupilot_dir, free_instance,
                                     require_ardupilot)
-from helpers.ardupilot_sitl import arducopter_sitl_fixture  # noqa: F401  (the fixture arducopter_sitl)
+from harness.ardupilot_sitl import arducopter_sitl_fixture  # noqa: F401  (the fixture arducopter_sitl)
 from mavreg.daemon.vehicle.autopilots import ARDUCOPTER, dialect_for
 from mavreg.daemon.vehicle.messages import arm_disarm, mavlink2 as M
 

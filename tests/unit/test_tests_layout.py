@@ -46,12 +46,14 @@ def imports_of_test_modules(source: str, name: str) -> list[str]:
 
 
 def imports_of_tests(source: str, name: str) -> list[str]:
-    """Any import from the ``tests`` package in ``source`` (forbidden outside ``tests/``)."""
+    """Any import from the ``tests`` package in ``source`` (forbidden outside ``tests/``), or of
+    a bare ``helpers`` module (which only resolves through a ``sys.path`` entry into ``tests/``)."""
     found = []
     for node in ast.walk(ast.parse(source, name)):
         mods = ([a.name for a in node.names] if isinstance(node, ast.Import)
                 else [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else [])
-        found += [f"{name}:{node.lineno}: imports {m}" for m in mods if m == "tests" or m.startswith("tests.")]
+        found += [f"{name}:{node.lineno}: imports {m}" for m in mods
+                  if m in ("tests", "helpers") or m.startswith(("tests.", "helpers."))]
     return found
 
 
@@ -98,6 +100,8 @@ def test_benchmarks_scripts_and_the_harness_import_nothing_from_tests():
     found = [f for rel, src in _sources("benchmarks", "scripts", "harness", "fuzz", "mavreg", "firmware_sim")
              for f in imports_of_tests(src, rel)]
     assert found == []
+    bare = [f for rel, src in _sources("tests") for f in imports_of_tests(src, rel) if " imports helpers" in f]
+    assert bare == []                # tests import tests.helpers.<module>, not a bare helpers.<module>
 
 
 def test_no_test_waits_a_fixed_time_for_something_to_happen():
@@ -111,9 +115,11 @@ def test_the_checks_see_what_they_forbid():
     src = "from test_state import pos\nimport tests.unit.test_plots\nfrom tests.helpers.sitl import Proc\n"
     assert [f.split(": ")[1] for f in imports_of_test_modules(src, "m.py")] == ["imports test_state",
                                                                               "imports tests.unit.test_plots"]
-    src = "import tests.helpers.repo\nfrom tests.helpers import sitl\nfrom harness import params\nfrom . import x\n"
+    src = ("import tests.helpers.repo\nfrom tests.helpers import sitl\nfrom harness import params\nfrom . import x\n"
+           "from helpers.ardupilot_sitl import ArduPilotSitl\n")
     assert [f.split(": ")[1] for f in imports_of_tests(src, "m.py")] == ["imports tests.helpers.repo",
-                                                                       "imports tests.helpers"]
+                                                                       "imports tests.helpers",
+                                                                       "imports helpers.ardupilot_sitl"]
     src = ("import time, asyncio\n"
            "def f(ready, dur_s):\n"
            "    time.sleep(0.2)\n"                 # a fixed wait: found
