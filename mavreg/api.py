@@ -217,6 +217,17 @@ def plan(maneuver: ManeuverSpec | str | os.PathLike, vehicle: VehicleParams | No
     return with_margins(result, HoverParams.from_controller(controller))
 
 
+def _renamed(func: str, old: str, old_value, new: str, new_value):
+    """``new_value``, or ``old_value`` with a DeprecationWarning where the caller used the old
+    keyword ``old`` (an old name is kept for one release, as the command line's are)."""
+    if old_value is None:
+        return new_value
+    import warnings
+    warnings.warn(f"{func}({old}=) is deprecated and goes in the next release; use {new}",
+                  DeprecationWarning, stacklevel=3)
+    return old_value
+
+
 def simulate(plan: Plan, controller: ControllerParams | None = None, *,
              entry_offset=(0.0, 0.0, 0.0), rotor_noise_sd_n: float = 0.0,
              rotor_saturation_n: float | None = None, seed: int | None = None,
@@ -253,8 +264,6 @@ def simulate(plan: Plan, controller: ControllerParams | None = None, *,
         The plant's principal moments, when they differ from the design's.
     gust_n, gust_window_s : (3,) and (2,) array_like, optional
         An external force on the vehicle (NED, N) from t0 to t1 (s from the start).
-        ``gust_window`` is the old name of ``gust_window_s``: accepted with a
-        ``DeprecationWarning`` for one release.
 
     Returns
     -------
@@ -290,11 +299,7 @@ def simulate(plan: Plan, controller: ControllerParams | None = None, *,
     from .sim.maneuver_run import fly_on_design_model
     controller = load_controller() if controller is None else controller
     _check_plan_of(plan, controller)
-    if gust_window is not None:
-        import warnings
-        warnings.warn("simulate(gust_window=) is deprecated and goes in the next release; use gust_window_s",
-                      DeprecationWarning, stacklevel=2)
-        gust_window_s = gust_window
+    gust_window_s = _renamed("simulate", "gust_window", gust_window, "gust_window_s", gust_window_s)
     if not gust_window_s[0] <= gust_window_s[1]:
         raise ValueError(f"gust_window_s must be t0 <= t1, got {tuple(gust_window_s)}")
     return fly_on_design_model(plan, offset_m=entry_offset, inertia_kg_m2=inertia_kg_m2,
