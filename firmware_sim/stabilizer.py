@@ -112,11 +112,13 @@ class Stabilizer:
             if not self._keep_pending or math.hypot(s[7], s[8]) >= g.brake_done_m_s:
                 return 0.0, 0.0
             self.xy_ref_m = (s[0] + s[7] / g.kp_xy_per_s, s[1] + s[8] / g.kp_xy_per_s)
-        vx, vy = g.kp_xy_per_s * (self.xy_ref_m[0] - s[0]), g.kp_xy_per_s * (self.xy_ref_m[1] - s[1])
-        h = math.hypot(vx, vy)
-        if h > g.max_speed_xy_m_s:
-            vx, vy = vx * g.max_speed_xy_m_s / h, vy * g.max_speed_xy_m_s / h
-        return vx, vy
+        return self._speed_limited(g.kp_xy_per_s * (self.xy_ref_m[0] - s[0]),
+                                   g.kp_xy_per_s * (self.xy_ref_m[1] - s[1]))
+
+    def _speed_limited(self, vx: float, vy: float) -> tuple[float, float]:
+        """A horizontal velocity set-point scaled down to ``max_speed_xy_m_s``."""
+        h, top = math.hypot(vx, vy), self.g.max_speed_xy_m_s
+        return (vx * top / h, vy * top / h) if h > top else (vx, vy)
 
     def hold(self, s):
         """Rotor forces (N) to level, keep ``xy_ref_m`` and hold ``z_ref_m``."""
@@ -137,9 +139,7 @@ class Stabilizer:
         if position_ned is not None:
             for i, gain in ((0, g.kp_xy_per_s), (1, g.kp_xy_per_s), (2, g.kp_z_per_s)):
                 v_ref[i] += gain * (position_ned[i] - s[i])
-        h = math.hypot(v_ref[0], v_ref[1])
-        if h > g.max_speed_xy_m_s:
-            v_ref[0], v_ref[1] = v_ref[0] * g.max_speed_xy_m_s / h, v_ref[1] * g.max_speed_xy_m_s / h
+        v_ref[0], v_ref[1] = self._speed_limited(v_ref[0], v_ref[1])
         vz_ref = max(-g.max_climb_m_s, min(g.max_climb_m_s, v_ref[2]))
         if yaw_rad is not None:
             self.yaw_ref_rad = yaw_rad
