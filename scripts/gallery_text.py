@@ -132,7 +132,7 @@ def markdown(rows, sitl: bool, failed: dict | None) -> str:
     for r in rows:
         d = r["design"]
         lines.append(
-            f"| [{r['name']}](#{r['name'].replace('_', '-')}) | {r['yaw_mode']} | "
+            f"| [{r['name']}](#{r['name']}) | {r['yaw_mode']} | "
             f"{r['length_m']:.0f} m, {r['duration_s']:.0f} s | {r['max_pitch_deg']:.0f} deg | "
             f"{d['nominal_peak_rotor_n']:.1f} N | {d['transverse_mm']:.3f} mm, {d['attitude_deg']:.4f} deg | "
             f"{_cell(r.get('sitl_ideal')) if sitl else 'not flown'} | "

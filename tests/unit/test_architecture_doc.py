@@ -69,3 +69,33 @@ def test_nothing_points_outside_the_repository(pattern):
                             ":!harness/ardupilot_sitl.py"],
                            cwd=REPO, capture_output=True, text=True).stdout
     assert found == "", found
+
+
+def _slug(heading: str) -> str:
+    """GitHub's anchor of a Markdown heading: lower case, punctuation but ``-`` and ``_``
+    dropped, spaces to ``-``."""
+    return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+
+
+def broken_anchors(docs: dict[str, str]) -> list[str]:
+    """Links ``[..](file.md#anchor)`` or ``[..](#anchor)`` among ``docs`` (name -> text) whose
+    anchor is no heading of the file they name."""
+    heads = {name: {_slug(h) for h in re.findall(r"^#+ (.*)$", text, re.M)} for name, text in docs.items()}
+    bad = []
+    for name, text in docs.items():
+        for m in re.finditer(r"\]\(([\w./-]*\.md)?#([\w-]+)\)", text):
+            target = (m.group(1) or name).rsplit("/", 1)[-1]
+            if target in heads and m.group(2) not in heads[target]:
+                bad.append(f"{name}: {m.group(0)}")
+    return bad
+
+
+def test_every_link_to_a_heading_finds_it():
+    """A heading that names a module moves with the module (issue 31's rooms renamed many):
+    every link to it must follow, or it lands at the top of the page."""
+    docs = {p.name: p.read_text() for p in (REPO / "docs").glob("*.md")}
+    assert broken_anchors(docs) == []
+    fake = {"a.md": "## The rotor lag (`mavreg/control/design/actuator.py`)\n## split_s\n",
+            "b.md": "[x](a.md#the-rotor-lag-mavregcontroldesignactuatorpy) [y](a.md#split_s) "
+                    "[z](a.md#the-rotor-lag-mavregcontrolactuatorpy) [w](#nowhere)\n"}
+    assert broken_anchors(fake) == ["b.md: ](a.md#the-rotor-lag-mavregcontrolactuatorpy)", "b.md: ](#nowhere)"]
