@@ -232,8 +232,12 @@ def test_killing_the_daemon_mid_maneuver_lets_the_failsafe_land(tmp_path):
     from mavreg.daemon.jobs.endpoint import request
     record = tmp_path / "gt.npz"
     sock = tmp_path / "mavreg.sock"
-    emu, url = start_emulator(record, "--lockstep", "--world", "ideal", "--lockstep-stall-factor", "0",
-                              "--duration-s", "100")
+    # Lockstep until the kill, then as fast as it can: a 3 s lockstep wait, as the other tests
+    # that stall the emulator on purpose take, so that a loaded host's stall of the living daemon
+    # (over the default 0.1 s) does not set the emulator running ahead of it into its
+    # offboard-loss failsafe before the maneuver (a CI run beside a campaign saw that once).
+    emu, url = start_emulator(record, "--lockstep", "--world", "ideal", "--lockstep-timeout-s", "3",
+                              "--lockstep-stall-factor", "0", "--duration-s", "100")
     try:
         fly = mavreg("fly", str(BARREL), "--vehicle", url, "--vehicle-lockstep", "--out", str(tmp_path / "out"),
                      "--controller", str(CONTROLLER), "--socket", str(sock))
