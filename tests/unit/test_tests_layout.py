@@ -31,30 +31,27 @@ def misplaced(relpaths: list[str]) -> list[str]:
     return bad
 
 
+def _imports(source: str, name: str):
+    """``(line, module, level)`` of every import in ``source`` (``level`` > 0: a relative one)."""
+    for node in ast.walk(ast.parse(source, name)):
+        if isinstance(node, ast.Import):
+            yield from ((node.lineno, a.name, 0) for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            yield node.lineno, node.module or "", node.level
+
+
 def imports_of_test_modules(source: str, name: str) -> list[str]:
     """Imports of a test module (``test_x``, ``tests.unit.test_x``, ``tests.sitl...``) in ``source``."""
-    found = []
-    for node in ast.walk(ast.parse(source, name)):
-        mods = ([a.name for a in node.names] if isinstance(node, ast.Import)
-                else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
-        for mod in mods:
-            parts = mod.split(".")
-            if any(p.startswith("test_") for p in parts) or mod.startswith(("tests.unit", "tests.sitl",
-                                                                            "tests.firmware_sim")):
-                found.append(f"{name}:{node.lineno}: imports {mod}")
-    return found
+    return [f"{name}:{line}: imports {mod}" for line, mod, _ in _imports(source, name)
+            if any(p.startswith("test_") for p in mod.split("."))
+            or mod.startswith(("tests.unit", "tests.sitl", "tests.firmware_sim"))]
 
 
 def imports_of_tests(source: str, name: str) -> list[str]:
     """Any import from the ``tests`` package in ``source`` (forbidden outside ``tests/``), or of
     a bare ``helpers`` module (which only resolves through a ``sys.path`` entry into ``tests/``)."""
-    found = []
-    for node in ast.walk(ast.parse(source, name)):
-        mods = ([a.name for a in node.names] if isinstance(node, ast.Import)
-                else [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else [])
-        found += [f"{name}:{node.lineno}: imports {m}" for m in mods
-                  if m in ("tests", "helpers") or m.startswith(("tests.", "helpers."))]
-    return found
+    return [f"{name}:{line}: imports {mod}" for line, mod, level in _imports(source, name)
+            if not level and (mod in ("tests", "helpers") or mod.startswith(("tests.", "helpers.")))]
 
 
 def fixed_sleeps(source: str, name: str) -> list[str]:
