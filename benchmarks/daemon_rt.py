@@ -88,8 +88,8 @@ def realtime_flight(io: str, timeout_s: float, out: Path) -> dict:
     ctl_ns = [0]
     make = regulator_factory(vehicle, 500.0)
 
-    def factory(plan):
-        reg = make(plan)
+    def factory(plan, rotor_lag):
+        reg = make(plan, rotor_lag)
         _timed(reg, "step", ctl_ns)
         return reg
     daemon = Daemon(config, vehicle, factory, log=lambda line: None)

@@ -38,6 +38,7 @@ from ..control.controllers.hover import HoverController, HoverParams
 from ..control.design.margins import (FastLoopError, LoopMargins, ScheduleMargins, lag_model_loop, loop_margins,
                                node_margins, rotor_loop, schedule_margins)
 from ..control.design.transverse import transverse_jacobians
+from ..control.estimation.lag_in_effect import plant_lag_s
 from ..model.mixer import mixer_matrix
 from ..model.quadrotor import QuadrotorModel
 from .gain_schedule import du_ds
@@ -85,7 +86,7 @@ def maneuver_loops(plan: Plan, rows) -> tuple[np.ndarray, np.ndarray, np.ndarray
     rows = np.asarray(rows, dtype=int)
     vehicle = plan.vehicle
     model = QuadrotorModel.from_vehicle(vehicle)
-    tau = plan.rotor_time_constant_s if plan.rotor_time_constant_s > 0 else vehicle.rotor_time_constant_s
+    tau = plant_lag_s(plan)
     _, F, k, _, _ = plan.path.evaluate(plan.s[rows])
     Rbar = plan.R[rows] if plan.attitude_error == "so3" else None
     x, u, dx, v = plan.x[rows], plan.u[rows], plan.dx[rows], plan.speed_m_s[rows]
@@ -156,12 +157,11 @@ def plan_margins(plan: Plan, hover: HoverParams = HoverParams()) -> PlanMargins:
         except FastLoopError as exc:
             raise _too_fast("the hover LQR", "hover_q, hover_r_input", exc) from None
         feasible = plan.feasibility.feasible
-        tau = plan.rotor_time_constant_s if plan.rotor_time_constant_s > 0 else plan.vehicle.rotor_time_constant_s
         try:
             maneuver = maneuver_margins(plan) if feasible else None
         except FastLoopError as exc:
             raise _too_fast("the maneuver regulator", "q_*, r_input", exc) from None
-        return PlanMargins(maneuver, h, h_rotor, float(tau))
+        return PlanMargins(maneuver, h, h_rotor, plant_lag_s(plan))
 
 
 def _too_fast(loop: str, weights: str, exc: FastLoopError) -> ManeuverError:

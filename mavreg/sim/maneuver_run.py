@@ -11,6 +11,7 @@ from ..config.defaults import MAX_PREDICTION_S
 from ..config.disturbance import DisturbanceParams
 from ..config.regulation import AllocationParams, SpeedGovernorParams
 from ..control.estimation.forecast import Forecaster
+from ..control.estimation.lag_in_effect import RotorLagInEffect
 from ..control.controllers.regulator import ManeuverRegulator
 from ..maneuver.plan import Plan
 from ..model.mixer import Mixer
@@ -69,9 +70,13 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
     """
     vehicle = plan.vehicle
     period = 1.0 / control_rate_hz
+    forecaster = _forecaster(plan, rotor_time_constant_s, period, predict, max_prediction_s, disturbance)
     reg = ManeuverRegulator(plan, vehicle, control_period_s=period,
-                            rotor_time_constant_s=rotor_time_constant_s, allocation=allocation,
-                            speed_governor=speed_governor)
+                            rotor_lag=(RotorLagInEffect(rotor_time_constant_s) if forecaster is None
+                                       else forecaster.rotor_lag),
+                            allocation=allocation, speed_governor=speed_governor)
+    if forecaster is not None:
+        forecaster.reset(reg.mixer_inverse @ plan.u[0])
     x0 = plan.nominal_state(start_s_m) if start_s_m else plan.entry_state
     x0[:3] += np.asarray(offset_m, dtype=float)
     reg.reset(x0, s_guess=start_s_m)
@@ -83,7 +88,6 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
     rng = np.random.default_rng(seed)
     corrupt = None if estimate_noise is None else EstimateCorruptor(estimate_noise, period, rng)
     horizon = measurement_delay_s + command_delay_s if assumed_delay_s is None else assumed_delay_s
-    forecaster = _forecaster(plan, reg, rotor_time_constant_s, period, predict, max_prediction_s, disturbance)
 
     def controller(t, x):
         R = None
@@ -117,10 +121,10 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
                 saturation_n or vehicle.max_rotor_thrust_n, true_metrics)
 
 
-def _forecaster(plan: Plan, reg: ManeuverRegulator, rotor_time_constant_s: float, period_s: float,
+def _forecaster(plan: Plan, rotor_time_constant_s: float, period_s: float,
                 predict: bool, max_prediction_s: float, disturbance: DisturbanceParams | None):
-    """The prediction across the delay (and the disturbance observer) of :func:`fly_on_design_model`;
-    None without ``predict``."""
+    """The prediction across the delay (and the disturbance observer) of :func:`fly_on_design_model`,
+    not yet reset to the entry's rotor forces; None without ``predict``."""
     observe = disturbance is not None and disturbance.enabled
     if observe and not predict:
         raise ValueError("the disturbance observer runs in the forecaster: it needs predict=True")
@@ -129,7 +133,6 @@ def _forecaster(plan: Plan, reg: ManeuverRegulator, rotor_time_constant_s: float
     forecaster = Forecaster(dataclasses.replace(plan.vehicle, rotor_time_constant_s=rotor_time_constant_s),
                             period_s, max_horizon_s=max_prediction_s, disturbance=disturbance)
     forecaster.observing = observe
-    forecaster.reset(reg.mixer_inverse @ plan.u[0])
     return forecaster
 
 

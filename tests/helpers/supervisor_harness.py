@@ -79,7 +79,9 @@ class FakePlan:
 class FakeRegulator:
     """Tracks the fake line with the hover LQR about the nominal point at the projected s."""
 
-    def __init__(self, plan, nan_at_s=None):
+    def __init__(self, plan, rotor_lag=None, nan_at_s=None):
+        """``rotor_lag``: the flight's rotor lag in effect, as a regulator factory is given it
+        (the fake has no feedforward to lead)."""
         self.plan = plan
         self.hover = HoverController(VEHICLE)
         self.nan_at_s = nan_at_s
@@ -209,7 +211,8 @@ def make_supervisor(plan=None, regulator=None, envelope=None, link_health=None, 
     params = SupervisorParams(**kw)
     made = []
 
-    def factory(p):
+    def factory(p, rotor_lag):
+        assert rotor_lag is sup.forecaster.rotor_lag       # the flight's one answer, not a copy
         reg = regulator if regulator is not None else FakeRegulator(p)
         made.append(reg)
         return reg

@@ -15,6 +15,7 @@ import pytest
 from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER, REAL_CONTROLLER, maneuver_file
 from mavreg.accel import ACCELERATED
 from mavreg.config.controller import load_controller
+from mavreg.control.estimation.lag_in_effect import RotorLagInEffect
 from mavreg.config.maneuver import load_maneuver_text
 from mavreg.config.vehicle import load_vehicle
 from mavreg.control.controllers.regulator import ManeuverRegulator
@@ -118,7 +119,7 @@ def test_a_controller_that_returns_nan_ends_the_run_as_simulate_ends_it(compiled
     batch = fly_batch(broken, runs, extra_time_s=1.0, compiled=compiled)
     model, mixer = QuadrotorModel.from_vehicle(VEHICLE), Mixer.from_vehicle(VEHICLE)
     for run, bat in zip(runs, batch):
-        reg = ManeuverRegulator(broken, VEHICLE, control_period_s=1e-3, rotor_time_constant_s=0.0)
+        reg = ManeuverRegulator(broken, VEHICLE, control_period_s=1e-3, rotor_lag=RotorLagInEffect(0.0))
         x0 = broken.entry_state + np.r_[run.offset_m, np.zeros(9)]
         reg.reset(x0)
         ref = simulate(model, mixer, lambda t, x: reg.step(x).rotor_forces_n,

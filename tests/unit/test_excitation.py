@@ -74,9 +74,9 @@ def test_off_by_default():
 def test_refused_in_the_rotors_output_in_one_line(capsys):
     vehicle = with_output(load_vehicle(DEFAULT_VEHICLE), "rotors")
     with pytest.raises(ValueError, match="needs --output rates"):
-        Supervisor(vehicle, SupervisorParams(excitation=ExcitationParams()), lambda plan: None)
+        Supervisor(vehicle, SupervisorParams(excitation=ExcitationParams()), lambda plan, rotor_lag: None)
     Supervisor(with_output(load_vehicle(DEFAULT_VEHICLE), "rates"),
-               SupervisorParams(excitation=ExcitationParams()), lambda plan: None)    # accepted there
+               SupervisorParams(excitation=ExcitationParams()), lambda plan, rotor_lag: None)    # accepted there
     maneuver = PARAMS_DIR / "maneuvers" / "barrel_roll.yaml"
     assert main(["fly", str(maneuver), "--output", "rotors", "--identify-excitation"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -120,7 +120,7 @@ def test_leaving_the_hold_cuts_the_excitation_short_and_says_so():
     end STATUSTEXT that identify closes its window by; no pulse goes out after it."""
     from mavreg.daemon.flight.phases import Output, Phase
     sup = Supervisor(with_output(load_vehicle(DEFAULT_VEHICLE), "rates"),
-                     SupervisorParams(excitation=ExcitationParams()), lambda plan: None)
+                     SupervisorParams(excitation=ExcitationParams()), lambda plan, rotor_lag: None)
     ctx, out = sup.ctx, Output()
     ctx.phase, ctx.excitation_start_vehicle_s, ctx.rate_excitation = Phase.HOLD, 1.0, (0, 0.5)
     sup.flight.set_phase(out, Phase.RECOVER, "a bound")

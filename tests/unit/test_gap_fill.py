@@ -14,7 +14,7 @@ def _fly(gap_s: float, fill: bool):
     keeps flying); the I/O layer's timer calls ``fill_gap`` every period of the gap."""
     veh = SimVehicle(rate_hz=RATE)
     fc = Forecaster(VEHICLE, 1.0 / RATE, predict=True)
-    sup = Supervisor(VEHICLE, SupervisorParams(gap_fill=fill), lambda p: FakeRegulator(p), forecaster=fc)
+    sup = Supervisor(VEHICLE, SupervisorParams(gap_fill=fill), FakeRegulator, forecaster=fc)
     plan = FakePlan(length_m=3.0)
     sup.offer_plan(plan, 0.0)
     gap_at, sent_in_gap, events = None, 0, []

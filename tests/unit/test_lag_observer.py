@@ -93,8 +93,8 @@ def test_the_estimate_converges_to_the_rotors_time_constant_in_a_hover(true_tau_
     fc = _hover_flight(true_tau_s, _observing(True), seconds=4.0)
     lag = fc.observer.lag
     assert lag.estimate_s == pytest.approx(true_tau_s, abs=0.001)
-    assert fc.predictor.tau == lag.estimate_s
-    assert fc.disturbance.rotor_time_constant_s == pytest.approx(lag.estimate_s, abs=1e-4)
+    assert fc.predictor.tau == fc.rotor_lag.estimate_s == lag.estimate_s
+    assert fc.rotor_lag.applied_s == pytest.approx(lag.estimate_s, abs=1e-4)
     assert lag.updates > 1000 and lag.rejected == 0
 
 
@@ -102,8 +102,8 @@ def test_on_a_vehicle_that_is_its_file_the_estimate_stays_and_without_the_part_n
     fc = _hover_flight(0.02, _observing(True), seconds=4.0)
     assert fc.observer.lag.estimate_s == pytest.approx(0.02, abs=0.001)
     off = _hover_flight(0.045, _observing(False), seconds=1.0)
-    assert off.observer.lag is None and off.disturbance.rotor_time_constant_s is None
-    assert off.predictor.tau == 0.02
+    assert off.observer.lag is None and off.rotor_lag.estimate is None
+    assert off.predictor.tau == off.rotor_lag.applied_s == 0.02
 
 
 def test_a_gap_restarts_the_sensitivity_and_a_non_finite_sample_changes_nothing():
@@ -136,7 +136,8 @@ def test_with_rates_to_an_autopilot_the_lag_is_the_files():
     on = _observing(True)
     assert DisturbanceObserver(on, VEHICLE).lag is not None
     rates = DisturbanceObserver(on, with_output(VEHICLE, "rates"))
-    assert rates.lag is None and rates.estimate.rotor_time_constant_s is None
+    assert rates.lag is None
+    assert Forecaster(with_output(VEHICLE, "rates"), 0.002, disturbance=on).rotor_lag.estimate is None
 
 
 def test_with_rates_to_an_autopilot_no_torque_bias_is_estimated():

@@ -219,7 +219,7 @@ def _daemon_starting(monkeypatch, result, compile_gate: threading.Event | None =
     monkeypatch.setattr(app, "text_in_cache", lambda *a: False)
     monkeypatch.setattr(startup, "kernels_cold", lambda: False)
     cfg = DaemonConfig("udpout:127.0.0.1:1", Path("v"), Path("c"), None, None, SupervisorParams())
-    d = Daemon(cfg, VEHICLE, lambda p: FakeRegulator(p), log=lines.append)
+    d = Daemon(cfg, VEHICLE, FakeRegulator, log=lines.append)
     d.pool = _FakePool(lines, result)
     real_offer = d.supervisor.offer_plan
     monkeypatch.setattr(d.supervisor, "offer_plan", lambda *a: (order.append("queued"), real_offer(*a))[1])

@@ -181,7 +181,7 @@ def test_rejected_upload_changes_nothing_accepted_waits_for_safe_point():
 
     cfg = DaemonConfig("udpout:127.0.0.1:1", Path("v"), Path("c"), None, None,
                        SupervisorParams(land_when_done=False))
-    d = Daemon(cfg, VEHICLE, lambda p: FakeRegulator(p), log=lambda line: None)
+    d = Daemon(cfg, VEHICLE, FakeRegulator, log=lambda line: None)
     d.pool = FakePool()
     sup = d.supervisor
     sup.offer_plan(FakePlan(name="first"), 0.0)

@@ -46,7 +46,7 @@ def test_the_table_is_what_flies():
 def _daemon_in(phase_reached) -> tuple:
     cfg = DaemonConfig("udpout:127.0.0.1:1", Path("v"), Path("c"), None, None, SupervisorParams())
     lines = []
-    d = Daemon(cfg, VEHICLE, lambda p: FakeRegulator(p), log=lines.append)
+    d = Daemon(cfg, VEHICLE, FakeRegulator, log=lines.append)
     sup = d.supervisor
     sup.offer_plan(FakePlan(), 0.0)
     veh = SimVehicle()

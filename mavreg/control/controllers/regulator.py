@@ -34,6 +34,7 @@ from . import fastpath
 from ..design.actuator import lag_loop_factor
 from .attitude_table import NominalAttitudes
 from ..estimation.disturbance import DisturbanceEstimate, compensate
+from ..estimation.lag_in_effect import RotorLagInEffect
 from .governor import GovernedSpeed, SpeedGovernor, along_track_speed, retiming_force, thrust_speed_cap
 from ..estimation.torque_bias import allocated_less_bias, bias_vector_n_m
 from ..design.transverse import transverse_coordinates
@@ -78,11 +79,13 @@ class ManeuverRegulator:
     control_period_s : float
         The period T at which the command is held (zero-order hold). A held command acts,
         on average, T/2 after the state it was computed from.
-    rotor_time_constant_s : float, optional
-        First-order lag tau of the rotors' thrust (default: the vehicle's estimate,
-        ``vehicle.rotor_time_constant_s``). A lagged force follows a slowly varying command
-        about tau late. A disturbance estimate that carries the rotors' time constant
-        (:mod:`~mavreg.control.estimation.lag_observer`) replaces it from the step it is given on.
+    rotor_lag : RotorLagInEffect, optional
+        The rotor lag in effect (:mod:`~mavreg.control.estimation.lag_in_effect`), asked at
+        each step: a lagged force follows a slowly varying command about tau late, so the
+        feedforward leads by its :attr:`~mavreg.control.estimation.lag_in_effect.RotorLagInEffect.applied_s`
+        (default: the vehicle file's ``rotor_time_constant_s``; a flight's
+        :class:`~mavreg.control.estimation.forecast.Forecaster` has the one that follows the
+        in-flight estimate).
     max_compensation_turn_rad : float
         Largest turn of the nominal attitude by the disturbance compensation.
     allocation : AllocationParams, optional
@@ -117,7 +120,7 @@ class ManeuverRegulator:
     """
 
     def __init__(self, plan: Plan, vehicle: VehicleParams, control_period_s: float = 0.0,
-                 rotor_time_constant_s: float | None = None, max_compensation_turn_rad: float = math.pi,
+                 rotor_lag: RotorLagInEffect | None = None, max_compensation_turn_rad: float = math.pi,
                  allocation: AllocationParams | None = None,
                  speed_governor: SpeedGovernorParams | None = None, compiled: bool | None = None):
         self.plan = plan
@@ -140,9 +143,9 @@ class ManeuverRegulator:
         self._x, self._u, self._K = plan.x, plan.u, plan.K
         self._v = plan.speed_m_s
         self._last = len(plan.s) - 2
-        tau = vehicle.rotor_time_constant_s if rotor_time_constant_s is None else rotor_time_constant_s
+        self.rotor_lag = RotorLagInEffect.of_vehicle(vehicle) if rotor_lag is None else rotor_lag
         self._half_period_s = control_period_s / 2
-        self._lead_s = self._half_period_s + tau
+        self._lead_s = self._half_period_s + self.rotor_lag.applied_s
         self._base_drag = tuple(float(c) for c in vehicle.rotor_drag_n_s_per_m)
         self._parasitic = float(vehicle.parasitic_drag_n_s2_per_m2)
         self._mass = float(vehicle.mass_kg)
@@ -179,9 +182,9 @@ class ManeuverRegulator:
                                  self._base_drag, self._max_turn, self.projector.window_m,
                                  self.projector.tube_margin, gov)
 
-    def _lead_by(self, rotor_time_constant_s: float) -> None:
-        """The feedforward's lead for rotors of time constant ``rotor_time_constant_s``."""
-        lead = self._half_period_s + rotor_time_constant_s
+    def _lead(self) -> None:
+        """The feedforward's lead for the rotor lag in effect now."""
+        lead = self._half_period_s + self.rotor_lag.applied_s
         if lead != self._lead_s:
             self._lead_s = lead
             if self._compiled is not None:
@@ -293,10 +296,9 @@ class ManeuverRegulator:
     def step(self, x, rotor_forces_n=None, disturbance: DisturbanceEstimate | None = None) -> RegulatorOutput:
         """One control step for state x (12,); ``rotor_forces_n`` (4,): the rotors' forces
         when this command takes over (used only by lag-aware gains); ``disturbance``: the
-        airframe's estimated force model, compensated (and, where it has the rotors' time
-        constant, the feedforward led by it)."""
-        if disturbance is not None and disturbance.rotor_time_constant_s is not None:
-            self._lead_by(disturbance.rotor_time_constant_s)
+        airframe's estimated force model, compensated. The feedforward leads by the rotor lag
+        in effect now (:attr:`rotor_lag`)."""
+        self._lead()
         if self._compiled is not None:
             s, w, u, rotors, in_tube, finished, v_ref = self._compiled.step(x, rotor_forces_n, disturbance)
             self.s = self.projector.s = s

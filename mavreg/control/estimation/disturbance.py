@@ -70,9 +70,6 @@ class DisturbanceEstimate:
     torque_bias: tuple[float, ...] = (0.0,) * 6
     """The airframe's torque bias ``(t0 x, y, z (N m), t1 x, y, z (m))``: ``t0 + t1 T`` per body
     axis at collective ``T`` (:mod:`mavreg.control.estimation.torque_bias`; zeros without its estimate)."""
-    rotor_time_constant_s: float | None = None
-    """The rotors' time constant (:mod:`mavreg.control.estimation.lag_observer`; None without its
-    estimate: the vehicle file's)."""
 
     def extra_force_ned(self, R, v, base_drag_n_s_per_m) -> np.ndarray:
         """The force the design model with drag ``base_drag_n_s_per_m`` misses, at attitude
@@ -175,19 +172,16 @@ class DisturbanceObserver:
         self._estimates = None
 
     @staticmethod
-    def _as_estimate(th, torque=None, lag_s: float | None = None) -> DisturbanceEstimate:
+    def _as_estimate(th, torque=None) -> DisturbanceEstimate:
         return DisturbanceEstimate((float(th[0]), float(th[1])), (float(th[2]), float(th[3]), float(th[4])),
-                                   float(th[5]), (0.0,) * 6 if torque is None else tuple(torque.tolist()), lag_s)
+                                   float(th[5]), (0.0,) * 6 if torque is None else tuple(torque.tolist()))
 
     def _both(self) -> tuple[DisturbanceEstimate, DisturbanceEstimate]:
         """(estimate, applied), made once per measurement (read several times a sample)."""
         if self._estimates is None:
-            tq, lag = self.torque, self.lag
-            self._estimates = (
-                self._as_estimate(self.theta, None if tq is None else tq.theta,
-                                  None if lag is None else lag.estimate_s),
-                self._as_estimate(self.theta_applied, None if tq is None else tq.theta_applied,
-                                  None if lag is None else lag.applied_s))
+            tq = self.torque
+            self._estimates = (self._as_estimate(self.theta, None if tq is None else tq.theta),
+                               self._as_estimate(self.theta_applied, None if tq is None else tq.theta_applied))
         return self._estimates
 
     @property
@@ -217,8 +211,7 @@ class DisturbanceObserver:
         """One sample interval of the rotor-lag part (:meth:`RotorLagObserver.update
         <mavreg.control.estimation.lag_observer.RotorLagObserver.update>`); nothing without it."""
         if self.lag is not None and 0.0 < dt_s <= self.params.max_sample_gap_s:
-            if self.lag.update(dt_s, torque_change_n_m, innovation_rad_s, rate_rad_s):
-                self._estimates = None
+            self.lag.update(dt_s, torque_change_n_m, innovation_rad_s, rate_rad_s)
 
     def update(self, dt_s: float, R, v, thrust_n: float, innovation_m_s) -> None:
         """One measurement: ``innovation_m_s`` (3,) = the sample's velocity less its prediction

@@ -30,6 +30,7 @@ from ...config.vehicle import VehicleParams
 from ...model.mixer import mixer_matrix
 from .disturbance import DisturbanceEstimate, DisturbanceObserver
 from .predictor import StatePredictor
+from .lag_in_effect import RotorLagInEffect
 
 __all__ = ["Forecast", "Forecaster"]
 
@@ -66,9 +67,13 @@ class Forecaster:
         self.vehicle = vehicle
         self.predict = bool(predict)
         self.period_s = float(control_period_s)
-        self.predictor = StatePredictor(vehicle, max_step_s=control_period_s, max_horizon_s=max_horizon_s)
         self.observer = (DisturbanceObserver(disturbance, vehicle)
                          if disturbance is not None and disturbance.enabled else None)
+        self.rotor_lag = RotorLagInEffect.of_vehicle(vehicle, None if self.observer is None else self.observer.lag)
+        """The rotor lag in effect (the file's, or the observer's estimate of it): the predictor,
+        the regulator and the rates output ask it; nobody keeps a copy."""
+        self.predictor = StatePredictor(vehicle, max_step_s=control_period_s, max_horizon_s=max_horizon_s,
+                                        rotor_lag=self.rotor_lag)
         self._torque_rows = mixer_matrix(vehicle.arm_length_m, vehicle.drag_torque_ratio_m)[1:4]
         """The rotor forces' body torques (the mixer's rows 1-3)."""
         self.observing = False
@@ -125,7 +130,6 @@ class Forecaster:
         if obs.lag is not None:
             dtorque = self._torque_rows @ (p[21:25] - model["thrust_scale"] * np.asarray(f0))
             obs.update_lag(h, dtorque, rate_innovation, x[9:12])
-            self.predictor.set_rotor_time_constant(obs.lag.estimate_s)
 
     def update(self, t_s: float, x, rotation, delay_s: float) -> Forecast:
         """A new sample of vehicle time ``t_s``; ``delay_s``: sample-to-actuation delay."""

@@ -66,7 +66,8 @@ class RotorLagObserver:
 
     def __init__(self, params: RotorLagParams, vehicle):
         self.params = p = params
-        self.file_s = float(vehicle.rotor_time_constant_s)
+        self._initial_s = float(vehicle.rotor_time_constant_s)
+        """The vehicle file's value: the estimate a reset starts from."""
         self._inv_j = np.array([1.0 / float(j) for j in vehicle.inertia_kg_m2])
         self._q = p.sd_s ** 2 / p.tau_s
         self._r = p.rate_noise_rad_s ** 2
@@ -96,7 +97,7 @@ class RotorLagObserver:
         """Back to the vehicle file's time constant (clipped to the bounds), with the initial
         uncertainty and no sensitivity."""
         self.state[:] = 0.0
-        self.state[TAU] = self.state[APPLIED] = min(max(self.file_s, self._lo), self._hi)
+        self.state[TAU] = self.state[APPLIED] = min(max(self._initial_s, self._lo), self._hi)
         self.state[P] = self.params.sd_s ** 2
 
     def restart(self) -> None:

@@ -35,6 +35,7 @@ import numpy as np
 from ...config.vehicle import VehicleParams
 from .command_history_kernel import advance, prepare
 from .predictor_kernel import OUT_SIZE, PARAM_SIZE, predict_into
+from .lag_in_effect import RotorLagInEffect
 
 __all__ = ["StatePredictor", "Prediction"]
 
@@ -71,9 +72,14 @@ class StatePredictor:
         Longest integration step (a command switch always starts a new step).
     max_horizon_s : float
         Cap on the prediction horizon.
+    rotor_lag : RotorLagInEffect, optional
+        The rotor lag in effect, asked at each prediction (default: the vehicle file's; a
+        flight's :class:`~mavreg.control.estimation.forecast.Forecaster` gives its own, which
+        follows the in-flight estimate).
     """
 
-    def __init__(self, vehicle: VehicleParams, max_step_s: float = 0.002, max_horizon_s: float = 0.1):
+    def __init__(self, vehicle: VehicleParams, max_step_s: float = 0.002, max_horizon_s: float = 0.1,
+                 rotor_lag: RotorLagInEffect | None = None):
         if not (max_step_s > 0 and max_horizon_s >= 0):
             raise ValueError("max_step_s must be > 0 and max_horizon_s >= 0")
         self.mass_kg = float(vehicle.mass_kg)
@@ -81,7 +87,7 @@ class StatePredictor:
         self.l = float(vehicle.arm_length_m)
         self.k = float(vehicle.drag_torque_ratio_m)
         self.fmax = float(vehicle.max_rotor_thrust_n)
-        self.tau = float(vehicle.rotor_time_constant_s)
+        self.rotor_lag = RotorLagInEffect.of_vehicle(vehicle) if rotor_lag is None else rotor_lag
         self.cxy, self.cz = (float(c) for c in vehicle.rotor_drag_n_s_per_m)
         self.cp = float(vehicle.parasitic_drag_n_s2_per_m2)
         self.drag_exponent = float(vehicle.rotor_drag_thrust_exponent)
@@ -100,11 +106,11 @@ class StatePredictor:
         self._fresh = True                   # the filter's time is set by the first call
         self._last_delay_s = 0.0
 
-    def set_rotor_time_constant(self, tau_s: float) -> None:
-        """Lag the commands by ``tau_s`` from now on (an estimate of it,
-        :mod:`mavreg.control.estimation.lag_observer`); the rotor state is kept."""
-        self.tau = float(tau_s)
-        self._prm[6] = self.tau
+    @property
+    def tau(self) -> float:
+        """The rotors' time constant the commands are lagged by now (:attr:`rotor_lag`'s
+        estimate; a change keeps the rotor state)."""
+        return self.rotor_lag.estimate_s
 
     @property
     def pending(self) -> int:
@@ -195,8 +201,9 @@ class StatePredictor:
         self._start(t_s, D)
         # the rotors advanced to t_s, then the commands acting in [t_s, t_s + H) as segments
         rot = self._rot
+        tau = self._prm[6] = self.tau
         self._lo, n = prepare(self._seg, rot, self._ct, self._cc, self._lo, self._hi, float(t_s), t_s + H, D,
-                              self.tau)
+                              tau)
         fext = external_force_n
         out = np.empty(OUT_SIZE)
         predict_into(out, np.asarray(rotation, dtype=float), np.asarray(x, dtype=float), rot[1], rot[2], rot[3],

@@ -182,7 +182,7 @@ class FlightParts:
             forecaster = Forecaster(vehicle, 1.0 / CONTROL_RATE_HZ, predict=False)
         envelope = envelope if envelope is not None else EnvelopeParams()
         ids = VehicleIds(params.vehicle_system_id, params.vehicle_component_id)
-        output = command_output(vehicle, ids)
+        output = command_output(vehicle, ids, forecaster.rotor_lag)
         delay = ActuationDelay(timesync, vehicle, output.kind, fixed_delay_s)
         return cls(
             vehicle=vehicle, params=params, envelope=envelope, regulator_factory=regulator_factory,

@@ -22,6 +22,7 @@ import numpy as np
 
 from ...config.vehicle import VehicleParams
 from ...model.mixer import Mixer
+from ...control.estimation.lag_in_effect import RotorLagInEffect
 from ...model.rate_interface import AttitudeLoopCompensation, ThrustMap, rate_command
 from ...model.rotor_lag import lag_decay, lag_toward
 from ..vehicle import messages as mm
@@ -53,12 +54,12 @@ class RateOutput:
     the rates :math:`\omega_c = \omega + \tau_\omega J^{-1}(\gamma - \omega\times J\omega)` at
     the predicted state x (:func:`~mavreg.model.rate_interface.rate_command`), clipped to
     ``max_body_rate_rad_s``. The torque realized is the commanded one through a first-order
-    lag of the vehicle's ``rotor_time_constant_s`` (none when it is 0), stepped by the vehicle
-    time between commands."""
+    lag of the rotor lag in effect (``rotor_lag``, default the vehicle file's
+    ``rotor_time_constant_s``; none when it is 0), stepped by the vehicle time between commands."""
 
     kind = "rates"
 
-    def __init__(self, vehicle: VehicleParams, ids: VehicleIds):
+    def __init__(self, vehicle: VehicleParams, ids: VehicleIds, rotor_lag: RotorLagInEffect | None = None):
         p = vehicle.rate_interface
         if p is None:
             raise ValueError("output: rates needs the vehicle file's rate_interface: section")
@@ -69,7 +70,7 @@ class RateOutput:
         self._tau = np.array([p.rate_time_constant_s, p.rate_time_constant_s, yaw_tau], dtype=float)
         self._max_rate = np.asarray(p.max_body_rate_rad_s, dtype=float)
         self._ids = ids
-        self._lag_s = float(vehicle.rotor_time_constant_s)
+        self.rotor_lag = RotorLagInEffect.of_vehicle(vehicle) if rotor_lag is None else rotor_lag
         self._torque = np.zeros(3)
         self._t_s: float | None = None
         self._attitude_loop = AttitudeLoopCompensation(p.attitude_gain_rad_s)
@@ -78,10 +79,11 @@ class RateOutput:
     def _lagged_torque(self, t_s: float | None, torque: np.ndarray) -> np.ndarray:
         """The torque the lag has reached at ``t_s``: unchanged when no time has passed, the
         command itself with no lag, at the first command or when time went back."""
-        if self._lag_s <= 0.0 or t_s is None or self._t_s is None or t_s < self._t_s:
+        lag_s = self.rotor_lag.applied_s
+        if lag_s <= 0.0 or t_s is None or self._t_s is None or t_s < self._t_s:
             self._torque = torque.copy()
         elif t_s > self._t_s:
-            self._torque = lag_toward(self._torque, torque, lag_decay(t_s - self._t_s, self._lag_s))
+            self._torque = lag_toward(self._torque, torque, lag_decay(t_s - self._t_s, lag_s))
         self._t_s = t_s
         return self._torque
 
@@ -116,8 +118,11 @@ class RateOutput:
         return mm.rate_target(int(now_s * 1e3) & 0xFFFFFFFF, *self._ids.target, rates, thrust)
 
 
-def command_output(vehicle: VehicleParams, ids: VehicleIds) -> RotorOutput | RateOutput:
+def command_output(vehicle: VehicleParams, ids: VehicleIds,
+                   rotor_lag: RotorLagInEffect | None = None) -> RotorOutput | RateOutput:
     """The output the vehicle file's ``output`` names, addressed to the vehicle's ``ids`` (read
-    at each message: a system id taken from the vehicle's HEARTBEAT applies at once)."""
-    cls = RateOutput if vehicle.output == "rates" else RotorOutput
-    return cls(vehicle, ids)
+    at each message: a system id taken from the vehicle's HEARTBEAT applies at once); the rates
+    output lags the torque by ``rotor_lag`` (the flight's rotor lag in effect)."""
+    if vehicle.output == "rates":
+        return RateOutput(vehicle, ids, rotor_lag)
+    return RotorOutput(vehicle, ids)

@@ -66,8 +66,8 @@ class Supervisor:
         Design model and rotor limit.
     params : SupervisorParams
     regulator_factory : callable
-        ``plan -> regulator`` with ``reset(x, s_guess)`` and ``step(x)`` returning an object
-        with ``s, w, u, rotor_forces_n, in_tube, finished`` (the core's ManeuverRegulator).
+        ``(plan, rotor_lag) -> regulator`` (the core's ManeuverRegulator, leading by the flight's
+        rotor lag in effect) with ``reset(x, s_guess)``, ``step(x)`` -> ``s, w, u, rotor_forces_n, ...``.
     envelope : EnvelopeParams, optional
         The bounds (the controller file's ``envelope:`` section); default: the defaults.
     link_health : callable, optional
@@ -156,7 +156,7 @@ class Supervisor:
         ctx = self.ctx
         if self.finished or ctx.phase == Phase.TERMINATE:
             raise ValueError(f"the flight is over ({ctx.phase}); no maneuver can be queued")
-        ctx.pending.append((plan, self.regulator_factory(plan), nominal_points(plan)))
+        ctx.pending.append((plan, self.regulator_factory(plan, self.forecaster.rotor_lag), nominal_points(plan)))
         self.flight.event(out, "queued", f"maneuver {plan.name!r} ({plan.length_m:.2f} m) queued; "
                           f"{len(ctx.pending)} pending, starts at the next safe point")
         return out

@@ -28,7 +28,9 @@ def regulator_factory(vehicle: VehicleParams, control_rate_hz: float,
                       disturbance: DisturbanceParams | None = None,
                       allocation: AllocationParams | None = None,
                       speed_governor: SpeedGovernorParams | None = None, warm: bool = True) -> Callable:
-    """plan -> ManeuverRegulator at the vehicle's control rate (for its feedforward lead), its
+    """(plan, rotor_lag) -> ManeuverRegulator at the vehicle's control rate (for its feedforward
+    lead), leading by the flight's rotor lag in effect ``rotor_lag``
+    (:class:`~mavreg.control.estimation.lag_in_effect.RotorLagInEffect`; None: the file's), its
     disturbance compensation bounded by ``disturbance``, its allocation and speed governor
     ``allocation`` and ``speed_governor`` (the controller file's sections; None: the paper's).
     The regulator's compiled step is compiled (or loaded from numba's cache) here, so that a
@@ -41,8 +43,8 @@ def regulator_factory(vehicle: VehicleParams, control_rate_hz: float,
     if warm:
         fastpath.warm_up()      # the compiled step now, before the link: a later upload builds at once
 
-    def make(plan) -> ManeuverRegulator:
-        return ManeuverRegulator(plan, vehicle, control_period_s=1.0 / control_rate_hz,
+    def make(plan, rotor_lag=None) -> ManeuverRegulator:
+        return ManeuverRegulator(plan, vehicle, control_period_s=1.0 / control_rate_hz, rotor_lag=rotor_lag,
                                  max_compensation_turn_rad=d.max_compensation_turn_rad,
                                  allocation=allocation, speed_governor=speed_governor)
     return make

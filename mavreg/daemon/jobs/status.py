@@ -70,8 +70,8 @@ def status_report(daemon, tick_s: float) -> dict:
                                             "per_thrust_m": list(dist.torque_bias[3:]),
                                             "updates": tq.updates, "rejected": tq.rejected}
     if dist is not None and fc.observer.lag is not None:
-        lag = fc.observer.lag
-        st["disturbance"]["rotor_lag"] = {"time_constant_s": lag.estimate_s, "applied_s": lag.applied_s,
-                                          "file_s": lag.file_s, "sd_s": lag.sd_s,
+        lag, in_effect = fc.observer.lag, fc.rotor_lag
+        st["disturbance"]["rotor_lag"] = {"time_constant_s": in_effect.estimate_s, "applied_s": in_effect.applied_s,
+                                          "file_s": in_effect.file_s, "sd_s": lag.sd_s,
                                           "updates": lag.updates, "rejected": lag.rejected}
     return st
