@@ -236,8 +236,8 @@ def _read_inputs(args):
                         loss=args.loss, estimate_latency_ms=args.estimate_latency_ms,
                         estimator_scale=args.estimator_scale, wind_speed_m_s=args.wind_speed_m_s,
                         wind_from_deg=args.wind_from_deg, thrust_scale=args.thrust_scale,
-                        linear_drag_n_s_per_m=args.drag_n_s_per_m,
-                        parasitic_drag_n_s2_per_m2=args.parasitic_drag_n_s2_per_m2)
+                        linear_drag_xyz_n_s_per_m=args.drag_n_s_per_m,
+                        parasitic_drag_xyz_n_s2_per_m2=args.parasitic_drag_n_s2_per_m2)
     vehicle = load_vehicle(vehicle_path)
     vehicle = dataclasses.replace(vehicle, emulator=world.airframe.apply(vehicle.emulator))
     nominal, params = _sim_params(args, vehicle)
@@ -254,10 +254,10 @@ def _assemble(args, world, vehicle_path, vehicle, nominal, params, start, items)
         items.append(WindItem("velocity", world.airframe.wind_ned_m_s))
     wind = Wind(items)
     v = params.vehicle
-    if wind.has_velocity and not (any(v.emulator.linear_drag_n_s_per_m)
-                                  or any(v.emulator.parasitic_drag_n_s2_per_m2)):
+    if wind.has_velocity and not (any(v.emulator.linear_drag_xyz_n_s_per_m)
+                                  or any(v.emulator.parasitic_drag_xyz_n_s2_per_m2)):
         print("firmware-sim: warning: wind velocity has no effect with zero drag "
-              "(emulator.linear_drag_n_s_per_m); use force: or a vehicle with drag", file=sys.stderr)
+              "(emulator.linear_drag_xyz_n_s_per_m); use force: or a vehicle with drag", file=sys.stderr)
     recorder = Recorder(args.record) if args.record else None
     if recorder is not None:
         recorder.meta.update(vehicle=str(vehicle_path), params=repr(params), seed=args.seed,

@@ -17,7 +17,7 @@ each principal moment       ``inertia_kg_m2[i]``            nominal (1 + X e_i),
 rotor i thrust constant     1 (per newton commanded)        1 + X e_i, e_i ~ U(-0.1, 0.1)
 yaw-torque coefficient      ``drag_torque_ratio_m``         nominal (1 + X e), e ~ U(-0.3, 0.3)
 arm length                  ``arm_length_m``                nominal (1 + X e), e ~ U(-0.05, 0.05)
-rotor time constant         ``emulator.rotor_time_...``     nominal + X (t - nominal), t ~ U(10, 50) ms
+rotor time constant         the true rotor lag              nominal + X (t - nominal), t ~ U(10, 50) ms
 centre-of-mass offset       0                               X r (cos a, sin a, 0), r = 1 cm sqrt(u),
                                                             a ~ U(0, 2 pi): uniform on a 1 cm disc
 ==========================  ==============================  ==========================================
@@ -171,9 +171,9 @@ def apply_mismatch(params, draw: MismatchDraw | None, kept=()):
     if "mass_kg" not in kept:
         changes["mass_kg"] = v.mass_kg * (1.0 + x * draw.mass_rel)
     if "rotor_time_constant_s" not in kept:
-        tau = emu.rotor_time_constant_s
+        tau = v.true_rotor_time_constant_s
         changes["emulator"] = dataclasses.replace(
-            emu, rotor_time_constant_s=tau + x * (draw.rotor_time_constant_s - tau))
+            emu, true_rotor_time_constant_s=tau + x * (draw.rotor_time_constant_s - tau))
     J = params.inertia_matrix_kg_m2
     if "inertia_kg_m2" not in kept:
         diag = tuple(J[i][i] * (1.0 + x * draw.inertia_rel[i]) for i in range(3))
@@ -204,7 +204,7 @@ def airframe_arrays(params) -> dict:
         "airframe_drag_torque_ratio_m": np.float64(v.drag_torque_ratio_m),
         "airframe_rotor_gain": np.array(params.rotor_gain, dtype=np.float64),
         "airframe_thrust_scale": np.float64(v.emulator.thrust_scale),
-        "airframe_rotor_time_constant_s": np.float64(v.emulator.rotor_time_constant_s),
+        "airframe_rotor_time_constant_s": np.float64(v.true_rotor_time_constant_s),
         "airframe_com_offset_m": np.array(params.com_offset_m, dtype=np.float64),
         "airframe_mismatch_seed": np.int64(-1 if d is None else d.seed),
         "airframe_mismatch_scale": np.float64(0.0 if d is None else d.scale),

@@ -132,7 +132,7 @@ def apply_overrides(vehicle: VehicleParams, *, seed: int = 0, mass_kg: float | N
     if rotor_time_constant_s is not None:
         if not (math.isfinite(rotor_time_constant_s) and 0 <= rotor_time_constant_s <= 1):
             raise ValueError("--rotor-time-constant-s must be in [0, 1]")
-        emu_changes["rotor_time_constant_s"] = float(rotor_time_constant_s)
+        emu_changes["true_rotor_time_constant_s"] = float(rotor_time_constant_s)
     if rotor_noise_sd_n is not None:
         if not (math.isfinite(rotor_noise_sd_n) and rotor_noise_sd_n >= 0):
             raise ValueError("--rotor-noise-sd-n must be a finite number >= 0")

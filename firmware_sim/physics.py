@@ -74,21 +74,21 @@ class RigidBody:
     mass_kg : float
     inertia_kg_m2 : 3x3 nested tuple
         Symmetric positive-definite inertia matrix (see :func:`inertia_matrix`).
-    linear_drag_n_s_per_m : 3 floats
+    linear_drag_xyz_n_s_per_m : 3 floats
         Body-frame drag coefficients: force = -c * (velocity relative to the air, body).
-    parasitic_drag_n_s2_per_m2 : 3 floats
+    parasitic_drag_xyz_n_s2_per_m2 : 3 floats
         Body-frame quadratic drag: force = -c * |v_air| * v_air (body), per axis.
     gravity_m_s2 : float
         Set 0 for torque-free tests.
     """
 
-    def __init__(self, mass_kg: float, inertia_kg_m2, linear_drag_n_s_per_m,
-                 gravity_m_s2: float = G, parasitic_drag_n_s2_per_m2=(0.0, 0.0, 0.0)):
+    def __init__(self, mass_kg: float, inertia_kg_m2, linear_drag_xyz_n_s_per_m,
+                 gravity_m_s2: float = G, parasitic_drag_xyz_n_s2_per_m2=(0.0, 0.0, 0.0)):
         self.mass_kg = float(mass_kg)
         self.J = tuple(tuple(float(v) for v in row) for row in inertia_kg_m2)
         self.Jinv = _inv3(self.J)
-        self.drag = tuple(float(c) for c in linear_drag_n_s_per_m)
-        self.parasitic = tuple(float(c) for c in parasitic_drag_n_s2_per_m2)
+        self.drag = tuple(float(c) for c in linear_drag_xyz_n_s_per_m)
+        self.parasitic = tuple(float(c) for c in parasitic_drag_xyz_n_s2_per_m2)
         self.gravity_m_s2 = float(gravity_m_s2)
 
     def derivative(self, s, T, tx, ty, tz, wind, fext):

@@ -45,9 +45,9 @@ class Simulation:
         self.substeps = params.substeps
         self.rng = np.random.default_rng(params.seed)
         self.body = RigidBody(v.mass_kg, params.inertia_matrix_kg_m2,
-                              v.emulator.linear_drag_n_s_per_m, gravity_m_s2,
-                              v.emulator.parasitic_drag_n_s2_per_m2)
-        self.rotors = Rotors(v.max_rotor_thrust_n, v.emulator.rotor_time_constant_s,
+                              v.emulator.linear_drag_xyz_n_s_per_m, gravity_m_s2,
+                              v.emulator.parasitic_drag_xyz_n_s2_per_m2)
+        self.rotors = Rotors(v.max_rotor_thrust_n, v.true_rotor_time_constant_s,
                              v.emulator.rotor_noise_sd_n, self.dt_s, self.rng,
                              v.emulator.thrust_scale, params.rotor_gain)
         self.ground = Ground(v.emulator.crash_speed_m_s)

@@ -7,7 +7,7 @@ Syntax of one ``--wind`` item (repeatable, items add up)::
     force:FN,FE,FD                 steady external force on the airframe (N, NED)
     force:FN,FE,FD@T0:T1           force gust over a window
 
-A wind velocity acts only through the vehicle's linear drag (``emulator.linear_drag_n_s_per_m``);
+A wind velocity acts only through the vehicle's linear drag (``emulator.linear_drag_xyz_n_s_per_m``);
 with zero drag it has no effect (the CLI warns). A force acts directly.
 """
 from __future__ import annotations

@@ -101,8 +101,8 @@ class AirframeParams:
     north, 90: from the east); it acts through the drag.
     """
 
-    linear_drag_n_s_per_m: tuple | None = None
-    parasitic_drag_n_s2_per_m2: tuple | None = None
+    linear_drag_xyz_n_s_per_m: tuple | None = None
+    parasitic_drag_xyz_n_s2_per_m2: tuple | None = None
     wind_speed_m_s: float = 0.0
     wind_from_deg: float = 0.0
     thrust_scale: float | None = None
@@ -116,15 +116,15 @@ class AirframeParams:
     def apply(self, emulator):
         """``emulator`` (:class:`mavreg.config.vehicle.EmulatorParams`) with these values."""
         changes = {name: getattr(self, name) for name in
-                   ("linear_drag_n_s_per_m", "parasitic_drag_n_s2_per_m2", "thrust_scale")
+                   ("linear_drag_xyz_n_s_per_m", "parasitic_drag_xyz_n_s2_per_m2", "thrust_scale")
                    if getattr(self, name) is not None}
         return dataclasses.replace(emulator, **changes)
 
     def describe(self, emulator) -> str:
         """The effective airframe values, given the vehicle file's ``emulator``."""
         e = self.apply(emulator)
-        text = (f"drag {'/'.join(f'{c:g}' for c in e.linear_drag_n_s_per_m)} N s/m, parasitic "
-                f"{'/'.join(f'{c:g}' for c in e.parasitic_drag_n_s2_per_m2)} N s^2/m^2, "
+        text = (f"drag {'/'.join(f'{c:g}' for c in e.linear_drag_xyz_n_s_per_m)} N s/m, parasitic "
+                f"{'/'.join(f'{c:g}' for c in e.parasitic_drag_xyz_n_s2_per_m2)} N s^2/m^2, "
                 f"thrust scale {e.thrust_scale:g}")
         if self.wind_speed_m_s:
             text += f", wind {self.wind_speed_m_s:g} m/s from {self.wind_from_deg:g} deg"
@@ -134,8 +134,8 @@ class AirframeParams:
 # RotorPy's (UPenn) multirotor aerodynamics scaled to the MK-Quadro's mass: rotor drag of a
 # hover drag rate 0.45 1/s in the rotor plane and 0.87 1/s along the thrust axis, and its
 # parasitic drag coefficients (0.5e-2, 0.5e-2, 1e-2 for 0.5 kg) times 0.749/0.5.
-ROTORPY_DRAG = AirframeParams(linear_drag_n_s_per_m=(0.337, 0.337, 0.652),
-                              parasitic_drag_n_s2_per_m2=(0.0075, 0.0075, 0.015))
+ROTORPY_DRAG = AirframeParams(linear_drag_xyz_n_s_per_m=(0.337, 0.337, 0.652),
+                              parasitic_drag_xyz_n_s2_per_m2=(0.0075, 0.0075, 0.015))
 
 
 @dataclass(frozen=True)
@@ -203,7 +203,7 @@ def build_world(name: str, *, telemetry_delay_ms: float | None = None,
                 estimate_latency_ms: float | None = None,
                 estimator_scale: float | None = None, wind_speed_m_s: float | None = None,
                 wind_from_deg: float | None = None, thrust_scale: float | None = None,
-                linear_drag_n_s_per_m=None, parasitic_drag_n_s2_per_m2=None) -> WorldPreset:
+                linear_drag_xyz_n_s_per_m=None, parasitic_drag_xyz_n_s2_per_m2=None) -> WorldPreset:
     """The preset ``name`` with the command-line overrides applied (``None`` keeps the preset's).
 
     Raises
@@ -221,8 +221,8 @@ def build_world(name: str, *, telemetry_delay_ms: float | None = None,
              ("--estimator-scale", estimator_scale), ("--wind-speed-m-s", wind_speed_m_s),
              ("--wind-from-deg", wind_from_deg), ("--thrust-scale", thrust_scale))
     overrides = tuple((flag, float(v)) for flag, v in given if v is not None)
-    for flag, vec in (("--drag-n-s-per-m", linear_drag_n_s_per_m),
-                      ("--parasitic-drag-n-s2-per-m2", parasitic_drag_n_s2_per_m2)):
+    for flag, vec in (("--drag-n-s-per-m", linear_drag_xyz_n_s_per_m),
+                      ("--parasitic-drag-n-s2-per-m2", parasitic_drag_xyz_n_s2_per_m2)):
         if vec is not None:
             overrides += tuple((f"{flag}[{i}]", float(v)) for i, v in enumerate(vec))
     link_changes = {}
@@ -250,8 +250,8 @@ def build_world(name: str, *, telemetry_delay_ms: float | None = None,
             raise ValueError(f"--estimator-scale must be a number in [0, 100], got {estimator_scale!r}")
         est = est.scaled(float(estimator_scale))
     return WorldPreset(name, link, est, _airframe(base.airframe, wind_speed_m_s, wind_from_deg,
-                                                  thrust_scale, linear_drag_n_s_per_m,
-                                                  parasitic_drag_n_s2_per_m2), overrides)
+                                                  thrust_scale, linear_drag_xyz_n_s_per_m,
+                                                  parasitic_drag_xyz_n_s2_per_m2), overrides)
 
 
 def _airframe(base: AirframeParams, wind_speed_m_s, wind_from_deg, thrust_scale,
@@ -269,8 +269,8 @@ def _airframe(base: AirframeParams, wind_speed_m_s, wind_from_deg, thrust_scale,
         if not (math.isfinite(thrust_scale) and 0.5 <= thrust_scale <= 1.5):
             raise ValueError(f"--thrust-scale must be a number in [0.5, 1.5], got {thrust_scale!r}")
         changes["thrust_scale"] = float(thrust_scale)
-    for flag, field, vec in (("--drag-n-s-per-m", "linear_drag_n_s_per_m", linear_drag),
-                             ("--parasitic-drag-n-s2-per-m2", "parasitic_drag_n_s2_per_m2", parasitic_drag)):
+    for flag, field, vec in (("--drag-n-s-per-m", "linear_drag_xyz_n_s_per_m", linear_drag),
+                             ("--parasitic-drag-n-s2-per-m2", "parasitic_drag_xyz_n_s2_per_m2", parasitic_drag)):
         if vec is not None:
             vec = tuple(float(v) for v in vec)
             if len(vec) != 3 or not all(math.isfinite(v) and 0.0 <= v <= 100.0 for v in vec):

@@ -41,8 +41,9 @@ axis the flight did not move along (RMS body speed < 0.5 m/s), or a rotor lag th
 did not excite, is reported as not identified and keeps the vehicle file's value.
 
 --write-vehicle OUT.yaml writes a copy of the vehicle file with the identified values:
-thrust_scale, rotor_time_constant_s (the controller's estimate; the emulator: section is
-left alone), rotor_drag_n_s_per_m [c_xy, c_z] (c_xy the inverse-variance mean of c_x and
+thrust_scale, rotor_time_constant_s (the controller's estimate; where the emulator's rotors
+followed the file's lag, emulator.true_rotor_time_constant_s keeps the old value for them),
+rotor_drag_n_s_per_m [c_xy, c_z] (c_xy the inverse-variance mean of c_x and
 c_y) and parasitic_drag_n_s2_per_m2 (0 when the linear model was fitted).
 
 Rates output (a flight of 'mavreg fly --output rates': the daemon's SET_ATTITUDE_TARGET
@@ -238,8 +239,9 @@ def write_vehicle(src: Path, dst: Path, result) -> dict:
     style; the copy is checked by the validating loader before it is written."""
     from ..config.loader import load_text
     from ..config.vehicle import VehicleParams, load_vehicle
-    values = vehicle_values(result, load_vehicle(src))
-    text = src.read_text()
+    original = load_vehicle(src)
+    values = vehicle_values(result, original)
+    text = _keep_the_emulated_lag(src.read_text(), original, values)
     for key, value in values.items():
         line = f"{key}: {json.dumps(value)}   # mavreg identify"
         pattern = re.compile(rf"^{re.escape(key)}\s*:[^\n]*(?:\n(?:[ \t]+[^\n]*|[ \t]*(?=\n)))*",
@@ -251,3 +253,22 @@ def write_vehicle(src: Path, dst: Path, result) -> dict:
     load_text(text, VehicleParams, source=str(dst), kind="vehicle")   # ConfigError: one line
     dst.write_text(text)
     return values
+
+
+def _keep_the_emulated_lag(text: str, original, values: dict) -> str:
+    """``text`` with the emulator's rotor lag pinned where identify changes the file's
+    ``rotor_time_constant_s`` and the emulator followed it: the emulator keeps flying the
+    rotors it flew (``emulator.true_rotor_time_constant_s``), the controller gets the estimate."""
+    tau = values.get("rotor_time_constant_s")
+    if (tau is None or tau == original.rotor_time_constant_s
+            or original.emulator.true_rotor_time_constant_s is not None):
+        return text
+    pinned = f"true_rotor_time_constant_s: {original.rotor_time_constant_s!r}   # the emulator's, before identify"
+    block = re.search(r"^emulator:[ \t]*(?:#[^\n]*)?\n([ \t]+)", text, re.MULTILINE)
+    if block is not None:
+        at = block.start(1)     # the section's first line, indented as it is
+        return text[:at] + block.group(1) + pinned + "\n" + text[at:]
+    if re.search(r"^emulator\s*:", text, re.MULTILINE):
+        return text             # a flow-style section: left as it is
+    return text.rstrip("\n") + "\nemulator:\n  " + pinned + "\n"
+

@@ -15,7 +15,9 @@ and the field's ``metadata`` may add a range and a unit conversion:
 - ``metadata["deg"] = True`` on a field named ``X_rad`` reads the YAML key ``X_deg``
   and converts degrees to radians (the SI-inside, degrees-in-YAML rule of the conventions);
 - ``metadata["union"] = {"line": LineSpec, ...}`` on a field annotated ``object``: the
-  value is a mapping with exactly one of those keys, whose value is loaded as that schema.
+  value is a mapping with exactly one of those keys, whose value is loaded as that schema;
+- ``metadata["was"] = "old_key"``: a renamed key's old spelling is still read, for one
+  release, with a one-line :class:`FutureWarning` naming the new one.
 
 Every error is a :class:`ConfigError`: one line naming the file, the line, the key path and
 what was expected (a number's whole range too), quoting at most :data:`EXCERPT_CHARS` characters.
@@ -36,6 +38,7 @@ import stat
 import threading
 import types
 import typing
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -84,10 +87,7 @@ class ConfigError(ValueError):
     def __init__(self, source: str, line: int | None, key: str, message: str):
         source, key = _one_line(str(source), 200), _one_line(str(key), 120)
         message = _one_line(str(message), _MESSAGE_CHARS)
-        self.source = source
-        self.line = line
-        self.key = key
-        self.message = message
+        self.source, self.line, self.key, self.message = source, line, key, message
         where = f"{source}:{line}" if line is not None else source
         super().__init__(f"{where}: {key or '<top>'}: {message}" if key else f"{where}: {message}")
 
@@ -146,10 +146,8 @@ def _constructor() -> yaml.SafeLoader:
 
 
 def _describe(node: yaml.Node) -> str:
-    if isinstance(node, yaml.MappingNode):
-        return "a mapping"
-    if isinstance(node, yaml.SequenceNode):
-        return "a list"
+    if not isinstance(node, yaml.ScalarNode):
+        return "a mapping" if isinstance(node, yaml.MappingNode) else "a list"
     value = _scalar(node)
     return "null" if value is None else f"{type(value).__name__} {_excerpt(value)}"
 
@@ -275,11 +273,16 @@ def _load_schema(ctx: _Ctx, node: yaml.Node, schema: type, prefix: str = "") -> 
         ctx.fail(node, prefix, f"expected a mapping, got {_describe(node)}")
     hints = typing.get_type_hints(schema)
     fields = {_yaml_key(f): f for f in dataclasses.fields(schema)}
+    renamed = {f.metadata["was"]: _yaml_key(f) for f in dataclasses.fields(schema) if "was" in f.metadata}
     seen: dict[str, tuple[yaml.Node, yaml.Node]] = {}
     for knode, vnode in node.value:
         name = _scalar(knode)
         shown = _one_line(str(name), 40)
         path = f"{prefix}.{shown}" if prefix else shown
+        if isinstance(name, str) and name in renamed:      # an old spelling, read for one release
+            warnings.warn(f"{ctx.source}: line {_line(knode)}: {path} is deprecated and goes in the next "
+                          f"release; write {renamed[name]}", FutureWarning, stacklevel=2)
+            name = renamed[name]
         if not isinstance(name, str) or name not in fields:
             ctx.fail(knode, path, f"unknown key; expected one of: {', '.join(fields)}")
         if name in seen:
@@ -342,24 +345,18 @@ def load_text(text: str, schema: type, source: str = "<string>", kind: str | Non
 def _check_header(ctx: _Ctx, node: yaml.Node, kind: str) -> yaml.MappingNode:
     if not isinstance(node, yaml.MappingNode):
         ctx.fail(node, "", f"expected a mapping starting with 'kind: {kind}'")
-    header = {}
-    rest = []
+    header, rest = {}, []
     for knode, vnode in node.value:
-        name = _scalar(knode)
-        if name in ("kind", "version"):
-            header[name] = (knode, vnode)
+        if _scalar(knode) in ("kind", "version"):
+            header[_scalar(knode)] = vnode
         else:
             rest.append((knode, vnode))
-    if "kind" not in header:
-        ctx.fail(node, "kind", f"missing required key (expected 'kind: {kind}')")
-    got = _scalar(header["kind"][1]) if isinstance(header["kind"][1], yaml.ScalarNode) else None
-    if got != kind:
-        ctx.fail(header["kind"][1], "kind", f"expected {kind!r}, got {_describe(header['kind'][1])}")
-    if "version" not in header:
-        ctx.fail(node, "version", "missing required key (expected 'version: 1')")
-    ver = _scalar(header["version"][1]) if isinstance(header["version"][1], yaml.ScalarNode) else None
-    if ver != 1 or isinstance(ver, bool):
-        ctx.fail(header["version"][1], "version", f"expected 1, got {_describe(header['version'][1])}")
+    for key, want in (("kind", kind), ("version", 1)):
+        if key not in header:
+            ctx.fail(node, key, f"missing required key (expected '{key}: {want}')")
+        got = _scalar(header[key]) if isinstance(header[key], yaml.ScalarNode) else None
+        if got != want or isinstance(got, bool):
+            ctx.fail(header[key], key, f"expected {want!r}, got {_describe(header[key])}")
     return yaml.MappingNode(node.tag, rest, node.start_mark, node.end_mark, node.flow_style)
 
 

@@ -29,19 +29,25 @@ ArduPilot are known from their HEARTBEAT (docs/autopilots.md, *Which dialect*)."
 class EmulatorParams:
     """Physics that only firmware_sim models; the controller is never designed on it."""
 
-    rotor_time_constant_s: float = field(default=0.02, metadata=ROTOR_TIME_CONSTANT_S)
-    """First-order motor lag of each rotor's thrust (0: ideal actuators)."""
+    true_rotor_time_constant_s: float | None = field(
+        default=None, metadata={"was": "rotor_time_constant_s", **ROTOR_TIME_CONSTANT_S})
+    """The emulated rotors' true first-order thrust lag where it differs from the file's
+    ``rotor_time_constant_s`` (a mismatch the controller is not told; None: the file's value,
+    :attr:`VehicleParams.true_rotor_time_constant_s`)."""
     rotor_noise_sd_n: float = field(default=0.0, metadata=within(0.0, 50.0))
     """Standard deviation of the Gaussian noise on each rotor's thrust (at most a tenth of the
     largest rotor's 500 N)."""
-    linear_drag_n_s_per_m: tuple[float, ...] = field(
-        default=(0.0, 0.0, 0.0), metadata={"length": 3, **LINEAR_DRAG_N_S_PER_M}
+    linear_drag_xyz_n_s_per_m: tuple[float, ...] = field(
+        default=(0.0, 0.0, 0.0), metadata={"length": 3, "was": "linear_drag_n_s_per_m", **LINEAR_DRAG_N_S_PER_M}
     )
-    """Body-frame linear drag coefficients (force = -c * v_air_body, per axis)."""
-    parasitic_drag_n_s2_per_m2: tuple[float, ...] = field(
-        default=(0.0, 0.0, 0.0), metadata={"length": 3, **PARASITIC_DRAG_N_S2_PER_M2}
+    """Linear drag per body axis x, y, z (force = -c * v_air_body, per axis); the controller's
+    model has the rotor plane's and the thrust axis' (``rotor_drag_n_s_per_m``)."""
+    parasitic_drag_xyz_n_s2_per_m2: tuple[float, ...] = field(
+        default=(0.0, 0.0, 0.0), metadata={"length": 3, "was": "parasitic_drag_n_s2_per_m2",
+                                           **PARASITIC_DRAG_N_S2_PER_M2}
     )
-    """Body-frame quadratic (parasitic) drag: force = -c * |v_air| * v_air_body, per axis."""
+    """Quadratic (parasitic) drag per body axis: force = -c * |v_air| * v_air_body, per axis;
+    the controller's model has one coefficient (``parasitic_drag_n_s2_per_m2``)."""
     thrust_scale: float = field(default=1.0, metadata={"min": 0.5, "max": 1.5})
     """Thrust each rotor gives per unit commanded (0.9: a battery sagged to 90 %); the
     saturation scales with it."""
@@ -106,9 +112,10 @@ class VehicleParams:
     """k of eq 34: rotor drag torque per unit thrust."""
     max_rotor_thrust_n: float = field(metadata=ROTOR_THRUST_N)
     rotor_time_constant_s: float = field(default=0.0, metadata=ROTOR_TIME_CONSTANT_S)
-    """The controller's estimate of the rotors' first-order thrust lag. The design model
-    (eq 34) has ideal rotors; the regulator leads its feedforward by this much. The
-    emulator's true lag is ``emulator.rotor_time_constant_s``."""
+    """The rotors' first-order thrust lag, as the controller knows it before flight. The design
+    model (eq 34) has ideal rotors; the regulator leads its feedforward by this much (or by its
+    in-flight estimate: :mod:`mavreg.control.estimation.lag_in_effect`). The emulator's rotors
+    lag by it too, unless ``emulator.true_rotor_time_constant_s`` says otherwise."""
     rotor_drag_n_s_per_m: tuple[float, ...] = field(default=(0.0, 0.0),
                                                 metadata={"length": 2, **LINEAR_DRAG_N_S_PER_M})
     """Linear drag of the body, (c_xy, c_z): c_xy in the rotor plane, c_z along the thrust
@@ -134,6 +141,13 @@ class VehicleParams:
     ``ardupilot`` (``--dialect`` overrides it). None: PX4's in the rotors output; the rates
     output refuses such a vehicle without it. A stock PX4 or ArduPilot must not contradict it."""
     emulator: EmulatorParams = field(default_factory=EmulatorParams)
+
+    @property
+    def true_rotor_time_constant_s(self) -> float:
+        """The emulated rotors' lag: ``emulator.true_rotor_time_constant_s`` where the file sets
+        it (a mismatch), else ``rotor_time_constant_s``."""
+        true_s = self.emulator.true_rotor_time_constant_s
+        return self.rotor_time_constant_s if true_s is None else true_s
 
     def __post_init__(self):
         if self.output == "rates" and self.rate_interface is None:

@@ -28,7 +28,7 @@ def _accel(body, v_ned, wind=(0.0, 0.0, 0.0), attitude_deg=(0.0, 0.0, 0.0)):
 
 def test_parasitic_drag_is_quadratic_in_the_air_speed_per_body_axis():
     J = ((0.0176, 0, 0), (0, 0.0177, 0), (0, 0, 0.034))
-    body = RigidBody(M, J, (0.0, 0.0, 0.0), parasitic_drag_n_s2_per_m2=(0.01, 0.02, 0.04))
+    body = RigidBody(M, J, (0.0, 0.0, 0.0), parasitic_drag_xyz_n_s2_per_m2=(0.01, 0.02, 0.04))
     # level, flying north at 8 m/s: -c_x |v| v_x along body x = north
     assert _accel(body, (8.0, 0.0, 0.0)) == pytest.approx((-0.01 * 64 / M, 0.0, 0.0), abs=1e-12)
     # yawed 90 deg, flying north = along body -y: the y coefficient acts
@@ -60,7 +60,7 @@ def test_a_90_percent_vehicle_sinks_at_the_hover_command():
 
 def test_presets_add_drag_wind_and_thrust_on_top_of_realistic():
     real = PRESETS["realistic"]
-    assert real.airframe == ROTORPY_DRAG and real.airframe.linear_drag_n_s_per_m[0] / M == pytest.approx(0.45, rel=0.01)
+    assert real.airframe == ROTORPY_DRAG and real.airframe.linear_drag_xyz_n_s_per_m[0] / M == pytest.approx(0.45, rel=0.01)
     for name, speed in (("wind3", 3.0), ("wind6", 6.0)):
         p = PRESETS[name]
         assert p.link == real.link and p.estimator == real.estimator
@@ -77,8 +77,8 @@ def test_presets_add_drag_wind_and_thrust_on_top_of_realistic():
     ({"wind_speed_m_s": float("nan")}, "--wind-speed-m-s"),
     ({"wind_from_deg": float("inf")}, "--wind-from-deg"),
     ({"thrust_scale": 0.2}, "--thrust-scale"),
-    ({"linear_drag_n_s_per_m": (0.1, 0.2)}, "--drag-n-s-per-m"),
-    ({"parasitic_drag_n_s2_per_m2": (0.1, -0.2, 0.0)}, "--parasitic-drag-n-s2-per-m2"),
+    ({"linear_drag_xyz_n_s_per_m": (0.1, 0.2)}, "--drag-n-s-per-m"),
+    ({"parasitic_drag_xyz_n_s2_per_m2": (0.1, -0.2, 0.0)}, "--parasitic-drag-n-s2-per-m2"),
 ])
 def test_bad_airframe_values_name_the_flag(kwargs, flag):
     with pytest.raises(ValueError, match=flag):
@@ -92,7 +92,7 @@ def test_cli_wind_preset_drifts_the_vehicle_downwind():
     engine, _ = build_engine(args)
     try:
         sim = engine.sim
-        assert sim.params.vehicle.emulator.linear_drag_n_s_per_m == ROTORPY_DRAG.linear_drag_n_s_per_m
+        assert sim.params.vehicle.emulator.linear_drag_xyz_n_s_per_m == ROTORPY_DRAG.linear_drag_xyz_n_s_per_m
         for _ in range(500):
             sim.advance((HOVER_N,) * 4, True, 0)
         # wind from the west blows east: the vehicle accelerates east, nothing north

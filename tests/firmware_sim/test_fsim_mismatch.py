@@ -35,7 +35,7 @@ def _draw(**errors) -> MismatchDraw:
     """A hand-made draw: every error zero (the time constant the file's) but those given."""
     base = dict(seed=0, scale=1.0, mass_rel=0.0, inertia_rel=(0.0, 0.0, 0.0),
                 rotor_gain_rel=(0.0, 0.0, 0.0, 0.0), drag_torque_ratio_rel=0.0, arm_length_rel=0.0,
-                rotor_time_constant_s=VEHICLE.emulator.rotor_time_constant_s,
+                rotor_time_constant_s=VEHICLE.true_rotor_time_constant_s,
                 com_offset_m=(0.0, 0.0, 0.0))
     return MismatchDraw(**{**base, **errors})
 
@@ -86,7 +86,7 @@ def test_every_parameter_stays_inside_its_bounds(airframes):
         assert all(abs(g - 1.0) <= BOUNDS.rotor_gain_rel for g in p.rotor_gain)
         assert abs(t.drag_torque_ratio_m / v.drag_torque_ratio_m - 1.0) <= BOUNDS.drag_torque_ratio_rel
         assert abs(t.arm_length_m / v.arm_length_m - 1.0) <= BOUNDS.arm_length_rel
-        tau = t.emulator.rotor_time_constant_s
+        tau = t.true_rotor_time_constant_s
         assert BOUNDS.rotor_time_constant_min_s <= tau <= BOUNDS.rotor_time_constant_max_s
         cx, cy, cz = p.com_offset_m
         assert math.hypot(cx, cy) <= BOUNDS.com_offset_max_m and cz == 0.0
@@ -158,7 +158,7 @@ def test_the_scale_shrinks_every_deviation_of_the_same_draw():
     for get in (lambda p: p.vehicle.mass_kg, lambda p: p.vehicle.arm_length_m,
                 lambda p: p.vehicle.drag_torque_ratio_m, lambda p: p.inertia_matrix_kg_m2[2][2],
                 lambda p: p.rotor_gain[1], lambda p: p.com_offset_m[0],
-                lambda p: p.vehicle.emulator.rotor_time_constant_s):
+                lambda p: p.vehicle.true_rotor_time_constant_s):
         assert get(half) - get(nominal) == pytest.approx(0.5 * (get(full) - get(nominal)), rel=1e-9, abs=1e-15)
     assert half.vehicle.mass_kg != v.mass_kg
     with pytest.raises(ValueError, match="mismatch-scale"):
@@ -175,7 +175,7 @@ def test_explicit_flags_win_over_the_draw_and_the_rest_is_drawn_alike():
     assert flags.vehicle.mass_kg == 0.8
     assert [flags.inertia_matrix_kg_m2[i][i] for i in range(3)] == pytest.approx(
         [2 * j for j in VEHICLE.inertia_kg_m2])
-    assert flags.vehicle.emulator.rotor_time_constant_s == 0.03
+    assert flags.vehicle.true_rotor_time_constant_s == 0.03
     assert flags.rotor_gain == drawn.rotor_gain and flags.com_offset_m == drawn.com_offset_m
     assert flags.vehicle.arm_length_m == drawn.vehicle.arm_length_m
     assert flags.vehicle.drag_torque_ratio_m == drawn.vehicle.drag_torque_ratio_m

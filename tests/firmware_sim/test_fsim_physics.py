@@ -178,7 +178,7 @@ def test_wind_force_gust_and_velocity_through_drag():
         sim.advance((HOVER_N,) * 4, True, 0)
     assert sim.state[8] == pytest.approx(2.0, abs=1e-6)
     drag = dataclasses.replace(VEHICLE, emulator=dataclasses.replace(
-        VEHICLE.emulator, linear_drag_n_s_per_m=(0.3, 0.3, 0.3)))
+        VEHICLE.emulator, linear_drag_xyz_n_s_per_m=(0.3, 0.3, 0.3)))
     sim = Simulation(build_sim_params(drag, 500, 1000, 0), parse_start("z_m=-20"),
                      wind=Wind([parse_wind("velocity:3,0,0")]))
     for _ in range(5000):                                  # 10 s: drifts toward the wind speed

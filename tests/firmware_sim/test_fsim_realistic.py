@@ -28,9 +28,8 @@ drag_torque_ratio_m: 0.016
 max_rotor_thrust_n: 12.0
 rotor_time_constant_s: 0.02
 emulator:
-  rotor_time_constant_s: 0.02
   rotor_noise_sd_n: 0.0
-  linear_drag_n_s_per_m: [0.0, 0.0, 0.0]
+  linear_drag_xyz_n_s_per_m: [0.0, 0.0, 0.0]
   inertia_offdiag_kg_m2: [0.0, 0.0, 0.0]
   crash_speed_m_s: 3.0
 """

@@ -1,6 +1,7 @@
 """Reading a flight's .tlog for the calibration, and the ``mavreg identify`` command."""
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -119,7 +120,10 @@ def test_identify_json_and_write_vehicle(flight_tlog, tmp_path, capsys):
     assert v.rotor_drag_n_s_per_m[0] == pytest.approx(d["drag_xy_n_s_per_m"]["value"], abs=1e-4)
     assert v.rotor_drag_n_s_per_m[1] == pytest.approx(d["drag_n_s_per_m"]["z"]["value"], abs=1e-4)
     assert v.parasitic_drag_n_s2_per_m2 == 0.0
-    assert v.emulator == load_vehicle(DEFAULT_VEHICLE).emulator   # left alone
+    # the emulator's rotors keep the lag they flew; the rest of its section is left alone
+    original = load_vehicle(DEFAULT_VEHICLE)
+    assert v.true_rotor_time_constant_s == original.true_rotor_time_constant_s == 0.02
+    assert v.emulator == dataclasses.replace(original.emulator, true_rotor_time_constant_s=0.02)
     assert d["written"]["path"] == str(out)
 
 

@@ -12,7 +12,7 @@ import pytest
 
 from mavreg.config.paths import DEFAULT_VEHICLE, PAPER_CONTROLLER, maneuver_file
 from mavreg.config.controller import load_controller
-from mavreg.config.loader import ConfigError
+from mavreg.config.loader import ConfigError, load_text
 from mavreg.config.maneuver import load_maneuver, load_maneuver_text
 from mavreg.config.vehicle import load_vehicle
 from tests.helpers.repo import ROOT
@@ -211,3 +211,42 @@ def test_a_number_in_exponent_notation_without_a_dot_is_a_number(tmp_path):
     f.write_text(text.replace("2e-3", '"2e-3"'))
     with pytest.raises(ConfigError, match="riccati_step_s: expected a number, got str"):
         load_controller(f)
+
+
+VEHICLE_HEAD = """kind: vehicle
+version: 1
+name: v
+mass_kg: 1.0
+inertia_kg_m2: [0.02, 0.02, 0.03]
+arm_length_m: 0.25
+drag_torque_ratio_m: 0.016
+max_rotor_thrust_n: 8.0
+rotor_time_constant_s: 0.03
+"""
+
+
+def test_one_rotor_lag_key_which_the_emulated_rotors_follow_unless_told_otherwise():
+    """The file's ``rotor_time_constant_s`` is the rotors' lag for the controller and the
+    emulator; ``emulator.true_rotor_time_constant_s`` is a truth that differs (a mismatch)."""
+    from mavreg.config.vehicle import VehicleParams
+    v = load_text(VEHICLE_HEAD, VehicleParams, kind="vehicle")
+    assert v.emulator.true_rotor_time_constant_s is None and v.true_rotor_time_constant_s == 0.03
+    v = load_text(VEHICLE_HEAD + "emulator:\n  true_rotor_time_constant_s: 0.045\n", VehicleParams, kind="vehicle")
+    assert (v.rotor_time_constant_s, v.true_rotor_time_constant_s) == (0.03, 0.045)
+
+
+@pytest.mark.parametrize("old, new, value, read", [
+    ("rotor_time_constant_s", "true_rotor_time_constant_s", "0.045", lambda v: v.true_rotor_time_constant_s),
+    ("linear_drag_n_s_per_m", "linear_drag_xyz_n_s_per_m", "[0.3, 0.3, 0.6]",
+     lambda v: v.emulator.linear_drag_xyz_n_s_per_m),
+    ("parasitic_drag_n_s2_per_m2", "parasitic_drag_xyz_n_s2_per_m2", "[0.01, 0.01, 0.02]",
+     lambda v: v.emulator.parasitic_drag_xyz_n_s2_per_m2)])
+def test_a_renamed_key_is_read_for_one_release_with_a_warning_naming_the_new_one(old, new, value, read):
+    from mavreg.config.vehicle import VehicleParams
+    with pytest.warns(FutureWarning, match=rf"^f.yaml: line 11: emulator\.{old} is deprecated .*; write {new}$"):
+        v = load_text(VEHICLE_HEAD + f"emulator:\n  {old}: {value}\n", VehicleParams, source="f.yaml", kind="vehicle")
+    assert read(v) == read(load_text(VEHICLE_HEAD + f"emulator:\n  {new}: {value}\n", VehicleParams, kind="vehicle"))
+    with pytest.raises(ConfigError, match=f"emulator.{old}: duplicate key"):      # both spellings
+        load_text(VEHICLE_HEAD + f"emulator:\n  {new}: {value}\n  {old}: {value}\n", VehicleParams, kind="vehicle")
+    with pytest.raises(ConfigError, match="unknown key"):                           # a typo is still refused
+        load_text(VEHICLE_HEAD + f"emulator:\n  {old}x: {value}\n", VehicleParams, kind="vehicle")
