@@ -185,7 +185,7 @@ def _add_world_args(p: argparse.ArgumentParser) -> None:
                        ("--downlink-faults", "telemetry (from the vehicle)")):
         w.add_argument(flag, action="append", default=[], metavar="SPEC",
                        help=f"link faults of {what} after the preset's link, in simulation time: "
-                       "KEY=VALUE[,...], e.g. loss=0.1,jitter_ms=5,outage=15:0.5 (repeatable; "
+                       "KEY=VALUE[,...], e.g. loss=0.1,jitter_s=0.005,outage=15:0.5 (repeatable; "
                        "docs/reliability.md)")
     w.add_argument("--serial-byte-loss", type=probability, default=0.0, metavar="P",
                    help="a pty, serial or tcpin --listen: each byte lost with probability P, each way "

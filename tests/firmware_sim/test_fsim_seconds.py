@@ -81,3 +81,15 @@ def test_one_deprecated_alias_for_both_command_lines():
     assert deprecated_options.scaled_text(" 2.6", "1e-3") == "0.0026"
     for text in ("nan", "-inf", "x", ""):                    # left for the new option's type to refuse
         assert deprecated_options.scaled_text(text, "1e-3") == text
+
+
+def test_whole_milliseconds_give_the_ticks_they_gave_in_ms():
+    """The lines count ticks as ``delay_s * rate`` where they counted ``delay_ms * 1e-3 * rate``:
+    the two products may differ in the last bit (9 ms), never in the rounded tick, for every
+    whole millisecond to the 1 s bound at the control and physics rates a flight uses."""
+    def ticks(x: float) -> int:                               # channel._ticks, engine's latency
+        return int(x + 0.5)
+    moved = [(ms, hz) for hz in (250, 500, 1000) for ms in range(0, 1001)
+             if ticks(ms * 1e-3 * hz) != ticks(float(f"{ms}e-3") * hz)]
+    assert moved == []
+    assert 9 * 1e-3 * 1000 != 0.009 * 1000                   # the products do differ (control)
