@@ -176,3 +176,16 @@ def test_a_bad_value_under_an_old_spelling_is_refused_as_under_the_new(capsys):
             _parse("firmware-sim", argv)
         assert exc.value.code == 2
     assert "invalid choice: 'perfect'" in capsys.readouterr().err
+
+
+def _times_not_in_seconds(shown) -> list[str]:
+    return sorted(o for o in shown if o.endswith(("-ms", "-us", "-min", "-millis", "-msec")))
+
+
+def test_every_time_an_option_shows_is_in_seconds():
+    """Issue 31: seconds everywhere, the unit in the name (the old -ms spellings are hidden
+    aliases, tested above)."""
+    assert _times_not_in_seconds(_visible_options()) == []
+    p = Parser(prog="x")                                     # negative control: the check sees one
+    p.add_argument("--telemetry-delay-ms")
+    assert _times_not_in_seconds({o: None for a in p._actions for o in a.option_strings}) == ["--telemetry-delay-ms"]
