@@ -70,10 +70,10 @@ def sitl_row(delay_ms: float, predict: bool) -> str:
         out = Path(tmp) / "flight"
         cmd = [sys.executable, "-m", "mavreg.cli.main", "fly", str(MANEUVER), "--lockstep",
                "--controller", str(ctl), "--out", str(out), "--timeout-s", "600",
-               f"--emulator-arg=--telemetry-delay-ms={down:g}", f"--emulator-arg=--command-delay-ms={up:g}",
+               f"--emulator-arg=--telemetry-delay-s={down / 1e3:g}", f"--emulator-arg=--command-delay-s={up / 1e3:g}",
                # the preset's +-3 ms jitter, or less where a leg is shorter than that
-               f"--emulator-arg=--telemetry-jitter-ms={min(3.0, down):g}",
-               f"--emulator-arg=--command-jitter-ms={min(3.0, up):g}"]
+               f"--emulator-arg=--telemetry-jitter-s={min(3.0, down) / 1e3:g}",
+               f"--emulator-arg=--command-jitter-s={min(3.0, up) / 1e3:g}"]
         subprocess.run(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=900)
         try:
             summary = json.loads((out / "summary.json").read_text())

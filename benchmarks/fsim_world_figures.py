@@ -90,7 +90,7 @@ def main() -> None:
         d = np.load(rec)
         meta = json.loads(str(d["meta_json"]))
     c, world = meta["counters"], meta["world"]
-    latency_steps = int(np.floor(world["estimator"]["latency_ms"] * 1e-3 * meta["physics_hz"] + 0.5))
+    latency_steps = int(np.floor(world["estimator"]["latency_s"] * meta["physics_hz"] + 0.5))
     rows = np.clip(np.rint(d["estimate_t_s"] * meta["physics_hz"]).astype(int) - latency_steps, 0, None)
     perr = d["estimate_position_ned_m"] - d["position_ned_m"][rows]
     verr = d["estimate_velocity_ned_m_s"] - d["velocity_ned_m_s"][rows]

@@ -5,9 +5,12 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import sys
 
-__all__ = ["float_above", "positive_float", "nonneg_float", "probability",
+# The old spellings (docs/cli.md) are one action shared with mavreg's command line, in a
+# module of the standard library only (pyproject's contract for firmware_sim allows it).
+from mavreg.deprecated_options import add_deprecated_alias
+
+__all__ = ["float_above", "float_within", "positive_float", "nonneg_float", "probability",
            "positive_int", "nonneg_int", "unit_scale", "sysid", "checked", "input_file",
            "output_file", "add_deprecated_alias"]
 
@@ -23,6 +26,16 @@ def float_above(minimum: float, inclusive: bool):
             raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
         if not (math.isfinite(v) and (v >= minimum if inclusive else v > minimum)):
             raise argparse.ArgumentTypeError(f"expected a finite number {op} {minimum:g}, got {text!r}")
+        return v
+    return parse
+
+
+def float_within(low: float, high: float, unit: str):
+    """An argparse type: a finite float in [low, high], ``unit`` named in the refusal."""
+    def parse(text: str) -> float:
+        v = float_above(low, inclusive=True)(text)
+        if v > high:
+            raise argparse.ArgumentTypeError(f"expected a number in [{low:g}, {high:g}] {unit}, got {text!r}")
         return v
     return parse
 
@@ -103,29 +116,3 @@ def output_file(text: str) -> str:
     if not os.access(parent, os.W_OK | os.X_OK):
         raise argparse.ArgumentTypeError(f"{text}: directory {parent} is not writable")
     return text
-
-
-class _DeprecatedAlias(argparse.Action):
-    """An old spelling: stores into the new option's dest, with a one-line warning on stderr."""
-
-    def __init__(self, option_strings, dest, new: str, **kwargs):
-        self.new = new
-        super().__init__(option_strings, dest, **kwargs)
-
-    def __call__(self, parser, namespace, values, option_string=None):
-        print(f"{parser.prog}: warning: {option_string} is deprecated and goes in the next release; "
-              f"use {self.new}", file=sys.stderr, flush=True)
-        setattr(namespace, self.dest, values)
-
-
-def add_deprecated_alias(p, old: str, new: argparse.Action) -> None:
-    """Accept ``old`` as a hidden alias of the option ``new`` (the Action ``add_argument``
-    returned; ``p`` the parser or group it was added to) for one release.
-
-    The emulator stands for somebody else's firmware and imports nothing of mavreg's command
-    line, so this is its own copy of :func:`mavreg.cli.common.add_deprecated_alias`; the
-    spellings both follow are in docs/cli.md.
-    """
-    p.add_argument(old, dest=new.dest, type=new.type, nargs=new.nargs, choices=new.choices,
-                   metavar=new.metavar, default=argparse.SUPPRESS, action=_DeprecatedAlias,
-                   new=new.option_strings[0], help=argparse.SUPPRESS)

@@ -83,8 +83,8 @@ class Downlink:
     """
 
     def __init__(self, params: LinkParams, rate_hz: int, substeps: int, seed: int):
-        self.delay_periods = params.telemetry_delay_ms * 1e-3 * rate_hz
-        self.jitter_periods = params.telemetry_jitter_ms * 1e-3 * rate_hz
+        self.delay_periods = params.telemetry_delay_s * rate_hz
+        self.jitter_periods = params.telemetry_jitter_s * rate_hz
         self.loss = params.loss_probability
         self.substeps = int(substeps)
         self._state_rng = Uniforms([int(seed), 2])
@@ -193,8 +193,8 @@ class Uplink:
     """
 
     def __init__(self, params: LinkParams, physics_hz: int, seed: int):
-        self.delay_steps = params.command_delay_ms * 1e-3 * physics_hz
-        self.jitter_steps = params.command_jitter_ms * 1e-3 * physics_hz
+        self.delay_steps = params.command_delay_s * physics_hz
+        self.jitter_steps = params.command_jitter_s * physics_hz
         self.loss = params.loss_probability
         self.ideal = not (self.delay_steps or self.jitter_steps or self.loss)
         self._target_rng = Uniforms([int(seed), 3])

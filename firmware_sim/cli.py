@@ -8,8 +8,8 @@ import signal
 import sys
 import textwrap
 
-from .argtypes import (add_deprecated_alias, checked, input_file, nonneg_float, nonneg_int, output_file,
-                       positive_float, positive_int, probability, unit_scale)
+from .argtypes import (add_deprecated_alias, checked, float_within, input_file, nonneg_float, nonneg_int,
+                       output_file, positive_float, positive_int, probability, unit_scale)
 from .autopilot import AUTOPILOTS, Autopilot, AutopilotConfig
 from .clock import StopRun, run_lockstep, run_realtime
 from .engine import Engine
@@ -28,7 +28,7 @@ from .wind import Wind, WindItem, parse_wind
 from .faults import link_faults_from_args
 from .px4_args import add_identity_args, add_px4_args, print_rate_response, px4_services, rate_loop_config
 from .reboot import Reboots, add_reboot_args
-from .world import PRESET_NAMES, PRESETS, build_world
+from .world import MAX_DELAY_S, PRESET_NAMES, PRESETS, build_world
 
 __all__ = ["main", "build_parser", "build_engine", "BadInput"]
 
@@ -93,7 +93,7 @@ def build_parser() -> argparse.ArgumentParser:
            "serial: an existing device (baud 921600 if left out); tcpin: one TCP client at a time, "
            "port 0 a free one (default %(default)s)")
     # Old spellings (--vehicle, --rate-hz, --lockstep-timeout, --lockstep-stall-speed,
-    # --offboard-loss-timeout, --preset)
+    # --offboard-loss-timeout, --preset, the delays' -ms and --rate-latency-ms)
     # are hidden aliases for one release; the dest names are kept (docs/cli.md).
     add_deprecated_alias(p, "--vehicle", a(
         "--vehicle-params", dest="vehicle", default=None, metavar="YAML", type=input_file,
@@ -175,6 +175,9 @@ def _add_mismatch_args(p: argparse.ArgumentParser) -> None:
         help="with --mismatch-seed: multiply every deviation from the file by X in (0, 1] "
              "(default 1)")
 
+_delay_s = float_within(0.0, MAX_DELAY_S, "s")      # a delay, a jitter, a latency
+
+
 def _add_world_args(p: argparse.ArgumentParser) -> None:
     """The world's flags: link, estimator, air and battery (:mod:`firmware_sim.world`)."""
     w = p.add_argument_group("world", "link effects and estimator errors; each flag overrides the preset's value")
@@ -182,7 +185,7 @@ def _add_world_args(p: argparse.ArgumentParser) -> None:
                        ("--downlink-faults", "telemetry (from the vehicle)")):
         w.add_argument(flag, action="append", default=[], metavar="SPEC",
                        help=f"link faults of {what} after the preset's link, in simulation time: "
-                       "KEY=VALUE[,...], e.g. loss=0.1,jitter_ms=5,outage=15:0.5 (repeatable; "
+                       "KEY=VALUE[,...], e.g. loss=0.1,jitter_s=0.005,outage=15:0.5 (repeatable; "
                        "docs/reliability.md)")
     w.add_argument("--serial-byte-loss", type=probability, default=0.0, metavar="P",
                    help="a pty, serial or tcpin --listen: each byte lost with probability P, each way "
@@ -190,18 +193,21 @@ def _add_world_args(p: argparse.ArgumentParser) -> None:
     add_deprecated_alias(w, "--preset", w.add_argument(
         "--world", dest="preset", choices=PRESET_NAMES, default="realistic",
         help="named world (default %(default)s; values below)"))
-    w.add_argument("--telemetry-delay-ms", type=nonneg_float, default=None, metavar="MS",
-                   help="mean delay of the telemetry (vehicle to peers), sim time")
-    w.add_argument("--telemetry-jitter-ms", type=nonneg_float, default=None, metavar="MS",
-                   help="half-width of the uniform telemetry delay spread (<= the delay)")
-    w.add_argument("--command-delay-ms", type=nonneg_float, default=None, metavar="MS",
-                   help="mean delay of commands (peers to vehicle), sim time")
-    w.add_argument("--command-jitter-ms", type=nonneg_float, default=None, metavar="MS",
-                   help="half-width of the uniform command delay spread (<= the delay)")
+    # The delays were in ms until issue 31; the -ms spellings are aliases for one release that
+    # convert exactly (--telemetry-delay-ms 20 is --telemetry-delay-s 0.020, the same double).
+    for flag, text in (
+            ("--telemetry-delay", "mean delay of the telemetry (vehicle to peers), sim time"),
+            ("--telemetry-jitter", "half-width of the uniform telemetry delay spread (<= the delay)"),
+            ("--command-delay", "mean delay of commands (peers to vehicle), sim time"),
+            ("--command-jitter", "half-width of the uniform command delay spread (<= the delay)")):
+        add_deprecated_alias(w, f"{flag}-ms", w.add_argument(
+            f"{flag}-s", type=_delay_s, default=None, metavar="S", help=f"{text}, 0..1 s"),
+            scale="1e-3", unit="s")
     w.add_argument("--loss", type=probability, default=None, metavar="P",
                    help="probability that a telemetry message or a command datagram is lost (0..1)")
-    w.add_argument("--estimate-latency-ms", type=nonneg_float, default=None, metavar="MS",
-                   help="the telemetry of time t describes the true state of t - MS")
+    add_deprecated_alias(w, "--estimate-latency-ms", w.add_argument(
+        "--estimate-latency-s", type=_delay_s, default=None, metavar="S",
+        help="the telemetry of time t describes the true state of t - S, 0..1 s"), scale="1e-3", unit="s")
     w.add_argument("--estimator-scale", type=nonneg_float, default=None, metavar="X",
                    help="multiply every estimator error SD; 0 turns the errors off (latency kept)")
     w.add_argument("--wind-speed-m-s", type=nonneg_float, default=None, metavar="V",
@@ -230,10 +236,10 @@ def build_engine(args) -> tuple[Engine, Recorder | None]:
 def _read_inputs(args):
     """Validate the flags and the vehicle file (each validator raises ValueError)."""
     vehicle_path = args.vehicle if args.vehicle is not None else default_vehicle_path()
-    world = build_world(args.preset, telemetry_delay_ms=args.telemetry_delay_ms,
-                        telemetry_jitter_ms=args.telemetry_jitter_ms,
-                        command_delay_ms=args.command_delay_ms, command_jitter_ms=args.command_jitter_ms,
-                        loss=args.loss, estimate_latency_ms=args.estimate_latency_ms,
+    world = build_world(args.preset, telemetry_delay_s=args.telemetry_delay_s,
+                        telemetry_jitter_s=args.telemetry_jitter_s,
+                        command_delay_s=args.command_delay_s, command_jitter_s=args.command_jitter_s,
+                        loss=args.loss, estimate_latency_s=args.estimate_latency_s,
                         estimator_scale=args.estimator_scale, wind_speed_m_s=args.wind_speed_m_s,
                         wind_from_deg=args.wind_from_deg, thrust_scale=args.thrust_scale,
                         linear_drag_xyz_n_s_per_m=args.drag_n_s_per_m,

@@ -86,7 +86,7 @@ class Engine:
         # ideal link: send at once, skip the delay lines
         self._direct = self.world.link.ideal and link_faults is None
         est = self.world.estimator
-        latency_steps = int(math.floor(est.latency_ms * 1e-3 * p.physics_hz + 0.5))
+        latency_steps = int(math.floor(est.latency_s * p.physics_hz + 0.5))
         self.estimator = Estimator(est, 1.0 / p.rate_hz, p.seed) if est.has_errors else None
         self.estimating = self.estimator is not None or latency_steps > 0
         if latency_steps > 0:

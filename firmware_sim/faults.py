@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 import random
+import sys
 from dataclasses import dataclass
 
 from pymavlink.dialects.v20 import common as mavlink2
@@ -58,8 +59,13 @@ def link_faults_from_args(both: list, up: list, down: list, seed: int) -> LinkFa
     (``None`` when none is given). Raises ValueError with one line on a bad spec."""
     if not (both or up or down):
         return None
-    make = lambda specs: parse_faults(",".join(specs), seed=seed, corrupt_from=_HEADER_BYTES)  # noqa: E731
-    return LinkFaults(make(list(both) + list(up)), make(list(both) + list(down)))
+    notices: list = []                        # an old key in ms: one line each, not one per direction
+    make = lambda specs: parse_faults(",".join(specs), seed=seed, corrupt_from=_HEADER_BYTES,  # noqa: E731
+                                      on_deprecated=notices.append)
+    faults = LinkFaults(make(list(both) + list(up)), make(list(both) + list(down)))
+    for notice in dict.fromkeys(notices):
+        print(f"firmware-sim: warning: {notice}", file=sys.stderr, flush=True)
+    return faults
 
 
 class _Corrupted:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 
-from .argtypes import add_deprecated_alias, checked, nonneg_float, probability, sysid
+from .argtypes import add_deprecated_alias, checked, float_within, probability, sysid
 from .autopilot import AUTOPILOTS
 from .link import parse_remote_url
 from .px4 import PARAMS, Px4Config, Px4Services
@@ -15,7 +15,7 @@ from .rate_loop import RateLoopConfig
 __all__ = ["add_identity_args", "add_px4_args", "px4_services", "parse_home", "rate_loop_config",
            "print_rate_response"]
 
-MAX_RATE_LATENCY_MS = 100.0
+MAX_RATE_LATENCY_S = 0.1
 
 
 def parse_home(text: str) -> tuple[float, float, float]:
@@ -70,9 +70,10 @@ def add_px4_args(p: argparse.ArgumentParser) -> None:
                    "HOME_POSITION are converted around it")
     r = p.add_argument_group("rate mode", "SET_ATTITUDE_TARGET body rates and thrust in OFFBOARD "
                              "(docs/firmware_sim.md, 'Rate mode, as PX4 OFFBOARD')")
-    r.add_argument("--rate-latency-ms", type=_latency_ms, default=None, metavar="MS",
-                   help="from the receipt of a rate set-point to the rate loop that uses it, 0..100 "
-                   f"(default {1e3 * RateLoopConfig.latency_s:g})")
+    add_deprecated_alias(r, "--rate-latency-ms", r.add_argument(
+        "--rate-latency-s", type=float_within(0.0, MAX_RATE_LATENCY_S, "s"), default=None, metavar="S",
+        help="from the receipt of a rate set-point to the rate loop that uses it, 0..0.1 s "
+        f"(default {RateLoopConfig.latency_s:g})"), scale="1e-3", unit="s")
     r.add_argument("--thr-mdl-fac", type=probability, default=None, metavar="E",
                    help="thrust model: collective t gives F = 4 f_max ((1 - E) t + E t^2), E in 0..1 "
                    f"(parameter THR_MDL_FAC; default {RateLoopConfig.thr_mdl_fac:g})")
@@ -87,13 +88,6 @@ def add_px4_args(p: argparse.ArgumentParser) -> None:
                    "the closed-loop step response of the true airframe in the chosen world, from the "
                    "receipt of the set-point: 10/50/90 %% times, overshoot, final value and a "
                    "first-order-plus-delay fit (tau, delay). Nothing is listened on")
-
-
-def _latency_ms(text: str) -> float:
-    v = nonneg_float(text)
-    if v > MAX_RATE_LATENCY_MS:
-        raise argparse.ArgumentTypeError(f"expected a number in [0, {MAX_RATE_LATENCY_MS:g}] ms, got {text!r}")
-    return v
 
 
 def _rate_param(text: str) -> tuple[str, float]:
@@ -116,10 +110,10 @@ def _rate_param(text: str) -> tuple[str, float]:
 
 def rate_loop_config(args) -> RateLoopConfig:
     """The rate loop's settings of the parsed arguments (the defaults for the others):
-    ``--rate-param`` in order, then ``--rate-latency-ms`` and ``--thr-mdl-fac``."""
+    ``--rate-param`` in order, then ``--rate-latency-s`` and ``--thr-mdl-fac``."""
     changes = dict(getattr(args, "rate_param", None) or ())
-    if getattr(args, "rate_latency_ms", None) is not None:
-        changes["latency_s"] = args.rate_latency_ms * 1e-3
+    if getattr(args, "rate_latency_s", None) is not None:
+        changes["latency_s"] = args.rate_latency_s
     if getattr(args, "thr_mdl_fac", None) is not None:
         changes["thr_mdl_fac"] = args.thr_mdl_fac
     return dataclasses.replace(RateLoopConfig(), **changes)

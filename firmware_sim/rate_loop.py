@@ -25,7 +25,7 @@ as PX4's multicopter rate controller does, written for the emulator alone:
   The allocation limits ``u`` (roll and pitch to +-1/sqrt 2, where the axis' rotors span
   ``f_max``; yaw to the room left) and reports it.
 - **Processing latency.** A set-point reaches the loop ``latency_s`` after it was received
-  (the first loop tick at or after that; ``--rate-latency-ms``).
+  (the first loop tick at or after that; ``--rate-latency-s``).
 - **Thrust model.** The collective of ``t`` is ``F = 4 f_max ((1 - e) t + e t^2)``,
   ``e = THR_MDL_FAC`` (:func:`collective_thrust_n`): the curve of the motors, which the
   emulator does not linearize (as PX4 with its own factor left at 0 on such motors).

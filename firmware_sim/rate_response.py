@@ -117,7 +117,7 @@ def _engine(params, nominal, world: WorldPreset, cfg: RateLoopConfig, fmax_n: fl
                       n.max_rotor_thrust_n)
     ap = Autopilot(AutopilotConfig(max_rotor_thrust_n=fmax_n), stab, n.mass_kg * G / 4, rate_loop=cfg)
     ap.start_in_flight(0.0)
-    link = LinkParams(command_delay_ms=1e3 * phase_steps / params.physics_hz)
+    link = LinkParams(command_delay_s=phase_steps / params.physics_hz)
     quiet_world = dataclasses.replace(world, link=link, estimator=world.estimator.scaled(0.0))
     return Engine(sim, ap, _NullLink(), quiet_world), trace
 

@@ -27,31 +27,31 @@ import math
 from dataclasses import dataclass
 
 __all__ = ["LinkParams", "EstimatorParams", "AirframeParams", "ROTORPY_DRAG", "WorldPreset",
-           "PRESETS", "PRESET_NAMES", "build_world", "MAX_DELAY_MS"]
+           "PRESETS", "PRESET_NAMES", "build_world", "MAX_DELAY_S"]
 
-MAX_DELAY_MS = 1000.0
-"""Upper bound of every delay, jitter and latency (ms)."""
+MAX_DELAY_S = 1.0
+"""Upper bound of every delay, jitter and latency (s; 1000 ms before the options were in seconds)."""
 
 
 @dataclass(frozen=True)
 class LinkParams:
     """Delay, jitter and loss of the MAVLink link, each way (sim time).
 
-    Delays are uniform in ``[delay - jitter, delay + jitter]``; ``jitter_ms <= delay_ms``.
+    Delays are uniform in ``[delay - jitter, delay + jitter]``; ``jitter_s <= delay_s``.
     """
 
-    telemetry_delay_ms: float = 0.0
-    telemetry_jitter_ms: float = 0.0
-    command_delay_ms: float = 0.0
-    command_jitter_ms: float = 0.0
+    telemetry_delay_s: float = 0.0
+    telemetry_jitter_s: float = 0.0
+    command_delay_s: float = 0.0
+    command_jitter_s: float = 0.0
     loss_probability: float = 0.0
     """Probability that one message (telemetry) or one datagram (commands) is lost."""
 
     @property
     def ideal(self) -> bool:
         """No delay, no jitter, no loss."""
-        return not (self.telemetry_delay_ms or self.telemetry_jitter_ms or self.command_delay_ms
-                    or self.command_jitter_ms or self.loss_probability)
+        return not (self.telemetry_delay_s or self.telemetry_jitter_s or self.command_delay_s
+                    or self.command_jitter_s or self.loss_probability)
 
 
 @dataclass(frozen=True)
@@ -61,11 +61,11 @@ class EstimatorParams:
     Position, velocity and attitude errors are first-order Gauss-Markov processes per
     axis (stationary SD and correlation time); the attitude error is a small rotation
     in the body frame. The gyro rates carry a Gauss-Markov bias plus white noise per
-    published sample. ``latency_ms``: the estimate published at t describes the true
+    published sample. ``latency_s``: the estimate published at t describes the true
     state at t - latency.
     """
 
-    latency_ms: float = 0.0
+    latency_s: float = 0.0
     position_sd_m: float = 0.0
     position_tau_s: float = 0.5
     velocity_sd_m_s: float = 0.0
@@ -153,9 +153,9 @@ class WorldPreset:
         """One line: preset name, its effective values and the overrides (the airframe's
         too, given the vehicle file's ``emulator`` parameters)."""
         lk, es = self.link, self.estimator
-        text = (f"world: preset {self.name}: telemetry {lk.telemetry_delay_ms:g}+-{lk.telemetry_jitter_ms:g} ms, "
-                f"commands {lk.command_delay_ms:g}+-{lk.command_jitter_ms:g} ms, "
-                f"loss {100.0 * lk.loss_probability:g} %, estimate latency {es.latency_ms:g} ms, ")
+        text = (f"world: preset {self.name}: telemetry {lk.telemetry_delay_s:g}+-{lk.telemetry_jitter_s:g} s, "
+                f"commands {lk.command_delay_s:g}+-{lk.command_jitter_s:g} s, "
+                f"loss {100.0 * lk.loss_probability:g} %, estimate latency {es.latency_s:g} s, ")
         if es.has_errors:
             text += (f"estimator errors (SD, tau): position {1000.0 * es.position_sd_m:g} mm "
                      f"{es.position_tau_s:g} s, velocity {100.0 * es.velocity_sd_m_s:g} cm/s "
@@ -171,10 +171,10 @@ class WorldPreset:
         return text
 
 
-_REAL_LINK = LinkParams(telemetry_delay_ms=10.0, telemetry_jitter_ms=3.0, command_delay_ms=5.0,
-                        command_jitter_ms=3.0, loss_probability=0.01)
+_REAL_LINK = LinkParams(telemetry_delay_s=0.010, telemetry_jitter_s=0.003, command_delay_s=0.005,
+                        command_jitter_s=0.003, loss_probability=0.01)
 _REAL_ESTIMATOR = EstimatorParams(
-    latency_ms=4.0, position_sd_m=0.005, position_tau_s=0.5, velocity_sd_m_s=0.02,
+    latency_s=0.004, position_sd_m=0.005, position_tau_s=0.5, velocity_sd_m_s=0.02,
     velocity_tau_s=0.2, attitude_sd_deg=0.3, attitude_tau_s=0.5, gyro_noise_sd_rad_s=0.005,
     gyro_bias_sd_rad_s=0.003, gyro_bias_tau_s=30.0)
 
@@ -191,16 +191,16 @@ PRESETS = {
 PRESET_NAMES = tuple(PRESETS)
 
 
-def _check_ms(flag: str, value: float) -> float:
-    if not (math.isfinite(value) and 0.0 <= value <= MAX_DELAY_MS):
-        raise ValueError(f"{flag} must be a number in [0, {MAX_DELAY_MS:g}] ms, got {value!r}")
+def _check_s(flag: str, value: float) -> float:
+    if not (math.isfinite(value) and 0.0 <= value <= MAX_DELAY_S):
+        raise ValueError(f"{flag} must be a number in [0, {MAX_DELAY_S:g}] s, got {value!r}")
     return float(value)
 
 
-def build_world(name: str, *, telemetry_delay_ms: float | None = None,
-                telemetry_jitter_ms: float | None = None, command_delay_ms: float | None = None,
-                command_jitter_ms: float | None = None, loss: float | None = None,
-                estimate_latency_ms: float | None = None,
+def build_world(name: str, *, telemetry_delay_s: float | None = None,
+                telemetry_jitter_s: float | None = None, command_delay_s: float | None = None,
+                command_jitter_s: float | None = None, loss: float | None = None,
+                estimate_latency_s: float | None = None,
                 estimator_scale: float | None = None, wind_speed_m_s: float | None = None,
                 wind_from_deg: float | None = None, thrust_scale: float | None = None,
                 linear_drag_xyz_n_s_per_m=None, parasitic_drag_xyz_n_s2_per_m2=None) -> WorldPreset:
@@ -215,9 +215,9 @@ def build_world(name: str, *, telemetry_delay_ms: float | None = None,
     if name not in PRESETS:
         raise ValueError(f"--preset {name!r}: expected one of {', '.join(PRESET_NAMES)}")
     base = PRESETS[name]
-    given = (("--telemetry-delay-ms", telemetry_delay_ms), ("--telemetry-jitter-ms", telemetry_jitter_ms),
-             ("--command-delay-ms", command_delay_ms), ("--command-jitter-ms", command_jitter_ms),
-             ("--loss", loss), ("--estimate-latency-ms", estimate_latency_ms),
+    given = (("--telemetry-delay-s", telemetry_delay_s), ("--telemetry-jitter-s", telemetry_jitter_s),
+             ("--command-delay-s", command_delay_s), ("--command-jitter-s", command_jitter_s),
+             ("--loss", loss), ("--estimate-latency-s", estimate_latency_s),
              ("--estimator-scale", estimator_scale), ("--wind-speed-m-s", wind_speed_m_s),
              ("--wind-from-deg", wind_from_deg), ("--thrust-scale", thrust_scale))
     overrides = tuple((flag, float(v)) for flag, v in given if v is not None)
@@ -226,25 +226,25 @@ def build_world(name: str, *, telemetry_delay_ms: float | None = None,
         if vec is not None:
             overrides += tuple((f"{flag}[{i}]", float(v)) for i, v in enumerate(vec))
     link_changes = {}
-    for flag, field, value in (("--telemetry-delay-ms", "telemetry_delay_ms", telemetry_delay_ms),
-                               ("--telemetry-jitter-ms", "telemetry_jitter_ms", telemetry_jitter_ms),
-                               ("--command-delay-ms", "command_delay_ms", command_delay_ms),
-                               ("--command-jitter-ms", "command_jitter_ms", command_jitter_ms)):
+    for flag, field, value in (("--telemetry-delay-s", "telemetry_delay_s", telemetry_delay_s),
+                               ("--telemetry-jitter-s", "telemetry_jitter_s", telemetry_jitter_s),
+                               ("--command-delay-s", "command_delay_s", command_delay_s),
+                               ("--command-jitter-s", "command_jitter_s", command_jitter_s)):
         if value is not None:
-            link_changes[field] = _check_ms(flag, value)
+            link_changes[field] = _check_s(flag, value)
     if loss is not None:
         if not (math.isfinite(loss) and 0.0 <= loss <= 1.0):
             raise ValueError(f"--loss must be a probability in [0, 1], got {loss!r}")
         link_changes["loss_probability"] = float(loss)
     link = dataclasses.replace(base.link, **link_changes)
-    for what, delay, jitter in (("telemetry", link.telemetry_delay_ms, link.telemetry_jitter_ms),
-                                ("command", link.command_delay_ms, link.command_jitter_ms)):
+    for what, delay, jitter in (("telemetry", link.telemetry_delay_s, link.telemetry_jitter_s),
+                                ("command", link.command_delay_s, link.command_jitter_s)):
         if jitter > delay:
-            raise ValueError(f"--{what}-jitter-ms {jitter:g} exceeds --{what}-delay-ms {delay:g} "
+            raise ValueError(f"--{what}-jitter-s {jitter:g} exceeds --{what}-delay-s {delay:g} "
                              "(the delay would go negative)")
     est = base.estimator
-    if estimate_latency_ms is not None:
-        est = dataclasses.replace(est, latency_ms=_check_ms("--estimate-latency-ms", estimate_latency_ms))
+    if estimate_latency_s is not None:
+        est = dataclasses.replace(est, latency_s=_check_s("--estimate-latency-s", estimate_latency_s))
     if estimator_scale is not None:
         if not (math.isfinite(estimator_scale) and 0.0 <= estimator_scale <= 100.0):
             raise ValueError(f"--estimator-scale must be a number in [0, 100], got {estimator_scale!r}")

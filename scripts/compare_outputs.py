@@ -19,11 +19,11 @@ from pathlib import Path
 
 CASES = {
     "nominal": (),
-    "delay +20 ms": ("--uplink-faults=delay_ms=20",),
-    "delay +40 ms": ("--uplink-faults=delay_ms=40",),
-    "delay +60 ms": ("--uplink-faults=delay_ms=60",),
-    "jitter +-5 ms": ("--uplink-faults=jitter_ms=5", "--downlink-faults=jitter_ms=5"),
-    "jitter +-10 ms": ("--uplink-faults=jitter_ms=10", "--downlink-faults=jitter_ms=10"),
+    "delay +20 ms": ("--uplink-faults=delay_s=0.02",),
+    "delay +40 ms": ("--uplink-faults=delay_s=0.04",),
+    "delay +60 ms": ("--uplink-faults=delay_s=0.06",),
+    "jitter +-5 ms": ("--uplink-faults=jitter_s=0.005", "--downlink-faults=jitter_s=0.005"),
+    "jitter +-10 ms": ("--uplink-faults=jitter_s=0.01", "--downlink-faults=jitter_s=0.01"),
 }
 OUTPUTS = ("rotors", "rates")
 

@@ -13,10 +13,11 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import sys
 from pathlib import Path
 
 from .vehicle_link import check_vehicle_link, vehicle_url, vehicle_url_help
+# The old spellings' action is shared with firmware-sim: its home is the neutral module.
+from ..deprecated_options import DeprecatedAlias, add_deprecated_alias
 # The bundled parameter files have one home, mavreg.config.paths; re-exported for the commands.
 from ..config.paths import (DEFAULT_VEHICLE, DESIGN_CONTROLLER, PAPER_CONTROLLER,
                             PAPER_GOVERNED_CONTROLLER, PARAMS_DIR, REAL_CONTROLLER)
@@ -352,26 +353,3 @@ def load_maneuver_arg(args):
         return spec.with_laps(args.laps)
     except ValueError as exc:        # no laps segment, or a count out of range: the user's
         raise UsageError(f"--laps {args.laps}: {exc}") from None
-
-
-class DeprecatedAlias(argparse.Action):
-    """A hidden old spelling of an option: stores into the new option's ``dest`` and prints
-    one line ``PROG: warning: OLD is deprecated, use NEW ...`` on stderr (docs/cli.md)."""
-
-    def __init__(self, option_strings, dest, new: str, **kwargs):
-        self.new = new
-        super().__init__(option_strings, dest, **kwargs)
-
-    def __call__(self, parser, namespace, values, option_string=None):
-        print(f"{parser.prog}: warning: {option_string} is deprecated and goes in the next release; "
-              f"use {self.new}", file=sys.stderr, flush=True)
-        setattr(namespace, self.dest, values)
-
-
-def add_deprecated_alias(p, old: str, new: argparse.Action) -> None:
-    """Accept ``old`` as a hidden alias of the option ``new`` (the Action ``add_argument``
-    returned): same destination, type, count and choices, with :class:`DeprecatedAlias`'s
-    warning. ``p`` is the parser or the argument group ``new`` was added to."""
-    p.add_argument(old, dest=new.dest, type=new.type, nargs=new.nargs, choices=new.choices,
-                   metavar=new.metavar, default=argparse.SUPPRESS, action=DeprecatedAlias,
-                   new=new.option_strings[0], help=argparse.SUPPRESS)

@@ -114,10 +114,12 @@ class RobustnessExperiment(Experiment):
 
 
 def _delay_args(rtt_ms: int) -> tuple[str, ...]:
-    one_way = rtt_ms / 2.0
-    jitter = min(JITTER_MS, one_way)
-    return (f"--telemetry-delay-ms={one_way:g}", f"--telemetry-jitter-ms={jitter:g}",
-            f"--command-delay-ms={one_way:g}", f"--command-jitter-ms={jitter:g}")
+    """The emulator's link options of a round trip: half of it each way, in seconds (the
+    text is the decimal meant, so that the emulator reads the double it read from ms)."""
+    one_way_s = rtt_ms / 2.0 / 1000.0
+    jitter_s = min(JITTER_MS / 1000.0, one_way_s)
+    return (f"--telemetry-delay-s={one_way_s:g}", f"--telemetry-jitter-s={jitter_s:g}",
+            f"--command-delay-s={one_way_s:g}", f"--command-jitter-s={jitter_s:g}")
 
 
 def all_cells(maneuvers_dir: Path = MANEUVERS_DIR) -> tuple[Cell, ...]:

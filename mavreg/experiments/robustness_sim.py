@@ -53,11 +53,11 @@ SIM_CONTROL_RATE_HZ = CONTROL_RATE_HZ
 # firmware_sim's realistic preset (firmware_sim/world.py, _REAL_LINK and _REAL_ESTIMATOR),
 # written here so that mavreg does not depend on the emulator:
 REAL_TELEMETRY_DELAY_S = 0.010
-"""_REAL_LINK.telemetry_delay_ms (its +-3 ms jitter is not modelled)."""
+"""_REAL_LINK.telemetry_delay_s (its +-3 ms jitter is not modelled)."""
 REAL_COMMAND_DELAY_S = 0.005
-"""_REAL_LINK.command_delay_ms (its +-3 ms jitter is not modelled)."""
+"""_REAL_LINK.command_delay_s (its +-3 ms jitter is not modelled)."""
 REAL_ESTIMATE_LATENCY_S = 0.004
-"""_REAL_ESTIMATOR.latency_ms: the estimate is this old when it is sent."""
+"""_REAL_ESTIMATOR.latency_s: the estimate is this old when it is sent."""
 REAL_ESTIMATE = EstimateNoise()
 """_REAL_ESTIMATOR's standard deviations and correlation times (EstimateNoise's defaults are
 those numbers: position 5 mm / 0.5 s, velocity 0.02 m/s / 0.2 s, attitude 0.3 deg / 0.5 s,
@@ -71,8 +71,8 @@ SIM_UNREPRESENTABLE = {
     "timesync": "TIMESYNC: the design model has no link protocol",
 }
 """Cell groups that do not fly via sim, and why."""
-_READ = {"--telemetry-delay-ms", "--command-delay-ms", "--estimator-scale", "--thrust-scale", "--mismatch-seed"}
-_NOT_MODELLED = {"--telemetry-jitter-ms": "link jitter", "--command-jitter-ms": "link jitter"}
+_READ = {"--telemetry-delay-s", "--command-delay-s", "--estimator-scale", "--thrust-scale", "--mismatch-seed"}
+_NOT_MODELLED = {"--telemetry-jitter-s": "link jitter", "--command-jitter-s": "link jitter"}
 
 
 @dataclass(frozen=True)
@@ -135,9 +135,9 @@ def sim_world(spec, vehicle) -> SimWorld:
     unknown = [a for a in args if a not in _READ and a not in _NOT_MODELLED]
     if unknown:
         raise ValueError(f"{spec.cell}: the design model cannot represent {unknown[0]}")
-    down = float(args.get("--telemetry-delay-ms", REAL_TELEMETRY_DELAY_S * 1e3)) / 1e3
+    down = float(args.get("--telemetry-delay-s", REAL_TELEMETRY_DELAY_S))
     return SimWorld(measurement_delay_s=down + REAL_ESTIMATE_LATENCY_S,
-                    command_delay_s=float(args.get("--command-delay-ms", REAL_COMMAND_DELAY_S * 1e3)) / 1e3,
+                    command_delay_s=float(args.get("--command-delay-s", REAL_COMMAND_DELAY_S)),
                     estimator_scale=float(args.get("--estimator-scale", 1.0)),
                     thrust_scale=float(args.get("--thrust-scale", 1.0)),
                     inertia_kg_m2=(None if spec.mismatch_seed is None

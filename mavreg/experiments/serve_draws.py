@@ -109,7 +109,7 @@ def _link_faults(rng) -> tuple[str, ...]:
     if kind == "bursts":
         return (f"--link-faults=loss=0.01,burst_enter={rng.uniform(0.005, 0.02):.3f},burst_exit=0.25",)
     if kind == "reorder":
-        return (f"--link-faults=reorder={rng.uniform(0.01, 0.05):.3f},reorder_ms=10,jitter_ms=3",)
+        return (f"--link-faults=reorder={rng.uniform(0.01, 0.05):.3f},reorder_s=0.01,jitter_s=0.003",)
     if kind == "outage":    # telemetry outages at sim times over the world's flights (about 40 s each)
         starts = np.sort(rng.uniform(8.0, 40.0 * WORLD_FLIGHTS, size=WORLD_FLIGHTS))
         return ("--downlink-faults=" + ",".join(f"outage={t:.1f}:{rng.uniform(0.05, 0.3):.2f}" for t in starts),)

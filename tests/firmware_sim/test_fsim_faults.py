@@ -92,6 +92,16 @@ def test_a_corrupted_frame_fails_its_crc_alone():
 
 def test_command_line_specs():
     assert link_faults_from_args([], [], [], 0) is None
-    f = link_faults_from_args(["loss=0.1"], ["jitter_ms=5"], ["outage=3:0.5"], 7)
-    assert f.up == parse_faults("loss=0.1,jitter_ms=5", seed=7, corrupt_from=10)
+    f = link_faults_from_args(["loss=0.1"], ["jitter_s=0.005"], ["outage=3:0.5"], 7)
+    assert f.up == parse_faults("loss=0.1,jitter_s=0.005", seed=7, corrupt_from=10)
     assert f.down.outages == ((3.0, 0.5),) and f.down.seed == 7 and f.down.loss == 0.1
+
+
+def test_an_old_key_in_ms_warns_once_on_the_command_line(capsys):
+    f = link_faults_from_args(["jitter_ms=5"], [], [], 7)      # both ways: one notice, not two
+    assert f.up.jitter_s == f.down.jitter_s == 0.005
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["firmware-sim: warning: link faults key jitter_ms is deprecated and goes in the next "
+                   "release; use jitter_s (seconds)"]
+    link_faults_from_args(["jitter_s=0.005"], [], [], 7)
+    assert capsys.readouterr().err == ""

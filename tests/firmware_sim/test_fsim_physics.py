@@ -191,8 +191,9 @@ def test_wind_force_gust_and_velocity_through_drag():
 
 def test_firmware_sim_imports_only_mavreg_config_and_the_transport():
     """The emulator stands for somebody else's firmware: of mavreg it takes the parameter files,
-    the transport (bytes on the wire: the MAVLink codec, signing, serial and TCP streams) and
-    the fault-injection tool, never control or physics code (pyproject's import contract too)."""
+    the transport (bytes on the wire: the MAVLink codec, signing, serial and TCP streams),
+    the fault-injection tool and the old options' action (a module of the standard library
+    only), never control or physics code (pyproject's import contracts too)."""
     import re
 
     from tests.helpers.repo import ROOT
@@ -200,8 +201,12 @@ def test_firmware_sim_imports_only_mavreg_config_and_the_transport():
     for path in root.glob("*.py"):
         text = path.read_text()
         for mod in re.findall(r"^\s*(?:from|import)\s+(mavreg[\w.]*)", text, re.M):
-            assert mod.startswith(("mavreg.config", "mavreg.transport", "mavreg.tools.faultlink")), (path.name, mod)
+            assert mod.startswith(("mavreg.config", "mavreg.transport", "mavreg.tools.faultlink",
+                                   "mavreg.deprecated_options")), (path.name, mod)
         assert len(text.splitlines()) < 500, path.name
+    neutral = (ROOT / "mavreg" / "deprecated_options.py").read_text()
+    assert re.findall(r"^\s*(?:from|import)\s+([\w.]+)", neutral, re.M) == [
+        "__future__", "argparse", "decimal", "sys"]          # the standard library only
 
 
 def test_fused_rk4_is_bit_identical_to_the_reference_step():

@@ -167,9 +167,10 @@ def test_cli_bad_input_exits_2_without_traceback(tmp_path):
     bad.write_text("kind: vehicle\nversion: 1\nname: x\nmass_kg: -1\n")
     for args in (["--vehicle-params", str(bad)], ["--control-rate-hz", "300"], ["--wind", "breeze:1"],
                  ["--start", "z_m=1"], ["--listen", "tcp:1"], ["--world", "perfect"], ["--loss", "1.5"],
-                 ["--loss", "x"], ["--telemetry-delay-ms", "-1"], ["--telemetry-jitter-ms", "20"],
-                 ["--command-delay-ms", "2", "--command-jitter-ms", "3"], ["--estimator-scale", "nan"],
-                 ["--estimate-latency-ms", "5000"], ["--command-delay-ms", "inf"]):
+                 ["--loss", "x"], ["--telemetry-delay-s", "-0.001"], ["--telemetry-jitter-s", "0.02"],
+                 ["--command-delay-s", "0.002", "--command-jitter-s", "0.003"], ["--estimator-scale", "nan"],
+                 ["--estimate-latency-s", "5"], ["--command-delay-s", "inf"], ["--rate-latency-s", "0.2"],
+                 ["--telemetry-delay-ms", "-1"], ["--estimate-latency-ms", "5000"]):
         r = subprocess.run([sys.executable, "-m", "firmware_sim", *args], capture_output=True,
                            text=True, timeout=30)
         assert r.returncode == 2, args

@@ -62,8 +62,8 @@ def _crossing(t, y, level) -> float:
 def measured_step(*flags, axis=0, step=1.0, thrust=T_HOVER) -> dict:
     """A step of ``step`` rad/s on ``axis`` flown in the realistic world (estimator errors on, the
     uplink without delay so that the receipt is the send), from hover; times after the receipt."""
-    v = Vehicle("--start", "z_m=-30", "--world", "realistic", "--command-delay-ms", "0",
-                "--command-jitter-ms", "0", "--loss", "0", *flags)
+    v = Vehicle("--start", "z_m=-30", "--world", "realistic", "--command-delay-s", "0",
+                "--command-jitter-s", "0", "--loss", "0", *flags)
     _, before = fly(v, 0.4, lambda t, s: (0.0, 0.0, 0.0, thrust))
     w0 = float(np.mean(before[-50:, 10 + axis]))        # the loop holds the gyro's bias: from there
     t0 = v.engine.sim.t_s
@@ -141,7 +141,7 @@ def test_roll_rate_step_meets_the_documented_bounds():
 
 
 def test_the_processing_latency_delays_the_response_by_itself():
-    base, late = _default_step(), measured_step("--rate-latency-ms", "20")
+    base, late = _default_step(), measured_step("--rate-latency-s", "0.02")
     for k in ("t10", "t50", "t90"):
         assert late[k] - base[k] == pytest.approx(0.018, abs=0.0015)
 

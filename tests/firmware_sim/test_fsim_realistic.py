@@ -135,14 +135,14 @@ def _timesync_delays(tmp_path, *world: str, samples: int = 20) -> list:
 
 
 def test_timesync_measures_downlink_plus_uplink_in_lockstep(tmp_path):
-    exact = _timesync_delays(tmp_path, "--telemetry-delay-ms", "10", "--telemetry-jitter-ms", "0",
-                             "--command-delay-ms", "5", "--command-jitter-ms", "0", "--loss", "0")
+    exact = _timesync_delays(tmp_path, "--telemetry-delay-s", "0.010", "--telemetry-jitter-s", "0",
+                             "--command-delay-s", "0.005", "--command-jitter-s", "0", "--loss", "0")
     assert len(exact) >= 20 and set(exact) == {15.0}
     # 7 ms is 3.5 control periods of 2 ms: released at the nearest boundary, 8 ms; 2.6 ms is
     # 2.6 physics steps of 1 ms: handled 3 ms after arrival. Nominal 9.6 ms, measured 11 ms,
     # within half a period plus half a physics step of the nominal.
-    odd = _timesync_delays(tmp_path, "--telemetry-delay-ms", "7", "--telemetry-jitter-ms", "0",
-                           "--command-delay-ms", "2.6", "--command-jitter-ms", "0", "--loss", "0")
+    odd = _timesync_delays(tmp_path, "--telemetry-delay-s", "0.007", "--telemetry-jitter-s", "0",
+                           "--command-delay-s", "0.0026", "--command-jitter-s", "0", "--loss", "0")
     assert set(odd) == {11.0} and abs(11.0 - 9.6) <= 1.0 + 0.5
     ideal = _timesync_delays(tmp_path, "--world", "ideal")
     assert set(ideal) == {0.0}
@@ -195,17 +195,18 @@ def test_startup_lines_name_the_world_and_its_overrides():
     assert out.returncode == 0, out.stderr
     lines = out.stdout.splitlines()
     assert lines[0].startswith("firmware_sim listening on udpin:127.0.0.1:")
-    assert lines[1].startswith("firmware_sim world: preset realistic: telemetry 10+-3 ms")
+    assert lines[1].startswith("firmware_sim world: preset realistic: telemetry 0.01+-0.003 s")
     assert "loss 5 %" in lines[1] and "no estimator errors" in lines[1]
     assert lines[1].endswith("overrides: --loss 0.05 --estimator-scale 0")
     helped = subprocess.run([sys.executable, "-m", "firmware_sim", "--help"], capture_output=True,
                             text=True, timeout=30, cwd=REPO)
-    assert "realistic: telemetry 10+-3 ms, commands 5+-3 ms, loss 1 %" in helped.stdout
+    assert "realistic: telemetry 0.01+-0.003 s, commands 0.005+-0.003 s, loss 1 %" in helped.stdout
     assert "--estimator-scale" in helped.stdout
 
 
 @pytest.mark.parametrize("flags", [["--loss", "-0.1"], ["--estimator-scale", "-1"],
-                                   ["--telemetry-jitter-ms", "11"], ["--estimate-latency-ms", "nan"]])
+                                   ["--telemetry-jitter-s", "0.011"], ["--estimate-latency-s", "nan"],
+                                   ["--telemetry-delay-s", "1e6"], ["--rate-latency-ms", "101"]])
 def test_bad_world_flags_give_one_line_and_exit_2(flags):
     r = subprocess.run([sys.executable, "-m", "firmware_sim", *flags], capture_output=True, text=True,
                        timeout=30, cwd=REPO)

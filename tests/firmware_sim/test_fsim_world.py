@@ -56,7 +56,7 @@ def _release_delays(dl: Downlink, n: int, spacing: int, lo: int, hi: int) -> lis
 # ------------------------------------------------------------------ delay lines
 def test_downlink_delay_is_uniform_within_its_jitter():
     """10 +- 3 ms at a fine 0.1 ms period: mean, spread and bounds of a uniform delay."""
-    dl = Downlink(LinkParams(telemetry_delay_ms=10.0, telemetry_jitter_ms=3.0), 10_000, 1, seed=11)
+    dl = Downlink(LinkParams(telemetry_delay_s=0.010, telemetry_jitter_s=0.003), 10_000, 1, seed=11)
     d = np.array(_release_delays(dl, 20_000, 200, 70, 130)) * 0.1     # ms
     sd = 3.0 / math.sqrt(3.0)                                          # of U[-3, 3]
     assert abs(d.mean() - 10.0) < 4.5 * sd / math.sqrt(d.size)
@@ -67,7 +67,7 @@ def test_downlink_delay_is_uniform_within_its_jitter():
 
 def test_downlink_delay_is_quantized_to_the_control_period():
     """At 500 Hz, 10 +- 3 ms is 3.5..6.5 periods: released at the nearest boundary, 8/10/12 ms."""
-    dl = Downlink(LinkParams(telemetry_delay_ms=10.0, telemetry_jitter_ms=3.0), 500, 2, seed=12)
+    dl = Downlink(LinkParams(telemetry_delay_s=0.010, telemetry_jitter_s=0.003), 500, 2, seed=12)
     d = np.array(_release_delays(dl, 9000, 20, 4, 7)) * 2.0
     values, counts = np.unique(d, return_counts=True)
     assert values.tolist() == [8.0, 10.0, 12.0]
@@ -103,7 +103,7 @@ def test_downlink_is_fifo_release_is_max_of_previous_and_own_due_time():
     (``default_rng([seed, 2])``, one uniform per bundle for its delay).
     """
     seed, n = 21, 5000
-    dl = Downlink(LinkParams(telemetry_delay_ms=10.0, telemetry_jitter_ms=10.0), 500, 2, seed)
+    dl = Downlink(LinkParams(telemetry_delay_s=0.010, telemetry_jitter_s=0.010), 500, 2, seed)
     released = []
     for k in range(n + 20):
         if k < n:
@@ -120,7 +120,7 @@ def test_downlink_is_fifo_release_is_max_of_previous_and_own_due_time():
 
 
 def test_uplink_delay_statistics_and_fifo():
-    up = Uplink(LinkParams(command_delay_ms=5.0, command_jitter_ms=3.0), 1000, seed=3)
+    up = Uplink(LinkParams(command_delay_s=0.005, command_jitter_s=0.003), 1000, seed=3)
     dues = []
     for i in range(20_000):
         step = 20 * i                                                 # isolated: no FIFO hold
@@ -131,7 +131,7 @@ def test_uplink_delay_statistics_and_fifo():
     d = np.array(dues)
     assert set(d.tolist()) == {2, 3, 4, 5, 6, 7, 8}                 # 2..8 ms at 1 ms steps
     assert abs(d.mean() - 5.0) < 4.5 * 1.8 / math.sqrt(d.size)
-    up = Uplink(LinkParams(command_delay_ms=5.0, command_jitter_ms=5.0), 1000, seed=4)
+    up = Uplink(LinkParams(command_delay_s=0.005, command_jitter_s=0.005), 1000, seed=4)
     for i in range(2000):
         up.push(i, [i], carries_target=False)
     got = [m[0] for m in up.pop_due(10_000)]
@@ -153,10 +153,10 @@ def make_engine(world, start="z_m=-20", recorder=None):
     return Engine(sim, ap, link, world)
 
 
-@pytest.mark.parametrize("delay_ms, steps", [(3.0, 3), (2.6, 3), (0.4, 0), (7.5, 8)])
-def test_command_acts_at_the_physics_step_where_it_falls_due(tmp_path, delay_ms, steps):
+@pytest.mark.parametrize("delay_s, steps", [(0.003, 3), (0.0026, 3), (0.0004, 0), (0.0075, 8)])
+def test_command_acts_at_the_physics_step_where_it_falls_due(tmp_path, delay_s, steps):
     rec = Recorder(tmp_path / "r.npz")
-    world = build_world("ideal", command_delay_ms=delay_ms)
+    world = build_world("ideal", command_delay_s=delay_s)
     eng = make_engine(world, recorder=rec)
     try:
         for _ in range(5):
@@ -176,7 +176,7 @@ def test_command_acts_at_the_physics_step_where_it_falls_due(tmp_path, delay_ms,
 
 
 def test_commands_and_timesync_go_through_the_same_delay():
-    world = build_world("ideal", command_delay_ms=5.0)
+    world = build_world("ideal", command_delay_s=0.005)
     eng = make_engine(world, start=None)
     replies = []
     eng.link.send = lambda msgs: replies.extend(msgs)
@@ -254,7 +254,7 @@ def _autocorr(x: np.ndarray, lag: int) -> float:
 def test_gauss_markov_errors_have_their_sd_and_decorrelate_as_exp_minus_lag_over_tau():
     dt, lag = 0.002, 5
     tau = lag * dt                                   # the autocorrelation at lag tau is e^-1
-    params = EstimatorParams(latency_ms=0.0, position_sd_m=0.005, position_tau_s=tau,
+    params = EstimatorParams(latency_s=0.0, position_sd_m=0.005, position_tau_s=tau,
                              velocity_sd_m_s=0.02, velocity_tau_s=tau, attitude_sd_deg=0.3,
                              attitude_tau_s=tau, gyro_noise_sd_rad_s=0.005, gyro_bias_sd_rad_s=0.003,
                              gyro_bias_tau_s=tau)
@@ -294,27 +294,27 @@ def test_estimator_scale_multiplies_every_error_sd():
     half = build_world("realistic", estimator_scale=0.5).estimator
     assert half.position_sd_m == 0.0025 and half.velocity_sd_m_s == 0.01
     assert half.attitude_sd_deg == 0.15 and half.gyro_noise_sd_rad_s == 0.0025
-    assert half.gyro_bias_sd_rad_s == 0.0015 and half.latency_ms == base.latency_ms
+    assert half.gyro_bias_sd_rad_s == 0.0015 and half.latency_s == base.latency_s
     assert not build_world("realistic", estimator_scale=0).estimator.has_errors
 
 
 # ------------------------------------------------------------------ presets
 def test_presets_hold_the_documented_values_and_validate_overrides():
     r = PRESETS["realistic"]
-    assert (r.link.telemetry_delay_ms, r.link.telemetry_jitter_ms, r.link.command_delay_ms,
-            r.link.command_jitter_ms, r.link.loss_probability) == (10.0, 3.0, 5.0, 3.0, 0.01)
+    assert (r.link.telemetry_delay_s, r.link.telemetry_jitter_s, r.link.command_delay_s,
+            r.link.command_jitter_s, r.link.loss_probability) == (0.010, 0.003, 0.005, 0.003, 0.01)
     e = r.estimator
-    assert (e.latency_ms, e.position_sd_m, e.position_tau_s, e.velocity_sd_m_s, e.velocity_tau_s,
+    assert (e.latency_s, e.position_sd_m, e.position_tau_s, e.velocity_sd_m_s, e.velocity_tau_s,
             e.attitude_sd_deg, e.attitude_tau_s, e.gyro_noise_sd_rad_s, e.gyro_bias_sd_rad_s,
-            e.gyro_bias_tau_s) == (4.0, 0.005, 0.5, 0.02, 0.2, 0.3, 0.5, 0.005, 0.003, 30.0)
+            e.gyro_bias_tau_s) == (0.004, 0.005, 0.5, 0.02, 0.2, 0.3, 0.5, 0.005, 0.003, 30.0)
     i = PRESETS["ideal"]
-    assert i.link.ideal and not i.estimator.has_errors and i.estimator.latency_ms == 0.0
-    w = build_world("realistic", loss=0.0, command_delay_ms=20.0)
-    assert w.link.loss_probability == 0.0 and w.link.command_delay_ms == 20.0
-    assert w.overrides == (("--command-delay-ms", 20.0), ("--loss", 0.0))
-    for kwargs in ({"loss": 1.01}, {"loss": -0.1}, {"telemetry_delay_ms": 2.0},
-                   {"command_jitter_ms": 6.0}, {"estimate_latency_ms": math.inf},
-                   {"estimator_scale": -1.0}, {"telemetry_delay_ms": 1e6}):
+    assert i.link.ideal and not i.estimator.has_errors and i.estimator.latency_s == 0.0
+    w = build_world("realistic", loss=0.0, command_delay_s=0.020)
+    assert w.link.loss_probability == 0.0 and w.link.command_delay_s == 0.020
+    assert w.overrides == (("--command-delay-s", 0.020), ("--loss", 0.0))
+    for kwargs in ({"loss": 1.01}, {"loss": -0.1}, {"telemetry_delay_s": 0.002},
+                   {"command_jitter_s": 0.006}, {"estimate_latency_s": math.inf},
+                   {"estimator_scale": -1.0}, {"telemetry_delay_s": 1e3}, {"command_delay_s": 1.001}):
         with pytest.raises(ValueError, match="^--"):
             build_world("realistic", **kwargs)
     with pytest.raises(ValueError, match="--preset"):

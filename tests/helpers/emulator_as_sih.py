@@ -7,7 +7,7 @@
 - the ideal world: SIH's gyro is the state of its step (noisy, not delayed), so no estimate
   latency; the mean response is compared, so no estimator errors;
 - the loop at SIH's lockstep rate, ``min(IMU_GYRO_RATEMAX, IMU_INTEG_RATE)`` (250 Hz), a
-  set-point used at the first tick after its receipt (``--rate-latency-ms 0``);
+  set-point used at the first tick after its receipt (``--rate-latency-s 0``);
 - PX4's gains (P, I and D times ``MC_*RATE_K``), integrator limits, filters and ``THR_MDL_FAC``.
 """
 from __future__ import annotations
@@ -41,7 +41,7 @@ def emulator_sih_args(px4_params: dict | None = None) -> list[str]:
     p.update({k: v for k, v in (px4_params or {}).items() if k in p and v is not None})
     rate_hz = int(min(p["IMU_GYRO_RATEMAX"], p["IMU_INTEG_RATE"]))
     args = ["--vehicle-params", str(VEHICLE), "--world", "ideal", "--control-rate-hz", str(rate_hz),
-            "--rate-latency-ms", "0", "--angular-drag-n-m-s-per-rad", f"{p['SIH_KDW']:g}"]
+            "--rate-latency-s", "0", "--angular-drag-n-m-s-per-rad", f"{p['SIH_KDW']:g}"]
     for axis in ("ROLL", "PITCH", "YAW"):
         k = p[f"MC_{axis}RATE_K"]
         for g in ("P", "I", "D"):

@@ -21,7 +21,7 @@ from tests.helpers.sitl import BARREL
 
 pytestmark = pytest.mark.sitl
 
-LOSS10 = "loss=0.1,jitter_ms=5"
+LOSS10 = "loss=0.1,jitter_s=0.005"
 
 
 @pytest.mark.slow          # 16 s; before each release (loss and jitter injected deterministically: tests/unit/test_link_faults.py)
@@ -46,7 +46,7 @@ def test_barrel_roll_near_through_10_percent_loss_and_jitter(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("faults", [None, LOSS10, "loss=0.3,jitter_ms=5"])
+@pytest.mark.parametrize("faults", [None, LOSS10, "loss=0.3,jitter_s=0.005"])
 def test_whole_barrel_roll_through_loss(tmp_path, faults):
     """Completes, lands and disarms: ok in every case (figures in docs/reliability.md)."""
     f = fly_faulted(tmp_path, faults, BARREL, duration_s=90.0, stall_factor=0.0)

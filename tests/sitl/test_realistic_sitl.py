@@ -108,7 +108,7 @@ def test_barrel_roll_on_a_realistic_vehicle(tmp_path, realistic_plan):
 # command delay, both outputs) cover a long link; this is the 50 ms end-to-end check.
 @pytest.mark.slow
 def test_a_50_ms_link_is_flown_on_prediction(tmp_path, realistic_plan):
-    f = _fly(tmp_path, "--emulator-arg=--telemetry-delay-ms=35", "--emulator-arg=--command-delay-ms=15")
+    f = _fly(tmp_path, "--emulator-arg=--telemetry-delay-s=0.035", "--emulator-arg=--command-delay-s=0.015")
     assert f["code"] == 0 and f["summary"]["result"] == "ok", "\n".join(f["lines"][-20:])
     truth, rotors, _ = _maneuver(f, realistic_plan)
     loop = truth["segments"]["loop"]
@@ -157,7 +157,7 @@ def test_without_the_observer_the_drag_throws_the_loop_off(tmp_path, realistic_p
 
 
 def test_a_link_too_slow_for_the_controller_keeps_the_vehicle_on_the_ground(tmp_path):
-    f = _fly(tmp_path, "--emulator-arg=--telemetry-delay-ms=120", "--emulator-arg=--command-delay-ms=30")
+    f = _fly(tmp_path, "--emulator-arg=--telemetry-delay-s=0.12", "--emulator-arg=--command-delay-s=0.03")
     s = f["summary"]
     assert f["code"] == 1 and s["result"] == "failed"
     assert s["failure"]["bound"] == "gate_link_delay" and s["failure"]["phase"] == "preflight"

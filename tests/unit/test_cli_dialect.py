@@ -43,6 +43,12 @@ DIALECT = {
     "JSON on stdout": ("--json", "flag", {"plan", "simulate", "identify"}),
     "gust window": ("--gust-window-s", "s (sim)", {"simulate"}),
     "lockstep speed while no commands stream": ("--lockstep-stall-factor", "x real time", {"firmware-sim"}),
+    "telemetry delay": ("--telemetry-delay-s", "s (sim)", {"firmware-sim"}),
+    "telemetry jitter": ("--telemetry-jitter-s", "s (sim)", {"firmware-sim"}),
+    "command delay": ("--command-delay-s", "s (sim)", {"firmware-sim"}),
+    "command jitter": ("--command-jitter-s", "s (sim)", {"firmware-sim"}),
+    "estimate latency": ("--estimate-latency-s", "s (sim)", {"firmware-sim"}),
+    "rate set-point latency": ("--rate-latency-s", "s (sim)", {"firmware-sim"}),
 }
 """docs/cli.md's table. A command that gains one of these concepts takes this spelling."""
 
@@ -60,6 +66,12 @@ OTHER_SPELLINGS = {
     "custom firmware's mode layout": ("--autopilot-dialect", "--mode-layout", "--modes"),
     "gust window": ("--gust-window",),
     "lockstep speed while no commands stream": ("--lockstep-stall-speed",),
+    "telemetry delay": ("--telemetry-delay-ms", "--telemetry-delay"),
+    "telemetry jitter": ("--telemetry-jitter-ms", "--telemetry-jitter"),
+    "command delay": ("--command-delay-ms", "--command-delay"),
+    "command jitter": ("--command-jitter-ms", "--command-jitter"),
+    "estimate latency": ("--estimate-latency-ms", "--estimate-latency"),
+    "rate set-point latency": ("--rate-latency-ms", "--rate-latency"),
 }
 """Spellings a command must not show: the old ones (hidden aliases for a release) and near misses."""
 
@@ -77,6 +89,14 @@ ALIASES = [
     ("firmware-sim", ["--lockstep-timeout", "3"], ["--lockstep-timeout-s", "3"]),
     ("firmware-sim", ["--offboard-loss-timeout", "0.3"], ["--offboard-loss-timeout-s", "0.3"]),
     ("firmware-sim", ["--system-id", "6"], ["--vehicle-system-id", "6"]),
+    # milliseconds to seconds, exactly in decimal: 9 * 1e-3 and 2.6 * 1e-3 are not the doubles
+    # 0.009 and 0.0026, so a conversion by multiplication would fail the equality below
+    ("firmware-sim", ["--telemetry-delay-ms", "20"], ["--telemetry-delay-s", "0.02"]),
+    ("firmware-sim", ["--telemetry-jitter-ms", "9"], ["--telemetry-jitter-s", "0.009"]),
+    ("firmware-sim", ["--command-delay-ms", "2.6"], ["--command-delay-s", "0.0026"]),
+    ("firmware-sim", ["--command-jitter-ms", "13"], ["--command-jitter-s", "0.013"]),
+    ("firmware-sim", ["--estimate-latency-ms", "1000"], ["--estimate-latency-s", "1"]),
+    ("firmware-sim", ["--rate-latency-ms", "0"], ["--rate-latency-s", "0"]),
 ]
 
 
@@ -156,3 +176,16 @@ def test_a_bad_value_under_an_old_spelling_is_refused_as_under_the_new(capsys):
             _parse("firmware-sim", argv)
         assert exc.value.code == 2
     assert "invalid choice: 'perfect'" in capsys.readouterr().err
+
+
+def _times_not_in_seconds(shown) -> list[str]:
+    return sorted(o for o in shown if o.endswith(("-ms", "-us", "-min", "-millis", "-msec")))
+
+
+def test_every_time_an_option_shows_is_in_seconds():
+    """Issue 31: seconds everywhere, the unit in the name (the old -ms spellings are hidden
+    aliases, tested above)."""
+    assert _times_not_in_seconds(_visible_options()) == []
+    p = Parser(prog="x")                                     # negative control: the check sees one
+    p.add_argument("--telemetry-delay-ms")
+    assert _times_not_in_seconds({o: None for a in p._actions for o in a.option_strings}) == ["--telemetry-delay-ms"]

@@ -176,7 +176,7 @@ def test_firmware_sim_bad_flags_are_one_line_and_a_bug_is_a_traceback(monkeypatc
         err = capsys.readouterr().err.strip().splitlines()
         assert exc.value.code == ExitCode.USAGE and len(err) == 1 and err[0].startswith("firmware-sim: error:")
     # a value only the validators refuse (jitter beyond delay): BadInput, one line
-    assert fcli.main(["--telemetry-jitter-ms", "50", "--listen", "udpin:127.0.0.1:0"]) == ExitCode.USAGE
+    assert fcli.main(["--telemetry-jitter-s", "0.05", "--listen", "udpin:127.0.0.1:0"]) == ExitCode.USAGE
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
 
     def broken(*args, **kwargs):

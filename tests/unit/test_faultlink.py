@@ -142,10 +142,10 @@ def test_same_seed_same_run():
 
 
 def test_parse_faults_and_its_one_line_errors():
-    p = parse_faults("loss=0.1,jitter_ms=5,outage=12:0.5,outage=20:1,corrupt=0.01,seed=3")
+    p = parse_faults("loss=0.1,jitter_s=0.005,outage=12:0.5,outage=20:1,corrupt=0.01,seed=3")
     assert (p.loss, p.jitter_s, p.outages, p.corrupt, p.seed) == (0.1, 0.005, ((12.0, 0.5), (20.0, 1.0)), 0.01, 3)
     for bad, needle in (("lose=0.1", "unknown key"), ("loss=abc", "not a number"), ("loss=2", "probability"),
-                        ("loss", "KEY=VALUE"), ("jitter_ms=nan", "seconds"), ("outage=1", "not a number")):
+                        ("loss", "KEY=VALUE"), ("jitter_s=nan", "seconds"), ("delay_s=61", "seconds"), ("jitter_ms=x", "not a number"), ("outage=1", "not a number")):
         with pytest.raises(ValueError, match=needle) as e:
             parse_faults(bad)
         assert "\n" not in str(e.value)
@@ -203,3 +203,18 @@ def test_udp_proxy_forwards_both_ways_with_its_faults():
     assert len(got_down) == proxy.down.counters.released == 400 - proxy.down.counters.lost
     assert 150 < len(got_down) < 250
     assert got_down == sorted(got_down, key=lambda d: int(d[2:]))
+
+
+def test_the_old_keys_in_ms_give_the_seconds_keys_doubles_and_a_one_line_notice(recwarn):
+    """``jitter_ms=9`` is ``jitter_s=0.009`` bit for bit (9 * 1e-3 is not: the conversion is
+    decimal), for one release, with a notice naming the key in seconds."""
+    new = parse_faults("delay_s=0.013,jitter_s=0.009,reorder=0.1,reorder_s=0.0026,duplicate=0.1,dup_gap_s=0.02")
+    assert len(recwarn) == 0
+    notices: list = []
+    old = parse_faults("delay_ms=13,jitter_ms=9,reorder=0.1,reorder_ms=2.6,duplicate=0.1,dup_gap_ms=20",
+                       on_deprecated=notices.append)
+    assert old == new and 9 * 1e-3 != new.jitter_s           # negative control: the naive product
+    assert notices == [f"link faults key {k}_ms is deprecated and goes in the next release; use {k}_s (seconds)"
+                       for k in ("delay", "jitter", "reorder", "dup_gap")]
+    with pytest.warns(DeprecationWarning, match="jitter_ms is deprecated.*use jitter_s"):
+        assert parse_faults("jitter_ms=5").jitter_s == 0.005

@@ -34,10 +34,10 @@ def test_the_matrix_is_the_documented_one():
     assert [by[n].gust_place for n in groups["gust"]] == list(GUST_PLACES)
     assert [by[n].saturation_n for n in groups["rotors"]] == [8.5, 7.0]
     assert by["mismatch"].mismatch and by["mismatch"].emulator_args == ()
-    assert by["rtt-000ms"].emulator_args == ("--telemetry-delay-ms=0", "--telemetry-jitter-ms=0",
-                                             "--command-delay-ms=0", "--command-jitter-ms=0")
-    assert by["rtt-060ms"].emulator_args == ("--telemetry-delay-ms=30", "--telemetry-jitter-ms=5",
-                                             "--command-delay-ms=30", "--command-jitter-ms=5")
+    assert by["rtt-000ms"].emulator_args == ("--telemetry-delay-s=0", "--telemetry-jitter-s=0",
+                                             "--command-delay-s=0", "--command-jitter-s=0")
+    assert by["rtt-060ms"].emulator_args == ("--telemetry-delay-s=0.03", "--telemetry-jitter-s=0.005",
+                                             "--command-delay-s=0.03", "--command-jitter-s=0.005")
     assert len(groups["delay"]) == 4
     assert by["loss-5pct"].emulator_args == ("--loss=0.05",)
     assert by["no-timesync"].emulator_args == ("--no-timesync",)
@@ -117,7 +117,7 @@ def test_each_flight_flies_the_default_controller_on_the_realistic_world_with_it
     assert f"--emulator-arg=--mismatch-seed={by['mismatch'].mismatch_seed}" in mm
     assert fly_command(by["maneuver-slalom"], files, tmp_path / "r")[4].endswith("slalom.yaml")
     rtt = fly_command(by["rtt-040ms"], files, tmp_path / "r")
-    assert "--emulator-arg=--telemetry-delay-ms=20" in rtt and "--emulator-arg=--command-jitter-ms=5" in rtt
+    assert "--emulator-arg=--telemetry-delay-s=0.02" in rtt and "--emulator-arg=--command-jitter-s=0.005" in rtt
 
 
 def test_a_gust_window_starts_at_its_own_seeds_reference(tmp_path):

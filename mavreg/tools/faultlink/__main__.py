@@ -3,7 +3,7 @@
 Example (10 % loss and 0-5 ms jitter both ways, a 0.5 s outage 30 s after the start)::
 
     python -m mavreg.tools.faultlink --listen 127.0.0.1:14600 --vehicle 127.0.0.1:14540 \\
-        --both loss=0.1,jitter_ms=5 --both outage=30:0.5 --seed 7
+        --both loss=0.1,jitter_s=0.005 --both outage=30:0.5 --seed 7
     mavreg fly maneuver.yaml --vehicle udpout:127.0.0.1:14600 ...
 
 Prints the counters of each direction every ``--report-s`` seconds and on exit (Ctrl-C).
@@ -53,8 +53,11 @@ def _line(name: str, counters) -> str:
 
 async def _run(args) -> None:
     listen, vehicle = _addr(args.listen, "--listen"), _addr(args.vehicle, "--vehicle")
-    up = parse_faults(",".join(args.both + args.up), seed=args.seed)
-    down = parse_faults(",".join(args.both + args.down), seed=args.seed)
+    notices: list = []
+    up = parse_faults(",".join(args.both + args.up), seed=args.seed, on_deprecated=notices.append)
+    down = parse_faults(",".join(args.both + args.down), seed=args.seed, on_deprecated=notices.append)
+    for notice in dict.fromkeys(notices):
+        print(f"faultlink: warning: {notice}", file=sys.stderr, flush=True)
     proxy = await start_proxy(listen, vehicle, up, down)
     print(f"faultlink listening on {proxy.listen_addr[0]}:{proxy.listen_addr[1]} -> "
           f"{vehicle[0]}:{vehicle[1]}", flush=True)

@@ -37,8 +37,10 @@ The line counts what it did (:class:`FaultCounters`).
 from __future__ import annotations
 
 import heapq
+import decimal
 import math
 import random
+import warnings
 from dataclasses import dataclass, fields
 from typing import Any, Callable
 
@@ -250,17 +252,31 @@ class FaultLine:
         return len(self._heap)
 
 
-_MS_KEYS = {"delay_ms": "delay_s", "jitter_ms": "jitter_s", "reorder_ms": "reorder_s", "dup_gap_ms": "dup_gap_s"}
-SPEC_KEYS = tuple(sorted({f.name for f in fields(FaultParams)} - {"outages", "delay_s", "jitter_s", "reorder_s",
-                                                                   "dup_gap_s"} | set(_MS_KEYS) | {"outage"}))
+_SECONDS = ("delay_s", "jitter_s", "reorder_s", "dup_gap_s")
+_MS_KEYS = {f"{name[:-2]}_ms": name for name in _SECONDS}
+"""The keys in milliseconds of before issue 31, for one release: converted exactly, with a notice."""
+SPEC_KEYS = tuple(sorted({f.name for f in fields(FaultParams)} - {"outages"} | {"outage"}))
 
 
-def parse_faults(text: str, **defaults) -> FaultParams:
-    """``"loss=0.1,jitter_ms=5,outage=12.0:0.5"`` -> :class:`FaultParams`.
+def _ms_to_s(raw: str) -> float:
+    """Milliseconds as text to seconds, exactly in decimal (``"9"`` -> 0.009, which
+    ``9 * 1e-3`` is not): a key in ms and its key in s give the same double."""
+    try:
+        value = decimal.Decimal(raw.strip())
+    except decimal.InvalidOperation:
+        raise ValueError(raw) from None
+    return float(value * decimal.Decimal("1e-3"))
 
-    Keys are the field names of :class:`FaultParams` (times as ``*_ms`` in milliseconds);
+
+def parse_faults(text: str, *, on_deprecated: Callable[[str], Any] | None = None, **defaults) -> FaultParams:
+    """``"loss=0.1,jitter_s=0.005,outage=12.0:0.5"`` -> :class:`FaultParams`.
+
+    Keys are the field names of :class:`FaultParams` (times in seconds, ``*_s``);
     ``outage=START_S:DURATION_S`` may be repeated. ``defaults`` are field values used
-    where the text gives none (e.g. ``seed``, ``corrupt_from``).
+    where the text gives none (e.g. ``seed``, ``corrupt_from``). The keys in milliseconds
+    of before (``delay_ms``, ``jitter_ms``, ``reorder_ms``, ``dup_gap_ms``) still work for
+    one release, divided by 1000 exactly; each use calls ``on_deprecated`` with a one-line
+    notice (default: a :class:`DeprecationWarning`).
 
     Raises
     ------
@@ -280,10 +296,12 @@ def parse_faults(text: str, **defaults) -> FaultParams:
                 start, _, dur = raw.partition(":")
                 outages.append((float(start), float(dur)))
             elif key in _MS_KEYS:
-                values[_MS_KEYS[key]] = float(raw) * 1e-3
+                values[_MS_KEYS[key]] = _ms_to_s(raw)
+                _deprecated(f"link faults key {key} is deprecated and goes in the next release; use "
+                            f"{_MS_KEYS[key]} (seconds)", on_deprecated)
             elif key in ("corrupt_bits", "corrupt_from", "seed"):
                 values[key] = int(raw)
-            elif key in names and key != "outages" and key not in _MS_KEYS.values():
+            elif key in names and key != "outages":
                 values[key] = float(raw)
             else:
                 raise KeyError(key)
@@ -292,3 +310,10 @@ def parse_faults(text: str, **defaults) -> FaultParams:
         except ValueError:
             raise ValueError(f"link faults: {key[:30]}={raw[:30]!r} is not a number") from None
     return FaultParams(outages=tuple(outages), **values)
+
+
+def _deprecated(notice: str, on_deprecated) -> None:
+    if on_deprecated is None:
+        warnings.warn(notice, DeprecationWarning, stacklevel=3)
+    else:
+        on_deprecated(notice)
