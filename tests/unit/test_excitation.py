@@ -122,9 +122,9 @@ def test_leaving_the_hold_cuts_the_excitation_short_and_says_so():
     sup = Supervisor(with_output(load_vehicle(DEFAULT_VEHICLE), "rates"),
                      SupervisorParams(excitation=ExcitationParams()), lambda plan: None)
     ctx, out = sup.ctx, Output()
-    ctx.phase, ctx.excitation_start_vehicle_s, ctx.rate_excitation = Phase.HOLD, 1.0, RateStep(0, 0.5)
+    ctx.phase, ctx.excitation.start_vehicle_s, ctx.excitation.rate_step = Phase.HOLD, 1.0, RateStep(0, 0.5)
     sup.flight.set_phase(out, Phase.RECOVER, "a bound")
-    assert ctx.rate_excitation is None and ctx.excitation_end_vehicle_s is not None
+    assert ctx.excitation.rate_step is None and ctx.excitation.end_vehicle_s is not None
     ends = [e for e in out.events if e.kind == "excitation"]
     assert len(ends) == 1 and ends[0].detail.startswith("end: cut short")
     texts = [m.text for m in out.messages if m.get_type() == "STATUSTEXT"]
