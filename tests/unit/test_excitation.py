@@ -11,7 +11,7 @@ import pytest
 from mavreg.cli.main import main
 from mavreg.config.paths import DEFAULT_VEHICLE, PARAMS_DIR
 from mavreg.config.vehicle import load_vehicle, with_output
-from mavreg.daemon.flight.excitation import MAX_TURN_RAD, ExcitationParams
+from mavreg.daemon.flight.excitation import MAX_TURN_RAD, ExcitationParams, RateStep
 from mavreg.daemon.flight.output import RateOutput
 from mavreg.daemon.vehicle.peers import VehicleIds
 from mavreg.daemon.flight.supervisor import Supervisor, SupervisorParams
@@ -97,11 +97,11 @@ def test_the_pulse_goes_out_as_a_clean_step_on_its_axis(path):
     for k in range(50):
         t = 0.002 * k
         r0, th0 = plain.command(forces, x, t)
-        r1, th1 = excited.command(forces, x, t, excitation=(1, -0.6))
+        r1, th1 = excited.command(forces, x, t, excitation=RateStep(1, -0.6))
         assert r1[1] == -0.6 and th1 == th0
         np.testing.assert_allclose(r1[[0, 2]], r0[[0, 2]], rtol=0, atol=1e-12)
         assert abs(r0[1] + 0.6) > 0.3
-    msg = excited.message(1.0, 0.1, forces, x, (2, 0.6))
+    msg = excited.message(1.0, 0.1, forces, x, RateStep(2, 0.6))
     assert msg.body_yaw_rate == pytest.approx(0.6)
 
 
@@ -111,7 +111,7 @@ def test_a_pulse_is_clipped_to_the_files_rate_limit():
     vehicle = dataclasses.replace(base, rate_interface=ri)
     out = RateOutput(vehicle, VehicleIds(1))
     forces = np.full(4, vehicle.mass_kg * 9.81 / 4)
-    rates, _ = out.command(forces, np.zeros(12), 0.0, excitation=(0, 0.6))
+    rates, _ = out.command(forces, np.zeros(12), 0.0, excitation=RateStep(0, 0.6))
     assert rates[0] == 0.5
 
 
@@ -122,9 +122,9 @@ def test_leaving_the_hold_cuts_the_excitation_short_and_says_so():
     sup = Supervisor(with_output(load_vehicle(DEFAULT_VEHICLE), "rates"),
                      SupervisorParams(excitation=ExcitationParams()), lambda plan, rotor_lag: None)
     ctx, out = sup.ctx, Output()
-    ctx.phase, ctx.excitation_start_vehicle_s, ctx.rate_excitation = Phase.HOLD, 1.0, (0, 0.5)
+    ctx.phase, ctx.excitation.start_vehicle_s, ctx.excitation.rate_step = Phase.HOLD, 1.0, RateStep(0, 0.5)
     sup.flight.set_phase(out, Phase.RECOVER, "a bound")
-    assert ctx.rate_excitation is None and ctx.excitation_end_vehicle_s is not None
+    assert ctx.excitation.rate_step is None and ctx.excitation.end_vehicle_s is not None
     ends = [e for e in out.events if e.kind == "excitation"]
     assert len(ends) == 1 and ends[0].detail.startswith("end: cut short")
     texts = [m.text for m in out.messages if m.get_type() == "STATUSTEXT"]

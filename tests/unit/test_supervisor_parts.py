@@ -82,3 +82,39 @@ def test_violation_and_outcome_read_as_one_line():
                                                                                                  math.nan)
     assert g.describe() == "gate_autopilot in preflight; HEARTBEAT of an autopilot not spoken to"
     assert not g.impact and math.isnan(g.s_m)
+
+
+def undeclared_parts(cls, sup) -> list[str]:
+    """The flight's parts (:class:`FlightParts`) that ``cls`` does not declare with the part's
+    annotation, or that ``sup`` (an instance) does not hold as that very part."""
+    import dataclasses
+
+    from mavreg.daemon.flight.context import FlightParts
+    declared = {k: v for c in reversed(cls.__mro__) for k, v in getattr(c, "__annotations__", {}).items()}
+    found = []
+    for f in dataclasses.fields(FlightParts):
+        if declared.get(f.name) != f.type:
+            found.append(f"{f.name}: not declared as {f.type}")
+        elif getattr(sup, f.name, None) is not getattr(sup.parts, f.name):
+            found.append(f"{f.name}: not the flight's part")
+    return found
+
+
+def test_the_supervisor_declares_each_of_its_parts():
+    """Each part is an annotated attribute of the supervisor (editors and type checkers see
+    ``sup.forecaster``), and is the flight's own part, not a copy."""
+    from mavreg.daemon.flight.supervisor import Supervisor
+    sup = make_supervisor(FakePlan())
+    assert Supervisor.__annotations__["parts"] == "FlightParts"
+    assert undeclared_parts(Supervisor, sup) == []
+
+
+def test_the_parts_check_sees_a_part_undeclared_or_not_the_flights():
+    from mavreg.daemon.flight.supervisor import Supervisor
+
+    class Partial:
+        __annotations__ = {k: v for k, v in Supervisor.__annotations__.items() if k != "gate"}
+    sup = make_supervisor(FakePlan())
+    assert undeclared_parts(Partial, sup) == ["gate: not declared as HealthGate"]
+    sup.monitor = object()
+    assert undeclared_parts(Supervisor, sup) == ["monitor: not the flight's part"]

@@ -59,7 +59,7 @@ def gust(sup, start, axis, accel_m_s2, duration_s):
 
 
 def in_maneuver(sup):
-    return sup.phase == Phase.MANEUVER and sup.ctx.s_m > 1.0 and sup.ctx.recoveries == 0
+    return sup.phase == Phase.MANEUVER and sup.ctx.s_m > 1.0 and sup.ctx.recovery.count == 0
 
 
 def test_push_off_the_path_recovers_then_lands():
@@ -145,7 +145,7 @@ def test_a_recovery_that_does_not_settle_in_time_lands_with_the_recovery_control
     landing_status = []
 
     def hook(v, msgs):
-        if sup.ctx.recovery_landing and sup.phase == Phase.LAND:
+        if sup.ctx.recovery.landing and sup.phase == Phase.LAND:
             landing_status.append(sup.heartbeat().system_status)   # the daemon says it is in trouble
         return shove(v, msgs)
     events, logs, sent = run(sup, veh, 60.0, hook)
@@ -155,7 +155,7 @@ def test_a_recovery_that_does_not_settle_in_time_lands_with_the_recovery_control
     assert "recovery not settled" in land.detail and "recovery_timeout" in land.detail
     assert _phases(events)[-2:] == [Phase.LAND, Phase.DISARMED]
     assert sup.failure.bound == "position_error" and "landing (recovery controller)" in sup.failure.action
-    assert sup.ctx.touchdown_speed_m_s is not None and sup.ctx.touchdown_speed_m_s < 0.5
+    assert sup.ctx.landing.touchdown_speed_m_s is not None and sup.ctx.landing.touchdown_speed_m_s < 0.5
     assert not veh.armed and abs(veh.x[2]) < 1e-9
     down = np.array([r.x[2] for r in logs if r.phase == Phase.LAND])
     assert down.min() < -1.0 and len(_actuators(sent, after_ms=round(land.time_s * 1000))) > 500
@@ -256,7 +256,7 @@ def test_serve_recovers_then_holds_and_waits_for_an_upload():
     veh = SimVehicle()
     _, shove = gust(sup, in_maneuver, 1, 3.0, 3.0)
     events, _, _ = run(sup, veh, 20.0, shove)
-    assert sup.phase == Phase.HOLD and sup.ctx.recoveries == 1 and veh.armed
+    assert sup.phase == Phase.HOLD and sup.ctx.recovery.count == 1 and veh.armed
     assert sup.failure.action.endswith("holding")
     # a new upload is flown from there (after the gate)
     sup.offer_plan(FakePlan(name="again", start=(veh.x[0] + 1.0, veh.x[1], -2.5)), veh.t_ms / 1000)

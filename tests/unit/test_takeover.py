@@ -44,7 +44,7 @@ def test_an_airborne_vehicle_is_taken_over_with_matching_set_points_and_landed()
     assert phases[-1] == Phase.DISARMED
     arms = [m for _, m in _commands(sent, mavlink2.MAV_CMD_COMPONENT_ARM_DISARM)]
     assert not any(m.param1 == 1.0 for m in arms)                  # never armed
-    assert sup.ctx.touchdown_speed_m_s is not None and sup.ctx.touchdown_speed_m_s < 1.0
+    assert sup.ctx.landing.touchdown_speed_m_s is not None and sup.ctx.landing.touchdown_speed_m_s < 1.0
     first_disarm = min(t for t, m in _commands(sent, mavlink2.MAV_CMD_COMPONENT_ARM_DISARM))
     touchdown = [e for e in events if e.kind == "touchdown"][0]
     assert first_disarm / 1000 >= touchdown.time_s                     # no disarm before the ground

@@ -155,24 +155,74 @@ def test_a_quick_reboot_in_the_air_seen_by_its_clock_first_is_a_loss():
     assert not [t for t, m in sent if m.get_type() == "SET_ACTUATOR_CONTROL_TARGET" and t >= 8000]
 
 
-def test_forgetting_the_boot_resets_every_field_on_the_vehicles_clock_and_keeps_the_rest():
-    """Every ``*_vehicle_s`` field of the context, and what the vehicle said in its last boot,
-    go back to a fresh context's values; the flight's own state (its queue, its outcome) stays."""
+def _leaves(obj, prefix: str = "") -> dict:
+    """Every field of a context, nested groups opened: dotted path -> value."""
     import dataclasses
-    import math
+    found = {}
+    for f in dataclasses.fields(obj):
+        v = getattr(obj, f.name)
+        if dataclasses.is_dataclass(v):
+            found.update(_leaves(v, f"{prefix}{f.name}."))
+        else:
+            found[prefix + f.name] = v
+    return found
 
-    from mavreg.daemon.flight.context import BOOT_KEYED, FlightContext
-    fresh, ctx = FlightContext(), FlightContext()
-    names = [f.name for f in dataclasses.fields(ctx)]
-    on_clock = {n for n in names if n.endswith("_vehicle_s")}
-    assert on_clock and on_clock <= BOOT_KEYED and {"vehicle_status", "last_sample"} <= BOOT_KEYED
-    for n in names:
-        setattr(ctx, n, 12.5 if n.endswith("_s") else "set")
-    ctx.forget_boot()
-    for n in names:
-        want = getattr(fresh, n) if n in BOOT_KEYED else (12.5 if n.endswith("_s") else "set")
-        got = getattr(ctx, n)
-        assert got == want or (isinstance(want, float) and math.isnan(want) and math.isnan(got)), n
+
+def _set_everywhere(obj, value_of) -> None:
+    import dataclasses
+    for f in dataclasses.fields(obj):
+        v = getattr(obj, f.name)
+        if dataclasses.is_dataclass(v):
+            _set_everywhere(v, value_of)
+        else:
+            setattr(obj, f.name, value_of(f.name))
+
+
+BOOT_KEYED = {"commands.arm_requested", "commands.ground_end_wall_s"}
+"""Beside what the vehicle said (``heard.*``) and every ``*_vehicle_s``: what it was asked."""
+
+
+def reboot_findings(context_cls) -> list[str]:
+    """The fields ``context_cls().after_reboot()`` gets wrong: one keyed to the old boot (every
+    ``*_vehicle_s``, what the vehicle said, what it was asked) kept, or one of the flight's own lost."""
+    import math
+    fresh, ctx = _leaves(context_cls()), context_cls()
+    _set_everywhere(ctx, lambda n: 12.5 if n.endswith("_s") else "set")
+    after = _leaves(ctx.after_reboot())
+    found = [f"{n}: missing" for n in fresh.keys() - after.keys()]
+    for n, got in sorted(after.items()):
+        boot = n.endswith("_vehicle_s") or n.startswith("heard.") or n in BOOT_KEYED
+        want = fresh[n] if boot else (12.5 if n.endswith("_s") else "set")
+        if not (got == want or (isinstance(want, float) and math.isnan(want) and math.isnan(got))):
+            found.append(f"{n}: {'kept across' if boot else 'lost in'} a reboot")
+    return found
+
+
+def test_the_context_after_a_reboot_is_fresh_on_the_old_boot_and_keeps_the_rest():
+    """Every ``*_vehicle_s`` field of the context, what the vehicle said in its last boot and what
+    it was asked go back to a fresh context's values; the flight's own state (its queue, its
+    outcome) stays. A field added later is fresh unless :meth:`FlightContext.after_reboot` keeps it."""
+    from mavreg.daemon.flight.context import FlightContext
+    names = _leaves(FlightContext()).keys()
+    assert {"heard.status", "heard.last_sample", "landing.spool_down_start_vehicle_s", "pending"} <= names
+    assert reboot_findings(FlightContext) == []
+
+
+def test_the_reboot_check_sees_a_field_kept_on_the_old_clock_or_one_lost():
+    """Negative controls: a rebuild that keeps a field of the old clock, or loses the queue, fails."""
+    import dataclasses
+
+    from mavreg.daemon.flight.context import FlightContext
+
+    class Keeps(FlightContext):
+        def after_reboot(self):
+            return dataclasses.replace(super().after_reboot(), phase_start_vehicle_s=self.phase_start_vehicle_s)
+
+    class Loses(FlightContext):
+        def after_reboot(self):
+            return dataclasses.replace(super().after_reboot(), pending=[])
+    assert reboot_findings(Keeps) == ["phase_start_vehicle_s: kept across a reboot"]
+    assert reboot_findings(Loses) == ["pending: lost in a reboot"]
 
 
 def test_a_reboot_in_the_air_that_ends_the_flight_is_named_by_the_next_flight_of_the_same_daemon():

@@ -2,32 +2,38 @@
 
 - :class:`FlightContext`: the mutable state of one flight, read and written by the phase
   handlers (:mod:`mavreg.daemon.flight.handlers`, :mod:`mavreg.daemon.flight.hover_phases`), the safety
-  policy (:mod:`mavreg.daemon.flight.safety`) and the supervisor (:mod:`mavreg.daemon.flight.supervisor`)
-  through :class:`mavreg.daemon.flight.verbs.Flight`.
+  policy (:mod:`mavreg.daemon.flight.safety`), the messages in (:mod:`mavreg.daemon.flight.inbox`) and
+  the supervisor (:mod:`mavreg.daemon.flight.supervisor`) through :class:`mavreg.daemon.flight.verbs.Flight`.
+  Its fields are grouped by owner where that reads better (:class:`Heard`, :class:`Commands`,
+  :class:`Landing`, :class:`RecoveryState`, :class:`ExcitationState`); each field's docstring names
+  the module that writes it (``Writer:``), or the modules that share it and why (``Writers: ...;
+  shared: ...``): ``tests/unit/test_flight_context.py`` holds the source to it.
 - :class:`FlightParts`: the collaborators each flight is built of (controllers, monitor,
   gate, timing, output), made once by :meth:`FlightParts.build`.
 
 Two clocks, named by domain in every field: ``*_vehicle_s`` is the vehicle's time
 (``time_boot_ms`` of its samples: spool-up, ramps, holds, command retries; a lockstep emulator
 flies the same flight at any speed); ``*_wall_s`` is the injected monotonic clock of the
-daemon (link health, the forced-disarm retries).
+daemon (link health, the forced-disarm retries). A vehicle that reboots on the ground starts its
+clock again: :meth:`FlightContext.after_reboot` is a fresh context that keeps only what
+survives it, stated there in one place.
 """
 from __future__ import annotations
 
 import collections
-import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import TYPE_CHECKING, Callable, NamedTuple
 
 from ...config.defaults import CONTROL_RATE_HZ
 from ...config.envelope import EnvelopeParams
 from ...config.vehicle import VehicleParams
 from ...control.estimation.forecast import Forecast, Forecaster
-from ...control.controllers.hover import HoverController
+from ...control.controllers.hover import HoverController, Ramp
 from ...control.controllers.recovery import RecoveryController
 from .delays import ActuationDelay
-from .gate import HealthGate
+from .excitation import RateStep
+from .gate import HealthGate, NominalPoints
 from ..vehicle.messages import VehicleStatus
 from .monitor import EnvelopeMonitor
 from .output import RateOutput, RotorOutput, command_output
@@ -39,110 +45,193 @@ from .records import Outcome
 from .state import StateAssembler, StateSample
 from ..vehicle.timesync import TimesyncEstimator
 
-__all__ = ["BOOT_KEYED", "FlightContext", "FlightParts"]
+if TYPE_CHECKING:
+    from ...control.controllers.regulator import ManeuverRegulator
+    from ...maneuver.plan import Plan
 
-BOOT_KEYED_BESIDES_THE_CLOCK = ("vehicle_status", "landed_state", "last_sample", "last_sample_wall_s", "forecast",
-                                "arm_requested", "ground_end_wall_s")
-"""What the vehicle said or was asked in its last boot, beside its clock's fields."""
+__all__ = ["Queued", "Flying", "DescentPoint", "Heard", "Commands", "Landing", "RecoveryState",
+           "ExcitationState", "FlightContext", "FlightParts"]
+
+
+class Queued(NamedTuple):
+    """A maneuver accepted and queued, not yet flown."""
+
+    plan: Plan
+    regulator: ManeuverRegulator
+    points: NominalPoints
+    """Its nominal path, sampled once for the envelope's checks (:func:`~mavreg.daemon.flight.gate.nominal_points`)."""
+
+
+class Flying(NamedTuple):
+    """The maneuver in run-in or maneuver."""
+
+    plan: Plan
+    regulator: ManeuverRegulator
+
+
+class DescentPoint(NamedTuple):
+    """One sample of the landing's last second (:func:`~mavreg.daemon.flight.hover_phases.touched_down`)."""
+
+    t_vehicle_s: float
+    down_m_s: float
+    """NED down velocity (descending: positive)."""
+
+
+@dataclass
+class Heard:
+    """What the vehicle said in its current boot: all forgotten when it reboots."""
+
+    status: VehicleStatus | None = None
+    """Its last HEARTBEAT (None: none yet). Writer: inbox."""
+    landed_state: int | None = None
+    """Its MAV_LANDED_STATE (EXTENDED_SYS_STATE; None: none heard). Writer: inbox."""
+    last_sample: StateSample | None = None
+    """The last complete state sample. Writer: supervisor."""
+    last_sample_wall_s: float | None = None
+    """When it came (injected clock). Writer: supervisor."""
+    forecast: Forecast | None = None
+    """The last sample predicted across the delay: the state the controllers act on. Writer: verbs."""
+    stream_start_vehicle_s: float | None = None
+    """The first sample's time on the ground: the idle stream began (None: not streaming). Writer: handlers."""
+
+
+@dataclass
+class Commands:
+    """The commands asked of the vehicle and their retries."""
+
+    last_command_vehicle_s: float = -math.inf
+    """When the last ARM / DO_SET_MODE / DISARM went out (retries). Writer: verbs."""
+    arm_requested: bool = False
+    """An ARM request went out (a refusal on the ground then sends one more disarm). Writer: handlers."""
+    ground_end_wall_s: float | None = None
+    """The flight began to end on the ground with the vehicle armed (None: it has not). Writer: safety."""
+    terminate_start_wall_s: float = 0.0
+    """The forced disarm began (motors stopped after an impact). Writer: safety."""
+    disarm_sent_wall_s: float = -math.inf
+    """The last forced disarm went out (its retries). Writer: safety."""
+
+
+@dataclass
+class Landing:
+    """The landing asked for, and its touchdown."""
+
+    requested: bool = False
+    """Land after the current maneuver, or end on the ground before take-off.
+    Writers: supervisor, handlers, safety; shared: a land request (supervisor), a takeover told to
+    land (handlers) and a flight ending on the ground (safety) each ask for it."""
+    mode_requested: bool = False
+    """The autopilot's own landing mode was asked for after touchdown. Writer: hover_phases."""
+    descent: collections.deque[DescentPoint] = field(default_factory=collections.deque)
+    """The last second before touchdown (appended by ``touched_down``). Writer: hover_phases."""
+    touchdown_speed_m_s: float | None = None
+    """The fastest descent of the second before touchdown (None: not touched down). Writer: hover_phases."""
+    spool_down_start_vehicle_s: float | None = None
+    """Touchdown: the rotors spool down from here (None: not touched down). Writer: hover_phases."""
+
+
+@dataclass
+class RecoveryState:
+    """The recovery controller's flights."""
+
+    count: int = 0
+    """Recoveries begun. Writer: safety."""
+    landing: bool = False
+    """The recovery controller is landing the vehicle (phase LAND). Writer: safety."""
+    noted_bounds: set[str] = field(default_factory=set)
+    """Bounds already announced while the recovery controller flies. Writer: safety."""
+    settled_since_vehicle_s: float | None = None
+    """Level, slow and at its altitude since (None: not settled).
+    Writers: handlers, safety; shared: the recover handler times the settling, and a recovery
+    begun (safety) starts it from unsettled."""
+
+
+@dataclass
+class ExcitationState:
+    """The identification excitation (:mod:`mavreg.daemon.flight.excitation`), flown once per flight."""
+
+    start_vehicle_s: float | None = None
+    """It began (None: not yet, or none asked for). Writer: hover_phases."""
+    end_vehicle_s: float | None = None
+    """It ended, finished or cut short (None: not yet).
+    Writers: hover_phases, verbs; shared: the hold ends it, and any change of phase cuts it short."""
+    rate_step: RateStep | None = None
+    """The rate the hold's excitation puts on the next rate command (None: none).
+    Writers: hover_phases, verbs; shared: the hold sets it each sample, and a change of phase clears it."""
 
 
 @dataclass
 class FlightContext:
-    """The state of one flight that the supervisor's parts share."""
+    """The state of one flight that the supervisor's parts share (see the module docstring)."""
 
     phase: Phase = Phase.PREFLIGHT
+    """Writer: verbs."""
     reason: str = ""
-    """Why the flight ended early (aborted, refused), in one line."""
+    """Why the flight ended early (aborted, refused), in one line.
+    Writers: verbs, safety; shared: an abort keeps its first detail, a hand-over states its own."""
     failure: Outcome | None = None
-    """The first bound violated, with every action taken since (None: none yet)."""
-    vehicle_status: VehicleStatus | None = None
-    last_sample: StateSample | None = None
-    forecast: Forecast | None = None
-    """The last sample predicted across the delay: the state the controllers act on."""
-
-    # the daemon's injected (wall, monotonic) clock
-    now_wall_s: float = 0.0
-    """The injected clock at the message, tick or gap being handled."""
-    last_sample_wall_s: float | None = None
-    last_tick_wall_s: float | None = None
-    terminate_start_wall_s: float = 0.0
-    disarm_sent_wall_s: float = -math.inf
-
-    # the vehicle's clock
-    stream_start_vehicle_s: float | None = None
-    """The first sample's time: the idle stream began."""
-    last_command_vehicle_s: float = -math.inf
-    """When the last ARM / DO_SET_MODE / DISARM went out (retries)."""
-    phase_start_vehicle_s: float = 0.0
-    ramp_start_vehicle_s: float = 0.0
-    spool_down_start_vehicle_s: float | None = None
-    """Touchdown: the rotors spool down from here (None: not touched down)."""
-    settled_since_vehicle_s: float | None = None
-    """The recovery has been level, slow and at its altitude since (None: not settled)."""
-    gate_wait_start_vehicle_s: float | None = None
-    """The health gate first failed in this hold (None: it has not)."""
-    excitation_start_vehicle_s: float | None = None
-    """The identification excitation began (None: not yet, or none asked for)."""
-    excitation_end_vehicle_s: float | None = None
-    """It ended, finished or cut short (None: not yet); it is flown once per flight."""
-    rate_excitation: tuple | None = None
-    """(axis, rate rad/s) the hold's excitation puts on the next rate command (None: none)."""
-
-    # the maneuvers
-    pending: list = field(default_factory=list)
-    """(plan, regulator, nominal points) queued, not yet flown."""
-    active: tuple | None = None
-    """(plan, regulator) in run-in or maneuver."""
-    maneuvers_done: list = field(default_factory=list)
-    s_m: float = math.nan
-    """Arc length in the maneuver (NaN elsewhere)."""
-    ramps: list = field(default_factory=list)
-    """The hover references still to fly (take-off, hold, run-in, landing), the first one current."""
-    ground_z_m: float = 0.0
-    """NED down of the take-off point."""
-
-    # the landing
-    landed_state: int | None = None
-    """The autopilot's MAV_LANDED_STATE (EXTENDED_SYS_STATE; None: none heard)."""
-    land_requested: bool = False
-    arm_requested: bool = False
-    """An ARM request went out (a refusal on the ground then sends one more disarm)."""
-    ground_end_wall_s: float | None = None
-    """The flight began to end on the ground with the vehicle armed (None: it has not)."""
-    land_mode_requested: bool = False
-    descent: collections.deque = field(default_factory=collections.deque)
-    """(vehicle time s, down velocity m/s) of the last 0.3 s before touchdown."""
-    touchdown_speed_m_s: float | None = None
-
-    # the safety actions
-    recoveries: int = 0
-    recovery_landing: bool = False
-    """The recovery controller is landing the vehicle (phase LAND)."""
-    noted_bounds: set = field(default_factory=set)
-    """Bounds already announced while the recovery controller flies."""
-    actions: list = field(default_factory=list)
-    """Every safety action taken, in order (the outcome's ``action``)."""
+    """The first bound violated, with every action taken since (None: none yet). Writer: verbs."""
+    actions: list[str] = field(default_factory=list)
+    """Every safety action taken, in order (the outcome's ``action``). Writer: verbs."""
     statustext_id: int = 0
+    """The last STATUSTEXT's id. Writer: verbs."""
+    now_wall_s: float = 0.0
+    """The injected clock at the message, tick or gap being handled. Writer: supervisor."""
+    last_tick_wall_s: float | None = None
+    """The last tick (a late one: this process was stalled). Writer: supervisor."""
+    phase_start_vehicle_s: float = 0.0
+    """The phase began. Writer: verbs."""
+    gate_wait_start_vehicle_s: float | None = None
+    """The health gate first failed in this hold (None: it has not).
+    Writers: verbs, hover_phases, safety; shared: the hold starts the wait, a new hold or run-in
+    (verbs, hover_phases) and a refusal (safety) end it."""
 
-    def forget_boot(self) -> None:
-        """Set every field keyed to the vehicle's last boot back to its default: each
-        ``*_vehicle_s`` (its clock started again) and :data:`BOOT_KEYED` (its status, samples
-        and the requests it was sent). Used when it rebooted on the ground
-        (:mod:`mavreg.daemon.flight.reboot`); a field added later on the vehicle's clock is covered
-        by its name."""
-        for f in dataclasses.fields(self):
-            if f.name in BOOT_KEYED:
-                setattr(self, f.name, f.default_factory() if f.default is dataclasses.MISSING else f.default)
+    pending: list[Queued] = field(default_factory=list)
+    """Queued, not yet flown: queued, taken and dropped through the verbs (``queue``, ``start_next``,
+    ``drop_pending``). Writer: verbs."""
+    active: Flying | None = None
+    """In run-in or maneuver (None: none): ``start_next``, ``end_maneuver``. Writer: verbs."""
+    maneuvers_done: list[str] = field(default_factory=list)
+    """The names of the maneuvers flown to their end (``end_maneuver``). Writer: verbs."""
+    s_m: float = math.nan
+    """Arc length in the maneuver (NaN elsewhere). Writers: handlers, hover_phases, safety; shared:
+    the maneuver handler sets it each sample; the run-in starts it; leaving a maneuver (recovered,
+    landing, a safety action) clears it."""
+    ramps: list[Ramp] = field(default_factory=list)
+    """The hover references still to fly (take-off, hold, run-in, landing), the first one current.
+    Writer: verbs."""
+    ramp_start_vehicle_s: float = 0.0
+    """The current ramp began. Writer: verbs."""
+    ground_z_m: float = 0.0
+    """NED down of the take-off point. Writer: handlers."""
+
+    heard: Heard = field(default_factory=Heard)
+    commands: Commands = field(default_factory=Commands)
+    landing: Landing = field(default_factory=Landing)
+    recovery: RecoveryState = field(default_factory=RecoveryState)
+    excitation: ExcitationState = field(default_factory=ExcitationState)
+
+    def after_reboot(self) -> FlightContext:
+        """A fresh context that keeps what survives the vehicle's reboot on the ground
+        (:mod:`mavreg.daemon.flight.reboot`): the flight's own state. What is keyed to the old boot
+        is new: all it said (:class:`Heard`), every ``*_vehicle_s`` (its clock started again), the
+        arm request and the ground disarm's wait. A field added later is new unless kept here."""
+        c, land, rec = self.commands, self.landing, self.recovery
+        return FlightContext(
+            phase=self.phase, reason=self.reason, failure=self.failure, actions=self.actions,
+            statustext_id=self.statustext_id, now_wall_s=self.now_wall_s, last_tick_wall_s=self.last_tick_wall_s,
+            pending=self.pending, active=self.active, maneuvers_done=self.maneuvers_done, s_m=self.s_m,
+            ramps=self.ramps, ground_z_m=self.ground_z_m,
+            commands=Commands(terminate_start_wall_s=c.terminate_start_wall_s, disarm_sent_wall_s=c.disarm_sent_wall_s),
+            landing=Landing(requested=land.requested, mode_requested=land.mode_requested, descent=land.descent,
+                            touchdown_speed_m_s=land.touchdown_speed_m_s),
+            recovery=RecoveryState(count=rec.count, landing=rec.landing, noted_bounds=rec.noted_bounds),
+            excitation=ExcitationState(rate_step=self.excitation.rate_step))
 
     @property
     def vehicle_now_s(self) -> float:
         """The vehicle's time of the last sample (NaN before the first)."""
-        return self.last_sample.time_s if self.last_sample is not None else math.nan
-
-
-BOOT_KEYED = frozenset(f.name for f in dataclasses.fields(FlightContext)
-                       if f.name.endswith("_vehicle_s") or f.name in BOOT_KEYED_BESIDES_THE_CLOCK)
-"""The fields :meth:`FlightContext.forget_boot` resets."""
+        s = self.heard.last_sample
+        return s.time_s if s is not None else math.nan
 
 
 @dataclass(frozen=True)

@@ -55,3 +55,12 @@ class ActuationDelay:
             est = self.timesync.estimate()
             d = 0.0 if est is None else est.delay_s
         return d + self.vehicle_s
+
+    def status(self, predicting: bool) -> dict | None:
+        """The link delay in the daemon's ``status`` (ms; None before the first TIMESYNC reply);
+        ``predicting``: the prediction spans :meth:`total_s`."""
+        est = self.timesync.estimate()
+        return None if est is None else {
+            "sample_to_actuation": est.delay_s * 1e3, "jitter": est.jitter_s * 1e3,
+            "round_trip_wall": est.round_trip_s * 1e3, "replies": est.samples,
+            "used_for_prediction": self.total_s() * 1e3 if predicting else None}

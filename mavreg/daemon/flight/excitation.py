@@ -29,8 +29,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
-__all__ = ["ExcitationParams", "AXIS_NAMES", "check_output", "EXCITATION_START", "EXCITATION_END"]
+__all__ = ["ExcitationParams", "RateStep", "AXIS_NAMES", "check_output", "EXCITATION_START", "EXCITATION_END"]
 
 EXCITATION_START = "start:"
 EXCITATION_END = "end:"
@@ -45,6 +46,14 @@ MAX_AMPLITUDE_RAD_S = 1.0
 MAX_TURN_RAD = 0.2
 """The largest attitude change a pulse may ask (11.5 deg, the hold bounds 15)."""
 
+
+
+class RateStep(NamedTuple):
+    """The rate set-point the excitation puts on one axis (:meth:`ExcitationParams.rate_at`)."""
+
+    axis: int
+    """0 roll, 1 pitch, 2 yaw."""
+    rate_rad_s: float
 
 @dataclass(frozen=True)
 class ExcitationParams:
@@ -92,7 +101,7 @@ class ExcitationParams:
         """The whole excitation: ``repeats`` rounds of three pulses."""
         return 3 * self.repeats * self.slot_s
 
-    def rate_at(self, t_s: float) -> tuple[int, float] | None:
+    def rate_at(self, t_s: float) -> RateStep | None:
         """(axis 0 roll / 1 pitch / 2 yaw, rate rad/s) set ``t_s`` after the excitation began
         (the rest after a pulse: rate 0); None outside (settling, before, after): the hover
         LQR's rates go out."""
@@ -103,9 +112,9 @@ class ExcitationParams:
         axis, round_ = k % 3, k // 3
         q = int((u + 1e-9) // self.step_s)            # the pulse's quarter: + - - +
         if q >= 4:
-            return (axis, 0.0) if u + 1e-9 < 4.0 * self.step_s + self.rest_s else None
+            return RateStep(axis, 0.0) if u + 1e-9 < 4.0 * self.step_s + self.rest_s else None
         sign = 1.0 if round_ % 2 == 0 else -1.0
-        return axis, (-sign if q in (1, 2) else sign) * self.amplitude_rad_s[axis]
+        return RateStep(axis, (-sign if q in (1, 2) else sign) * self.amplitude_rad_s[axis])
 
     def describe(self) -> str:
         """One line for the event and the STATUSTEXT."""

@@ -33,7 +33,7 @@ from ...config.envelope import EnvelopeParams
 from ...config.vehicle import G
 from .records import BoundViolation
 
-__all__ = ["GateVerdict", "HealthGate", "nominal_points", "plan_outside_envelope", "MarginCheck",
+__all__ = ["GateVerdict", "HealthGate", "NominalPoints", "nominal_points", "plan_outside_envelope", "MarginCheck",
            "delay_margin_of", "unmodelled_delay_s", "JITTER_SIGMAS", "sampling_verdict"]
 
 JITTER_SIGMAS = 3.0
@@ -62,10 +62,19 @@ class GateVerdict:
 PASS = GateVerdict(True)
 
 
-def nominal_points(plan, n: int = 400) -> tuple[np.ndarray, np.ndarray]:
-    """(s, positions) of ``n`` points of the plan's nominal path (computed once per upload)."""
+class NominalPoints(NamedTuple):
+    """Points of a plan's nominal path (:func:`nominal_points`)."""
+
+    s_m: np.ndarray
+    """Their arc lengths."""
+    position_ned_m: np.ndarray
+    """Their positions, one row each."""
+
+
+def nominal_points(plan, n: int = 400) -> NominalPoints:
+    """``n`` points of the plan's nominal path (computed once per upload)."""
     s = np.linspace(0.0, plan.length_m, n)
-    return s, np.array([np.asarray(plan.nominal_state(si), dtype=float)[:3] for si in s])
+    return NominalPoints(s, np.array([np.asarray(plan.nominal_state(si), dtype=float)[:3] for si in s]))
 
 
 def plan_outside_envelope(points, origin_m, envelope: EnvelopeParams) -> GateVerdict | None:

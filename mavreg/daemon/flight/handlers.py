@@ -62,12 +62,12 @@ class Preflight(_Handler):
         params = parts.params
         t = sample.time_s
         sysid, compid = parts.ids.target
-        if ctx.stream_start_vehicle_s is None:
-            ctx.stream_start_vehicle_s = t
-        st = ctx.vehicle_status
-        by_another = st.armed and not ctx.arm_requested    # it may be flying: never idled, armed or disarmed
-        on_ground = ctx.landed_state == mm.mavlink2.MAV_LANDED_STATE_ON_GROUND
-        if ctx.land_requested:                             # the flight ends on the ground
+        if ctx.heard.stream_start_vehicle_s is None:
+            ctx.heard.stream_start_vehicle_s = t
+        st = ctx.heard.status
+        by_another = st.armed and not ctx.commands.arm_requested    # it may be flying: never idled, armed or disarmed
+        on_ground = ctx.heard.landed_state == mm.mavlink2.MAV_LANDED_STATE_ON_GROUND
+        if ctx.landing.requested:                             # the flight ends on the ground
             if not by_another:
                 flight.send_rotors(np.zeros(4), now_wall_s, out)
             if st.armed and (on_ground or not by_another):
@@ -87,12 +87,12 @@ class Preflight(_Handler):
                 self.safety.refuse(verdict, out, Phase.PREFLIGHT)
             elif self._link_delay_known(t, out):
                 flight.command(out, mm.arm_disarm(sysid, compid, True))
-                ctx.arm_requested = True
+                ctx.commands.arm_requested = True
         elif not st.offboard:
-            if t - ctx.stream_start_vehicle_s >= params.offboard_stream_min_s:
+            if t - ctx.heard.stream_start_vehicle_s >= params.offboard_stream_min_s:
                 flight.command(out, parts.autopilot.set_offboard_mode())
         else:
-            verdict = parts.gate.link_verdict(flight.gate_margin(ctx.pending[0][0]))
+            verdict = parts.gate.link_verdict(flight.gate_margin(ctx.pending[0].plan))
             if verdict is not None:
                 self.safety.refuse(verdict, out, Phase.PREFLIGHT)
                 return
@@ -106,10 +106,10 @@ class Preflight(_Handler):
         autopilot says it is on the ground: :meth:`~mavreg.daemon.flight.safety.SafetyPolicy.end_on_ground`)."""
         flight, ctx, parts = self.flight, self.flight.ctx, self.flight.parts
         params = parts.params
-        waited = sample.time_s - ctx.stream_start_vehicle_s
+        waited = sample.time_s - ctx.heard.stream_start_vehicle_s
         height_m = ctx.ground_z_m - float(sample.x[2])
-        if ctx.landed_state is not None:
-            airborne = ctx.landed_state not in (mm.mavlink2.MAV_LANDED_STATE_ON_GROUND,
+        if ctx.heard.landed_state is not None:
+            airborne = ctx.heard.landed_state not in (mm.mavlink2.MAV_LANDED_STATE_ON_GROUND,
                                                  mm.mavlink2.MAV_LANDED_STATE_UNDEFINED)
         elif waited >= params.takeover_landed_state_wait_s:
             airborne = height_m > params.touchdown_band_m
@@ -124,15 +124,14 @@ class Preflight(_Handler):
         if not parts.delay.known and waited < params.timesync_wait_s:
             return                                         # the link delay the prediction covers
         if params.airborne == "land":
-            ctx.land_requested = True                      # serve lands it too
+            ctx.landing.requested = True                      # serve lands it too
             if ctx.pending:
-                dropped = [p.name for p, _, _ in ctx.pending]
-                ctx.pending.clear()
+                dropped = flight.drop_pending()
                 flight.event(out, "dropped", f"{dropped} not flown: the vehicle is taken over to land")
         p = np.round(sample.x[:3], 2).tolist()
         flight.announce(out, "takeover", mm.SEVERITY_WARNING,
                         f"vehicle found armed in the air at {p}, {height_m:.1f} m over the estimate's origin, "
-                        f"mode {ctx.vehicle_status.mode}; taking it over to hold, then "
+                        f"mode {ctx.heard.status.mode}; taking it over to hold, then "
                         + ("fly the queued maneuver" if ctx.pending else "land"))
         flight.note_action("took over an airborne vehicle")
         parts.monitor.set_origin(np.array([sample.x[0], sample.x[1], ctx.ground_z_m], dtype=float))
@@ -143,8 +142,8 @@ class Preflight(_Handler):
         rate can fly, then the autopilot's parameters and telemetry (None while it is still
         answering; its requests go out in ``out``)."""
         parts = self.flight.parts
-        plan, regulator, points = self.flight.ctx.pending[0]
-        bad = plan_outside_envelope(points, sample.x[:3], parts.envelope) or sampling_verdict(plan, regulator)
+        q = self.flight.ctx.pending[0]
+        bad = plan_outside_envelope(q.points, sample.x[:3], parts.envelope) or sampling_verdict(q.plan, q.regulator)
         return bad if bad is not None else parts.autopilot.ready(sample.time_s, out.messages)
 
     def _link_delay_known(self, t: float, out) -> bool:
@@ -153,7 +152,7 @@ class Preflight(_Handler):
         ctx, parts = self.flight.ctx, self.flight.parts
         if parts.delay.known:
             return True
-        waited = t - ctx.stream_start_vehicle_s
+        waited = t - ctx.heard.stream_start_vehicle_s
         if waited < parts.params.timesync_wait_s:
             return False                                   # TIMESYNC requests go out with the stream
         self.safety.refuse(GateVerdict(
@@ -165,7 +164,7 @@ class Preflight(_Handler):
 
     def _start_takeoff(self, sample, out) -> None:
         flight, ctx, params = self.flight, self.flight.ctx, self.flight.parts.params
-        plan = ctx.pending[0][0]
+        plan = ctx.pending[0].plan
         entry = fp.entry_of(plan, params.hover, params.run_in_m, params.entry_offset_m)
         p = sample.x[:3].copy()
         ctx.ground_z_m = float(p[2])
@@ -181,8 +180,8 @@ class Maneuver(_Handler):
 
     def control(self, sample, x, out):
         flight, ctx = self.flight, self.flight.ctx
-        plan, reg = ctx.active
-        r = reg.step(x, ctx.forecast.rotor_forces_n, flight.parts.forecaster.disturbance)
+        plan, reg = ctx.active.plan, ctx.active.regulator
+        r = reg.step(x, ctx.heard.forecast.rotor_forces_n, flight.parts.forecaster.disturbance)
         ctx.s_m = float(r.s)
         w = np.asarray(r.w, dtype=float)
         rotors = np.asarray(r.rotor_forces_n, dtype=float)
@@ -192,8 +191,7 @@ class Maneuver(_Handler):
         tracking = Tracking(float(math.hypot(w[0], w[1])), attitude_error, norm3(w, 8), ctx.s_m,
                             bool(r.in_tube))
         if r.finished and np.all(np.isfinite(rotors)):
-            ctx.maneuvers_done.append(plan.name)
-            ctx.active = None
+            flight.end_maneuver(finished=True)
             self._start_exit_hold(sample, out)
         return rotors, record, tracking
 
@@ -216,12 +214,12 @@ class Recover(_Handler):
         t = sample.time_s
         rotors, record, v_ned, R = flight.recovery_step(sample, x)
         if flight.parts.recovery.settled(x[:3], v_ned, R):
-            if ctx.settled_since_vehicle_s is None:
-                ctx.settled_since_vehicle_s = t
-            if t - ctx.settled_since_vehicle_s >= flight.parts.envelope.recovery.settle_s:
+            if ctx.recovery.settled_since_vehicle_s is None:
+                ctx.recovery.settled_since_vehicle_s = t
+            if t - ctx.recovery.settled_since_vehicle_s >= flight.parts.envelope.recovery.settle_s:
                 self._recovered(sample, x, out)
         else:
-            ctx.settled_since_vehicle_s = None
+            ctx.recovery.settled_since_vehicle_s = None
         return rotors, record, None
 
     def _recovered(self, sample, x, out) -> None:
@@ -257,9 +255,9 @@ class Takeover(_Handler):
 
     def on_sample(self, sample, now_wall_s: float, out) -> None:
         flight, ctx, parts = self.flight, self.flight.ctx, self.flight.parts
-        st = ctx.vehicle_status
+        st = ctx.heard.status
         if not st.armed:                                   # its own failsafe landed it meanwhile
-            ctx.stream_start_vehicle_s = None
+            ctx.heard.stream_start_vehicle_s = None
             if ctx.pending or not parts.params.land_when_done:
                 flight.set_phase(out, Phase.PREFLIGHT, "the vehicle disarmed before the takeover: on the ground")
             else:
@@ -272,7 +270,7 @@ class Takeover(_Handler):
         flight.send_rotors(rotors, now_wall_s, out)
         out.log = record
         if st.offboard:
-            ctx.settled_since_vehicle_s = None
+            ctx.recovery.settled_since_vehicle_s = None
             flight.set_phase(out, Phase.RECOVER, f"took over in {st.mode}: level, brake, hold")
         elif sample.time_s - ctx.phase_start_vehicle_s >= parts.params.offboard_stream_min_s:
             flight.command(out, parts.autopilot.set_offboard_mode())

@@ -9,6 +9,7 @@ the maneuver's start, the touchdown and the disarm. The table of all phases is
 """
 from __future__ import annotations
 
+import collections
 import math
 
 import numpy as np
@@ -17,6 +18,7 @@ from ...model.mixer import Mixer
 from . import flightpath as fp
 from ..vehicle import messages as mm
 from .verbs import NAN11, Flight, angle_between, norm3, smoothstep
+from .context import DescentPoint
 from .excitation import EXCITATION_END, EXCITATION_START
 from .gate import plan_outside_envelope
 from .monitor import Tracking
@@ -99,13 +101,13 @@ class Hold(HoverPhase):
         doublet's rate goes out there instead, :meth:`RateOutput.command`), so that fighting
         the doublet does not saturate the rotor commands the monitor counts."""
         ctx = self.flight.ctx
-        ctx.rate_excitation = None
+        ctx.excitation.rate_step = None
         exc = self.flight.parts.params.excitation
-        if exc is None or ctx.excitation_start_vehicle_s is None or ctx.excitation_end_vehicle_s is not None:
+        if exc is None or ctx.excitation.start_vehicle_s is None or ctx.excitation.end_vehicle_s is not None:
             return rotors, tracking
-        step = exc.rate_at(sample.time_s - ctx.excitation_start_vehicle_s)
+        step = exc.rate_at(sample.time_s - ctx.excitation.start_vehicle_s)
         if step is not None:
-            ctx.rate_excitation = step
+            ctx.excitation.rate_step = step
             wrench = self._mixer @ np.asarray(rotors, dtype=float)
             wrench[1 + step[0]] = 0.0
             rotors = self._unmix @ wrench
@@ -119,8 +121,8 @@ class Hold(HoverPhase):
         self.flight.parts.gate.observe(t, tracking.position_error_m, tracking.attitude_error_rad, rotors)
         hold_s = params.hold_after_s if ctx.maneuvers_done else params.hold_before_s
         since = max(ctx.phase_start_vehicle_s, ctx.ramp_start_vehicle_s + ctx.ramps[0].duration_s)
-        if ctx.excitation_end_vehicle_s is not None:
-            since = max(since, ctx.excitation_end_vehicle_s)
+        if ctx.excitation.end_vehicle_s is not None:
+            since = max(since, ctx.excitation.end_vehicle_s)
         if t - since >= hold_s:
             self._leave(sample, out)
 
@@ -129,21 +131,21 @@ class Hold(HoverPhase):
         before the first maneuver, with one pending and no landing asked for; once a flight."""
         flight, ctx = self.flight, self.flight.ctx
         exc = flight.parts.params.excitation
-        if exc is None or ctx.excitation_end_vehicle_s is not None:
+        if exc is None or ctx.excitation.end_vehicle_s is not None:
             return False
-        wanted = bool(ctx.pending) and not ctx.maneuvers_done and not ctx.land_requested
-        if ctx.excitation_start_vehicle_s is None:
+        wanted = bool(ctx.pending) and not ctx.maneuvers_done and not ctx.landing.requested
+        if ctx.excitation.start_vehicle_s is None:
             if not wanted:
                 return False
-            ctx.excitation_start_vehicle_s = t
+            ctx.excitation.start_vehicle_s = t
             flight.parts.forecaster.observing = False    # the doublets are no disturbance to learn
             flight.announce(out, "excitation", mm.SEVERITY_INFO, f"{EXCITATION_START} {exc.describe()}")
             return True
-        elapsed = t - ctx.excitation_start_vehicle_s
+        elapsed = t - ctx.excitation.start_vehicle_s
         if wanted and elapsed < exc.duration_s:
             return True
-        ctx.excitation_end_vehicle_s = t
-        ctx.rate_excitation = None
+        ctx.excitation.end_vehicle_s = t
+        ctx.excitation.rate_step = None
         flight.parts.forecaster.observing = True
         flight.parts.gate.reset()                        # the gate judges the hold after it
         flight.announce(out, "excitation", mm.SEVERITY_INFO,
@@ -154,7 +156,7 @@ class Hold(HoverPhase):
     def _leave(self, sample, out) -> None:
         flight, ctx = self.flight, self.flight.ctx
         t = sample.time_s
-        if ctx.pending and not ctx.land_requested:
+        if ctx.pending and not ctx.landing.requested:
             verdict = self._gate_verdict()
             if verdict is None:
                 return                                     # not a full window yet: hold on
@@ -180,16 +182,15 @@ class Hold(HoverPhase):
         parts = self.flight.parts
         if not parts.gate.ready():
             return None
-        plan, _, pts = self.flight.ctx.pending[0]
+        plan, pts = self.flight.ctx.pending[0].plan, self.flight.ctx.pending[0].points
         bad = plan_outside_envelope(pts, parts.monitor.origin, parts.envelope)
         return bad if bad is not None else parts.gate.evaluate(self.flight.gate_margin(plan))
 
     def _start_run_in(self, sample, out) -> None:
         flight, ctx, params = self.flight, self.flight.ctx, self.flight.parts.params
         hold = ctx.ramps[-1]
-        plan, reg, _ = ctx.pending.pop(0)
+        plan = flight.start_next().plan
         ctx.gate_wait_start_vehicle_s = None
-        ctx.active = (plan, reg)
         entry = fp.entry_of(plan, params.hover, params.run_in_m, params.entry_offset_m)
         ramps = fp.run_in_ramps(hold.end_position_m, hold.end_yaw_rad, entry, params.hover)
         ctx.s_m = math.nan
@@ -203,30 +204,31 @@ class RunIn(HoverPhase):
 
     def ramp_done(self, sample, x, rotors, tracking, out) -> None:
         flight, ctx = self.flight, self.flight.ctx
-        plan, reg = ctx.active
-        reg.reset(x, s_guess=0.0, rotor_forces_n=ctx.forecast.rotor_forces_n)
+        plan, reg = ctx.active.plan, ctx.active.regulator
+        reg.reset(x, s_guess=0.0, rotor_forces_n=ctx.heard.forecast.rotor_forces_n)
         ctx.s_m = 0.0
         flight.set_phase(out, Phase.MANEUVER, f"maneuver {plan.name!r} begins")
 
 
-def touched_down(descent, t_s: float, vz_m_s: float, altitude_m: float, params) -> float | None:
+def touched_down(descent: collections.deque[DescentPoint], t_s: float, vz_m_s: float, altitude_m: float,
+                 params) -> float | None:
     """The touchdown speed (m/s, down positive) once the ground has stopped the landing's
     descent, else None.
 
-    ``descent`` keeps ``(t_s, vz_m_s)`` of the last second (appended here). Touchdown: within
+    ``descent`` keeps the last second (appended here). Touchdown: within
     ``params.touchdown_band_m`` of the take-off height, every vertical speed of the last
     ``params.touchdown_settle_s`` below ``params.touchdown_stall_m_s`` while the landing asks
     for a descent, after it sank faster than that (or for a whole second: a landing begun at
     the ground). The speed is the fastest descent of the second before it."""
-    descent.append((t_s, vz_m_s))
-    while descent and t_s - descent[0][0] > 1.0:
+    descent.append(DescentPoint(t_s, vz_m_s))
+    while descent and t_s - descent[0].t_vehicle_s > 1.0:
         descent.popleft()
-    if altitude_m > params.touchdown_band_m or t_s - descent[0][0] < params.touchdown_settle_s:
+    if altitude_m > params.touchdown_band_m or t_s - descent[0].t_vehicle_s < params.touchdown_settle_s:
         return None
-    if any(vz >= params.touchdown_stall_m_s for tv, vz in descent if t_s - tv <= params.touchdown_settle_s):
+    if any(d.down_m_s >= params.touchdown_stall_m_s for d in descent if t_s - d.t_vehicle_s <= params.touchdown_settle_s):
         return None
-    fastest = max(vz for _, vz in descent)
-    if fastest < params.touchdown_stall_m_s and t_s - descent[0][0] < 0.9:
+    fastest = max(d.down_m_s for d in descent)
+    if fastest < params.touchdown_stall_m_s and t_s - descent[0].t_vehicle_s < 0.9:
         return None          # not yet sinking (a landing begun low): a stall says nothing yet
     return fastest
 
@@ -238,14 +240,14 @@ class Land(HoverPhase):
     observe_above_m = _OBSERVE_UNTIL_LANDING_M
 
     def control(self, sample, x, out):
-        if self.flight.ctx.recovery_landing:
+        if self.flight.ctx.recovery.landing:
             rotors, record, _, _ = self.flight.recovery_step(sample, x)
             return self._touchdown(sample, rotors, out), record, None
         return super().control(sample, x, out)
 
     def shape(self, sample, rotors, tracking, out):
         rotors = self._touchdown(sample, rotors, out)
-        if self.flight.ctx.spool_down_start_vehicle_s is not None:
+        if self.flight.ctx.landing.spool_down_start_vehicle_s is not None:
             tracking = None          # on the ground: the reference sinks on without it
         return rotors, tracking
 
@@ -255,21 +257,21 @@ class Land(HoverPhase):
         flight, ctx, params = self.flight, self.flight.ctx, self.flight.parts.params
         t = sample.time_s
         altitude = ctx.ground_z_m - sample.x[2]
-        if ctx.spool_down_start_vehicle_s is None:
-            speed = touched_down(ctx.descent, t, float(sample.velocity_ned_m_s[2]), altitude, params)
+        if ctx.landing.spool_down_start_vehicle_s is None:
+            speed = touched_down(ctx.landing.descent, t, float(sample.velocity_ned_m_s[2]), altitude, params)
             if speed is not None:
-                ctx.spool_down_start_vehicle_s = t
-                ctx.touchdown_speed_m_s = speed
+                ctx.landing.spool_down_start_vehicle_s = t
+                ctx.landing.touchdown_speed_m_s = speed
                 flight.event(out, "touchdown", f"touchdown at altitude {altitude:.3f} m, descending at "
                              f"{speed:.2f} m/s; spooling down")
                 self.safety.check_touchdown(speed, out)
             else:
                 return rotors
-        blend = 1.0 - smoothstep((t - ctx.spool_down_start_vehicle_s) / params.spool_s)
+        blend = 1.0 - smoothstep((t - ctx.landing.spool_down_start_vehicle_s) / params.spool_s)
         if blend <= 0.0:
-            st = ctx.vehicle_status
+            st = ctx.heard.status
             if st is not None and st.armed:
-                idle_s = t - ctx.spool_down_start_vehicle_s - params.spool_s
+                idle_s = t - ctx.landing.spool_down_start_vehicle_s - params.spool_s
                 flight.command(out, self._ground_disarm(idle_s, st))
         return rotors * blend
 
@@ -285,5 +287,5 @@ class Land(HoverPhase):
         wait_s = 0.0 if dialect.disarm_by_land_mode else params.land_mode_after_s
         if idle_s < wait_s or st.mode == dialect.land_mode:
             return mm.arm_disarm(sysid, compid, False)
-        self.flight.ctx.land_mode_requested = True
+        self.flight.ctx.landing.mode_requested = True
         return dialect.set_land_mode(sysid, compid)

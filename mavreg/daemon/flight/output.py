@@ -18,6 +18,8 @@ the autopilot in between (docs/autopilots.md).
 from __future__ import annotations
 
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ...config.vehicle import VehicleParams
@@ -27,6 +29,9 @@ from ...model.rate_interface import AttitudeLoopCompensation, ThrustMap, rate_co
 from ...model.rotor_lag import lag_decay, lag_toward
 from ..vehicle import messages as mm
 from ..vehicle.peers import VehicleIds
+
+if TYPE_CHECKING:
+    from .excitation import RateStep
 
 __all__ = ["RotorOutput", "RateOutput", "command_output"]
 
@@ -41,7 +46,7 @@ class RotorOutput:
         self._ids = ids
 
     def message(self, now_s: float, t_s: float, rotor_forces_n: np.ndarray, x: np.ndarray | None,
-                excitation: tuple | None = None):
+                excitation: RateStep | None = None):
         """The message for clipped rotor commands (N); ``t_s`` and ``x`` are not needed, and
         there is no rate loop to excite (the supervisor refuses an excitation here)."""
         return mm.actuator_target(int(now_s * 1e6), *self._ids.target, rotor_forces_n / self._fmax)
@@ -88,7 +93,7 @@ class RateOutput:
         return self._torque
 
     def command(self, rotor_forces_n: np.ndarray, x: np.ndarray | None,
-                t_s: float | None = None, excitation: tuple | None = None) -> tuple[np.ndarray, float]:
+                t_s: float | None = None, excitation: RateStep | None = None) -> tuple[np.ndarray, float]:
         """(rates (3,) rad/s, normalized thrust) for the rotor commands at state x (None: at
         rest), the torque lagged up to vehicle time ``t_s`` (None: not lagged).
         ``excitation`` (axis, rate rad/s): the identification flight's doublet sends that
@@ -106,14 +111,14 @@ class RateOutput:
             return np.zeros(3), self._map.normalized(float(wrench[0]))
         axis = None
         if excitation is not None:
-            axis = int(excitation[0])
-            rates[axis] = float(np.clip(excitation[1], -self._max_rate[axis], self._max_rate[axis]))
+            axis = int(excitation.axis)
+            rates[axis] = float(np.clip(excitation.rate_rad_s, -self._max_rate[axis], self._max_rate[axis]))
         if self._attitude_loop.active:
             rates = self._attitude_loop.rates(rates, omega, self._period_s, self._max_rate, as_is=axis)
         return rates, self._map.normalized(float(wrench[0]))
 
     def message(self, now_s: float, t_s: float, rotor_forces_n: np.ndarray, x: np.ndarray | None,
-                excitation: tuple | None = None):
+                excitation: RateStep | None = None):
         rates, thrust = self.command(rotor_forces_n, x, t_s, excitation)
         return mm.rate_target(int(now_s * 1e3) & 0xFFFFFFFF, *self._ids.target, rates, thrust)
 

@@ -145,4 +145,4 @@ def _rebuild(flight) -> None:
     parts.timesync.restart()
     parts.forecaster.reset()
     parts.autopilot.restart()
-    ctx.forget_boot()                    # its next HEARTBEAT gives its status: a reboot disarms
+    flight.ctx = ctx.after_reboot()      # its next HEARTBEAT gives its status: a reboot disarms

@@ -79,12 +79,12 @@ class SafetyPolicy:
         impact only) stop the motors."""
         flight, ctx, parts = self.flight, self.flight.ctx, self.flight.parts
         flight.fail(v)
-        sample = ctx.last_sample
+        sample = ctx.heard.last_sample
         at_ground = sample is not None and parts.monitor.altitude_m(sample.x[:3]) <= parts.envelope.impact_altitude_m
         recovery = parts.envelope.recovery
         if v.impact:
             self._terminate(out, f"impact: {v.describe()}")
-        elif ctx.recovery_landing:
+        elif ctx.recovery.landing:
             self._note_bound(out, v, "landing on")
         elif ctx.phase == Phase.RECOVER and v.bound == "recovery_timeout":
             self._recovery_land(out, f"recovery not settled: {v.describe()}")
@@ -92,8 +92,8 @@ class SafetyPolicy:
             self._note_bound(out, v, f"recovery goes on, judged over {recovery.timeout_s:g} s")
         elif at_ground:
             self._recovery_land(out, f"at the ground: {v.describe()}")
-        elif ctx.recoveries >= recovery.max_recoveries:
-            self._recovery_land(out, f"recovery {ctx.recoveries + 1} not allowed: {v.describe()}")
+        elif ctx.recovery.count >= recovery.max_recoveries:
+            self._recovery_land(out, f"recovery {ctx.recovery.count + 1} not allowed: {v.describe()}")
         else:
             self._recover(v, out)
 
@@ -110,9 +110,9 @@ class SafetyPolicy:
     def _note_bound(self, out, v: BoundViolation, then: str) -> None:
         """A bound that fired while the recovery controller flies: announced once per bound."""
         ctx = self.flight.ctx
-        if v.bound in ctx.noted_bounds:
+        if v.bound in ctx.recovery.noted_bounds:
             return
-        ctx.noted_bounds.add(v.bound)
+        ctx.recovery.noted_bounds.add(v.bound)
         self.flight.announce(out, "bound", mm.SEVERITY_WARNING, f"{v.describe()}; {then}")
 
     def _to_recovery_controller(self, start: bool) -> list:
@@ -120,25 +120,24 @@ class SafetyPolicy:
         and pending ones are dropped; their names are returned."""
         ctx = self.flight.ctx
         if start:
-            s = ctx.last_sample
+            s = ctx.heard.last_sample
             self.flight.parts.recovery.start(s.x[:3], s.velocity_ned_m_s, s.rotation, ctx.ground_z_m)
-        dropped = [p.name for p, _, _ in ctx.pending]
-        ctx.pending.clear()
-        ctx.active = None
-        ctx.noted_bounds = set()
+        dropped = self.flight.drop_pending()
+        self.flight.end_maneuver()
+        ctx.recovery.noted_bounds = set()
         ctx.s_m = math.nan
         return dropped
 
     def _recover(self, v: BoundViolation, out) -> None:
         flight, ctx = self.flight, self.flight.ctx
-        ctx.recoveries += 1
+        ctx.recovery.count += 1
         dropped = self._to_recovery_controller(start=True)
-        ctx.settled_since_vehicle_s = None
+        ctx.recovery.settled_since_vehicle_s = None
         safe = flight.parts.envelope.recovery.safe_altitude_m
         flight.announce(out, "recover", mm.SEVERITY_CRITICAL, f"{v.describe()}; recovering: level, brake, "
                         f"climb to {safe:g} m, hold" + (f" (dropped {dropped})" if dropped else ""))
         flight.note_action("recovery")
-        flight.set_phase(out, Phase.RECOVER, f"recovery {ctx.recoveries} begins")
+        flight.set_phase(out, Phase.RECOVER, f"recovery {ctx.recovery.count} begins")
 
     def _recovery_land(self, out, why: str) -> None:
         """Land where the vehicle is with the recovery controller (any attitude), at the
@@ -147,7 +146,7 @@ class SafetyPolicy:
         speed = flight.parts.params.land_speed_m_s
         self._to_recovery_controller(start=ctx.phase != Phase.RECOVER)
         flight.parts.recovery.land(ctx.ground_z_m, speed)
-        ctx.recovery_landing = True
+        ctx.recovery.landing = True
         flight.announce(out, "recovery_land", mm.SEVERITY_CRITICAL,
                         f"{why}; landing with the recovery controller at {speed:g} m/s")
         flight.note_action("landing (recovery controller)")
@@ -160,26 +159,26 @@ class SafetyPolicy:
         flight, ctx = self.flight, self.flight.ctx
         flight.announce(out, "motors_stopped", mm.SEVERITY_CRITICAL, f"{why}; forced disarm")
         flight.note_action("motors stopped (forced disarm)")
-        ctx.active = None
-        ctx.pending.clear()
+        flight.end_maneuver()
+        flight.drop_pending()
         flight.set_phase(out, Phase.TERMINATE, "forced disarm, repeated until the vehicle confirms it; "
                          "no rotor command is sent any more")
-        ctx.terminate_start_wall_s = ctx.now_wall_s
-        ctx.disarm_sent_wall_s = -math.inf
+        ctx.commands.terminate_start_wall_s = ctx.now_wall_s
+        ctx.commands.disarm_sent_wall_s = -math.inf
         self.terminate_step(ctx.now_wall_s, out)
 
     def terminate_step(self, now_wall_s: float, out) -> None:
         """Repeat the forced disarm; give up (stream stopped anyway) after ``terminate_timeout_s``."""
         flight, ctx, params = self.flight, self.flight.ctx, self.flight.parts.params
-        if now_wall_s - ctx.terminate_start_wall_s > params.terminate_timeout_s:
+        if now_wall_s - ctx.commands.terminate_start_wall_s > params.terminate_timeout_s:
             flight.note_action("disarm not confirmed")
             flight.set_phase(out, Phase.ABORTED, f"forced disarm not confirmed within "
                              f"{params.terminate_timeout_s:g} s; the vehicle's failsafe is in charge")
             return
-        if now_wall_s - ctx.disarm_sent_wall_s >= params.disarm_retry_s:
+        if now_wall_s - ctx.commands.disarm_sent_wall_s >= params.disarm_retry_s:
             out.messages.append(mm.force_disarm(*flight.parts.ids.target))
             flight.parts.counters.commands_sent += 1
-            ctx.disarm_sent_wall_s = now_wall_s
+            ctx.commands.disarm_sent_wall_s = now_wall_s
 
     def disarm_confirmed(self, out, how: str) -> None:
         self.flight.note_action(f"disarmed ({how})")
@@ -207,13 +206,13 @@ class SafetyPolicy:
         maneuver (or, with none queued yet, the vehicle) is not flown."""
         flight, ctx = self.flight, self.flight.ctx
         kind = "maneuver" if ctx.pending else "vehicle"
-        what = f"maneuver {ctx.pending[0][0].name!r}" if ctx.pending else "the vehicle"
+        what = f"maneuver {ctx.pending[0].plan.name!r}" if ctx.pending else "the vehicle"
         violation = verdict.at(phase, ctx.vehicle_now_s)
         flight.fail(violation)
-        ctx.pending.clear()
+        flight.drop_pending()
         ctx.gate_wait_start_vehicle_s = None
         if phase == Phase.PREFLIGHT:
-            armed = ctx.vehicle_status is not None and ctx.vehicle_status.armed
+            armed = ctx.heard.status is not None and ctx.heard.status.armed
             then = "staying on the ground" + (", disarming" if armed else "")
         else:
             then = "landing" if flight.lands_when_done() else "holding"
@@ -231,22 +230,22 @@ class SafetyPolicy:
         ARM_DISARM 0, its HEARTBEAT ends the flight, or after ``ground_disarm_timeout_s``
         (injected clock) the stream is left to its failsafe (:meth:`ground_disarm_timeout`)."""
         flight, ctx = self.flight, self.flight.ctx
-        ctx.land_requested = True
-        ctx.pending.clear()
-        st = ctx.vehicle_status
+        ctx.landing.requested = True
+        flight.drop_pending()
+        st = ctx.heard.status
         disarm = mm.arm_disarm(*flight.parts.ids.target, False) if st is not None else None
-        if (st is not None and st.armed and not ctx.arm_requested
-                and ctx.landed_state != mm.mavlink2.MAV_LANDED_STATE_ON_GROUND):
+        if (st is not None and st.armed and not ctx.commands.arm_requested
+                and ctx.heard.landed_state != mm.mavlink2.MAV_LANDED_STATE_ON_GROUND):
             # armed by another and not known to be on the ground: it may be flying
             flight.set_phase(out, Phase.ABORTED, f"{why}; the vehicle was armed by another and is not known "
                              "to be on the ground: left armed, to its pilot and its failsafe")
             return
         if st is not None and st.armed:
-            ctx.ground_end_wall_s = ctx.now_wall_s
+            ctx.commands.ground_end_wall_s = ctx.now_wall_s
             flight.event(out, "disarming", f"{why}; disarming on the ground")
             flight.command(out, disarm, at_once=True)
             return
-        if st is not None and ctx.arm_requested:
+        if st is not None and ctx.commands.arm_requested:
             flight.command(out, disarm, at_once=True)
         flight.set_phase(out, Phase.DISARMED, why)
 
@@ -256,9 +255,9 @@ class SafetyPolicy:
         automatic disarm on the ground are in charge."""
         flight, ctx = self.flight, self.flight.ctx
         limit = flight.parts.params.ground_disarm_timeout_s
-        if ctx.phase != Phase.PREFLIGHT or ctx.ground_end_wall_s is None:
+        if ctx.phase != Phase.PREFLIGHT or ctx.commands.ground_end_wall_s is None:
             return
-        waited = now_wall_s - ctx.ground_end_wall_s
+        waited = now_wall_s - ctx.commands.ground_end_wall_s
         if waited > limit:
             flight.note_action("disarm not confirmed")
             flight.set_phase(out, Phase.ABORTED, f"the vehicle did not report disarmed within {limit:g} s on the "
@@ -269,7 +268,7 @@ class SafetyPolicy:
         flight = self.flight
         limit = flight.parts.envelope.max_touchdown_speed_m_s
         if descent_m_s > limit:
-            flight.fail(BoundViolation("touchdown_speed", Phase.LAND, flight.ctx.last_sample.time_s, math.nan,
+            flight.fail(BoundViolation("touchdown_speed", Phase.LAND, flight.ctx.heard.last_sample.time_s, math.nan,
                                        descent_m_s, limit, "m/s", "hard landing"))
             flight.announce(out, "hard_landing", mm.SEVERITY_WARNING,
                             f"touched down at {descent_m_s:.2f} m/s (limit {limit:g} m/s)")
@@ -292,7 +291,7 @@ class SafetyPolicy:
             return
         parts.counters.gaps += 1
         if ctx.phase in (Phase.RUN_IN, Phase.MANEUVER):
-            self.on_violation(BoundViolation("telemetry_gap", ctx.phase, ctx.last_sample.time_s, ctx.s_m, gap, limit,
+            self.on_violation(BoundViolation("telemetry_gap", ctx.phase, ctx.heard.last_sample.time_s, ctx.s_m, gap, limit,
                                              "s", "no complete sample for that long: the vehicle flew on an old "
                                              "command"), out)
         else:
@@ -302,8 +301,8 @@ class SafetyPolicy:
     def link_lost(self, now_wall_s: float, out) -> None:
         """Judged by a running tick: no complete sample for ``stale_timeout_s``: link lost."""
         ctx, params = self.flight.ctx, self.flight.parts.params
-        gap = now_wall_s - ctx.last_sample_wall_s
-        armed = ctx.vehicle_status is not None and ctx.vehicle_status.armed
+        gap = now_wall_s - ctx.heard.last_sample_wall_s
+        armed = ctx.heard.status is not None and ctx.heard.status.armed
         if armed and gap > params.stale_timeout_s and (ctx.phase in AIRBORNE or ctx.phase == Phase.PREFLIGHT):
             self.hand_over(out, "link_lost", gap, params.stale_timeout_s, "s",
                            f"stale state: no complete sample for {gap:.3f} s "

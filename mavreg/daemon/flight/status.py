@@ -18,12 +18,12 @@ def supervisor_status(ctx, counters, state_counters, envelope_peaks: dict) -> di
     a = state_counters
     return {
         "phase": ctx.phase, "reason": ctx.reason, "s_m": None if math.isnan(ctx.s_m) else ctx.s_m,
-        "active": None if ctx.active is None else ctx.active[0].name,
-        "pending": [p.name for p, _, _ in ctx.pending], "done": list(ctx.maneuvers_done),
-        "vehicle_mode": None if ctx.vehicle_status is None else ctx.vehicle_status.mode,
-        "vehicle_armed": None if ctx.vehicle_status is None else ctx.vehicle_status.armed,
+        "active": None if ctx.active is None else ctx.active.plan.name,
+        "pending": [q.plan.name for q in ctx.pending], "done": list(ctx.maneuvers_done),
+        "vehicle_mode": None if ctx.heard.status is None else ctx.heard.status.mode,
+        "vehicle_armed": None if ctx.heard.status is None else ctx.heard.status.armed,
         "failure": None if ctx.failure is None else ctx.failure.as_dict(),
-        "recoveries": ctx.recoveries, "touchdown_speed_m_s": ctx.touchdown_speed_m_s,
+        "recoveries": ctx.recovery.count, "touchdown_speed_m_s": ctx.landing.touchdown_speed_m_s,
         "envelope_peaks": {k: dict(v) for k, v in sorted(envelope_peaks.items())},
         "counters": {**counters.__dict__, "state_late": a.late, "state_unmatched": a.unmatched,
                      "state_euler_refused": a.euler_near_vertical, "state_non_finite": a.non_finite},

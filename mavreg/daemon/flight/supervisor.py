@@ -21,9 +21,9 @@ The supervisor is made of parts that share one flight (:class:`~mavreg.daemon.fl
 the state in :class:`~mavreg.daemon.flight.context.FlightContext`, the collaborators in
 :class:`~mavreg.daemon.flight.context.FlightParts`): one handler per phase
 (:data:`mavreg.daemon.flight.handlers.HANDLERS`), the safety policy
-(:class:`~mavreg.daemon.flight.safety.SafetyPolicy`), the vocabulary in :mod:`mavreg.daemon.flight.phases`
-and the records in :mod:`mavreg.daemon.flight.records`. This module routes messages and runs the
-per-sample pipeline (:meth:`Supervisor._on_sample`): gap policy, the envelope monitor on the
+(:class:`~mavreg.daemon.flight.safety.SafetyPolicy`), the messages in (:class:`~mavreg.daemon.flight.inbox.Inbox`),
+the vocabulary in :mod:`mavreg.daemon.flight.phases` and the records in :mod:`mavreg.daemon.flight.records`.
+This module takes the messages of a read and runs the per-sample pipeline (:meth:`Supervisor._on_sample`): gap policy, the envelope monitor on the
 telemetry (:mod:`mavreg.daemon.flight.monitor`), the phase's control on the state from
 :meth:`Flight.controller_state` (the one place a state predictor can be slotted in), the
 monitor on the controller's errors, and the command out through :meth:`Flight.send_rotors`
@@ -32,8 +32,7 @@ monitor on the controller's errors, and the command out through :meth:`Flight.se
 from __future__ import annotations
 
 import dataclasses
-import math
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -41,17 +40,32 @@ from ...config.envelope import EnvelopeParams
 from ...config.vehicle import VehicleParams
 from ...control.estimation.forecast import Forecaster
 from ..vehicle import messages as mm
-from .context import FlightContext, FlightParts
+from .context import FlightContext, FlightParts, Queued
 from .status import supervisor_status
 from .excitation import check_output
 from .verbs import Flight
 from .gate import nominal_points
 from .handlers import make_handlers
+from .inbox import Inbox
 from .phases import AIRBORNE, PHASE_CODES, Event, LogRecord, Output, Phase, SupervisorParams
-from .reboot import STATE_PARTS, on_reboot
+from .reboot import STATE_PARTS
 from .records import Outcome
 from .safety import SafetyPolicy
 from .state import StateSample
+
+if TYPE_CHECKING:
+    from ...control.controllers.hover import HoverController
+    from ...control.controllers.recovery import RecoveryController
+    from ..vehicle.peers import VehicleIds
+    from ..vehicle.timesync import TimesyncEstimator
+    from .delays import ActuationDelay
+    from .gate import HealthGate
+    from .monitor import EnvelopeMonitor
+    from .output import RateOutput, RotorOutput
+    from .phases import Counters
+    from .preflight import AutopilotSetup
+    from .reboot import RebootDetector
+    from .state import StateAssembler
 
 __all__ = ["Phase", "SupervisorParams", "Event", "LogRecord", "Output", "Supervisor", "PHASE_CODES",
            "Outcome"]
@@ -80,11 +94,29 @@ class Supervisor:
     fixed_delay_s : float, optional
         A configured sample-to-actuation delay that overrides the measured one.
 
-    The parts (``forecaster``, ``hover``, ``recovery``, ``monitor``, ``gate``, ``delay``,
-    ``timesync``, ``assembler``, ``autopilot``, ``output``, ``counters``, ...) are attributes
-    of the same names (:class:`~mavreg.daemon.flight.context.FlightParts`); the flight's state is
-    :attr:`ctx` (:class:`~mavreg.daemon.flight.context.FlightContext`).
+    The parts (:class:`~mavreg.daemon.flight.context.FlightParts`, :attr:`parts`) are also declared
+    attributes of the same names (``sup.forecaster``, ``sup.monitor``, ...: one each, below); the
+    flight's state is :attr:`ctx` (:class:`~mavreg.daemon.flight.context.FlightContext`).
     """
+
+    parts: FlightParts
+    vehicle: VehicleParams
+    params: SupervisorParams
+    envelope: EnvelopeParams
+    regulator_factory: Callable
+    timesync: TimesyncEstimator
+    forecaster: Forecaster
+    hover: HoverController
+    recovery: RecoveryController
+    monitor: EnvelopeMonitor
+    assembler: StateAssembler
+    output: RotorOutput | RateOutput
+    delay: ActuationDelay
+    gate: HealthGate
+    autopilot: AutopilotSetup
+    counters: Counters
+    ids: VehicleIds
+    reboots: RebootDetector
 
     def __init__(self, vehicle: VehicleParams, params: SupervisorParams, regulator_factory,
                  envelope: EnvelopeParams | None = None,
@@ -93,14 +125,23 @@ class Supervisor:
         parts = FlightParts.build(vehicle, params, regulator_factory, envelope, link_health, forecaster,
                                   fixed_delay_s)
         check_output(params.excitation, parts.output.kind)
-        for f in dataclasses.fields(parts):          # sup.forecaster, sup.monitor, ...: the parts
-            setattr(self, f.name, getattr(parts, f.name))
-        self.ctx = FlightContext()
-        self.flight = Flight(self.ctx, parts)
+        self.parts = parts
+        self.vehicle, self.params, self.envelope = parts.vehicle, parts.params, parts.envelope
+        self.regulator_factory, self.timesync, self.forecaster = parts.regulator_factory, parts.timesync, parts.forecaster
+        self.hover, self.recovery, self.monitor = parts.hover, parts.recovery, parts.monitor
+        self.assembler, self.output, self.delay, self.gate = parts.assembler, parts.output, parts.delay, parts.gate
+        self.autopilot, self.counters, self.ids, self.reboots = parts.autopilot, parts.counters, parts.ids, parts.reboots
+        self.flight = Flight(FlightContext(), parts)
         self.safety = SafetyPolicy(self.flight)
         self.handlers = make_handlers(self.flight, self.safety)
+        self.inbox = Inbox(self.flight, self.safety)
 
     # ----------------------------------------------------------------- the flight's state
+    @property
+    def ctx(self) -> FlightContext:
+        """The flight's state (a new one after the vehicle rebooted on the ground)."""
+        return self.flight.ctx
+
     @property
     def phase(self) -> Phase:
         return self.ctx.phase
@@ -116,11 +157,11 @@ class Supervisor:
 
     @property
     def last_sample(self) -> StateSample | None:
-        return self.ctx.last_sample
+        return self.ctx.heard.last_sample
 
     @property
     def vehicle_status(self) -> mm.VehicleStatus | None:
-        return self.ctx.vehicle_status
+        return self.ctx.heard.status
 
     # ----------------------------------------------------------------- public API
     @property
@@ -156,7 +197,7 @@ class Supervisor:
         ctx = self.ctx
         if self.finished or ctx.phase == Phase.TERMINATE:
             raise ValueError(f"the flight is over ({ctx.phase}); no maneuver can be queued")
-        ctx.pending.append((plan, self.regulator_factory(plan, self.forecaster.rotor_lag), nominal_points(plan)))
+        self.flight.queue(Queued(plan, self.regulator_factory(plan, self.forecaster.rotor_lag), nominal_points(plan)))
         self.flight.event(out, "queued", f"maneuver {plan.name!r} ({plan.length_m:.2f} m) queued; "
                           f"{len(ctx.pending)} pending, starts at the next safe point")
         return out
@@ -165,8 +206,8 @@ class Supervisor:
         """Land after the current maneuver (or now, when holding); drops pending maneuvers."""
         out = Output()
         ctx = self.ctx
-        ctx.land_requested = True
-        ctx.pending.clear()
+        ctx.landing.requested = True
+        self.flight.drop_pending()
         if ctx.phase == Phase.PREFLIGHT:
             self.safety.end_on_ground(out, "land requested before take-off; nothing to fly")
             return out
@@ -175,7 +216,7 @@ class Supervisor:
 
     def heartbeat(self) -> object:
         return mm.daemon_heartbeat(self.ctx.phase not in (Phase.ABORTED, Phase.TERMINATE, Phase.RECOVER)
-                                   and not self.ctx.recovery_landing)
+                                   and not self.ctx.recovery.landing)
 
     def status(self) -> dict:
         """The flight's status (:func:`mavreg.daemon.flight.status.supervisor_status`)."""
@@ -196,7 +237,7 @@ class Supervisor:
             (i for i, m in enumerate(msgs) if m.get_type() in STATE_PARTS), default=-1)
         held, was_over = None, self.finished
         for i, msg in enumerate(msgs):
-            if (sample := self._take(msg, now_s, out)) is not None:
+            if (sample := self.inbox.take(msg, now_s, out)) is not None:
                 if held is not None:
                     self._on_sample(held, now_s, out, answer=False)
                     self.counters.superseded += 1
@@ -209,32 +250,6 @@ class Supervisor:
         if held is not None:                       # the parts after it completed nothing newer
             self._on_sample(held, now_s, out)
         return out
-
-    def _take(self, msg, now_s: float, out: Output) -> StateSample | None:
-        """One message: routed; the complete sample it closes, if any (not yet acted on)."""
-        mtype = msg.get_type()
-        if not self._vehicle_ids(msg, mtype, out):
-            self.counters.foreign_dropped += 1
-            return None
-        if mtype in STATE_PARTS and (seen := self.reboots.part(msg, now_s)) is not None:
-            on_reboot(self.flight, self.safety, seen, out)
-        if mtype == "HEARTBEAT":
-            self._heartbeat(msg, out)
-        elif mtype == "PARAM_VALUE":
-            self.autopilot.param_value(msg)
-        elif mtype == "COMMAND_ACK":
-            self._on_ack(msg, out)
-        elif mtype == "EXTENDED_SYS_STATE":
-            self.ctx.landed_state = int(msg.landed_state)
-        elif mtype == "TIMESYNC":
-            if msg.tc1 != 0 and not self.timesync.reply(msg.tc1, msg.ts1, int(now_s * 1e9)):
-                self.counters.timesync_dropped += 1
-        else:
-            sample = self.assembler.add(msg)
-            if sample is not None:
-                self.counters.samples += 1
-                return sample
-        return None
 
     def tick(self, now_s: float) -> Output:
         """Periodic check, called every ``tick_stall_s / 2`` or more often: link loss,
@@ -250,9 +265,9 @@ class Supervisor:
         ctx.last_tick_wall_s = now_s
         if ctx.phase == Phase.TERMINATE:
             self.safety.terminate_step(now_s, out)
-        elif ctx.ground_end_wall_s is not None:
+        elif ctx.commands.ground_end_wall_s is not None:
             self.safety.ground_disarm_timeout(now_s, out)
-        elif not stalled and ctx.last_sample_wall_s is not None:
+        elif not stalled and ctx.heard.last_sample_wall_s is not None:
             self.safety.link_lost(now_s, out)
         return out
 
@@ -268,18 +283,17 @@ class Supervisor:
         out = Output()
         ctx = self.ctx
         ctx.now_wall_s = now_s
-        last = ctx.last_sample
-        if (not self.params.gap_fill or last is None or ctx.last_sample_wall_s is None
+        last = ctx.heard.last_sample
+        if (not self.params.gap_fill or last is None or ctx.heard.last_sample_wall_s is None
                 or ctx.phase not in AIRBORNE or ctx.phase == Phase.RECOVER):
             return out
-        elapsed_wall_s = now_s - ctx.last_sample_wall_s
+        elapsed_wall_s = now_s - ctx.heard.last_sample_wall_s
         if elapsed_wall_s < 1.5 * self.forecaster.period_s:
             return out
-        fc = self.forecaster.ahead(last.time_s, last.x, last.rotation, elapsed_wall_s, self.delay.total_s())
+        fc = self.flight.forecast_ahead(last, elapsed_wall_s)
         if fc is None:
             return out
         virtual = dataclasses.replace(last, time_boot_ms=last.time_boot_ms + int(round(elapsed_wall_s * 1e3)))
-        ctx.forecast = fc
         rotors, record, _ = self.handlers[ctx.phase].control(virtual, fc.x, out)
         if self.finished or not np.all(np.isfinite(rotors)):
             return out
@@ -288,78 +302,14 @@ class Supervisor:
         out.log = record
         return out
 
-    # ----------------------------------------------------------------- messages in
-    def _vehicle_ids(self, msg, mtype: str, out: Output) -> bool:
-        """Whether ``msg`` is the vehicle's (:class:`~mavreg.daemon.vehicle.peers.VehicleIds`: its system
-        id pinned, or fixed by its first autopilot HEARTBEAT, which is announced)."""
-        ids = self.ids
-        known = ids.system_id is not None
-        hb = (int(msg.type), int(msg.autopilot)) if mtype == "HEARTBEAT" else None
-        if not ids.take(msg.get_srcSystem(), msg.get_srcComponent(), hb):
-            return False
-        if not known:
-            self.flight.event(out, "vehicle_id", f"vehicle system id {ids.system_id}, from its first autopilot "
-                              f"HEARTBEAT (autopilot {hb[1]}); pin another with --vehicle-system-id N")
-        return True
-
-    def _heartbeat(self, msg, out: Output) -> None:
-        """A vehicle HEARTBEAT: the dialect (its notice), then the vehicle's status; a vehicle
-        mavreg does not fly is refused on the ground at once."""
-        autopilot, ctx = self.autopilot, self.ctx
-        self.reboots.heartbeat(ctx.now_wall_s)
-        # the telemetry is asked for until samples stream: from the start, and on the ground when
-        # they stopped (a rebooted ArduCopter sends none until asked again)
-        streaming = ctx.last_sample_wall_s is not None and (
-            ctx.phase in AIRBORNE or ctx.now_wall_s - ctx.last_sample_wall_s <= self.params.stale_timeout_s)
-        st = autopilot.heartbeat(msg, out.messages, streaming)
-        if autopilot.notice is not None:
-            self.flight.announce(out, "dialect", mm.SEVERITY_WARNING, autopilot.notice)
-            autopilot.notice = None
-        if st is not None:
-            self._on_heartbeat(st, out)
-            return
-        self.counters.unsupported_heartbeats += 1
-        if self.ctx.phase == Phase.PREFLIGHT:
-            self.safety.refuse(autopilot.refusal, out, Phase.PREFLIGHT)
-
-    def _on_heartbeat(self, st: mm.VehicleStatus, out: Output) -> None:
-        ctx = self.ctx
-        prev = ctx.vehicle_status
-        ctx.vehicle_status = st
-        if prev is None or prev.armed != st.armed or prev.mode != st.mode:
-            self.flight.event(out, "vehicle", f"vehicle {'armed' if st.armed else 'disarmed'}, mode {st.mode}")
-        if ctx.phase == Phase.TERMINATE:
-            if not st.armed:
-                self.safety.disarm_confirmed(out, "the vehicle reports disarmed")
-        elif ctx.phase == Phase.LAND and ctx.spool_down_start_vehicle_s is not None and not st.armed:
-            self.flight.set_phase(out, Phase.DISARMED, "touched down and disarmed")
-        elif ctx.phase == Phase.PREFLIGHT and ctx.land_requested and not st.armed:
-            self.flight.set_phase(out, Phase.DISARMED, "disarmed on the ground")
-        elif (ctx.phase == Phase.LAND and ctx.land_mode_requested
-              and st.mode == self.autopilot.dialect.land_mode):
-            pass                           # on the ground, the autopilot's landing mode disarms
-        elif ctx.phase in AIRBORNE and (not st.armed or not st.offboard):
-            self.safety.hand_over(out, "vehicle_mode", math.nan, math.nan, "",
-                                  f"vehicle left OFFBOARD control (armed={st.armed}, mode {st.mode}); "
-                                  "its failsafe is in charge")
-
-    def _on_ack(self, msg, out: Output) -> None:
-        self.counters.acks += 1
-        accepted = msg.result == mm.mavlink2.MAV_RESULT_ACCEPTED
-        if not accepted:
-            self.flight.event(out, "command_refused", f"command {msg.command} result {msg.result}")
-        if (accepted and self.ctx.phase == Phase.TERMINATE
-                and msg.command == mm.mavlink2.MAV_CMD_COMPONENT_ARM_DISARM):
-            self.safety.disarm_confirmed(out, "forced disarm acknowledged")
-
     def _on_sample(self, sample: StateSample, now_s: float, out: Output, answer: bool = True) -> None:
         """Every complete sample: the ground phases' handler, or the airborne pipeline;
         ``answer`` False (a newer sample came in the same read): the checks only."""
         ctx = self.ctx
-        prev, prev_wall_s = ctx.last_sample, ctx.last_sample_wall_s
-        ctx.last_sample = sample
-        ctx.last_sample_wall_s = now_s
-        if self.finished or ctx.vehicle_status is None:
+        prev, prev_wall_s = ctx.heard.last_sample, ctx.heard.last_sample_wall_s
+        ctx.heard.last_sample = sample
+        ctx.heard.last_sample_wall_s = now_s
+        if self.finished or ctx.heard.status is None:
             return
         if ctx.phase not in AIRBORNE:
             if answer:

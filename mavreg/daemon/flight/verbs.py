@@ -2,7 +2,9 @@
 
 :class:`Flight` holds the flight's state (:class:`~mavreg.daemon.flight.context.FlightContext`) and
 its parts (:class:`~mavreg.daemon.flight.context.FlightParts`), and is the one place that changes
-the phase, stamps an event, sends a command or a rotor command, and keeps the outcome. The
+the phase, stamps an event, sends a command or a rotor command, keeps the outcome and the queue
+of maneuvers (``ctx`` itself is replaced by a rebuilt one when the vehicle reboots on the ground:
+read it through the flight, do not keep it). The
 phase handlers (:mod:`mavreg.daemon.flight.handlers`, :mod:`mavreg.daemon.flight.hover_phases`), the
 safety policy (:mod:`mavreg.daemon.flight.safety`) and the supervisor act through it.
 """
@@ -13,11 +15,12 @@ from dataclasses import replace
 
 import numpy as np
 
+from ...control.estimation.forecast import Forecast
 from ...model.rotation import rpy_to_matrix
 from ...model.rotation_kernel import rpy_matrix
 from . import flightpath as fp
 from ..vehicle import messages as mm
-from .context import FlightContext, FlightParts
+from .context import FlightContext, FlightParts, Flying, Queued
 from .excitation import EXCITATION_END
 from .gate import MarginCheck, delay_margin_of
 from .phases import FREE_FLIGHT, Event, LogRecord, Output, Phase
@@ -76,15 +79,15 @@ class Flight:
         ctx.phase = phase
         # The disturbance observer learns only in free flight (no ground reaction force).
         parts.forecaster.observing = phase in FREE_FLIGHT
-        if ctx.last_sample is not None:
-            ctx.phase_start_vehicle_s = ctx.last_sample.time_s
+        if ctx.heard.last_sample is not None:
+            ctx.phase_start_vehicle_s = ctx.heard.last_sample.time_s
         parts.monitor.phase_changed(phase, ctx.phase_start_vehicle_s)
         if phase == Phase.HOLD:
             parts.gate.reset()
             ctx.gate_wait_start_vehicle_s = None
-        ctx.rate_excitation = None             # an excitation never outlives its hold
-        if ctx.excitation_start_vehicle_s is not None and ctx.excitation_end_vehicle_s is None:
-            ctx.excitation_end_vehicle_s = ctx.vehicle_now_s
+        ctx.excitation.rate_step = None             # an excitation never outlives its hold
+        if ctx.excitation.start_vehicle_s is not None and ctx.excitation.end_vehicle_s is None:
+            ctx.excitation.end_vehicle_s = ctx.vehicle_now_s
             self.announce(out, "excitation", mm.SEVERITY_INFO, f"{EXCITATION_END} cut short: {phase}")
         if phase == Phase.ABORTED and not ctx.reason:
             ctx.reason = detail
@@ -107,6 +110,30 @@ class Flight:
         self.ctx.statustext_id = self.ctx.statustext_id % 65535 + 1
         return self.ctx.statustext_id
 
+    # ------------------------------------------------------------------ the maneuvers
+    def queue(self, queued: Queued) -> None:
+        """A maneuver accepted: flown at the next safe point, after those queued before it."""
+        self.ctx.pending.append(queued)
+
+    def drop_pending(self) -> list[str]:
+        """The queued maneuvers dropped, not flown: their names."""
+        names = [q.plan.name for q in self.ctx.pending]
+        self.ctx.pending.clear()
+        return names
+
+    def start_next(self) -> Flying:
+        """The first queued maneuver becomes the one flown (run-in, then maneuver)."""
+        q = self.ctx.pending.pop(0)
+        self.ctx.active = Flying(q.plan, q.regulator)
+        return self.ctx.active
+
+    def end_maneuver(self, finished: bool = False) -> None:
+        """No maneuver is flown any more (``finished``: the one flown reached its end)."""
+        ctx = self.ctx
+        if finished and ctx.active is not None:
+            ctx.maneuvers_done.append(ctx.active.plan.name)
+        ctx.active = None
+
     # ------------------------------------------------------------------ outcome
     def fail(self, violation: BoundViolation) -> None:
         """Keep the first violation of the flight as its outcome (later ones only add actions)."""
@@ -122,7 +149,7 @@ class Flight:
 
     def lands_when_done(self) -> bool:
         """Whether a hold with nothing to fly ends in a landing (``fly``, or a land request)."""
-        return self.parts.params.land_when_done or self.ctx.land_requested
+        return self.parts.params.land_when_done or self.ctx.landing.requested
 
     # ------------------------------------------------------------------ messages out
     def command(self, out: Output, msg, at_once: bool = False) -> None:
@@ -130,11 +157,11 @@ class Flight:
         ``at_once`` (a new request: its retries are counted from now). Before the vehicle's
         first sample (no vehicle time) it is not too soon."""
         ctx = self.ctx
-        t, last = ctx.vehicle_now_s, ctx.last_command_vehicle_s
+        t, last = ctx.vehicle_now_s, ctx.commands.last_command_vehicle_s
         too_soon = last <= t < last + self.parts.params.command_retry_s    # False with a NaN
         if at_once or not too_soon:
             out.messages.append(msg)
-            ctx.last_command_vehicle_s = t
+            ctx.commands.last_command_vehicle_s = t
             self.parts.counters.commands_sent += 1
 
     def send_rotors(self, rotor_forces_n: np.ndarray, now_wall_s: float, out: Output,
@@ -147,12 +174,12 @@ class Flight:
         if t_s is not None:
             t = t_s
         else:
-            t = ctx.last_sample.time_s if ctx.last_sample is not None else 0.0
+            t = ctx.heard.last_sample.time_s if ctx.heard.last_sample is not None else 0.0
         parts.monitor.record_command(t, rotor_forces_n)
         cmd = parts.forecaster.command(t, rotor_forces_n)
-        x = ctx.forecast.x if ctx.forecast is not None else (
-            None if ctx.last_sample is None else ctx.last_sample.x)
-        excite = ctx.rate_excitation if ctx.phase == Phase.HOLD else None
+        x = ctx.heard.forecast.x if ctx.heard.forecast is not None else (
+            None if ctx.heard.last_sample is None else ctx.heard.last_sample.x)
+        excite = ctx.excitation.rate_step if ctx.phase == Phase.HOLD else None
         out.messages.append(parts.output.message(now_wall_s, t, cmd, x, excite))
         parts.counters.actuator_sent += 1
         if parts.timesync.due(t):
@@ -164,9 +191,18 @@ class Flight:
         takes over (:class:`~mavreg.control.estimation.forecast.Forecaster`; the sample itself when
         prediction is off)."""
         parts = self.parts
-        self.ctx.forecast = parts.forecaster.update(sample.time_s, sample.x, sample.rotation,
+        self.ctx.heard.forecast = parts.forecaster.update(sample.time_s, sample.x, sample.rotation,
                                                     parts.delay.total_s())
-        return self.ctx.forecast.x
+        return self.ctx.heard.forecast.x
+
+    def forecast_ahead(self, last: StateSample, elapsed_wall_s: float) -> Forecast | None:
+        """The last sample predicted ``elapsed_wall_s`` later plus the delay (a gap filled): kept
+        as the state the controllers act on; None beyond the prediction's horizon (kept as it was)."""
+        parts = self.parts
+        fc = parts.forecaster.ahead(last.time_s, last.x, last.rotation, elapsed_wall_s, parts.delay.total_s())
+        if fc is not None:
+            self.ctx.heard.forecast = fc
+        return fc
 
     def record(self, sample: StateSample, s, w, u, rotors) -> LogRecord:
         """The log keeps the measured state (the controllers may act on a prediction of it)."""

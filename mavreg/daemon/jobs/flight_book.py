@@ -88,11 +88,11 @@ class FlightRecord:
             result, detail = "ok", f"landed after {len(ctx.maneuvers_done)} maneuver(s)"
         else:
             result, detail = cause.bound, cause.line()
-        td = ctx.touchdown_speed_m_s
-        return cls(number, result, str(sup.phase), detail, tuple(ctx.maneuvers_done), int(ctx.recoveries),
+        td = ctx.landing.touchdown_speed_m_s
+        return cls(number, result, str(sup.phase), detail, tuple(ctx.maneuvers_done), int(ctx.recovery.count),
                    None if td is None or not math.isfinite(td) else float(td), dict(latency_ms),
                    float(ended_daemon_s), dict(sup.counters.__dict__),
-                   (ctx.stream_start_vehicle_s, None if ctx.last_sample is None else ctx.last_sample.time_s))
+                   (ctx.heard.stream_start_vehicle_s, None if ctx.heard.last_sample is None else ctx.heard.last_sample.time_s))
 
     def line(self) -> str:
         td = "" if self.touchdown_speed_m_s is None else f", touchdown {self.touchdown_speed_m_s:.2f} m/s"

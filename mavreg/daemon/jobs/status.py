@@ -53,11 +53,7 @@ def status_report(daemon, tick_s: float) -> dict:
                   "max_tick_cpu_ms": daemon.max_tick_cpu_s * 1e3,
                   "tick_ms": tick_s * 1e3,
                   "endpoint_refused": 0 if daemon.endpoint is None else daemon.endpoint.refused}
-    est = sup.timesync.estimate()
-    st["link_delay_ms"] = None if est is None else {
-        "sample_to_actuation": est.delay_s * 1e3, "jitter": est.jitter_s * 1e3,
-        "round_trip_wall": est.round_trip_s * 1e3, "replies": est.samples,
-        "used_for_prediction": sup.delay.total_s() * 1e3 if sup.forecaster.predict else None}
+    st["link_delay_ms"] = sup.delay.status(predicting=sup.forecaster.predict)
     fc = sup.forecaster
     dist = fc.disturbance
     st["disturbance"] = None if dist is None else {
