@@ -71,12 +71,8 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
     vehicle = plan.vehicle
     period = 1.0 / control_rate_hz
     forecaster = _forecaster(plan, rotor_time_constant_s, period, predict, max_prediction_s, disturbance)
-    reg = ManeuverRegulator(plan, vehicle, control_period_s=period,
-                            rotor_lag=(RotorLagInEffect(rotor_time_constant_s) if forecaster is None
-                                       else forecaster.rotor_lag),
-                            allocation=allocation, speed_governor=speed_governor)
-    if forecaster is not None:
-        forecaster.reset(reg.mixer_inverse @ plan.u[0])
+    lag = RotorLagInEffect(rotor_time_constant_s) if forecaster is None else forecaster.rotor_lag
+    reg = ManeuverRegulator(plan, vehicle, period, lag, allocation=allocation, speed_governor=speed_governor)
     x0 = plan.nominal_state(start_s_m) if start_s_m else plan.entry_state
     x0[:3] += np.asarray(offset_m, dtype=float)
     reg.reset(x0, s_guess=start_s_m)
@@ -124,7 +120,7 @@ def fly_on_design_model(plan: Plan, *, offset_m=(0.0, 0.0, 0.0), inertia_kg_m2=N
 def _forecaster(plan: Plan, rotor_time_constant_s: float, period_s: float,
                 predict: bool, max_prediction_s: float, disturbance: DisturbanceParams | None):
     """The prediction across the delay (and the disturbance observer) of :func:`fly_on_design_model`,
-    not yet reset to the entry's rotor forces; None without ``predict``."""
+    its rotors at the entry's forces; None without ``predict``."""
     observe = disturbance is not None and disturbance.enabled
     if observe and not predict:
         raise ValueError("the disturbance observer runs in the forecaster: it needs predict=True")
@@ -133,6 +129,7 @@ def _forecaster(plan: Plan, rotor_time_constant_s: float, period_s: float,
     forecaster = Forecaster(dataclasses.replace(plan.vehicle, rotor_time_constant_s=rotor_time_constant_s),
                             period_s, max_horizon_s=max_prediction_s, disturbance=disturbance)
     forecaster.observing = observe
+    forecaster.reset(Mixer.from_vehicle(plan.vehicle).inverse @ plan.u[0])
     return forecaster
 
 
