@@ -39,7 +39,7 @@ DIALECT = {
     "lockstep wait for a command": ("--lockstep-timeout-s", "s (wall)", {"firmware-sim"}),
     "offboard loss failsafe after": ("--offboard-loss-timeout-s", "s (sim)", {"firmware-sim"}),
     "control endpoint": ("--socket", "Unix socket path", {"fly", "serve", "upload"}),
-    "output directory": ("--out", "directory", {"fly", "experiment"}),
+    "output directory": ("--out", "directory", {"fly", "serve", "experiment"}),
     "JSON on stdout": ("--json", "flag", {"plan", "simulate", "identify"}),
     "gust window": ("--gust-window-s", "s (sim)", {"simulate"}),
     "lockstep speed while no commands stream": ("--lockstep-stall-factor", "x real time", {"firmware-sim"}),
@@ -59,6 +59,7 @@ OTHER_SPELLINGS = {
     "the vehicle's system id": ("--system-id", "--sysid", "--target-system", "--vehicle-sysid"),
     "custom firmware's mode layout": ("--autopilot-dialect", "--mode-layout", "--modes"),
     "gust window": ("--gust-window",),
+    "output directory": ("--tlog", "--control-log", "--out-dir", "--output-dir", "--outdir", "--dir"),
     "lockstep speed while no commands stream": ("--lockstep-stall-speed",),
 }
 """Spellings a command must not show: the old ones (hidden aliases for a release) and near misses."""
