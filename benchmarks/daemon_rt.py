@@ -81,10 +81,9 @@ def realtime_flight(io: str, timeout_s: float, out: Path) -> dict:
     vehicle = load_vehicle(VEHICLE)
     controller = load_controller(REALISTIC_CONTROLLER)
     out.mkdir(parents=True, exist_ok=True)
-    config = DaemonConfig(vehicle_url="", vehicle_path=VEHICLE, controller_path=REALISTIC_CONTROLLER,
-                          socket_path=None, tlog_path=out / "flight.tlog",
+    config = DaemonConfig(vehicle_url="", controller=controller, socket_path=None, tlog_path=out / "flight.tlog",
                           supervisor=SupervisorParams(land_when_done=True), envelope=controller.envelope,
-                          controller=controller, control_rate_hz=500.0)
+                          control_rate_hz=500.0)
     ctl_ns = [0]
     make = regulator_factory(vehicle, 500.0)
 

@@ -6,12 +6,9 @@ import time
 from pathlib import Path
 
 from ..errors import UsageError
-from ..config.defaults import CONTROL_RATE_HZ, STALE_TIMEOUT_S
-from .common import (REAL_CONTROLLER, add_entry_offset_argument, add_gcs_arguments,
-                     add_laps_argument, add_model_arguments, add_excitation_argument, add_output_argument,
-                     add_planner_arguments, add_signing_argument, add_vehicle_identity_arguments, add_airborne_argument,
-                     check_output_dir, excitation_params, gcs_config, input_file, load_maneuver_arg,
-                     output_dir, planner_bounds, positive_float, socket_path, vehicle_url, vehicle_url_help, check_vehicle_link)
+from .common import (add_entry_offset_argument, add_laps_argument, check_output_dir, input_file, load_maneuver_arg,
+                     output_dir, positive_float, socket_path, vehicle_url, vehicle_url_help)
+from .daemon_args import OUT_HELP, add_daemon_arguments, daemon_options
 
 MAX_ENTRY_OFFSET_M = 2.0
 """Longest --entry-offset: an experiment's start error, not a relocation of the maneuver."""
@@ -83,15 +80,12 @@ def add_arguments(p):
     p.add_argument("--vehicle", metavar="URL", type=vehicle_url, default=None,
                    help=vehicle_url_help("start the bundled firmware_sim on a free loopback port"))
     p.add_argument("--out", metavar="DIR", type=output_dir, default=None,
-                   help="output directory (default: flights/<timestamp>/)")
+                   help=f"{OUT_HELP}: summary.json, flight.png, flight.tlog, control.npz, groundtruth.npz "
+                   "(default: flights/<timestamp>/)")
     p.add_argument("--socket", metavar="PATH", type=socket_path, default=None,
                    help="also accept uploads on this Unix socket during the flight (default: none)")
     p.add_argument("--timeout-s", type=positive_float, default=300.0, metavar="S",
                    help="give up (exit 1) after this many wall seconds (default: %(default)s)")
-    p.add_argument("--control-rate-hz", type=positive_float, default=CONTROL_RATE_HZ, metavar="HZ",
-                   help="the vehicle's telemetry/control rate; the bundled emulator is started "
-                   "at it and the regulator leads its feedforward by half its period "
-                   "(default %(default)s)")
     p.add_argument("--world", choices=("realistic", "wind3", "wind6", "thrust90", "ideal"),
                    default="realistic",
                    help="bundled emulator only: 'realistic' (default) gives it a real vehicle's "
@@ -103,13 +97,6 @@ def add_arguments(p):
                    "params/controller/paper_lqr.yaml). See docs/firmware_sim.md and docs/robustness.md")
     p.add_argument("--lockstep", action="store_true",
                    help="bundled emulator only: run it in lockstep (faster than real time)")
-    p.add_argument("--stale-timeout-s", type=positive_float, default=STALE_TIMEOUT_S, metavar="S",
-                   help="link lost: stop streaming for good when no complete state arrives for S "
-                   "wall seconds; shorter pauses are ridden out in hover (docs/safety.md) "
-                   "(default: %(default)s)")
-    p.add_argument("--vehicle-lockstep", action="store_true",
-                   help="the --vehicle is a lockstep simulator (it waits for each command): do not "
-                   "fly telemetry gaps on the prediction (in real time the daemon does)")
     p.add_argument("--tlog-clock", choices=("vehicle", "wall"), default=None,
                    help="the flight.tlog's timestamps: the vehicle's clock (the default with "
                    "--lockstep or --vehicle-lockstep: log tools then show the flight's own "
@@ -123,14 +110,7 @@ def add_arguments(p):
         "regulator takes over there (the paper's Section 4: 0.6 0.6 0.6; more than 0.5 m across "
         "the path needs a controller file whose envelope allows it, see mavreg experiment)"
         % MAX_ENTRY_OFFSET_M)
-    add_vehicle_identity_arguments(p)
-    add_airborne_argument(p)
-    add_output_argument(p)
-    add_excitation_argument(p)
-    add_signing_argument(p, bundled_emulator=True)
-    add_gcs_arguments(p)
-    add_planner_arguments(p)
-    add_model_arguments(p, controller=REAL_CONTROLLER)
+    add_daemon_arguments(p, bundled_emulator=True)
 
 
 def run(args) -> int:
@@ -138,10 +118,6 @@ def run(args) -> int:
     progress = Progress()       # the daemon's clock starts with the command
     maneuver = Path(args.maneuver)
     out = Path(args.out) if args.out else Path("flights") / time.strftime("%Y%m%d-%H%M%S")
-    from ..config.vehicle import load_vehicle, with_dialect, with_output
-    if args.signing_key is not None:
-        from ..transport.signing import load_key
-        load_key(args.signing_key)      # a bad key file: one line before anything starts
     if args.vehicle is not None:
         if args.lockstep or args.emulator_arg or args.world != "realistic":
             raise UsageError("--lockstep, --world and --emulator-arg apply only to the bundled "
@@ -150,12 +126,10 @@ def run(args) -> int:
     if math.hypot(*offset) > MAX_ENTRY_OFFSET_M:
         raise UsageError(f"--entry-offset must be at most {MAX_ENTRY_OFFSET_M:g} m long, "
                          f"got {' '.join(f'{v:g}' for v in offset)}")
-    gcs = gcs_config(args)
-    vehicle = with_dialect(with_output(load_vehicle(args.vehicle_params), args.output),
-                           args.dialect)    # a bad file: before anything starts
-    excitation = excitation_params(args, vehicle.output)
-    check_vehicle_link(args.vehicle, args.control_rate_hz, vehicle.output, args.signing_key is not None)
-    load_maneuver_arg(args)             # a bad maneuver file or --laps: before anything starts
+    opts = daemon_options(args, progress, maneuvers=(_maneuver(args),), out_dir=out, job_writes_outputs=True,
+                          emulator=_emulator(args), socket_path=Path(args.socket) if args.socket else None,
+                          timeout_s=args.timeout_s, tlog_clock=args.tlog_clock, entry_offset_m=offset,
+                          provenance=_provenance(args))
     why = check_output_dir(str(out))    # the default --out too, before the flight
     if why is not None:
         raise UsageError(f"--out {why}")
@@ -163,14 +137,39 @@ def run(args) -> int:
     # numba): the first line, before the daemon's imports and everything slow
     where = args.vehicle or ("the bundled emulator" + (" (lockstep)" if args.lockstep else ""))
     progress.line(f"starting: {maneuver.name} on {where}; outputs in {out}/")
-    from ..daemon.jobs.fly import FlyOptions, fly
-    opts = FlyOptions(maneuver, args.vehicle, Path(args.vehicle_params), Path(args.controller), out,
-                      Path(args.socket) if args.socket else None, args.timeout_s, args.lockstep,
-                      tuple(args.emulator_arg), args.control_rate_hz, args.vehicle_lockstep, args.world,
-                      args.stale_timeout_s, offset,
-                      signing_key=Path(args.signing_key) if args.signing_key is not None else None,
-                      gcs_urls=gcs["gcs_urls"], gcs=gcs["gcs"], tlog_clock=args.tlog_clock,
-                      argv=tuple(getattr(args, "command_line", ())), planner=planner_bounds(args), output=args.output,
-                      laps=args.laps, excitation=excitation, dialect=args.dialect,
-                      vehicle_system_id=args.vehicle_system_id, airborne=args.airborne, progress=progress)
+    from ..daemon.jobs.fly import fly
     return fly(opts)
+
+
+def _maneuver(args) -> tuple[str, str]:
+    """(the maneuver's text, its source) with ``--laps`` applied; a bad file or ``--laps``: one
+    line before anything starts."""
+    from ..config.maneuver import maneuver_text_with_laps
+    load_maneuver_arg(args)
+    text = Path(args.maneuver).read_text()
+    if args.laps is not None:
+        text = maneuver_text_with_laps(text, args.laps, args.maneuver)
+    return text, args.maneuver
+
+
+def _emulator(args):
+    """The bundled emulator's options (None with ``--vehicle``)."""
+    if args.vehicle is not None:
+        return None
+    from ..daemon.jobs.assembly import EmulatorOptions
+    return EmulatorOptions(vehicle_file=Path(args.vehicle_params), world=args.world, lockstep=args.lockstep,
+                           args=tuple(args.emulator_arg))
+
+
+def _provenance(args) -> dict:
+    """The command, the input files and their hashes, the software (:mod:`mavreg.provenance`)."""
+    import sys
+
+    from ..provenance import provenance
+    world = None
+    if args.vehicle is None:
+        world = " ".join([f"firmware_sim --world {args.world}", *(["--lockstep"] if args.lockstep else []),
+                          *args.emulator_arg])
+    return provenance(tuple(getattr(args, "command_line", ())) or sys.argv,
+                      {"maneuver": Path(args.maneuver), "vehicle": Path(args.vehicle_params),
+                       "controller": Path(args.controller)}, world)

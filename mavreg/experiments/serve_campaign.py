@@ -226,8 +226,7 @@ def fly_campaign(draws: list[FlightDraw], out_dir: Path, rate_hz: float = 250.0,
     runs.mkdir(parents=True, exist_ok=True)
     logs = out_dir / "logs"
     logs.mkdir(exist_ok=True)
-    rig = ServeRig(out_dir, rate_hz, ("--tlog", str(logs / "flight.tlog"), "--control-log",
-                                      str(logs / "control.npz"), "--keep-logs", str(KEEP_LOGS)))
+    rig = ServeRig(out_dir, rate_hz, ("--out", str(logs), "--keep-logs", str(KEEP_LOGS)))
     rows: list[dict] = []
     pending_judge: tuple[list[dict], Path] | None = None
     t0 = time.monotonic()

@@ -22,7 +22,7 @@ SIM_STATE_HZ = 50.0
 
 @contextlib.contextmanager
 def serve_on_arducopter(tmp_path: Path):
-    """The SITL and ``mavreg serve`` on it (control socket ``tmp_path/d.sock``, ``.tlog`` in
+    """The SITL and ``mavreg serve`` on it (control socket ``tmp_path/d.sock``, its logs in
     ``tmp_path``); yields (ground link, serve's :class:`~.sitl.Proc`, socket path). On exit
     serve is stopped (its lines kept in ``tmp_path/serve.log``), then the SITL."""
     sock = tmp_path / "d.sock"
@@ -32,7 +32,7 @@ def serve_on_arducopter(tmp_path: Path):
         port = sitl.release_link()        # the daemon takes SERIAL0; the SITL keeps sending there
         gcs.pump()
         serve = mavreg("serve", *vehicle_args(port), "--control-rate-hz", "200", "--socket", str(sock),
-                       "--tlog", str(tmp_path / "flight.tlog"))
+                       "--out", str(tmp_path))
         try:
             serve.wait_line("control endpoint", 120)
             yield gcs, serve, sock

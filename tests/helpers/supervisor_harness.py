@@ -20,6 +20,8 @@ from mavreg.model.rotation import rpy_to_quat, rpy_to_matrix
 from harness import params
 
 VEHICLE = params.vehicle()
+CONTROLLER = params.controller()
+"""The paper's controller: no prediction, no disturbance observer (a daemon's config needs one)."""
 _PARSER = mavlink2.MAVLink(None)
 _PARSER.robust_parsing = True
 

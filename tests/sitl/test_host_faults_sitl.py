@@ -7,7 +7,7 @@ load), judged on the emulator's recorded truth:
   ``ENOSPC``): the flight is flown and landed ``ok``, exit 0, each file said once, and the
   summary reaches the user on standard output;
 - the wall clock jumps by +1 h or -1 h as the maneuver begins (the injected clock,
-  :attr:`mavreg.daemon.jobs.fly.FlyOptions.wall_s`): the flight is the same, bit for bit, as one
+  :attr:`mavreg.daemon.jobs.assembly.DaemonOptions.wall_s`): the flight is the same, bit for bit, as one
   without a jump; the signed link takes every frame; the ``.tlog``'s stamps step by nothing.
 """
 from __future__ import annotations
@@ -70,7 +70,11 @@ def _fly_in_process(tmp_path: Path, jumps: bool, monkeypatch) -> dict:
     """The hop in lockstep, signed, through :func:`mavreg.daemon.jobs.fly.fly` in this process; with
     ``jumps`` its wall clock jumps +1 h as the maneuver begins and -2 h (to an hour behind) as
     the landing begins."""
+    from mavreg.config.controller import load_controller
+    from mavreg.config.vehicle import load_vehicle
+    from mavreg.daemon.jobs import app as daemon_app
     from mavreg.daemon.jobs import fly as fly_mod
+    from mavreg.daemon.jobs.assembly import DaemonOptions, EmulatorOptions
     from mavreg.daemon.flight.supervisor import Phase
     tmp_path.mkdir()
     key = tmp_path / "mavlink.key"
@@ -86,14 +90,16 @@ def _fly_in_process(tmp_path: Path, jumps: bool, monkeypatch) -> dict:
             state["offset_s"] += steps[d.supervisor.phase]
         return time.time() + state["offset_s"]
 
-    class Watched(fly_mod.Daemon):
+    class Watched(daemon_app.Daemon):
         def __init__(self, *a, **k):
             super().__init__(*a, **k)
             state["daemon"] = self
-    monkeypatch.setattr(fly_mod, "Daemon", Watched)
+    monkeypatch.setattr(daemon_app, "Daemon", Watched)     # what assemble() builds
     out = tmp_path / "out"
-    opts = fly_mod.FlyOptions(HOP, None, DEFAULT_VEHICLE, REAL_CONTROLLER, out, None, 600.0, True, (),
-                              signing_key=key, tlog_clock="wall", wall_s=wall_s)
+    opts = DaemonOptions(vehicle=load_vehicle(DEFAULT_VEHICLE), controller=load_controller(REAL_CONTROLLER),
+                         vehicle_url=None, emulator=EmulatorOptions(vehicle_file=DEFAULT_VEHICLE, lockstep=True),
+                         maneuvers=((HOP.read_text(), str(HOP)),), out_dir=out, job_writes_outputs=True,
+                         timeout_s=600.0, signing_key=key, tlog_clock="wall", wall_s=wall_s)
     started_s = time.time()
     code = fly_mod.fly(opts)
     saved = json.loads((tmp_path / "mavlink.key.mavreg-state.json").read_text())["timestamp"]

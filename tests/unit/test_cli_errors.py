@@ -53,7 +53,8 @@ def _one_error_line(capsys, prog: str) -> str:
     (["fly", BARREL, "--dialect", "inav"], "--dialect: invalid choice: 'inav' (choose from 'px4', 'ardupilot')"),
     (["serve", "--dialect", "generic"], "--dialect: invalid choice: 'generic'"),
     (["fly", BARREL, "--vehicle-params", "{dialect}"], "dialect: expected one of px4, ardupilot, got 'inav'"),
-    (["serve", "--tlog", "/no/such/dir/f.tlog"], "--tlog: /no/such/dir/f.tlog: no such directory"),
+    (["serve", "--out", "{file}"], "--out: {file}: exists and is not a directory"),
+    (["serve", "--tlog", "/no/such/dir/f.tlog"], "--tlog: /no/such/dir/f.tlog: no such directory"),   # deprecated
     (["serve", "--control-log", "{tmp}"], "--control-log: {tmp}: is a directory"),
     (["serve", "--socket", "{file}/x.sock"], "is not a directory"),
     (["upload", "/no/such.yaml"], "No such file or directory"),
@@ -199,8 +200,7 @@ def test_fly_gives_2_for_a_bad_file_and_1_for_an_infeasible_maneuver():
     from mavreg.errors import UserError
     vehicle_path, controller_path = DEFAULT_VEHICLE, PAPER_CONTROLLER
     vehicle = load_vehicle(vehicle_path)
-    config = DaemonConfig("udpout:127.0.0.1:9", vehicle_path, controller_path, None, None, SupervisorParams(),
-                          controller=load_controller(controller_path))
+    config = DaemonConfig("udpout:127.0.0.1:9", load_controller(controller_path), None, None, SupervisorParams())
     text = open(BARREL).read()
     statuses = []
     for bad in (text.replace("radius_m: 1.5", "radius_m: -1.5"), text.replace("to_m_s: 8.0", "to_m_s: 30.0")):

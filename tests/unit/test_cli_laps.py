@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 import mavreg.daemon.jobs.endpoint as endpoint
-import mavreg.daemon.jobs.fly as fly_job
+import mavreg.daemon.jobs.app as daemon_app
 from mavreg.cli.common import PARAMS_DIR
 from mavreg.cli.main import build_parser, main
 from mavreg.config.maneuver import load_maneuver, load_maneuver_text, maneuver_text_with_laps
@@ -57,8 +57,7 @@ def _fly_until_the_daemon_starts(monkeypatch, tmp_path, argv) -> list:
             handed.extend(initial)
             raise _Started
 
-    monkeypatch.setattr(fly_job, "Daemon", Daemon)
-    monkeypatch.setattr(fly_job, "regulator_factory", lambda *a, **k: None)
+    monkeypatch.setattr(daemon_app, "Daemon", Daemon)     # what assemble() builds
     parser, modules = build_parser()
     args = parser.parse_args(["fly", str(BARREL), "--vehicle", "udpout:127.0.0.1:9", "--out", str(tmp_path), *argv])
     with pytest.raises(_Started):

@@ -8,7 +8,7 @@ import json
 
 import pytest
 
-import mavreg.daemon.jobs.fly as fly_job
+import mavreg.daemon.jobs.app as daemon_app
 from mavreg.cli.main import build_parser, main
 from mavreg.cli.plan_cmd import format_margins
 from mavreg.config.paths import REAL_CONTROLLER, maneuver_file
@@ -40,7 +40,7 @@ def _what_fly_hands_the_daemon(monkeypatch, tmp_path) -> tuple:
     got = {}
 
     class Daemon:
-        def __init__(self, config, vehicle, make_regulator, progress=None, **kwargs):
+        def __init__(self, config, vehicle, make_regulator=None, progress=None, **kwargs):
             from mavreg.progress import Progress
             got.update(vehicle=vehicle, controller=config.controller)
             self.progress = progress if progress is not None else Progress(quiet=True)
@@ -49,8 +49,7 @@ def _what_fly_hands_the_daemon(monkeypatch, tmp_path) -> tuple:
             got["initial"] = list(initial)
             raise _Started
 
-    monkeypatch.setattr(fly_job, "Daemon", Daemon)
-    monkeypatch.setattr(fly_job, "regulator_factory", lambda *a, **k: None)
+    monkeypatch.setattr(daemon_app, "Daemon", Daemon)     # what assemble() builds
     parser, modules = build_parser()
     args = parser.parse_args(["fly", str(BARREL), "--vehicle", "udpout:127.0.0.1:9", "--out", str(tmp_path)])
     with pytest.raises(_Started):

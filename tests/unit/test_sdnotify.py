@@ -87,7 +87,8 @@ def test_the_units_command_line_is_one_mavreg_serve_accepts(tmp_path):
            "LOGS_DIRECTORY": str(tmp_path), "MAVREG_SERVE_ARGS": ""}     # systemd makes the logs dir
     argv = [w for w in (re.sub(r"\$(\w+)", lambda m: env[m.group(1)], w) for w in words[2:]) if w]
     args = build_parser()[0].parse_args(argv)
-    assert args.vehicle == "serial:/dev/ttyAMA0:921600" and args.tlog.startswith(f"{tmp_path}/serve-")
+    assert args.vehicle == "serial:/dev/ttyAMA0:921600" and args.out.startswith(f"{tmp_path}/serve-")
+    assert args.tlog is None and args.control_log is None          # the output directory, not the old files
 
 
 def test_systemd_analyze_verifies_the_unit(tmp_path):

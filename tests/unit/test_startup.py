@@ -202,12 +202,11 @@ class _FakePool:
 
 
 def _daemon_starting(monkeypatch, result, compile_gate: threading.Event | None = None):
-    from pathlib import Path
 
     from mavreg.daemon.jobs import app
     from mavreg.daemon.jobs.app import Daemon, DaemonConfig
     from mavreg.daemon.flight.phases import SupervisorParams
-    from tests.helpers.supervisor_harness import VEHICLE, FakeRegulator
+    from tests.helpers.supervisor_harness import CONTROLLER, VEHICLE, FakeRegulator
     order: list[str] = []
     lines: list[str] = []
 
@@ -218,7 +217,7 @@ def _daemon_starting(monkeypatch, result, compile_gate: threading.Event | None =
     monkeypatch.setattr(app, "warm_daemon_kernels", fake_compile)
     monkeypatch.setattr(app, "text_in_cache", lambda *a: False)
     monkeypatch.setattr(startup, "kernels_cold", lambda: False)
-    cfg = DaemonConfig("udpout:127.0.0.1:1", Path("v"), Path("c"), None, None, SupervisorParams())
+    cfg = DaemonConfig("udpout:127.0.0.1:1", CONTROLLER, None, None, SupervisorParams())
     d = Daemon(cfg, VEHICLE, FakeRegulator, log=lines.append)
     d.pool = _FakePool(lines, result)
     real_offer = d.supervisor.offer_plan

@@ -166,12 +166,11 @@ def test_land_request_before_takeoff_ends_on_the_ground():
 
 def test_rejected_upload_changes_nothing_accepted_waits_for_safe_point():
     import asyncio
-    from pathlib import Path
 
     from mavreg.daemon.jobs.app import Daemon, DaemonConfig
     from mavreg.daemon.jobs.planner_pool import PlanResult
     from mavreg.daemon.flight.supervisor import SupervisorParams
-    from tests.helpers.supervisor_harness import VEHICLE
+    from tests.helpers.supervisor_harness import CONTROLLER, VEHICLE
 
     class FakePool:
         busy = 0
@@ -179,7 +178,7 @@ def test_rejected_upload_changes_nothing_accepted_waits_for_safe_point():
         async def plan(self, text, source):
             return PlanResult(None, f"{source}:3: segments: bad") if "bad" in text else PlanResult(FakePlan(name="second"))
 
-    cfg = DaemonConfig("udpout:127.0.0.1:1", Path("v"), Path("c"), None, None,
+    cfg = DaemonConfig("udpout:127.0.0.1:1", CONTROLLER, None, None,
                        SupervisorParams(land_when_done=False))
     d = Daemon(cfg, VEHICLE, FakeRegulator, log=lambda line: None)
     d.pool = FakePool()

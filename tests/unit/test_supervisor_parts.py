@@ -3,7 +3,6 @@ set (the signal handler's too), and the violation and outcome records."""
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 from mavreg.daemon.jobs.app import Daemon, DaemonConfig
 from mavreg.daemon.flight.gate import GateVerdict
@@ -11,7 +10,7 @@ from mavreg.daemon.flight.handlers import HANDLERS
 from mavreg.daemon.flight.hover_phases import Hold
 from mavreg.daemon.flight.phases import AIRBORNE, PHASE_CODES, Phase, SupervisorParams
 from mavreg.daemon.flight.records import BoundViolation, Outcome
-from tests.helpers.supervisor_harness import VEHICLE, FakePlan, FakeRegulator, SimVehicle, make_supervisor, run
+from tests.helpers.supervisor_harness import CONTROLLER, VEHICLE, FakePlan, FakeRegulator, SimVehicle, make_supervisor, run
 
 
 def test_every_phase_has_one_handler_of_its_kind_and_keeps_its_log_code():
@@ -44,7 +43,7 @@ def test_the_table_is_what_flies():
 
 
 def _daemon_in(phase_reached) -> tuple:
-    cfg = DaemonConfig("udpout:127.0.0.1:1", Path("v"), Path("c"), None, None, SupervisorParams())
+    cfg = DaemonConfig("udpout:127.0.0.1:1", CONTROLLER, None, None, SupervisorParams())
     lines = []
     d = Daemon(cfg, VEHICLE, FakeRegulator, log=lines.append)
     sup = d.supervisor

@@ -83,7 +83,10 @@ def test_a_lockstep_tlog_spans_the_vehicle_time(tmp_path):
 
 def test_an_unknown_tlog_clock_is_refused_in_one_line():
     import pytest
+    from mavreg.config.controller import load_controller
     from mavreg.daemon.jobs.app import DaemonConfig
     from mavreg.daemon.flight.supervisor import SupervisorParams
+    from mavreg.config.paths import PAPER_CONTROLLER
     with pytest.raises(ValueError, match="tlog clock 'gps'"):
-        DaemonConfig("udpout:127.0.0.1:1", None, None, None, None, SupervisorParams(), tlog_clock="gps")
+        DaemonConfig("udpout:127.0.0.1:1", load_controller(PAPER_CONTROLLER), None, None, SupervisorParams(),
+                     tlog_clock="gps")

@@ -16,7 +16,6 @@ import time
 from typing import Awaitable, Callable
 
 from ...blas import one_blas_thread
-from ...config.controller import load_controller
 from ...config.vehicle import VehicleParams
 from ...errors import EXIT_FAILED, UserError
 from ...planning.plan_io import text_in_cache
@@ -25,7 +24,7 @@ from .ctrllog import ControlLog
 from .flight_book import FlightBook, NumberedFiles
 from .flight_sequence import FlightSequence
 from .vehicle_io import VehicleIO
-from .daemon_config import DaemonConfig, regulator_factory
+from .daemon_config import DaemonConfig, regulator_factory, regulator_factory as make_regulator_factory
 from .status import latency_summary, status_report
 from .endpoint import EndpointServer, jsonable
 from ..gcs.link import GcsLink
@@ -50,7 +49,7 @@ class Daemon(FlightSequence, VehicleIO):
     and take only validly signed ones; its drop counters are in :meth:`status`.
     """
 
-    def __init__(self, config: DaemonConfig, vehicle: VehicleParams, regulator_factory: Callable,
+    def __init__(self, config: DaemonConfig, vehicle: VehicleParams, regulator_factory: Callable | None = None,
                  log: Callable[[str], None] | None = None, clock_s: Callable[[], float] = time.monotonic,
                  signing=None, progress: Progress | None = None, notifier: Notifier | None = None,
                  wall_s: Callable[[], float] = time.time):
@@ -70,7 +69,11 @@ class Daemon(FlightSequence, VehicleIO):
         self._watchdog_due_s = -math.inf
         self._start_s = self.progress.start_s
         """The injected clock when the daemon started: events carry the time since."""
-        self.regulator_factory = regulator_factory
+        ctl = config.controller
+        self.regulator_factory = regulator_factory if regulator_factory is not None else make_regulator_factory(
+            vehicle, config.control_rate_hz, ctl.disturbance, ctl.allocation, ctl.speed_governor, warm=False)
+        """plan -> regulator; by default the controller file's at the config's control rate
+        (its kernels are compiled as a stage of the start, :mod:`.startup`)."""
         self.supervisor = self._new_supervisor()
         self.book = FlightBook()
         """The outcomes of the flights flown (:mod:`.flight_book`)."""
@@ -223,9 +226,7 @@ class Daemon(FlightSequence, VehicleIO):
                 loop.add_signal_handler(sig, self.request_stop)
         # the parameters this daemon regulates with, not their files: a restarted worker plans
         # with them even if a file changed since
-        controller = (self.config.controller if self.config.controller is not None
-                      else load_controller(self.config.controller_path))
-        self.pool = PlannerPool(self.vehicle, controller, self.config.planner)
+        self.pool = PlannerPool(self.vehicle, self.config.controller, self.config.planner)
         blas = one_blas_thread()        # at once, for the loop's small products (mavreg/blas.py)
         try:
             await self._start(initial or [])

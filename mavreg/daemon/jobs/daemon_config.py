@@ -52,23 +52,24 @@ def regulator_factory(vehicle: VehicleParams, control_rate_hz: float,
 
 @dataclass(frozen=True)
 class DaemonConfig:
-    """A daemon's settings: the vehicle's URL, the parameter files (the loaded controller in
-    ``controller``), the control endpoint's socket, the ``.tlog`` and its clock, the supervisor's
-    and the envelope's parameters, the ground stations and the planner worker's bounds."""
+    """A daemon's settings: the vehicle's URL, the loaded controller, the control endpoint's
+    socket, the ``.tlog`` and its clock, the supervisor's and the envelope's parameters, the
+    ground stations and the planner worker's bounds. The controller is the loaded object,
+    never its file's path (:meth:`__post_init__` refuses one): nothing reloads it."""
 
     vehicle_url: str
-    vehicle_path: Path
-    controller_path: Path
+    controller: ControllerParams
+    """The controller file, loaded: its prediction settings (``predict_delay``,
+    ``fixed_delay_s``, ``max_prediction_s``), its disturbance observer, and the planner
+    worker's parameters (a restarted worker plans with them, even if the file changed since)."""
     socket_path: Path | None
     tlog_path: Path | None
     supervisor: SupervisorParams
     envelope: EnvelopeParams = field(default_factory=EnvelopeParams)
     """The controller file's ``envelope:`` section (``fly`` and ``serve`` load it)."""
-    controller: ControllerParams | None = None
-    """The controller file: its prediction settings (``predict_delay``, ``fixed_delay_s``,
-    ``max_prediction_s``). None: no prediction."""
     control_rate_hz: float = CONTROL_RATE_HZ
-    """The vehicle's telemetry (control) rate: the prediction's integration step."""
+    """The vehicle's telemetry (control) rate: the regulator's period (its feedforward lead),
+    the prediction's integration step."""
     gcs_urls: tuple[str, ...] = ()
     """Ground stations to forward the flight to (``--gcs``; :mod:`mavreg.daemon.gcs.bridge`)."""
     gcs: GcsParams = field(default_factory=GcsParams)
@@ -84,7 +85,7 @@ class DaemonConfig:
     :mod:`mavreg.daemon.jobs.flight_book`)."""
     control_log_path: Path | None = None
     """Save each flight's controller log here when it ends (numbered per flight when
-    ``flights`` is not 1). None: the caller saves :attr:`Daemon.ctrl_log` itself (``fly``)."""
+    ``flights`` is not 1). None: the caller saves :attr:`Daemon.ctrl_log` itself (``fly``).""" 
     keep_control_log: bool = True
     """Keep the controller log in memory; off for a ``serve`` that writes none (about 65 kB
     a second at 500 Hz, forever)."""
@@ -92,6 +93,9 @@ class DaemonConfig:
     """Numbered logs (``.tlog``, controller log) of a many-flight daemon: the newest this many stay."""
 
     def __post_init__(self):
+        if not isinstance(self.controller, ControllerParams):
+            raise TypeError(f"DaemonConfig.controller: a loaded ControllerParams, got "
+                            f"{type(self.controller).__name__} (load the file once: load_controller)")
         if self.tlog_clock not in ("wall", "vehicle"):
             raise ValueError(f"tlog clock {self.tlog_clock!r}: expected 'wall' or 'vehicle'")
         if self.flights is not None and self.flights < 1:

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 from typing import Callable
 
-from ...config.defaults import MAX_PREDICTION_S
 from ...control.estimation.forecast import Forecaster
 from .ctrllog import ControlLog
 from .flight_book import FlightRecord
@@ -31,12 +30,10 @@ class FlightSequence:
         """A supervisor for a new flight, with a forecaster of its own (nothing learned in one
         flight carries into the next but what the files say)."""
         config, ctl = self.config, self.config.controller
-        forecaster = Forecaster(self.vehicle, 1.0 / config.control_rate_hz,
-                                predict=ctl is not None and ctl.predict_delay,
-                                max_horizon_s=MAX_PREDICTION_S if ctl is None else ctl.max_prediction_s,
-                                disturbance=None if ctl is None else ctl.disturbance)
+        forecaster = Forecaster(self.vehicle, 1.0 / config.control_rate_hz, predict=ctl.predict_delay,
+                                max_horizon_s=ctl.max_prediction_s, disturbance=ctl.disturbance)
         return Supervisor(self.vehicle, config.supervisor, self.regulator_factory, envelope=config.envelope,
-                          forecaster=forecaster, fixed_delay_s=None if ctl is None else ctl.fixed_delay_s)
+                          forecaster=forecaster, fixed_delay_s=ctl.fixed_delay_s)
 
     def _close_flight(self) -> None:
         """The flight has ended: its record, its logs; then the next flight, or the stop."""
