@@ -200,9 +200,11 @@ def test_serve_worker_killed_mid_plan_refuses_that_upload_and_flies_the_next(tmp
     assert len(said) == 1
     # said once for the flight; serve then opens the next flight's logs on the same paths and
     # may say it once more (one line per flight, never one per write)
-    flown = serve.lines[:next(i for i, ln in enumerate(serve.lines) if "disarmed" in ln)]
+    flown = serve.lines[:next((i for i, ln in enumerate(serve.lines) if ln.startswith("flight 2:")),
+                              len(serve.lines))]
     stopped = [ln for ln in flown if ln.startswith("tlog: stopped writing /dev/full")]
-    assert len(stopped) == 1 and final["tlog"]["stopped"] == stopped[0]
+    assert len(stopped) == 1 and final["tlog"]["stopped"] == stopped[0], [ln for ln in serve.lines if "stopped" in ln
+                                                                          or ln.startswith("flight")]
     assert len([ln for ln in flown if ln.startswith(f"control log: stopped writing {ctl}")]) == 1
     assert len([ln for ln in serve.lines if ln.startswith("tlog: stopped writing /dev/full")]) <= 2
     assert code == 0, serve.lines[-20:]

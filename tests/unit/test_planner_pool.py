@@ -63,7 +63,7 @@ def test_worker_killed_while_planning_is_reported_and_replaced():
             job = asyncio.create_task(pool.plan(BARREL, "barrel.yaml"))
             await _busy(pool)
             os.kill(old, signal.SIGKILL)
-            with pytest.raises(PlannerDied, match="died while planning 'barrel.yaml'"):
+            with pytest.raises(PlannerDied, match=r"died while planning 'barrel.yaml' \(killed by SIGKILL\)"):
                 await job
             # the next upload is planned by a new worker: a rejection with the loader's reason
             after = await pool.plan("kind: maneuver\n", "bad.yaml")

@@ -62,6 +62,7 @@ from typing import TYPE_CHECKING
 
 from ...errors import EXIT_FAILED, exit_status_of, one_line
 from .lifeline import die_with_parent
+from .pool_workers import how_it_ended, stop_pool, workers
 
 if TYPE_CHECKING:
     from ...config.controller import ControllerParams
@@ -252,26 +253,6 @@ def limit_address_space(extra_bytes: int) -> int | None:
     return limit
 
 
-def _how_it_ended(pool: ProcessPoolExecutor) -> str:
-    """How the broken executor's worker ended: ``killed by SIGKILL``, ``exit status 1``; what is
-    known (CPython keeps the workers in ``_processes``)."""
-    code = None
-    for proc in list((getattr(pool, "_processes", None) or {}).values()):
-        try:
-            proc.join(1.0)          # broken: it is dead or dying (its pipe closed first)
-            code = proc.exitcode if proc.exitcode is not None else code
-        except (OSError, ValueError, AssertionError, AttributeError):
-            pass
-    if code is None:
-        return "killed or out of memory"
-    if code < 0:
-        try:
-            return f"killed by {signal.Signals(-code).name}"
-        except ValueError:
-            return f"killed by signal {-code}"
-    return f"exit status {code}"
-
-
 class PlannerPool:
     """One planning worker process shared by every upload.
 
@@ -299,6 +280,8 @@ class PlannerPool:
         self._closed = False
         self.worker_pid: int | None = None
         """The worker's pid once :meth:`warm_up` has run (None before)."""
+        self._worker_procs: list = []
+        """Its process, kept to read how it ended (the executor forgets a dead worker)."""
 
     @staticmethod
     def _new_executor() -> ProcessPoolExecutor:
@@ -309,6 +292,7 @@ class PlannerPool:
         """Start the worker and import the planner, so the first upload plans at once."""
         loop = asyncio.get_running_loop()
         self.worker_pid = await loop.run_in_executor(self._pool, _warm, self.bounds.memory_bytes)
+        self._worker_procs = workers(self._pool)
 
     async def plan(self, yaml_text: str, source: str) -> PlanResult:
         """Plan one upload in the worker.
@@ -359,36 +343,19 @@ class PlannerPool:
         except BrokenProcessPool as exc:
             if self._closed:
                 raise PlannerDied("the planner was shut down while planning (the daemon is stopping)") from exc
-            how = _how_it_ended(self._pool)
+            how = how_it_ended(self._worker_procs or workers(self._pool))
             self._restart()
             raise PlannerDied(f"the planner worker process died while planning {source!r} ({how}); "
                               "the upload is refused and nothing else changed; a new worker was started: "
                               "upload again") from exc
 
     def _restart(self) -> None:
-        self._stop(self._pool)
+        stop_pool(self._pool)
         self._pool = self._new_executor()
-        self.worker_pid = None
+        self.worker_pid, self._worker_procs = None, []
         self.restarts += 1
-
-    @staticmethod
-    def _stop(pool: ProcessPoolExecutor) -> None:
-        # CPython keeps the workers in ``_processes`` (3.14 adds kill_workers()); kill them
-        # rather than wait: at exit the interpreter would join a worker still planning.
-        procs = list((getattr(pool, "_processes", None) or {}).values())
-        pool.shutdown(wait=False, cancel_futures=True)
-        for proc in procs:
-            try:
-                proc.kill()
-            except (OSError, ValueError, AttributeError):
-                pass
-        for proc in procs:
-            try:
-                proc.join(5.0)
-            except (OSError, ValueError, AssertionError, AttributeError):
-                pass
 
     def shutdown(self) -> None:
         """Kill the worker (a plan in progress is abandoned) and release the executor."""
         self._closed = True
-        self._stop(self._pool)
+        stop_pool(self._pool)
