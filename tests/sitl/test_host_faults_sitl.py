@@ -182,7 +182,7 @@ def test_serve_worker_killed_mid_plan_refuses_that_upload_and_flies_the_next(tmp
               "second hop flown")
         final = _status(sock)
         assert request(sock, {"op": "land"}, 60)["ok"]
-        serve.wait_line("disarmed", 600)
+        serve.wait_line("touched down and disarmed", 600)      # not the preflight's "vehicle disarmed"
         code = serve.wait(120) if serve.p.poll() is not None else serve.stop(signal.SIGINT, 120)
     finally:
         if serve is not None:
@@ -207,7 +207,7 @@ def test_serve_worker_killed_mid_plan_refuses_that_upload_and_flies_the_next(tmp
                                                                           or ln.startswith("flight")]
     assert len([ln for ln in flown if ln.startswith(f"control log: stopped writing {ctl}")]) == 1
     assert len([ln for ln in serve.lines if ln.startswith("tlog: stopped writing /dev/full")]) <= 2
-    assert code == 0, serve.lines[-20:]
+    assert code == 0, "\n".join(serve.lines[-20:])
     rec = load_record(record)
     _landed_ok(rec)
     # held between the two hops: one take-off, one landing (airborne from the first lift-off on)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import math
 
+import pytest
+
 from mavreg.daemon.jobs.app import Daemon, DaemonConfig
 from mavreg.daemon.flight.gate import GateVerdict
 from mavreg.daemon.flight.handlers import HANDLERS
@@ -42,8 +44,8 @@ def test_the_table_is_what_flies():
     assert calls and min(calls) >= holds[0]                  # only in the hold, every sample of it
 
 
-def _daemon_in(phase_reached) -> tuple:
-    cfg = DaemonConfig("udpout:127.0.0.1:1", CONTROLLER, None, None, SupervisorParams())
+def _daemon_in(phase_reached, flights: int | None = 1) -> tuple:
+    cfg = DaemonConfig("udpout:127.0.0.1:1", CONTROLLER, None, None, SupervisorParams(), flights=flights)
     lines = []
     d = Daemon(cfg, VEHICLE, FakeRegulator, log=lines.append)
     sup = d.supervisor
@@ -67,6 +69,23 @@ def test_a_signal_while_landing_lets_the_landing_finish():
     assert d.supervisor.phase == Phase.DISARMED and not veh.armed and abs(veh.x[2]) < 1e-9
     d.request_stop()
     assert d._stop.is_set()
+
+
+@pytest.mark.parametrize("signalled", [True, False])
+def test_serve_signalled_in_the_air_lands_then_stops(signalled):
+    """``serve`` (flight after flight) signalled in the air lands, then stops; it used to begin
+    the next flight and wait there for an upload until it was killed. Without the signal (the
+    negative control) the landing's end begins the next flight."""
+    d, veh, lines = _daemon_in(lambda s: s.phase == Phase.HOLD and s.ctx.maneuvers_done, flights=None)
+    if signalled:
+        d.request_stop()
+    else:
+        d._emit(d.supervisor.request_land(0.0))
+    run(d.supervisor, veh, 30.0)
+    assert d.supervisor.phase == Phase.DISARMED and not veh.armed
+    d._close_flight()
+    assert d._stop.is_set() == signalled and d.flight_number == (1 if signalled else 2)
+    assert ("the daemon stops: a signal asked it to land, then stop" in lines) == signalled
 
 
 def test_violation_and_outcome_read_as_one_line():

@@ -40,6 +40,9 @@ class FlightSequence:
         self._record_flight(stopped=False)
         if self.config.flights is not None and self.book.count >= self.config.flights:
             self._stop.set()
+        elif self._signals:        # a signal in the air asked to land, then stop: not the next flight
+            self.log("the daemon stops: a signal asked it to land, then stop")
+            self._stop.set()
         elif self.supervisor.vehicle_refused:       # no later upload would fly: as fly does, stop
             self.log(f"the daemon stops: {self.supervisor.reason}")
             self._stop.set()
