@@ -24,7 +24,8 @@ from .ctrllog import ControlLog
 from .flight_book import FlightBook, NumberedFiles
 from .flight_sequence import FlightSequence
 from .vehicle_io import VehicleIO
-from .daemon_config import DaemonConfig, regulator_factory, regulator_factory as make_regulator_factory
+from . import daemon_config
+from .daemon_config import DaemonConfig, regulator_factory
 from .status import latency_summary, status_report
 from .endpoint import EndpointServer, jsonable
 from ..gcs.link import GcsLink
@@ -70,9 +71,9 @@ class Daemon(FlightSequence, VehicleIO):
         self._start_s = self.progress.start_s
         """The injected clock when the daemon started: events carry the time since."""
         ctl = config.controller
-        self.regulator_factory = regulator_factory if regulator_factory is not None else make_regulator_factory(
+        self.regulator_factory = regulator_factory if regulator_factory is not None else daemon_config.regulator_factory(
             vehicle, config.control_rate_hz, ctl.disturbance, ctl.allocation, ctl.speed_governor, warm=False)
-        """plan -> regulator; by default the controller file's at the config's control rate
+        """(plan, rotor_lag) -> regulator; by default the controller file's at the config's control rate
         (its kernels are compiled as a stage of the start, :mod:`.startup`)."""
         self.supervisor = self._new_supervisor()
         self.book = FlightBook()

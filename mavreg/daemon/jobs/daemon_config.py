@@ -85,7 +85,7 @@ class DaemonConfig:
     :mod:`mavreg.daemon.jobs.flight_book`)."""
     control_log_path: Path | None = None
     """Save each flight's controller log here when it ends (numbered per flight when
-    ``flights`` is not 1). None: the caller saves :attr:`Daemon.ctrl_log` itself (``fly``).""" 
+    ``flights`` is not 1). None: the caller saves :attr:`Daemon.ctrl_log` itself (``fly``)."""
     keep_control_log: bool = True
     """Keep the controller log in memory; off for a ``serve`` that writes none (about 65 kB
     a second at 500 Hz, forever)."""
