@@ -2,7 +2,9 @@
 
 Every run is complete in its :class:`~.definitions.RunSpec` (seeds included), is flown by
 one worker from scratch (each worker plans the maneuver once and keeps the plan), and comes
-back as a :class:`RunOutcome`; the outcomes are put back in run order. So the results
+back as a :class:`RunOutcome`; the outcomes are put back in run order. ``sim`` runs that
+the batch simulator flies (the paper's groups: :mod:`.via_batch`) are flown first, in this
+process, in one compiled batch per plan, each record the sequential simulator's to 1e-9. So the results
 depend on the experiment's seed alone, not on ``jobs`` nor on which worker finished first
 (tests/unit/test_experiment_runner.py). ``jobs = 1`` flies in this process.
 
@@ -75,12 +77,34 @@ def plan_for(maneuver_path: Path, vehicle_path: Path, controller_path: Path, lap
     return plan_file(maneuver_path, load_vehicle(vehicle_path), load_controller(controller_path), laps=laps)
 
 
+def _plan_of(exp: Experiment, spec: RunSpec):
+    maneuver = getattr(spec, "maneuver_path", None) or exp.maneuver_path    # robustness: the run's own
+    return plan_for(Path(maneuver), Path(exp.vehicle_path), Path(exp.controller_path), spec.laps)
+
+
+def _failed(spec: RunSpec, exc: Exception) -> RunOutcome:
+    """A bug or a broken run: recorded with its error in one line, the campaign goes on."""
+    first = str(exc).strip().splitlines()[:1] or [""]
+    return RunOutcome(spec, None, None, f"{type(exc).__name__}: {first[0]}", traceback.format_exc())
+
+
+def _judged(exp: Experiment, plan, spec: RunSpec, flight) -> RunOutcome:
+    """The outcome of a flown run: its truth trace, its experiment's metrics."""
+    trace = truth_trace(plan, flight)
+    if exp.kind == ROBUSTNESS:
+        metrics = robustness_metrics(plan, trace, flight, spec)
+    elif exp.kind == DISTURBANCE:
+        metrics = disturbance_metrics(plan, trace, flight, spec)
+    else:
+        metrics = run_metrics(plan, trace, flight, spec, exp.kind)
+    return RunOutcome(spec, metrics, trace.decimated(TRACE_STEP))
+
+
 def _execute(job: _Job) -> RunOutcome:
     spec = job.spec
     try:
         exp = job.exp
-        maneuver = getattr(spec, "maneuver_path", None) or exp.maneuver_path    # robustness: the run's own
-        plan = plan_for(Path(maneuver), Path(exp.vehicle_path), Path(exp.controller_path), spec.laps)
+        plan = _plan_of(exp, spec)
         robust = exp.kind == ROBUSTNESS
         if job.via == "sim" and robust:
             from .robustness_sim import fly_robust_sim
@@ -92,17 +116,34 @@ def _execute(job: _Job) -> RunOutcome:
             from .via_sitl import fly_sitl
             flight = fly_sitl(spec, job.sitl_files, job.run_dir, plan.vehicle.max_rotor_thrust_n,
                               job.keep_flight_files, judge=judge_flight if robust else None)
-        trace = truth_trace(plan, flight)
-        if robust:
-            metrics = robustness_metrics(plan, trace, flight, spec)
-        elif exp.kind == DISTURBANCE:
-            metrics = disturbance_metrics(plan, trace, flight, spec)
-        else:
-            metrics = run_metrics(plan, trace, flight, spec, exp.kind)
-        return RunOutcome(spec, metrics, trace.decimated(TRACE_STEP))
-    except Exception as exc:                      # a bug or a broken run: recorded, the campaign goes on
-        first = str(exc).strip().splitlines()[:1] or [""]
-        return RunOutcome(spec, None, None, f"{type(exc).__name__}: {first[0]}", traceback.format_exc())
+        return _judged(exp, plan, spec, flight)
+    except Exception as exc:
+        return _failed(spec, exc)
+
+
+def _fly_batched(exp: Experiment, todo: list, done) -> list:
+    """Fly the ``sim`` jobs the batch simulator can fly (:mod:`.via_batch`) here, in batches,
+    handing each outcome to ``done``; the jobs left for one at a time."""
+    from ..config.controller import load_controller
+    from .via_batch import batchable, fly_batches
+    try:
+        batch = [job for job in todo if batchable(exp, job.spec, _plan_of(exp, job.spec))]
+    except Exception:                              # a plan that fails fails its runs one by one
+        return todo
+    if not batch:
+        return todo
+    specs = [job.spec for job in batch]
+    try:
+        flown = fly_batches(exp, specs, lambda spec: _plan_of(exp, spec),
+                            load_controller(Path(exp.controller_path)))
+    except Exception:          # a run the batch refuses (a bad inertia): each flown alone, its error its own
+        return todo
+    for spec, flight in flown:
+        try:
+            done(_judged(exp, _plan_of(exp, spec), spec, flight))
+        except Exception as exc:
+            done(_failed(spec, exc))
+    return [job for job in todo if job not in batch]
 
 
 def _init_worker(parent_pid: int) -> None:
@@ -192,8 +233,10 @@ def run_experiment(exp: Experiment, via: str, jobs: int, out_dir: Path | None = 
         outcomes[out.spec.index] = out
         bar.update(out)
 
+    if via == "sim":
+        todo = _fly_batched(exp, todo, done)
     jobs = min(jobs, len(todo))
-    if dask_address is not None:
+    if todo and dask_address is not None:
         from .on_dask import run_on_dask
         run_on_dask(dask_address, exp, todo, _execute, done, Path(out_dir) if via == "sitl" else None)
     elif jobs <= 1:

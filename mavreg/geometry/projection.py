@@ -19,7 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..accel import use_compiled
 from .path import Path, PathPoint
+from .projection_kernel import path_tables, project_series
 
 __all__ = ["Projector", "Projection"]
 
@@ -61,11 +63,36 @@ class Projector:
         is nearest ``s_guess`` wins; Newton then refines it.
         """
         y = np.asarray(position, dtype=float)
+        self._start(y, s_guess)
+        return self.update(y)
+
+    def _start(self, y: np.ndarray, s_guess: float) -> None:
+        """The warm start of :meth:`reset`: the path node nearest ``y`` (see there)."""
         d = np.linalg.norm(self.path.c_nodes - y, axis=1)
         near = np.flatnonzero(d <= d.min() + 0.05)
         j = near[np.argmin(np.abs(self.path.s_nodes[near] - s_guess))]
         self.s = float(self.path.s_nodes[j])
-        return self.update(y)
+
+    def series(self, positions, s_guess: float = 0.0,
+               compiled: bool | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Arc lengths and distances (K,) of ``positions`` (K, 3) in time order: :meth:`reset`
+        on the first (preferring ``s_guess``), :meth:`update` on each next, as one compiled
+        loop (:func:`~mavreg.geometry.projection_kernel.project_series`; where numba is not in
+        use, or ``compiled=False``, these methods in turn). The warm start is left at the last
+        answer."""
+        pts = np.ascontiguousarray(positions, dtype=float).reshape(-1, 3)
+        s_out, d_out = np.empty(len(pts)), np.empty(len(pts))
+        if not len(pts):
+            return s_out, d_out
+        if not use_compiled(compiled, "projection"):
+            for k, p in enumerate(pts):
+                pr = self.reset(p, s_guess) if k == 0 else self.update(p)
+                s_out[k], d_out[k] = pr.s, pr.distance_m
+            return s_out, d_out
+        self._start(pts[0], s_guess)
+        project_series(pts, self.s, self.window_m, self.tube_margin, *path_tables(self.path), s_out, d_out)
+        self.s = float(s_out[-1])
+        return s_out, d_out
 
     def update(self, position) -> Projection:
         """Project ``position``; the answer becomes the next warm start."""

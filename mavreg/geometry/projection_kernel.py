@@ -8,6 +8,8 @@ The same maths as :meth:`mavreg.geometry.path.Path.point` and
   :math:`v = a_0 + u(a_1 + u(a_2 + u a_3))`, :math:`u = (s - s_i)/(s_{i+1} - s_i)`, 18 values
   (c, the frame (t, m1, m2) row-major, k, dk, ddk); before 0 and after the length the
   straight extension along the end tangent, with k, dk, ddk zero off the end itself;
+- :func:`project_series`: :func:`project` of a sequence of positions, each warm-started from
+  the answer before (what a flight's record needs, sample by sample);
 - :func:`project`: Newton's method on :math:`g(\sigma) = t^T (y - c(\sigma)) = 0`,
   :math:`g' = K^T (y - c) - 1`, from the previous s, each step clipped to 0.5 m and the
   answer kept within the window around the previous s, at most :data:`MAX_ITERATIONS`
@@ -25,7 +27,7 @@ import numpy as np
 from ..accel import njit
 from .path import Path
 
-__all__ = ["path_tables", "path_point", "project", "MAX_ITERATIONS", "POINT_WIDTH"]
+__all__ = ["path_tables", "path_point", "project", "project_series", "MAX_ITERATIONS", "POINT_WIDTH"]
 
 MAX_ITERATIONS = 12
 """Newton iterations per projection (as :meth:`~mavreg.geometry.projection.Projector.update`)."""
@@ -107,3 +109,17 @@ def project(y0, y1, y2, s_prev, window_m, tube_margin, s_nodes, coef, ends, p):
     _, dg, d0, d1, d2 = _newton_terms(y0, y1, y2, p)
     inside = ok and -dg > tube_margin and lo < s < hi
     return s, inside, np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+
+
+@njit
+def project_series(positions, s_start, window_m, tube_margin, s_nodes, coef, ends, s_out, distance_out):
+    """:func:`project` each row of ``positions`` (K, 3) in turn, the first from ``s_start``,
+    each next from the answer before; arc lengths into ``s_out`` (K,), distances into
+    ``distance_out`` (K,)."""
+    p = np.empty(POINT_WIDTH)
+    s = s_start
+    for k in range(positions.shape[0]):
+        s, _, d = project(positions[k, 0], positions[k, 1], positions[k, 2], s, window_m, tube_margin,
+                          s_nodes, coef, ends, p)
+        s_out[k] = s
+        distance_out[k] = d

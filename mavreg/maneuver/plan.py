@@ -14,6 +14,7 @@ wants the stages timed hands :func:`plan_spec` a clock.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import cached_property
 from typing import Callable, NamedTuple
 
 import numpy as np
@@ -79,16 +80,29 @@ class Plan:
     from_cache: bool = False
     """Served by the plan cache (:mod:`mavreg.planning.cache`) rather than planned now."""
 
+    @cached_property
+    def _attitudes(self) -> NominalAttitudes:
+        """The nominal attitude's table over every row (built at the first query)."""
+        R = self.R if self.R is not None else np.moveaxis(rpy_to_matrix(*self.x[:, 3:6].T), -1, 0)
+        return NominalAttitudes(self.s, R, self.x[:, 9:12] / self.speed_m_s[:, None])
+
+    def _rows(self, s):
+        """(row, fraction) of arc lengths ``s`` clamped to the grid."""
+        s = np.clip(s, self.s[0], self.s[-1])
+        i = np.clip(np.searchsorted(self.s, s) - 1, 0, len(self.s) - 2)
+        return i, (s - self.s[i]) / (self.s[i + 1] - self.s[i])
+
     def nominal_attitude(self, s: float) -> np.ndarray:
         """Rbar(s) (3, 3) between the grid rows around s (clamped), by the cubic in the
         rotation vector of :class:`~mavreg.control.controllers.attitude_table.NominalAttitudes`."""
-        s = float(np.clip(s, self.s[0], self.s[-1]))
-        i = int(np.clip(np.searchsorted(self.s, s) - 1, 0, len(self.s) - 2))
-        rows = slice(i, i + 2)
-        R = (self.R[rows] if self.R is not None
-             else np.moveaxis(rpy_to_matrix(*self.x[rows, 3:6].T), -1, 0))
-        table = NominalAttitudes(self.s[rows], R, self.x[rows, 9:12] / self.speed_m_s[rows, None])
-        return table.at(0, (s - self.s[i]) / (self.s[i + 1] - self.s[i]))
+        i, a = self._rows(float(s))
+        return self._attitudes.at(int(i), float(a))
+
+    def nominal_attitudes(self, s) -> np.ndarray:
+        """:meth:`nominal_attitude` at every arc length of ``s`` (K,): (K, 3, 3), vectorized
+        (the same rotations to rounding)."""
+        i, a = self._rows(np.asarray(s, dtype=float))
+        return self._attitudes.at_many(i, a)
 
     @property
     def length_m(self) -> float:

@@ -8,7 +8,10 @@ at ``dt_s``, the command held between calls and clipped to :math:`[0, f_{sat}]`,
 rotor noise drawn once per control call from the run's seed, and the same exit rules
 (``completed`` when the regulator's s reaches the end, ``diverged``, ``timeout`` after the
 nominal duration plus ``extra_time_s``). The runs differ by their :class:`BatchRun`: start
-offset, plant inertia, rotor noise, saturation, seed.
+offset, plant inertia, rotor noise, saturation, seed. They share the regulator: its
+allocation and speed governor (a controller file's sections; default: the paper's), built
+by :class:`~mavreg.control.controllers.regulator.ManeuverRegulator` as the sequential
+simulator builds it.
 
 Compiled (numba, :mod:`mavreg.sim.batch_kernel`), each run is a scalar loop in time, the
 regulator's step the project's compiled kernel
@@ -21,7 +24,8 @@ copy of the whole loop across runs that stood here once is retired: it was a thi
 the regulator's step and the plant).
 
 Scope: the paper's design (gains (4, 11)), ideal rotors (no lag), no delays, no external
-force: what the paper's Section 4 flies on the design model (``mavreg experiment --via sim``).
+force: what the paper's Section 4 flies on the design model (``mavreg experiment --via sim``
+flies its runs that fit here in batches: :mod:`mavreg.experiments.via_batch`).
 """
 from __future__ import annotations
 
@@ -32,9 +36,10 @@ import numpy as np
 
 from ..accel import use_compiled
 from ..config.vehicle import G
-from ..control.controllers.fastpath import FastStep
-from ..control.controllers.step_kernel import ST_GOV, ST_S
-from ..geometry.projection import Projector
+from ..config.regulation import AllocationParams, SpeedGovernorParams
+from ..control.controllers.regulator import ManeuverRegulator
+from ..control.controllers.step_kernel import ST_S
+from ..control.estimation.lag_in_effect import RotorLagInEffect
 from ..maneuver.plan import Plan
 from ..model.mixer import Mixer
 from ..model.quadrotor import NX
@@ -63,7 +68,9 @@ class BatchRun:
 
 
 def fly_batch(plan: Plan, runs: Sequence[BatchRun], *, control_rate_hz: float = 1000.0,
-              dt_s: float = 0.001, extra_time_s: float = 5.0, compiled: Optional[bool] = None) -> list[SimResult]:
+              dt_s: float = 0.001, extra_time_s: float = 5.0, compiled: Optional[bool] = None,
+              allocation: Optional[AllocationParams] = None,
+              speed_governor: Optional[SpeedGovernorParams] = None) -> list[SimResult]:
     """Fly every run of ``runs`` on the design model; one :class:`SimResult` per run, in order.
 
     Parameters
@@ -79,6 +86,10 @@ def fly_batch(plan: Plan, runs: Sequence[BatchRun], *, control_rate_hz: float = 
     compiled : bool, optional
         The compiled path (:mod:`~mavreg.sim.batch_kernel`) or the sequential simulator
         run by run; default: compiled when numba is in use (:data:`mavreg.accel.ACCELERATED`).
+    allocation, speed_governor : optional
+        The regulator's allocation and speed governor, as
+        :func:`~mavreg.sim.maneuver_run.fly_on_design_model` takes them (default: the paper's
+        allocation, no governor).
 
     Raises
     ------
@@ -101,16 +112,20 @@ def fly_batch(plan: Plan, runs: Sequence[BatchRun], *, control_rate_hz: float = 
         return [fly_on_design_model(plan, offset_m=run.offset_m, inertia_kg_m2=run.inertia_kg_m2,
                                     rotor_noise_sd_n=run.rotor_noise_sd_n, saturation_n=run.saturation_n,
                                     seed=run.seed, control_rate_hz=control_rate_hz, dt_s=dt_s,
-                                    extra_time_s=extra_time_s, true_metrics=False).result for run in runs]
-    return _fly_compiled(plan, runs, steps, dt_s, extra_time_s)
+                                    extra_time_s=extra_time_s, allocation=allocation,
+                                    speed_governor=speed_governor, true_metrics=False).result for run in runs]
+    regulator = ManeuverRegulator(plan, plan.vehicle, steps * dt_s, RotorLagInEffect(0.0), allocation=allocation,
+                                  speed_governor=speed_governor, compiled=True)
+    return _fly_compiled(plan, runs, steps, dt_s, extra_time_s, regulator)
 
 
 def _fly_compiled(plan: Plan, runs: Sequence[BatchRun], steps: int, dt_s: float,
-                  extra_time_s: float) -> list[SimResult]:
-    """:func:`fly_batch` on the compiled path (``steps`` physics steps per control call)."""
+                  extra_time_s: float, regulator: ManeuverRegulator) -> list[SimResult]:
+    """:func:`fly_batch` on the compiled path (``steps`` physics steps per control call), the
+    step that of ``regulator``."""
     vehicle = plan.vehicle
     mixer = Mixer.from_vehicle(vehicle)
-    projector = Projector(plan.path)
+    projector = regulator.projector
     x0s, options = [], []
     for run in runs:
         x0 = plan.entry_state
@@ -140,12 +155,10 @@ def _fly_compiled(plan: Plan, runs: Sequence[BatchRun], steps: int, dt_s: float,
     cmd = np.empty((n, n_steps + 1, 4))
     app = np.empty((n, n_steps + 1, 4))
     xs[:, 0] = X
-    lead_s, fmax = steps * dt_s / 2, float(vehicle.max_rotor_thrust_n)
     limits = (opt.max_speed_m_s, opt.max_rate_rad_s, opt.max_position_m, opt.min_cos_pitch)
     M = np.ascontiguousarray(mixer.matrix)
-    fs = FastStep(plan, mixer.matrix, mixer.inverse, fmax, False, lead_s, 0.0, (cxy, cz), np.pi,
-                  projector.window_m, projector.tube_margin)
-    ST = np.zeros((n, ST_GOV))          # no governor: the state ends where its slots begin
+    fs = regulator.compiled_step
+    ST = np.zeros((n, fs.state.size))   # each run's step state, reset to its s
     ST[:, ST_S] = S
     batch_kernel.run(X, ST, status, k_end, xs, cmd, app, (fs.table, fs.s_tab, fs.s_nodes, fs.coef, fs.ends,
                                                              fs.prm), M, (mass, G, cxy, cz, cpar, float(vehicle.rotor_drag_thrust_exponent)), J, upper,

@@ -118,7 +118,7 @@ def _fly(r, x, st, status, k_end, xs, cmd, app, step, M, plant, J, upper, noise,
 
 @njit
 def run(X, ST, status, k_end, xs, cmd, app, step, M, plant, J, upper, noise, thrust_scale, dt, period, limits):
-    """Fly every run whose ``status`` is RUNNING: X (N, 12) start states, ST (N, 6) the step
+    """Fly every run whose ``status`` is RUNNING: X (N, 12) start states, ST (N, W) the step
     kernel's state per run (s first), ``step`` = (table, s_tab, s_nodes, coef, ends, prm) of
     :class:`mavreg.control.controllers.fastpath.FastStep`; ``xs`` (N, K+1, 12), ``cmd`` and ``app``
     (N, K+1, 4) receive the records, ``status`` and ``k_end`` how and where each run ended.

@@ -6,7 +6,9 @@ projected on the path (warm-started, as the regulator does), giving the true tra
 error at the true arc length s; the true attitude is compared with the nominal attitude at
 that s by the angle of the rotation between them, :math:`\\arccos((\\mathrm{tr}(\\bar R^T R) - 1)/2)`;
 the true speed with the profile's speed at that s (its excess over the profile is a
-catch-up). Samples whose projection falls outside (0, length) are left out. Pure numpy.
+catch-up). Samples whose projection falls outside (0, length) are left out. The
+projection is one compiled loop where numba is in use
+(:meth:`~mavreg.geometry.projection.Projector.series`); the rest is numpy.
 """
 from __future__ import annotations
 
@@ -41,28 +43,16 @@ def true_error_series(plan, positions_m, rotations=None, velocities_m_s=None) ->
         ``transverse_m``, and with their inputs ``attitude_deg`` (the rotation angle to the
         nominal at s) and ``speed_excess_m_s`` (``|v| - v(s)``); arrays of the kept samples.
     """
-    proj = Projector(plan.path)
-    pts = np.asarray(positions_m, dtype=float)
-    keep, s_all, e_all = [], [], []
-    for i, p in enumerate(pts):
-        pr = proj.reset(p, 0.0) if i == 0 else proj.update(p)
-        if 0.0 < pr.s < plan.length_m:
-            keep.append(i)
-            s_all.append(pr.s)
-            e_all.append(pr.distance_m)
-    out = {"index": np.array(keep, dtype=int), "s_m": np.array(s_all), "transverse_m": np.array(e_all)}
+    s_all, e_all = Projector(plan.path).series(np.asarray(positions_m, dtype=float).reshape(-1, 3))
+    keep = np.flatnonzero((s_all > 0.0) & (s_all < plan.length_m))
+    out = {"index": keep, "s_m": s_all[keep], "transverse_m": e_all[keep]}
     if rotations is not None:
-        Rt = np.asarray(rotations, dtype=float)[keep]
-        a_arr = np.empty(len(keep))
-        for j, (s, R) in enumerate(zip(out["s_m"], Rt)):
-            Rn = plan.nominal_attitude(s)
-            c = (float(np.sum(Rn * R)) - 1.0) / 2.0
-            a_arr[j] = np.degrees(np.arccos(min(max(c, -1.0), 1.0)))
-        out["attitude_deg"] = a_arr
+        Rt = np.asarray(rotations, dtype=float).reshape(-1, 3, 3)[keep]
+        c = (np.einsum("kij,kij->k", plan.nominal_attitudes(out["s_m"]), Rt) - 1.0) / 2.0
+        out["attitude_deg"] = np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
     if velocities_m_s is not None:
-        speed = np.linalg.norm(np.asarray(velocities_m_s, dtype=float)[keep], axis=1)
-        out["speed_excess_m_s"] = (speed - np.interp(out["s_m"], plan.s, plan.speed_m_s) if keep
-                                   else np.zeros(0))
+        speed = np.linalg.norm(np.asarray(velocities_m_s, dtype=float).reshape(-1, 3)[keep], axis=1)
+        out["speed_excess_m_s"] = speed - np.interp(out["s_m"], plan.s, plan.speed_m_s)
     return out
 
 

@@ -21,6 +21,7 @@ beyond either end is the end's.
 """
 from __future__ import annotations
 
+from bisect import bisect_right
 from dataclasses import dataclass
 
 import numpy as np
@@ -69,14 +70,17 @@ class TimedNominal:
         self.length_m = float(plan.length_m)
         self._speed = CubicSpline(plan.s, plan.speed_m_s)
         self._s0, self._s1 = float(plan.s[0]), float(plan.s[-1])
+        self._knots = self._speed.x.tolist()
+        self._pieces = self._speed.c.T.tolist()
         h = float(step_s)
+        v = self._speed_scalar
         s = [0.0]
         while s[-1] < self.length_m:
             si = s[-1]
-            k1 = self.speed_at(si)
-            k2 = self.speed_at(si + 0.5 * h * k1)
-            k3 = self.speed_at(si + 0.5 * h * k2)
-            k4 = self.speed_at(si + h * k3)
+            k1 = v(si)
+            k2 = v(si + 0.5 * h * k1)
+            k3 = v(si + 0.5 * h * k2)
+            k4 = v(si + h * k3)
             s.append(si + h / 6.0 * (k1 + 2.0 * (k2 + k3) + k4))
         self.step_s = h
         self.s_grid = np.array(s)
@@ -94,6 +98,17 @@ class TimedNominal:
     def speed_at(self, s):
         """v(s) of the plan's speed profile (the end's value beyond either end)."""
         return self._speed(np.clip(s, self._s0, self._s1))
+
+    def _speed_scalar(self, s: float) -> float:
+        """:meth:`speed_at` of one arc length in plain floats, the same number: scipy's
+        piecewise-polynomial sum (``c3 + c2 d + c1 d^2 + c0 d^3``, d from the piece's knot,
+        in that order), the piece found by bisection (the clock's integration calls it
+        about 90 000 times on the barrel roll)."""
+        s = min(max(s, self._s0), self._s1)
+        i = min(max(bisect_right(self._knots, s) - 1, 0), len(self._pieces) - 1)
+        c0, c1, c2, c3 = self._pieces[i]
+        d = s - self._knots[i]
+        return ((c3 + c2 * d) + c1 * (d * d)) + c0 * (d * d * d)
 
     def s_at(self, t):
         """Arc length of the reference at time(s) ``t`` (s(0) = 0; clamped at t = 0)."""

@@ -56,10 +56,10 @@ def as_batch(spec) -> BatchRun:
     return BatchRun(spec.offset_m, spec.inertia_kg_m2, spec.rotor_noise_sd_n, spec.saturation_n, spec.seed)
 
 
-def sequential(plan, run: BatchRun, extra_time_s: float):
+def sequential(plan, run: BatchRun, extra_time_s: float, **regulator):
     return fly_on_design_model(plan, offset_m=run.offset_m, inertia_kg_m2=run.inertia_kg_m2,
                                rotor_noise_sd_n=run.rotor_noise_sd_n, saturation_n=run.saturation_n,
-                               seed=run.seed, extra_time_s=extra_time_s).result
+                               seed=run.seed, extra_time_s=extra_time_s, **regulator).result
 
 
 def assert_agree(seq, bat, tol=1e-9):
@@ -105,6 +105,29 @@ def test_runs_that_end_at_different_times_noise_saturation_and_a_failed_start_ag
                    lambda t, x: np.zeros(4), SimOptions(initial_state=x0))
     assert ref.status.value == "diverged" and ref.reason.startswith("initial state: position")
     assert_agree(ref, batch[4])
+
+
+@pytest.mark.parametrize("compiled", PATHS)
+def test_the_governed_controller_with_torques_first_allocation_agrees(compiled):
+    """``paper_governed.yaml`` (the speed governor, torques-first allocation told a 7 N limit),
+    as group 2 flies it: rotor noise, 7 N rotors, and a start 0.4 m behind and below, which
+    the governor answers. The paper's regulator flown on the same runs differs by more than
+    a millimetre (the negative control)."""
+    from mavreg.config.paths import PAPER_GOVERNED_CONTROLLER
+    from mavreg.config.regulation import told_rotor_limit
+    governed = load_controller(PAPER_GOVERNED_CONTROLLER)
+    assert governed.speed_governor.enabled and governed.allocation.method == "torques_first"
+    plan = plan_spec(load_maneuver_text(SHORT, "short.yaml"), VEHICLE, governed)
+    regulator = {"allocation": told_rotor_limit(governed.allocation, 7.0),
+                 "speed_governor": governed.speed_governor}
+    runs = [BatchRun((-0.4, 0.0, 0.3), None, 0.1, 7.0, 5), BatchRun((0.0, 0.2, 0.0), (0.02, 0.02, 0.03))]
+    batch = fly_batch(plan, runs, extra_time_s=1.0, compiled=compiled, **regulator)
+    for run, bat in zip(runs, batch):
+        assert bat.status.value == "completed"
+        assert_agree(sequential(plan, run, 1.0, **regulator), bat)
+    paper = fly_batch(plan, runs[:1], extra_time_s=1.0, compiled=compiled)[0]
+    k = min(len(paper.x), len(batch[0].x))
+    assert np.abs(paper.x[:k, :3] - batch[0].x[:k, :3]).max() > 1e-3
 
 
 @pytest.mark.parametrize("compiled", PATHS)

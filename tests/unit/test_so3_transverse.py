@@ -150,3 +150,11 @@ def test_nominal_attitude_between_rows_matches_the_flat_map():
     _, _, R = flat_nominal(MODEL, F, k, dk, ddk, c, speed.evaluate(s), yaw.evaluate(s), "velocity")
     err = np.linalg.norm(attitude_error(R, np.array([plan.nominal_attitude(q) for q in s])), axis=1)
     assert err.max() < 1e-8
+    # the vectorized form (what a flight's truth is judged with) gives the same rotations
+    many = plan.nominal_attitudes(s)
+    assert np.linalg.norm(attitude_error(R, many), axis=1).max() < 1e-8
+    np.testing.assert_allclose(many, [plan.nominal_attitude(q) for q in s], rtol=0, atol=1e-14)
+    # clamped to the path's ends, as one at a time
+    ends = np.array([-1.0, plan.length_m + 1.0])
+    np.testing.assert_allclose(plan.nominal_attitudes(ends), [plan.nominal_attitude(q) for q in ends],
+                               rtol=0, atol=1e-14)

@@ -54,6 +54,23 @@ def test_the_clock_runs_at_the_profiles_speed_and_the_reference_obeys_the_model(
     np.testing.assert_allclose(x_on[:3], x_end[:3] + 2.0 * v, atol=1e-6)
 
 
+def test_the_clocks_scalar_speed_is_the_splines_to_the_bit(timed):
+    """The clock integrates v(s) in plain floats (``_speed_scalar``); it must be the cubic
+    spline's own number everywhere, knots, ends and beyond them included, so that the clock
+    (and a campaign's time allowed) is what the spline gives."""
+    plan = timed.plan
+    s = np.r_[np.random.default_rng(1).uniform(-2.0, plan.length_m + 2.0, 20000), plan.s]
+    ours = np.array([timed._speed_scalar(float(q)) for q in s])
+    np.testing.assert_array_equal(ours, timed.speed_at(s))
+    # the order of the sum matters at the last bit: Horner's form of the same cubic is not it
+    sc = np.clip(s, plan.s[0], plan.s[-1])
+    i = np.clip(np.searchsorted(timed._speed.x, sc, side="right") - 1, 0, timed._speed.c.shape[1] - 1)
+    c, d = timed._speed.c[:, i], sc - timed._speed.x[i]
+    horner = ((c[0] * d + c[1]) * d + c[2]) * d + c[3]
+    np.testing.assert_allclose(horner, ours, rtol=1e-12)
+    assert not np.array_equal(horner, ours)
+
+
 def _fly(timed, tracker, t0: float, duration_s: float, x0=None):
     """Fly ``tracker`` on the design model from the reference's state at ``t0`` (or x0)."""
     v = timed.plan.vehicle

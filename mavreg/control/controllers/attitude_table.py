@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...model.rotation_kernel import rodrigues as _rodrigues9
-from ...model.so3 import log_so3
+from ...model.so3 import exp_so3, log_so3
 
 __all__ = ["NominalAttitudes", "rodrigues"]
 
@@ -48,3 +48,13 @@ class NominalAttitudes:
         h10, h01, h11 = a3 - 2.0 * a2 + a, -2.0 * a3 + 3.0 * a2, a3 - a2
         xi = h10 * self.m0[i] + h01 * self.d[i] + h11 * self.m1[i]
         return self.R[i] @ rodrigues(float(xi[0]), float(xi[1]), float(xi[2]))
+
+    def at_many(self, i, a) -> np.ndarray:
+        """:meth:`at` for arrays of rows ``i`` (K,) and fractions ``a`` (K,): (K, 3, 3), by
+        :func:`~mavreg.model.so3.exp_so3` (the same rotation as :meth:`at` to rounding)."""
+        i = np.asarray(i, dtype=np.intp)
+        a = np.asarray(a, dtype=float)[:, None]
+        a2 = a * a
+        a3 = a2 * a
+        xi = (a3 - 2.0 * a2 + a) * self.m0[i] + (-2.0 * a3 + 3.0 * a2) * self.d[i] + (a3 - a2) * self.m1[i]
+        return self.R[i] @ exp_so3(xi)

@@ -170,6 +170,12 @@ class ManeuverRegulator:
         self._compiled = (self._compiled_step(speed_governor) if use_compiled(compiled, "step") else None)
         """The compiled step (:class:`~mavreg.control.controllers.fastpath.FastStep`), or None: the numpy step."""
 
+    @property
+    def compiled_step(self) -> fastpath.FastStep | None:
+        """The compiled step this regulator runs (its tables and settings; None: the numpy
+        step): what :func:`mavreg.sim.batch.fly_batch` hands its compiled loop."""
+        return self._compiled
+
     def _compiled_step(self, speed_governor) -> fastpath.FastStep:
         """The compiled step with this regulator's tables and settings (the kernel compiled
         or loaded now, not in the loop)."""
