@@ -3,8 +3,10 @@ r"""The design model's derivative as a compiled kernel (:func:`mavreg.accel.njit
 :func:`plant_rhs` is :meth:`mavreg.model.quadrotor.QuadrotorModel.f` (eqs 6-17, with the
 optional drag of :mod:`mavreg.model.drag_kernel`) written out on scalars, the same operations
 in the same order, for one run's inertia: given x (12,) and floats it fills ``out`` (12,).
-The batch simulator (:mod:`mavreg.sim.batch_kernel`) steps it by RK4;
-``tests/unit/test_quadrotor_kernel.py`` holds it to the numpy reference.
+:func:`rk4_step` is one classical RK4 step of it, with an external force held over the step:
+what the batch simulator (:mod:`mavreg.sim.batch_kernel`) and the sequential one
+(:func:`mavreg.sim.closed_loop.simulate`, roll-pitch-yaw attitude) step the plant with.
+``tests/unit/test_quadrotor_kernel.py`` holds both to the numpy reference.
 """
 from __future__ import annotations
 
@@ -13,7 +15,7 @@ import numpy as np
 from ..accel import njit
 from .drag_kernel import body_drag, rotor_plane_scale
 
-__all__ = ["plant_rhs", "plant_rhs_compiled", "angular_acceleration"]
+__all__ = ["plant_rhs", "plant_rhs_compiled", "rk4_step", "angular_acceleration"]
 
 
 @njit
@@ -46,6 +48,42 @@ def plant_rhs(x, u0, u1, u2, u3, plant, jx, jy, jz, out):
     out[9] = q * r * (jy - jz) / jx + u1 / jx
     out[10] = p * r * (jz - jx) / jy + u2 / jy
     out[11] = p * q * (jx - jy) / jz + u3 / jz
+
+
+@njit
+def _force_rhs(x, u0, u1, u2, u3, force, plant, jx, jy, jz, out):
+    """:func:`plant_rhs` plus, when ``force[3]`` is not 0, the external acceleration
+    ``force[:3]`` (NED, m/s^2) in the body frame, :math:`R^T a`."""
+    plant_rhs(x, u0, u1, u2, u3, plant, jx, jy, jz, out)
+    if force[3] != 0.0:
+        cf, sf = np.cos(x[3]), np.sin(x[3])
+        ct, st = np.cos(x[4]), np.sin(x[4])
+        cp, sp = np.cos(x[5]), np.sin(x[5])
+        a0, a1, a2 = force[0], force[1], force[2]
+        out[6] += cp * ct * a0 + sp * ct * a1 + -st * a2
+        out[7] += (-sp * cf + cp * st * sf) * a0 + (cp * cf + sp * st * sf) * a1 + ct * sf * a2
+        out[8] += (sp * sf + cp * st * cf) * a0 + (-cp * sf + sp * st * cf) * a1 + ct * cf * a2
+
+
+@njit
+def rk4_step(x, u0, u1, u2, u3, force, plant, jx, jy, jz, dt, work):
+    """One classical RK4 step of :func:`plant_rhs` from x, in place: the input held, and the
+    external acceleration ``force`` = (a_N, a_E, a_D, on) held too (``on`` 0: none);
+    ``work`` (5, 12) is scratch."""
+    k1, k2, k3, k4, y = work[0], work[1], work[2], work[3], work[4]
+    half, sixth = 0.5 * dt, dt / 6.0
+    _force_rhs(x, u0, u1, u2, u3, force, plant, jx, jy, jz, k1)
+    for j in range(12):
+        y[j] = x[j] + half * k1[j]
+    _force_rhs(y, u0, u1, u2, u3, force, plant, jx, jy, jz, k2)
+    for j in range(12):
+        y[j] = x[j] + half * k2[j]
+    _force_rhs(y, u0, u1, u2, u3, force, plant, jx, jy, jz, k3)
+    for j in range(12):
+        y[j] = x[j] + dt * k3[j]
+    _force_rhs(y, u0, u1, u2, u3, force, plant, jx, jy, jz, k4)
+    for j in range(12):
+        x[j] = x[j] + sixth * (k1[j] + 2.0 * (k2[j] + k3[j]) + k4[j])
 
 
 plant_rhs_compiled = plant_rhs

@@ -7,7 +7,8 @@ call, the regulator's step is the project's compiled one,
 :func:`mavreg.control.controllers.step_kernel.regulator_step` (the same kernel the regulator's compiled
 path runs), and between calls the plant of eqs 6-17
 (:func:`mavreg.model.quadrotor_kernel.plant_rhs`, the run's inertia)
-is stepped by classical RK4, exactly as :func:`mavreg.sim.closed_loop.simulate` steps it:
+is stepped by classical RK4 (:func:`~mavreg.model.quadrotor_kernel.rk4_step`), as
+:func:`mavreg.sim.closed_loop.simulate` steps it:
 the command held, clipped to :math:`[0, f_{sat}]`, the control call's noise added and
 clipped again, :math:`u = M f` times the thrust scale.
 
@@ -20,7 +21,7 @@ import numpy as np
 
 from ..accel import njit
 from ..control.controllers import step_kernel as sk
-from ..model.quadrotor_kernel import plant_rhs
+from ..model.quadrotor_kernel import rk4_step
 
 __all__ = ["run", "RUNNING", "COMPLETED", "DIVERGED", "BAD_COMMAND", "TIMEOUT"]
 
@@ -60,8 +61,8 @@ def _fly(r, x, st, status, k_end, xs, cmd, app, step, M, plant, J, upper, noise,
     acting = np.zeros(4)
     applied = np.zeros(4)
     ns = np.zeros(4)
-    k1, k2, k3, k4, y = np.empty(12), np.empty(12), np.empty(12), np.empty(12), np.empty(12)
-    half, sixth = 0.5 * dt, dt / 6.0
+    work = np.empty((5, 12))
+    no_force = np.zeros(4)
     s = st[0]
     calls = 0
     for i in range(n_steps):
@@ -91,18 +92,7 @@ def _fly(r, x, st, status, k_end, xs, cmd, app, step, M, plant, J, upper, noise,
         u1 = M[1, 0] * f[0] + M[1, 1] * f[1] + M[1, 2] * f[2] + M[1, 3] * f[3]
         u2 = M[2, 0] * f[0] + M[2, 1] * f[1] + M[2, 2] * f[2] + M[2, 3] * f[3]
         u3 = M[3, 0] * f[0] + M[3, 1] * f[1] + M[3, 2] * f[2] + M[3, 3] * f[3]
-        plant_rhs(x, u0, u1, u2, u3, plant, jx, jy, jz, k1)
-        for j in range(12):
-            y[j] = x[j] + half * k1[j]
-        plant_rhs(y, u0, u1, u2, u3, plant, jx, jy, jz, k2)
-        for j in range(12):
-            y[j] = x[j] + half * k2[j]
-        plant_rhs(y, u0, u1, u2, u3, plant, jx, jy, jz, k3)
-        for j in range(12):
-            y[j] = x[j] + dt * k3[j]
-        plant_rhs(y, u0, u1, u2, u3, plant, jx, jy, jz, k4)
-        for j in range(12):
-            x[j] = x[j] + sixth * (k1[j] + 2.0 * (k2[j] + k3[j]) + k4[j])
+        rk4_step(x, u0, u1, u2, u3, no_force, plant, jx, jy, jz, dt, work)
         xs[r, i + 1] = x
         if _diverged(x, limits):
             status[r] = DIVERGED

@@ -37,8 +37,10 @@ from typing import Callable, Optional
 
 import numpy as np
 
+from ..accel import use_compiled
 from ..model.mixer import Mixer
 from ..model.quadrotor import NX, QuadrotorModel
+from ..model.quadrotor_kernel import rk4_step
 from ..model.rotation import matrix_to_rpy, rpy_to_matrix
 from ..model.rotor_lag import lag_decay, lag_toward, mean_fraction
 from ..model.so3 import hat
@@ -239,10 +241,19 @@ class _So3Step:
 
 class _RpyStep:
     """One classical RK4 step of the design model with roll-pitch-yaw integrated, an external
-    force over mass ``F`` (m/s^2, NED) held over the step."""
+    force over mass ``F`` (m/s^2, NED) held over the step: the compiled step
+    (:func:`~mavreg.model.quadrotor_kernel.rk4_step`) where numba is in use, else this
+    numpy one (the reference: ``tests/unit/test_quadrotor_kernel.py``)."""
 
-    def __init__(self, plant: QuadrotorModel):
+    def __init__(self, plant: QuadrotorModel, compiled: Optional[bool] = None):
         self.f = plant.f
+        self._compiled = use_compiled(compiled, "plant step")
+        if self._compiled:
+            self._plant = (float(plant.mass_kg), float(plant.g), *(float(c) for c in plant.rotor_drag_n_s_per_m),
+                           float(plant.parasitic_drag_n_s2_per_m2), float(plant.rotor_drag_thrust_exponent))
+            self._J = tuple(float(j) for j in plant.inertia_kg_m2)
+            self._work = np.empty((5, NX))
+            self._force = np.zeros(4)
 
     def _deriv(self, x: np.ndarray, u: np.ndarray, F: Optional[np.ndarray]) -> np.ndarray:
         dx = self.f(x, u)
@@ -251,6 +262,17 @@ class _RpyStep:
         return dx
 
     def __call__(self, x: np.ndarray, u: np.ndarray, F, dt: float) -> np.ndarray:
+        if self._compiled:
+            out = np.array(x, dtype=float)
+            force = self._force
+            if F is None:
+                force[3] = 0.0
+            else:
+                force[:3] = F
+                force[3] = 1.0
+            rk4_step(out, float(u[0]), float(u[1]), float(u[2]), float(u[3]), force, self._plant, *self._J,
+                     float(dt), self._work)
+            return out
         k1 = self._deriv(x, u, F)
         k2 = self._deriv(x + 0.5 * dt * k1, u, F)
         k3 = self._deriv(x + 0.5 * dt * k2, u, F)
