@@ -5,7 +5,9 @@ optional drag of :mod:`mavreg.model.drag_kernel`) written out on scalars, the sa
 in the same order, for one run's inertia: given x (12,) and floats it fills ``out`` (12,).
 :func:`rk4_step` is one classical RK4 step of it, with an external force held over the step:
 what the batch simulator (:mod:`mavreg.sim.batch_kernel`) and the sequential one
-(:func:`mavreg.sim.closed_loop.simulate`, roll-pitch-yaw attitude) step the plant with.
+(:func:`mavreg.sim.closed_loop.simulate`, roll-pitch-yaw attitude) step the plant with;
+:func:`rk4_so3_step` the step with the attitude as a rotation matrix (the simulator's
+``attitude="so3"``). Both share :func:`body_rhs`, the body dynamics.
 ``tests/unit/test_quadrotor_kernel.py`` holds both to the numpy reference.
 """
 from __future__ import annotations
@@ -15,7 +17,7 @@ import numpy as np
 from ..accel import njit
 from .drag_kernel import body_drag, rotor_plane_scale
 
-__all__ = ["plant_rhs", "plant_rhs_compiled", "rk4_step", "angular_acceleration"]
+__all__ = ["plant_rhs", "plant_rhs_compiled", "body_rhs", "rk4_step", "rk4_so3_step", "angular_acceleration"]
 
 
 @njit
@@ -23,7 +25,6 @@ def plant_rhs(x, u0, u1, u2, u3, plant, jx, jy, jz, out):
     r"""dx/dt into ``out`` for state x and input :math:`u = (f, \gamma_1, \gamma_2, \gamma_3)`;
     ``plant`` = (mass, g, c_xy, c_z, c_parasitic, e), e the rotor-plane drag's thrust exponent
     (:func:`mavreg.model.drag_kernel.rotor_plane_scale`); jx, jy, jz: the run's inertia."""
-    m, g, cxy, cz, cpar, e = plant
     phi, theta, psi = x[3], x[4], x[5]
     v1, v2, v3 = x[6], x[7], x[8]
     p, q, r = x[9], x[10], x[11]
@@ -37,17 +38,27 @@ def plant_rhs(x, u0, u1, u2, u3, plant, jx, jy, jz, out):
     out[3] = p + sf * tt * q + cf * tt * r
     out[4] = cf * q + -sf * r
     out[5] = sf / ct * q + cf / ct * r
-    out[6] = r * v2 - q * v3 - g * st
-    out[7] = -r * v1 + p * v3 + g * sf * ct
-    out[8] = q * v1 - p * v2 + g * ct * cf - u0 / m
+    body_rhs(-st, ct * sf, ct * cf, v1, v2, v3, p, q, r, u0, u1, u2, u3, plant, jx, jy, jz, out, 6)
+
+
+@njit
+def body_rhs(d0, d1, d2, v1, v2, v3, p, q, r, u0, u1, u2, u3, plant, jx, jy, jz, out, at):
+    r"""dv/dt and d\omega/dt into ``out[at:at + 6]``:
+    :meth:`~mavreg.model.quadrotor.QuadrotorModel.body_derivatives` (eqs 7, 12-14 with drag)
+    with (d0, d1, d2) the third row of R (gravity's direction in the body frame), so for any
+    form of the attitude."""
+    m, g, cxy, cz, cpar, e = plant
+    out[at] = r * v2 - q * v3 + g * d0
+    out[at + 1] = -r * v1 + p * v3 + g * d1
+    out[at + 2] = q * v1 - p * v2 + g * d2 - u0 / m
     if cxy != 0.0 or cz != 0.0 or cpar != 0.0:
-        d1, d2, d3 = body_drag(v1, v2, v3, cxy * rotor_plane_scale(u0, m * g, e), cz, cpar)
-        out[6] = out[6] + d1 / m
-        out[7] = out[7] + d2 / m
-        out[8] = out[8] + d3 / m
-    out[9] = q * r * (jy - jz) / jx + u1 / jx
-    out[10] = p * r * (jz - jx) / jy + u2 / jy
-    out[11] = p * q * (jx - jy) / jz + u3 / jz
+        a1, a2, a3 = body_drag(v1, v2, v3, cxy * rotor_plane_scale(u0, m * g, e), cz, cpar)
+        out[at] = out[at] + a1 / m
+        out[at + 1] = out[at + 1] + a2 / m
+        out[at + 2] = out[at + 2] + a3 / m
+    out[at + 3] = q * r * (jy - jz) / jx + u1 / jx
+    out[at + 4] = p * r * (jz - jx) / jy + u2 / jy
+    out[at + 5] = p * q * (jx - jy) / jz + u3 / jz
 
 
 @njit
@@ -84,6 +95,53 @@ def rk4_step(x, u0, u1, u2, u3, force, plant, jx, jy, jz, dt, work):
     _force_rhs(y, u0, u1, u2, u3, force, plant, jx, jy, jz, k4)
     for j in range(12):
         x[j] = x[j] + sixth * (k1[j] + 2.0 * (k2[j] + k3[j]) + k4[j])
+
+
+@njit
+def _so3_rhs(y, u0, u1, u2, u3, force, plant, jx, jy, jz, out):
+    """y' of y = (p, R row-major, v, w) (18,): p' = R v, R' = R hat(w), the body dynamics
+    (:func:`body_rhs`) and ``force`` as in :func:`rk4_step`."""
+    v1, v2, v3, p, q, r = y[12], y[13], y[14], y[15], y[16], y[17]
+    for i in range(3):
+        a, b, c = y[3 + 3 * i], y[4 + 3 * i], y[5 + 3 * i]
+        out[i] = a * v1 + b * v2 + c * v3
+        out[3 + 3 * i] = b * r - c * q            # (R hat(w))[i] = (R[i] x ... ) row by row
+        out[4 + 3 * i] = -a * r + c * p
+        out[5 + 3 * i] = a * q - b * p
+    body_rhs(y[9], y[10], y[11], v1, v2, v3, p, q, r, u0, u1, u2, u3, plant, jx, jy, jz, out, 12)
+    if force[3] != 0.0:
+        for j in range(3):
+            out[12 + j] += y[3 + j] * force[0] + y[6 + j] * force[1] + y[9 + j] * force[2]
+
+
+@njit
+def rk4_so3_step(y, u0, u1, u2, u3, force, plant, jx, jy, jz, dt, work):
+    """One RK4 step, in place, of y = (p, R row-major, v, w) (18,) with the attitude as a
+    rotation matrix, then R brought back to SO(3) by one Newton step of the polar
+    decomposition, R (3 I - R^T R) / 2 (:class:`mavreg.sim.closed_loop._So3Step`'s numpy step,
+    the reference); ``force`` as in :func:`rk4_step`, ``work`` (5, 18) scratch."""
+    k1, k2, k3, k4, z = work[0], work[1], work[2], work[3], work[4]
+    _so3_rhs(y, u0, u1, u2, u3, force, plant, jx, jy, jz, k1)
+    for j in range(18):
+        z[j] = y[j] + 0.5 * dt * k1[j]
+    _so3_rhs(z, u0, u1, u2, u3, force, plant, jx, jy, jz, k2)
+    for j in range(18):
+        z[j] = y[j] + 0.5 * dt * k2[j]
+    _so3_rhs(z, u0, u1, u2, u3, force, plant, jx, jy, jz, k3)
+    for j in range(18):
+        z[j] = y[j] + dt * k3[j]
+    _so3_rhs(z, u0, u1, u2, u3, force, plant, jx, jy, jz, k4)
+    for j in range(18):
+        y[j] = y[j] + (k1[j] + 2.0 * (k2[j] + k3[j]) + k4[j]) * (dt / 6.0)
+    for i in range(3):                        # R^T R into z[0:9]
+        for j in range(3):
+            z[3 * i + j] = y[3 + i] * y[3 + j] + y[6 + i] * y[6 + j] + y[9 + i] * y[9 + j]
+    for i in range(3):                        # R (3 I - R^T R) / 2, row by row
+        a, b, c = y[3 + 3 * i], y[4 + 3 * i], y[5 + 3 * i]
+        for j in range(3):
+            k1[j] = (a * ((3.0 if j == 0 else 0.0) - z[j]) + b * ((3.0 if j == 1 else 0.0) - z[3 + j])
+                     + c * ((3.0 if j == 2 else 0.0) - z[6 + j])) / 2.0
+        y[3 + 3 * i], y[4 + 3 * i], y[5 + 3 * i] = k1[0], k1[1], k1[2]
 
 
 plant_rhs_compiled = plant_rhs

@@ -37,13 +37,10 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from ..accel import use_compiled
 from ..model.mixer import Mixer
 from ..model.quadrotor import NX, QuadrotorModel
-from ..model.quadrotor_kernel import rk4_step
-from ..model.rotation import matrix_to_rpy, rpy_to_matrix
 from ..model.rotor_lag import lag_decay, lag_toward, mean_fraction
-from ..model.so3 import hat
+from .plant_step import RpyStep, So3Step
 
 __all__ = ["SimOptions", "SimResult", "SimStatus", "simulate", "window_force"]
 
@@ -200,86 +197,6 @@ def _divergence(x: np.ndarray, opt: SimOptions) -> Optional[str]:
     return None
 
 
-class _So3Step:
-    """One RK4 step of the plant with its attitude as a rotation matrix.
-
-    The step integrates y = (p, R, v, w) with p' = R v, R' = R hat(w) and the body dynamics
-    of the design model (:meth:`QuadrotorModel.body_derivatives`); R is then brought back to
-    SO(3) by one Newton step of the polar decomposition, R (3 I - R^T R) / 2 (the RK4 drift
-    is O(dt^5) per step). The state in and out is the usual x, roll-pitch-yaw included; the
-    rotation is carried between steps, so roll-pitch-yaw is only ever read out, never
-    integrated.
-    """
-
-    def __init__(self, plant: QuadrotorModel):
-        self.plant = plant
-        self.R: Optional[np.ndarray] = None
-        self._x_last: Optional[np.ndarray] = None
-
-    def _deriv(self, R, v, w, u, F):
-        vdot, wdot = self.plant.body_derivatives(R[2], v, w, u)
-        if F is not None:
-            vdot = vdot + R.T @ F
-        return R @ v, R @ hat(w), vdot, wdot
-
-    def __call__(self, x: np.ndarray, u: np.ndarray, F, dt: float) -> np.ndarray:
-        if self.R is None or self._x_last is None or not np.array_equal(x, self._x_last):
-            self.R = rpy_to_matrix(x[3], x[4], x[5])
-        R, v, w = self.R, x[6:9], x[9:12]
-        k1 = self._deriv(R, v, w, u, F)
-        k2 = self._deriv(R + 0.5 * dt * k1[1], v + 0.5 * dt * k1[2], w + 0.5 * dt * k1[3], u, F)
-        k3 = self._deriv(R + 0.5 * dt * k2[1], v + 0.5 * dt * k2[2], w + 0.5 * dt * k2[3], u, F)
-        k4 = self._deriv(R + dt * k3[1], v + dt * k3[2], w + dt * k3[3], u, F)
-        d = [(a + 2.0 * (b + c) + e) * (dt / 6.0) for a, b, c, e in zip(k1, k2, k3, k4)]
-        R = R + d[1]
-        R = R @ (3.0 * np.eye(3) - R.T @ R) / 2.0
-        self.R = R
-        out = np.concatenate([x[0:3] + d[0], matrix_to_rpy(R), v + d[2], w + d[3]])
-        self._x_last = out
-        return out
-
-
-class _RpyStep:
-    """One classical RK4 step of the design model with roll-pitch-yaw integrated, an external
-    force over mass ``F`` (m/s^2, NED) held over the step: the compiled step
-    (:func:`~mavreg.model.quadrotor_kernel.rk4_step`) where numba is in use, else this
-    numpy one (the reference: ``tests/unit/test_quadrotor_kernel.py``)."""
-
-    def __init__(self, plant: QuadrotorModel, compiled: Optional[bool] = None):
-        self.f = plant.f
-        self._compiled = use_compiled(compiled, "plant step")
-        if self._compiled:
-            self._plant = (float(plant.mass_kg), float(plant.g), *(float(c) for c in plant.rotor_drag_n_s_per_m),
-                           float(plant.parasitic_drag_n_s2_per_m2), float(plant.rotor_drag_thrust_exponent))
-            self._J = tuple(float(j) for j in plant.inertia_kg_m2)
-            self._work = np.empty((5, NX))
-            self._force = np.zeros(4)
-
-    def _deriv(self, x: np.ndarray, u: np.ndarray, F: Optional[np.ndarray]) -> np.ndarray:
-        dx = self.f(x, u)
-        if F is not None:
-            dx[6:9] += rpy_to_matrix(x[3], x[4], x[5]).T @ F
-        return dx
-
-    def __call__(self, x: np.ndarray, u: np.ndarray, F, dt: float) -> np.ndarray:
-        if self._compiled:
-            out = np.array(x, dtype=float)
-            force = self._force
-            if F is None:
-                force[3] = 0.0
-            else:
-                force[:3] = F
-                force[3] = 1.0
-            rk4_step(out, float(u[0]), float(u[1]), float(u[2]), float(u[3]), force, self._plant, *self._J,
-                     float(dt), self._work)
-            return out
-        k1 = self._deriv(x, u, F)
-        k2 = self._deriv(x + 0.5 * dt * k1, u, F)
-        k3 = self._deriv(x + 0.5 * dt * k2, u, F)
-        k4 = self._deriv(x + dt * k3, u, F)
-        return x + (dt / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
-
-
 class _RotorLine:
     """A command's way to the rotors: the transport delay, the clip to [0, saturation], the
     rotor lag (:mod:`mavreg.model.rotor_lag`, its mean over each physics step applied) and
@@ -352,7 +269,7 @@ def simulate(model: QuadrotorModel, mixer: Mixer, controller: Controller,
     xs, cmd, app = np.empty((n_steps + 1, NX)), np.empty((n_steps + 1, 4)), np.empty((n_steps + 1, 4))
     inv_mass, force_fn = 1.0 / plant.mass_kg, opt.force_fn
     period = int(opt.control_period_steps)
-    step = _So3Step(plant) if opt.attitude == "so3" else _RpyStep(plant)
+    step = So3Step(plant) if opt.attitude == "so3" else RpyStep(plant)
     rotors = _RotorLine(opt, rng)
     x = np.array(opt.initial_state, dtype=float)
     xs[0] = x
