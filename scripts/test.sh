@@ -5,7 +5,8 @@
 #
 # The unit tests are pure or sans-I/O (an injected clock, no real-time flight), so they run
 # on two workers (pytest-xdist). The emulator and end-to-end tests start processes that talk
-# over UDP; they run one at a time, so that no two flights share the machine's cores.
+# over UDP; those marked `lockstep` (paced by the vehicle's clock alone) run two files at a
+# time, the others one at a time, so that no real-time flight shares the machine's cores.
 # With arguments, they are handed to one plain pytest run instead (e.g. `-k governor`).
 # Without, ruff and the import contracts (lint-imports) run first; a finding fails the run.
 set -euo pipefail
@@ -24,5 +25,9 @@ fi
 .venv/bin/lint-imports --no-cache > /dev/null || { .venv/bin/lint-imports --no-cache; exit 1; }
 status=0
 "${PYTEST[@]}" "${DURATIONS[@]}" -n 2 tests/unit || status=$?
-"${PYTEST[@]}" "${DURATIONS[@]}" tests/firmware_sim tests/sitl || status=$?
+# Flights paced by lockstep alone (marked `lockstep`) two files at a time: each is two processes
+# taking turns, about one core, and is judged on the vehicle's time; then the rest one at a time.
+"${PYTEST[@]}" "${DURATIONS[@]}" -n 2 --dist loadfile -m "lockstep and not slow" tests/firmware_sim tests/sitl \
+    || status=$?
+"${PYTEST[@]}" "${DURATIONS[@]}" -m "not lockstep and not slow" tests/firmware_sim tests/sitl || status=$?
 exit "$status"

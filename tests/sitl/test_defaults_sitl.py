@@ -12,7 +12,7 @@ import sys
 import pytest
 from tests.helpers.sitl import RECORD_FIELDS
 
-pytestmark = pytest.mark.sitl
+pytestmark = [pytest.mark.sitl, pytest.mark.lockstep]   # see pyproject.toml's markers
 
 
 def test_the_run_up_gust_and_7n_rotors_are_flown_ok_with_the_defaults(tmp_path):

@@ -14,7 +14,7 @@ from mavreg.daemon.jobs.ctrllog import load_control_log
 from mavreg.daemon.jobs.report import ground_truth_errors
 from tests.helpers.sitl import BARREL, VEHICLE_IDEAL, flight_modes, tilt_deg, vehicle_samples
 
-pytestmark = pytest.mark.sitl
+pytestmark = [pytest.mark.sitl, pytest.mark.lockstep]   # see pyproject.toml's markers
 
 OFFBOARD = 6 << 16
 

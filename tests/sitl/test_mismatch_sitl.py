@@ -16,7 +16,7 @@ import pytest
 from mavreg.config.paths import REAL_CONTROLLER
 from tests.helpers.sitl import BARREL, load_record, mavreg
 
-pytestmark = pytest.mark.sitl
+pytestmark = [pytest.mark.sitl, pytest.mark.lockstep]   # see pyproject.toml's markers
 
 
 @pytest.mark.slow          # 17 s; the 100-flight campaign (docs/robustness.md) and the unit tests of

@@ -24,7 +24,7 @@ from mavreg.planning.plan_io import plan_file
 from tests.helpers.sitl import load_record, mavreg
 from tests.helpers.repo import ROOT
 
-pytestmark = pytest.mark.sitl
+pytestmark = [pytest.mark.sitl, pytest.mark.lockstep]   # see pyproject.toml's markers
 NEAR = ROOT / "tests" / "sitl" / "barrel_roll_near.yaml"
 TRUE_HOVER_THRUST = 0.2013
 """The emulator's hover collective for mk_quadro under THR_MDL_FAC 0.3 (docs/firmware_sim.md)."""

@@ -21,7 +21,7 @@ from mavreg.daemon.jobs.report import ground_truth_errors
 from mavreg.sim.metrics import rotor_jitter_n
 from tests.helpers.sitl import BARREL, flight_modes, load_record, mavreg, vehicle_samples
 
-pytestmark = pytest.mark.sitl
+pytestmark = [pytest.mark.sitl, pytest.mark.lockstep]   # see pyproject.toml's markers
 
 
 def _fly(tmp, *args):

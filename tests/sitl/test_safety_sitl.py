@@ -21,7 +21,7 @@ from pymavlink import mavutil
 
 from tests.helpers.sitl import CONTROLLER, VEHICLE, load_record, mavreg, start_emulator
 
-pytestmark = pytest.mark.sitl
+pytestmark = [pytest.mark.sitl, pytest.mark.lockstep]   # see pyproject.toml's markers
 
 NEAR = Path(__file__).resolve().parent / "barrel_roll_near.yaml"
 DAEMON = 191

@@ -7,7 +7,9 @@
 - no module imports a test module for its functions (a helper is imported instead);
 - no fixed sleep stands for synchronization: a literal ``sleep(...)`` outside a loop waits
   for a time instead of a condition (:mod:`tests.helpers.waiting`). Sleeps inside a loop
-  (polling, pacing) and sleeps of a named duration (a fault's timing or length) are allowed.
+  (polling, pacing) and sleeps of a named duration (a fault's timing or length) are allowed;
+- a module marked ``lockstep`` (run two at a time by ``scripts/test.sh``) starts every
+  emulator and every ``mavreg fly`` or ``serve`` in lockstep.
 
 The negative controls run the same checks on generated sources.
 """
@@ -81,6 +83,22 @@ def _sources(*folders: str):
             yield path.relative_to(ROOT).as_posix(), path.read_text()
 
 
+def unpaced_flights(source: str, name: str) -> list[str]:
+    """In a module marked ``lockstep``: the ``start_emulator(...)`` and ``mavreg("fly" | "serve",
+    ...)`` calls with no ``--lockstep`` or ``--vehicle-lockstep`` among their literal arguments."""
+    if "pytest.mark.lockstep" not in source:
+        return []
+    bad = []
+    for node in ast.walk(ast.parse(source, name)):
+        if not (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)):
+            continue
+        consts = [a.value for a in node.args if isinstance(a, ast.Constant) and isinstance(a.value, str)]
+        starts = node.func.id == "start_emulator" or (node.func.id == "mavreg" and consts[:1] in (["fly"], ["serve"]))
+        if starts and not any(c in ("--lockstep", "--vehicle-lockstep") for c in consts):
+            bad.append(f"{name}:{node.lineno}: {node.func.id}(...) without --lockstep")
+    return bad
+
+
 def test_shared_code_lives_in_tests_helpers():
     rels = [p.relative_to(ROOT).as_posix() for p in sorted((ROOT / "tests").rglob("*.py"))]
     assert misplaced(rels) == []
@@ -106,7 +124,18 @@ def test_no_test_waits_a_fixed_time_for_something_to_happen():
     assert found == []
 
 
+def test_modules_run_two_at_a_time_fly_only_in_lockstep():
+    found = [f for rel, src in _sources("tests") for f in unpaced_flights(src, rel)]
+    marked = [rel for rel, src in _sources("tests") if "pytest.mark.lockstep" in src]
+    assert found == [] and len(marked) >= 5, (found, marked)
+
+
 def test_the_checks_see_what_they_forbid():
+    src = ("import pytest\npytestmark = pytest.mark.lockstep\n"
+           "a = start_emulator(rec, '--lockstep')\nb = mavreg('fly', 'x.yaml', '--vehicle', url)\n"
+           "c = mavreg('identify', 'out')\n")
+    assert [f.split(": ")[0] for f in unpaced_flights(src, "m.py")] == ["m.py:4"]
+    assert unpaced_flights(src.replace("pytest.mark.lockstep", "pytest.mark.sitl"), "m.py") == []
     assert misplaced(["tests/sitl/sitl_helpers.py", "tests/unit/test_x.py", "tests/helpers/x.py",
                       "tests/sitl/conftest.py", "tests/data/hostile/generate.py"]) == ["tests/sitl/sitl_helpers.py"]
     src = "from test_state import pos\nimport tests.unit.test_plots\nfrom tests.helpers.sitl import Proc\n"
