@@ -62,37 +62,44 @@ def body_rhs(d0, d1, d2, v1, v2, v3, p, q, r, u0, u1, u2, u3, plant, jx, jy, jz,
 
 
 @njit
-def _force_rhs(x, u0, u1, u2, u3, force, plant, jx, jy, jz, out):
-    """:func:`plant_rhs` plus, when ``force[3]`` is not 0, the external acceleration
-    ``force[:3]`` (NED, m/s^2) in the body frame, :math:`R^T a`."""
-    plant_rhs(x, u0, u1, u2, u3, plant, jx, jy, jz, out)
-    if force[3] != 0.0:
-        cf, sf = np.cos(x[3]), np.sin(x[3])
-        ct, st = np.cos(x[4]), np.sin(x[4])
-        cp, sp = np.cos(x[5]), np.sin(x[5])
-        a0, a1, a2 = force[0], force[1], force[2]
-        out[6] += cp * ct * a0 + sp * ct * a1 + -st * a2
-        out[7] += (-sp * cf + cp * st * sf) * a0 + (cp * cf + sp * st * sf) * a1 + ct * sf * a2
-        out[8] += (sp * sf + cp * st * cf) * a0 + (-cp * sf + sp * st * cf) * a1 + ct * cf * a2
+def _add_force(x, force, out):
+    """``out[6:9]`` += :math:`R^T a`: the external acceleration a = ``force[:3]`` (NED, m/s^2)
+    in the body frame."""
+    cf, sf = np.cos(x[3]), np.sin(x[3])
+    ct, st = np.cos(x[4]), np.sin(x[4])
+    cp, sp = np.cos(x[5]), np.sin(x[5])
+    a0, a1, a2 = force[0], force[1], force[2]
+    out[6] += cp * ct * a0 + sp * ct * a1 + -st * a2
+    out[7] += (-sp * cf + cp * st * sf) * a0 + (cp * cf + sp * st * sf) * a1 + ct * sf * a2
+    out[8] += (sp * sf + cp * st * cf) * a0 + (-cp * sf + sp * st * cf) * a1 + ct * cf * a2
 
 
 @njit
 def rk4_step(x, u0, u1, u2, u3, force, plant, jx, jy, jz, dt, work):
     """One classical RK4 step of :func:`plant_rhs` from x, in place: the input held, and the
     external acceleration ``force`` = (a_N, a_E, a_D, on) held too (``on`` 0: none);
-    ``work`` (5, 12) is scratch."""
-    k1, k2, k3, k4, y = work[0], work[1], work[2], work[3], work[4]
+    ``work`` is scratch: a tuple of five (12,) arrays."""
+    k1, k2, k3, k4, y = work
     half, sixth = 0.5 * dt, dt / 6.0
-    _force_rhs(x, u0, u1, u2, u3, force, plant, jx, jy, jz, k1)
+    pushed = force[3] != 0.0
+    plant_rhs(x, u0, u1, u2, u3, plant, jx, jy, jz, k1)
+    if pushed:
+        _add_force(x, force, k1)
     for j in range(12):
         y[j] = x[j] + half * k1[j]
-    _force_rhs(y, u0, u1, u2, u3, force, plant, jx, jy, jz, k2)
+    plant_rhs(y, u0, u1, u2, u3, plant, jx, jy, jz, k2)
+    if pushed:
+        _add_force(y, force, k2)
     for j in range(12):
         y[j] = x[j] + half * k2[j]
-    _force_rhs(y, u0, u1, u2, u3, force, plant, jx, jy, jz, k3)
+    plant_rhs(y, u0, u1, u2, u3, plant, jx, jy, jz, k3)
+    if pushed:
+        _add_force(y, force, k3)
     for j in range(12):
         y[j] = x[j] + dt * k3[j]
-    _force_rhs(y, u0, u1, u2, u3, force, plant, jx, jy, jz, k4)
+    plant_rhs(y, u0, u1, u2, u3, plant, jx, jy, jz, k4)
+    if pushed:
+        _add_force(y, force, k4)
     for j in range(12):
         x[j] = x[j] + sixth * (k1[j] + 2.0 * (k2[j] + k3[j]) + k4[j])
 
@@ -119,8 +126,8 @@ def rk4_so3_step(y, u0, u1, u2, u3, force, plant, jx, jy, jz, dt, work):
     """One RK4 step, in place, of y = (p, R row-major, v, w) (18,) with the attitude as a
     rotation matrix, then R brought back to SO(3) by one Newton step of the polar
     decomposition, R (3 I - R^T R) / 2 (:class:`mavreg.sim.closed_loop._So3Step`'s numpy step,
-    the reference); ``force`` as in :func:`rk4_step`, ``work`` (5, 18) scratch."""
-    k1, k2, k3, k4, z = work[0], work[1], work[2], work[3], work[4]
+    the reference); ``force`` as in :func:`rk4_step`, ``work`` five (18,) arrays of scratch."""
+    k1, k2, k3, k4, z = work
     _so3_rhs(y, u0, u1, u2, u3, force, plant, jx, jy, jz, k1)
     for j in range(18):
         z[j] = y[j] + 0.5 * dt * k1[j]

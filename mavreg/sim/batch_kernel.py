@@ -61,7 +61,7 @@ def _fly(r, x, st, status, k_end, xs, cmd, app, step, M, plant, J, upper, noise,
     acting = np.zeros(4)
     applied = np.zeros(4)
     ns = np.zeros(4)
-    work = np.empty((5, 12))
+    work = (np.empty(12), np.empty(12), np.empty(12), np.empty(12), np.empty(12))
     no_force = np.zeros(4)
     s = st[0]
     calls = 0

@@ -84,7 +84,7 @@ class KernelArgs:
         self.plant = (float(plant.mass_kg), float(plant.g), *(float(c) for c in plant.rotor_drag_n_s_per_m),
                       float(plant.parasitic_drag_n_s2_per_m2), float(plant.rotor_drag_thrust_exponent))
         self.J = tuple(float(j) for j in plant.inertia_kg_m2)
-        self.work = np.empty((5, width))
+        self.work = tuple(np.empty(width) for _ in range(5))
         self._force = np.zeros(4)
 
     def force_of(self, F) -> np.ndarray:
