@@ -81,27 +81,26 @@ def rk4_step(x, u0, u1, u2, u3, force, plant, jx, jy, jz, dt, work):
     ``work`` is scratch: a tuple of five (12,) arrays."""
     k1, k2, k3, k4, y = work
     half, sixth = 0.5 * dt, dt / 6.0
-    pushed = force[3] != 0.0
-    plant_rhs(x, u0, u1, u2, u3, plant, jx, jy, jz, k1)
-    if pushed:
-        _add_force(x, force, k1)
+    _rhs(x, u0, u1, u2, u3, force, plant, jx, jy, jz, k1)
     for j in range(12):
         y[j] = x[j] + half * k1[j]
-    plant_rhs(y, u0, u1, u2, u3, plant, jx, jy, jz, k2)
-    if pushed:
-        _add_force(y, force, k2)
+    _rhs(y, u0, u1, u2, u3, force, plant, jx, jy, jz, k2)
     for j in range(12):
         y[j] = x[j] + half * k2[j]
-    plant_rhs(y, u0, u1, u2, u3, plant, jx, jy, jz, k3)
-    if pushed:
-        _add_force(y, force, k3)
+    _rhs(y, u0, u1, u2, u3, force, plant, jx, jy, jz, k3)
     for j in range(12):
         y[j] = x[j] + dt * k3[j]
-    plant_rhs(y, u0, u1, u2, u3, plant, jx, jy, jz, k4)
-    if pushed:
-        _add_force(y, force, k4)
+    _rhs(y, u0, u1, u2, u3, force, plant, jx, jy, jz, k4)
     for j in range(12):
         x[j] = x[j] + sixth * (k1[j] + 2.0 * (k2[j] + k3[j]) + k4[j])
+
+
+@njit
+def _rhs(x, u0, u1, u2, u3, force, plant, jx, jy, jz, out):
+    """:func:`plant_rhs`, and the external acceleration when ``force[3]`` is not 0."""
+    plant_rhs(x, u0, u1, u2, u3, plant, jx, jy, jz, out)
+    if force[3] != 0.0:
+        _add_force(x, force, out)
 
 
 @njit
