@@ -4,8 +4,8 @@ Every run is complete in its :class:`~.definitions.RunSpec` (seeds included), is
 one worker from scratch (each worker plans the maneuver once and keeps the plan), and comes
 back as a :class:`RunOutcome`; the outcomes are put back in run order. ``sim`` runs that
 the batch simulator flies (the paper's groups: :mod:`.via_batch`) are flown first, in this
-process, in one compiled batch per plan, each record the sequential simulator's to 1e-9. So the results
-depend on the experiment's seed alone, not on ``jobs`` nor on which worker finished first
+process, in one compiled batch per plan, each record the sequential simulator's to 1e-9.
+So the results depend on the experiment's seed alone, not on ``jobs`` nor on which worker finished first
 (tests/unit/test_experiment_runner.py). ``jobs = 1`` flies in this process.
 
 Workers are ``spawn``-ed processes bound to this one (:mod:`mavreg.daemon.jobs.lifeline`): they,
@@ -126,16 +126,18 @@ def _fly_batched(exp: Experiment, todo: list, done) -> list:
     handing each outcome to ``done``; the jobs left for one at a time."""
     from ..config.controller import load_controller
     from .via_batch import batchable, fly_batches
+    def plan_of(spec):
+        return _plan_of(exp, spec)
+
     try:
-        batch = [job for job in todo if batchable(exp, job.spec, _plan_of(exp, job.spec))]
+        batch = [job for job in todo if batchable(exp, job.spec, plan_of)]
     except Exception:                              # a plan that fails fails its runs one by one
         return todo
     if not batch:
         return todo
     specs = [job.spec for job in batch]
     try:
-        flown = fly_batches(exp, specs, lambda spec: _plan_of(exp, spec),
-                            load_controller(Path(exp.controller_path)))
+        flown = fly_batches(exp, specs, plan_of, load_controller(Path(exp.controller_path)))
     except Exception:          # a run the batch refuses (a bad inertia): each flown alone, its error its own
         return todo
     for spec, flight in flown:

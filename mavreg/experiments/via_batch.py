@@ -41,11 +41,12 @@ class BatchGroup:
     extra_time_s: float
 
 
-def batchable(exp: Experiment, spec: RunSpec, plan) -> bool:
-    """Whether the batch simulator flies ``spec`` as :func:`~.via_sim.fly_sim` would."""
+def batchable(exp: Experiment, spec: RunSpec, plan_of: Callable[[RunSpec], object]) -> bool:
+    """Whether the batch simulator flies ``spec`` as :func:`~.via_sim.fly_sim` would
+    (``plan_of(spec)``, its plan, is asked for last: only a run that could batch is planned)."""
     return (accel.ACCELERATED and exp.kind != ROBUSTNESS
             and spec.controller == REGULATOR and spec.gust_force_n is None and not spec.start_s_m
-            and spec.max_time_s is None and plan.K.shape[-1] == 11)
+            and spec.max_time_s is None and plan_of(spec).K.shape[-1] == 11)
 
 
 def _group(exp: Experiment, spec: RunSpec, plan) -> BatchGroup:
