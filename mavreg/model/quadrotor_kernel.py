@@ -124,7 +124,7 @@ def _so3_rhs(y, u0, u1, u2, u3, force, plant, jx, jy, jz, out):
 def rk4_so3_step(y, u0, u1, u2, u3, force, plant, jx, jy, jz, dt, work):
     """One RK4 step, in place, of y = (p, R row-major, v, w) (18,) with the attitude as a
     rotation matrix, then R brought back to SO(3) by one Newton step of the polar
-    decomposition, R (3 I - R^T R) / 2 (:class:`mavreg.sim.closed_loop._So3Step`'s numpy step,
+    decomposition, R (3 I - R^T R) / 2 (:class:`mavreg.sim.plant_step.So3Step`'s numpy step,
     the reference); ``force`` as in :func:`rk4_step`, ``work`` five (18,) arrays of scratch."""
     k1, k2, k3, k4, z = work
     _so3_rhs(y, u0, u1, u2, u3, force, plant, jx, jy, jz, k1)

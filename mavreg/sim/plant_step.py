@@ -63,7 +63,6 @@ class So3Step:
         self._x_last = out
         return out
 
-
     def _compiled(self, x: np.ndarray, u: np.ndarray, F, dt: float) -> np.ndarray:
         """The step by :func:`~mavreg.model.quadrotor_kernel.rk4_so3_step`."""
         k = self._kernel
@@ -88,6 +87,7 @@ class KernelArgs:
         self._force = np.zeros(4)
 
     def force_of(self, F) -> np.ndarray:
+        """The kernels' force argument for ``F`` (m/s^2, NED; None: no force)."""
         if F is None:
             self._force[3] = 0.0
         else:
