@@ -16,6 +16,7 @@ import numpy as np
 
 from ..accel import njit
 from .drag_kernel import body_drag, rotor_plane_scale
+from .rotation_kernel import mm, mtm, mtv, mv, rpy_matrix
 
 __all__ = ["plant_rhs", "plant_rhs_compiled", "body_rhs", "rk4_step", "rk4_so3_step", "angular_acceleration"]
 
@@ -65,13 +66,10 @@ def body_rhs(d0, d1, d2, v1, v2, v3, p, q, r, u0, u1, u2, u3, plant, jx, jy, jz,
 def _add_force(x, force, out):
     """``out[6:9]`` += :math:`R^T a`: the external acceleration a = ``force[:3]`` (NED, m/s^2)
     in the body frame."""
-    cf, sf = np.cos(x[3]), np.sin(x[3])
-    ct, st = np.cos(x[4]), np.sin(x[4])
-    cp, sp = np.cos(x[5]), np.sin(x[5])
-    a0, a1, a2 = force[0], force[1], force[2]
-    out[6] += cp * ct * a0 + sp * ct * a1 + -st * a2
-    out[7] += (-sp * cf + cp * st * sf) * a0 + (cp * cf + sp * st * sf) * a1 + ct * sf * a2
-    out[8] += (sp * sf + cp * st * cf) * a0 + (-cp * sf + sp * st * cf) * a1 + ct * cf * a2
+    b0, b1, b2 = mtv(rpy_matrix(x[3], x[4], x[5]), force[0], force[1], force[2])
+    out[6] += b0
+    out[7] += b1
+    out[8] += b2
 
 
 @njit
@@ -108,16 +106,19 @@ def _so3_rhs(y, u0, u1, u2, u3, force, plant, jx, jy, jz, out):
     """y' of y = (p, R row-major, v, w) (18,): p' = R v, R' = R hat(w), the body dynamics
     (:func:`body_rhs`) and ``force`` as in :func:`rk4_step`."""
     v1, v2, v3, p, q, r = y[12], y[13], y[14], y[15], y[16], y[17]
-    for i in range(3):
+    R = y[3:12]
+    out[0], out[1], out[2] = mv(R, v1, v2, v3)
+    for i in range(3):                            # R hat(w), row by row
         a, b, c = y[3 + 3 * i], y[4 + 3 * i], y[5 + 3 * i]
-        out[i] = a * v1 + b * v2 + c * v3
-        out[3 + 3 * i] = b * r - c * q            # (R hat(w))[i] = (R[i] x ... ) row by row
+        out[3 + 3 * i] = b * r - c * q
         out[4 + 3 * i] = -a * r + c * p
         out[5 + 3 * i] = a * q - b * p
     body_rhs(y[9], y[10], y[11], v1, v2, v3, p, q, r, u0, u1, u2, u3, plant, jx, jy, jz, out, 12)
     if force[3] != 0.0:
-        for j in range(3):
-            out[12 + j] += y[3 + j] * force[0] + y[6 + j] * force[1] + y[9 + j] * force[2]
+        b0, b1, b2 = mtv(R, force[0], force[1], force[2])
+        out[12] += b0
+        out[13] += b1
+        out[14] += b2
 
 
 @njit
@@ -139,15 +140,13 @@ def rk4_so3_step(y, u0, u1, u2, u3, force, plant, jx, jy, jz, dt, work):
     _so3_rhs(z, u0, u1, u2, u3, force, plant, jx, jy, jz, k4)
     for j in range(18):
         y[j] = y[j] + (k1[j] + 2.0 * (k2[j] + k3[j]) + k4[j]) * (dt / 6.0)
-    for i in range(3):                        # R^T R into z[0:9]
-        for j in range(3):
-            z[3 * i + j] = y[3 + i] * y[3 + j] + y[6 + i] * y[6 + j] + y[9 + i] * y[9 + j]
-    for i in range(3):                        # R (3 I - R^T R) / 2, row by row
-        a, b, c = y[3 + 3 * i], y[4 + 3 * i], y[5 + 3 * i]
-        for j in range(3):
-            k1[j] = (a * ((3.0 if j == 0 else 0.0) - z[j]) + b * ((3.0 if j == 1 else 0.0) - z[3 + j])
-                     + c * ((3.0 if j == 2 else 0.0) - z[6 + j])) / 2.0
-        y[3 + 3 * i], y[4 + 3 * i], y[5 + 3 * i] = k1[0], k1[1], k1[2]
+    R = y[3:12]
+    M = mtm(R, R)
+    for j in range(9):                        # 3 I - R^T R
+        z[j] = (3.0 if j % 4 == 0 else 0.0) - M[j]
+    P = mm(R, z)
+    for j in range(9):
+        y[3 + j] = P[j] / 2.0
 
 
 plant_rhs_compiled = plant_rhs
