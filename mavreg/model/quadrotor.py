@@ -65,6 +65,14 @@ class QuadrotorModel:
         return self.mass_kg * self.g
 
     @property
+    def kernel_params(self) -> tuple[float, float, float, float, float, float]:
+        """``(mass, g, c_xy, c_z, c_parasitic, e)``: the ``plant`` argument of the compiled
+        kernels (:mod:`mavreg.model.quadrotor_kernel`)."""
+        cxy, cz = (float(c) for c in self.rotor_drag_n_s_per_m)
+        return (float(self.mass_kg), float(self.g), cxy, cz, float(self.parasitic_drag_n_s2_per_m2),
+                float(self.rotor_drag_thrust_exponent))
+
+    @property
     def has_drag(self) -> bool:
         return any(self.rotor_drag_n_s_per_m) or self.parasitic_drag_n_s2_per_m2 > 0
 

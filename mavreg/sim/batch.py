@@ -35,14 +35,13 @@ from typing import Optional, Sequence
 import numpy as np
 
 from ..accel import use_compiled
-from ..config.vehicle import G
 from ..config.regulation import AllocationParams, SpeedGovernorParams
 from ..control.controllers.regulator import ManeuverRegulator
 from ..control.controllers.step_kernel import ST_S
 from ..control.estimation.lag_in_effect import RotorLagInEffect
 from ..maneuver.plan import Plan
 from ..model.mixer import Mixer
-from ..model.quadrotor import NX
+from ..model.quadrotor import NX, QuadrotorModel
 from . import batch_kernel
 from .batch_kernel import BAD_COMMAND, COMPLETED, DIVERGED, RUNNING
 from .closed_loop import SimOptions, SimResult, SimStatus, _divergence
@@ -147,8 +146,6 @@ def _fly_compiled(plan: Plan, runs: Sequence[BatchRun], steps: int, dt_s: float,
         elif S[r] >= plan.length_m - 1e-6:
             status[r] = COMPLETED
     J = np.array([o.inertia_kg_m2 or tuple(vehicle.inertia_kg_m2) for o in options])
-    cxy, cz = (float(c) for c in vehicle.rotor_drag_n_s_per_m)
-    mass, cpar = float(vehicle.mass_kg), float(vehicle.parasitic_drag_n_s2_per_m2)
     upper = np.array([np.inf if o.saturation_n is None else float(o.saturation_n) for o in options])
     noise = _noise(options, -(-n_steps // steps))
     xs = np.empty((n, n_steps + 1, NX))
@@ -161,7 +158,7 @@ def _fly_compiled(plan: Plan, runs: Sequence[BatchRun], steps: int, dt_s: float,
     ST = np.zeros((n, fs.state.size))   # each run's step state, reset to its s
     ST[:, ST_S] = S
     batch_kernel.run(X, ST, status, k_end, xs, cmd, app, (fs.table, fs.s_tab, fs.s_nodes, fs.coef, fs.ends,
-                                                             fs.prm), M, (mass, G, cxy, cz, cpar, float(vehicle.rotor_drag_thrust_exponent)), J, upper,
+                                                             fs.prm), M, QuadrotorModel.from_vehicle(vehicle).kernel_params, J, upper,
                        noise, 1.0, float(dt_s), steps, limits)
     ts = np.arange(n_steps + 1) * dt_s
     return [_result(ts, xs[r], cmd[r], app[r], int(status[r]), int(k_end[r]), steps, o)

@@ -80,8 +80,7 @@ class KernelArgs:
     scratch, and the external acceleration held over the step (``(a_N, a_E, a_D, on)``)."""
 
     def __init__(self, plant: QuadrotorModel, width: int):
-        self.plant = (float(plant.mass_kg), float(plant.g), *(float(c) for c in plant.rotor_drag_n_s_per_m),
-                      float(plant.parasitic_drag_n_s2_per_m2), float(plant.rotor_drag_thrust_exponent))
+        self.plant = plant.kernel_params
         self.J = tuple(float(j) for j in plant.inertia_kg_m2)
         self.work = tuple(np.empty(width) for _ in range(5))
         self._force = np.zeros(4)
