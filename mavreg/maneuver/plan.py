@@ -123,10 +123,8 @@ class Plan:
 
     def nominal_state(self, s: float) -> np.ndarray:
         """x(s), cubic Hermite between grid nodes (clamped to the ends)."""
-        s = float(np.clip(s, self.s[0], self.s[-1]))
-        i = int(np.clip(np.searchsorted(self.s, s) - 1, 0, len(self.s) - 2))
+        i, u = self._rows(float(s))
         h = self.s[i + 1] - self.s[i]
-        u = (s - self.s[i]) / h
         h00, h10 = 2 * u ** 3 - 3 * u ** 2 + 1, u ** 3 - 2 * u ** 2 + u
         h01, h11 = -2 * u ** 3 + 3 * u ** 2, u ** 3 - u ** 2
         return (h00 * self.x[i] + h10 * h * self.dx[i] + h01 * self.x[i + 1]
