@@ -137,7 +137,7 @@ def _fly_batched(exp: Experiment, todo: list, done) -> list:
         return todo
     specs = [job.spec for job in batch]
     try:
-        flown = fly_batches(exp, specs, plan_of, load_controller(Path(exp.controller_path)))
+        flown = fly_batches(specs, plan_of, load_controller(Path(exp.controller_path)))
     except Exception:          # a run the batch refuses (a bad inertia): each flown alone, its error its own
         return todo
     for spec, flight in flown:

@@ -9,14 +9,12 @@ hundredths of a second a run instead of seconds. A run it cannot fly goes to
 maneuver, a set duration, lag-aware gains, a robustness campaign (its realistic-like world),
 or where numba is not in use.
 
-Runs batch together when they share the plan (maneuver and laps), the regulator as the
-controller file and the told rotor limit make it, and the time allowed. Pure: plans in,
+Runs batch together when they share the plan (the same plan object: maneuver and laps), the
+regulator as the controller file and the told rotor limit make it, and the time allowed. Pure: plans in,
 records out.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-from pathlib import Path
 from typing import Callable, Sequence
 
 from .. import accel
@@ -28,17 +26,7 @@ from .record import Flight
 from .robustness import ROBUSTNESS
 from .via_sim import CONTROL_PERIOD_S, flight_from_result, max_time_s
 
-__all__ = ["batchable", "fly_batches", "BatchGroup"]
-
-
-@dataclass(frozen=True)
-class BatchGroup:
-    """Runs that fly in one batch: their plan's key, the regulator's settings, the time allowed."""
-
-    maneuver_path: Path
-    laps: int
-    told_limit_n: float | None
-    extra_time_s: float
+__all__ = ["batchable", "fly_batches"]
 
 
 def batchable(exp: Experiment, spec: RunSpec, plan_of: Callable[[RunSpec], object]) -> bool:
@@ -49,29 +37,26 @@ def batchable(exp: Experiment, spec: RunSpec, plan_of: Callable[[RunSpec], objec
             and spec.max_time_s is None and plan_of(spec).K.shape[-1] == 11)
 
 
-def _group(exp: Experiment, spec: RunSpec, plan) -> BatchGroup:
-    maneuver = Path(getattr(spec, "maneuver_path", None) or exp.maneuver_path)
-    return BatchGroup(maneuver, spec.laps, spec.saturation_n, max_time_s(plan, spec) - plan.duration_s)
-
-
-def fly_batches(exp: Experiment, specs: Sequence[RunSpec], plan_of: Callable[[RunSpec], object],
+def fly_batches(specs: Sequence[RunSpec], plan_of: Callable[[RunSpec], object],
                 controller: ControllerParams) -> list[tuple[RunSpec, Flight]]:
     """Fly ``specs`` (each :func:`batchable`) in batches; (spec, flight) in ``specs``' order.
 
-    ``plan_of(spec)`` gives a run's plan; ``controller`` is the campaign's controller file,
-    whose allocation (told each run's rotor limit) and speed governor the regulator takes.
+    ``plan_of(spec)`` gives a run's plan (the same object for the runs that share it);
+    ``controller`` is the campaign's controller file, whose allocation (told each run's rotor
+    limit) and speed governor the regulator takes.
     """
-    groups: dict[BatchGroup, list[RunSpec]] = {}
+    groups: dict[tuple, tuple[object, list[RunSpec]]] = {}
     for spec in specs:
-        groups.setdefault(_group(exp, spec, plan_of(spec)), []).append(spec)
+        plan = plan_of(spec)
+        key = (id(plan), spec.saturation_n, max_time_s(plan, spec) - plan.duration_s)
+        groups.setdefault(key, (plan, []))[1].append(spec)
     flown: dict[int, Flight] = {}
-    for key, members in groups.items():
-        plan = plan_of(members[0])
+    for (_, told_limit_n, extra_time_s), (plan, members) in groups.items():
         runs = [BatchRun(tuple(s.offset_m), s.inertia_kg_m2, s.rotor_noise_sd_n, s.saturation_n, s.seed)
                 for s in members]
         results = fly_batch(plan, runs, control_rate_hz=1.0 / CONTROL_PERIOD_S, dt_s=CONTROL_PERIOD_S,
-                            extra_time_s=key.extra_time_s, compiled=True,
-                            allocation=told_rotor_limit(controller.allocation, key.told_limit_n),
+                            extra_time_s=extra_time_s, compiled=True,
+                            allocation=told_rotor_limit(controller.allocation, told_limit_n),
                             speed_governor=controller.speed_governor)
         for spec, res in zip(members, results):
             flown[spec.index] = flight_from_result(res, spec.saturation_n)

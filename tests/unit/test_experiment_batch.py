@@ -67,7 +67,7 @@ def test_batched_runs_give_the_numbers_of_runs_flown_one_at_a_time(tmp_path, mon
     exp = Experiment("little", "a short loop", kind, 0, runs, maneuver_path=maneuver, controller_path=controller)
     flown = []
     real = via_batch.fly_batches
-    monkeypatch.setattr(via_batch, "fly_batches", lambda *a: flown.extend(a[1]) or real(*a))
+    monkeypatch.setattr(via_batch, "fly_batches", lambda *a: flown.extend(a[0]) or real(*a))
     batched = run_experiment(exp, "sim", 1, progress=None)
     assert sorted(s.index for s in flown) == [0, 1, 2, 3]           # every run went through the batch
     monkeypatch.setattr(via_batch, "batchable", lambda *a: False)
