@@ -18,6 +18,7 @@ import numpy as np
 from ..geometry.projection import Projector
 from ..model.mixer import mixer_matrix
 from ..model.rotation import matrix_to_rpy
+from ..model.so3 import rotation_angle_deg
 
 __all__ = ["Flight", "Trace", "truth_trace"]
 
@@ -82,9 +83,7 @@ def truth_trace(plan, flight: Flight) -> Trace:
     s, e = Projector(plan.path).series(flight.position_m)
     R = np.asarray(flight.rotation, dtype=float).reshape(k, 3, 3)
     if k:
-        Rn = plan.nominal_attitudes(s)                  # clamped to [0, length]
-        c = (np.einsum("kij,kij->k", Rn, R) - 1.0) / 2.0
-        att = np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
+        att = rotation_angle_deg(plan.nominal_attitudes(s), R)     # clamped to [0, length]
         rpy = matrix_to_rpy(R)                          # (K, 3)
         rpy[:, 0] = np.unwrap(rpy[:, 0])
         rpy[:, 2] = np.unwrap(rpy[:, 2])

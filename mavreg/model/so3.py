@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["hat", "vee", "exp_so3", "log_so3", "right_jacobian_inv", "attitude_error",
+__all__ = ["hat", "vee", "exp_so3", "log_so3", "right_jacobian_inv", "attitude_error", "rotation_angle_deg",
            "project_to_so3"]
 
 _SMALL = 1e-4
@@ -106,6 +106,13 @@ def right_jacobian_inv(v) -> np.ndarray:
 def attitude_error(R_nominal, R) -> np.ndarray:
     """e = Log(R_nominal^T R), the body's rotation from the nominal in the nominal's frame."""
     return log_so3(np.swapaxes(np.asarray(R_nominal), -1, -2) @ np.asarray(R))
+
+
+def rotation_angle_deg(R_nominal, R) -> np.ndarray:
+    """The angle (deg) of the rotation from ``R_nominal`` to ``R`` (..., 3, 3):
+    :math:`\\arccos((\\mathrm{tr}(\\bar R^T R) - 1)/2)`, the cosine clipped to [-1, 1]."""
+    c = (np.einsum("...ij,...ij->...", np.asarray(R_nominal), np.asarray(R)) - 1.0) / 2.0
+    return np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
 
 
 def project_to_so3(M) -> np.ndarray:

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..geometry.projection import Projector
 from ..model.rotation import quats_to_matrices
+from ..model.so3 import rotation_angle_deg
 
 __all__ = ["true_errors", "true_error_series", "quats_to_matrices"]
 
@@ -48,8 +49,7 @@ def true_error_series(plan, positions_m, rotations=None, velocities_m_s=None) ->
     out = {"index": keep, "s_m": s_all[keep], "transverse_m": e_all[keep]}
     if rotations is not None:
         Rt = np.asarray(rotations, dtype=float).reshape(-1, 3, 3)[keep]
-        c = (np.einsum("kij,kij->k", plan.nominal_attitudes(out["s_m"]), Rt) - 1.0) / 2.0
-        out["attitude_deg"] = np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
+        out["attitude_deg"] = rotation_angle_deg(plan.nominal_attitudes(out["s_m"]), Rt)
     if velocities_m_s is not None:
         speed = np.linalg.norm(np.asarray(velocities_m_s, dtype=float).reshape(-1, 3)[keep], axis=1)
         out["speed_excess_m_s"] = speed - np.interp(out["s_m"], plan.s, plan.speed_m_s)
